@@ -1,0 +1,138 @@
+// layertrace — the command-line interface of DESIGN.md.
+// Exit status: 0 success, 2 bad input (one line naming the input and value), 1 internal error.
+#include <cmath>
+#include <iostream>
+#include <memory>
+#include <sstream>
+
+#include <CLI/CLI.hpp>
+#include <tbb/global_control.h>
+
+#include "layertrace/app/commands.h"
+#include "layertrace/util/error.h"
+
+namespace {
+
+using lt::inputError;
+
+std::vector<float> parseNumbers(const std::string& option, const std::string& text, size_t minCount, size_t maxCount) {
+  std::vector<float> v;
+  std::stringstream ss(text);
+  std::string item;
+  while (std::getline(ss, item, ',')) {
+    try {
+      size_t used = 0;
+      const float f = std::stof(item, &used);
+      if (used != item.size() || !std::isfinite(f)) throw std::invalid_argument(item);
+      v.push_back(f);
+    } catch (const std::exception&) {
+      inputError(option, " ", text, ": \"", item, "\" is not a number");
+    }
+  }
+  if (v.size() < minCount || v.size() > maxCount)
+    inputError(option, " ", text, ": expected ", minCount == maxCount ? std::to_string(minCount) : lt::cat(minCount, " or ", maxCount),
+               " comma-separated numbers");
+  return v;
+}
+
+glm::vec3 parseVec3(const std::string& option, const std::string& text) {
+  const auto v = parseNumbers(option, text, 3, 3);
+  return {v[0], v[1], v[2]};
+}
+
+/// Raw strings of the vector options, converted after parsing so errors name the option.
+struct RawFrameOptions {
+  std::string eye, target, up;
+  std::vector<std::string> lights;
+  float fov = 0.0f;
+  float thickness = 0.0f;
+};
+
+void addFrameOptions(CLI::App* app, lt::RunOptions& run, RawFrameOptions& raw) {
+  lt::FrameOptions& f = run.frame;
+  app->add_option("SCENE", f.scenePath, "JSON scene file or any model file assimp reads")->required();
+  app->add_option("--camera", f.cameraName, "named camera of the scene (default: its first, else auto-framed)");
+  app->add_option("--eye", raw.eye, "camera position x,y,z (overrides --camera)");
+  app->add_option("--target", raw.target, "camera target x,y,z");
+  app->add_option("--up", raw.up, "camera up vector x,y,z");
+  app->add_option("--fov", raw.fov, "vertical field of view in degrees (default: the camera's)");
+  app->add_option("--width", f.width, "image width in pixels")->capture_default_str();
+  app->add_option("--height", f.height, "image height in pixels")->capture_default_str();
+  app->add_option("--layers", f.layers, "layers k kept per pixel, 1..16")->capture_default_str();
+  app->add_option("--thickness", raw.thickness, "fragment z-thickness in scene units (default: 0.5% of the scene diagonal)");
+  app->add_option("--min-separation", f.minSeparation, "minimum depth separation of kept layers (0 = off)")->capture_default_str();
+  app->add_option("--pool", f.pool, "fragment pool capacity (0 = automatic, grows on overflow)")->capture_default_str();
+  app->add_option("--light", raw.lights, "add a point light x,y,z[,intensity] (repeatable; default light: above the eye)");
+  app->add_option("--threads", run.threads, "worker threads (0 = all cores)")->capture_default_str();
+  app->add_option("--seed", run.seed, "random seed")->capture_default_str();
+  app->add_option("--stats", run.statsPath, "write statistics JSON to this file");
+  app->add_option("--pixelstats", run.pixelStats, "write per-pixel counter images to this folder");
+  app->add_option("-o,--output", run.output, "output image (render) or folder");
+  app->add_flag("--quiet", run.quiet, "no progress or summary output");
+}
+
+void finishFrameOptions(lt::RunOptions& run, const RawFrameOptions& raw) {
+  lt::FrameOptions& f = run.frame;
+  if (!raw.eye.empty()) f.eye = parseVec3("--eye", raw.eye);
+  if (!raw.target.empty()) f.target = parseVec3("--target", raw.target);
+  if (!raw.up.empty()) f.up = parseVec3("--up", raw.up);
+  if (raw.fov != 0.0f) f.fov = raw.fov;
+  if (raw.thickness != 0.0f) f.thickness = raw.thickness;
+  for (const std::string& l : raw.lights) {
+    const auto v = parseNumbers("--light", l, 3, 4);
+    f.lights.push_back({v[0], v[1], v[2], v.size() == 4 ? v[3] : 1.0f});
+  }
+  if (run.threads < 0) inputError("--threads ", run.threads, ": must be >= 0");
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  CLI::App app{"layertrace: image-space ray tracing of secondary effects through multi-layer fragment buffers"};
+  app.require_subcommand(1);
+  app.set_help_all_flag("--help-all", "help for every subcommand");
+
+  lt::LayersOptions layers;
+  RawFrameOptions layersRaw;
+  CLI::App* layersCmd = app.add_subcommand("layers", "capture fragments, write layer images + depth-complexity map");
+  addFrameOptions(layersCmd, layers.run, layersRaw);
+  layersCmd->add_flag("--verify", layers.verify, "compare every pixel's fragment list with Embree all-hit primary rays");
+
+  try {
+    app.parse(argc, argv);
+  } catch (const CLI::CallForHelp& e) {
+    return app.exit(e);
+  } catch (const CLI::CallForAllHelp& e) {
+    return app.exit(e);
+  } catch (const CLI::ParseError& e) {
+    std::string msg = e.what();
+    std::replace(msg.begin(), msg.end(), '\n', ' ');
+    std::cerr << "layertrace: " << msg << "\n";
+    return 2;
+  }
+
+  try {
+    std::unique_ptr<tbb::global_control> threads;
+    auto limitThreads = [&](int n) {
+      if (n > 0) threads = std::make_unique<tbb::global_control>(tbb::global_control::max_allowed_parallelism, size_t(n));
+    };
+    if (layersCmd->parsed()) {
+      finishFrameOptions(layers.run, layersRaw);
+      limitThreads(layers.run.threads);
+      return lt::runLayers(layers);
+    }
+  } catch (const lt::InputError& e) {
+    std::cerr << "layertrace: " << e.what() << "\n";
+    return 2;
+  } catch (const lt::InternalError& e) {
+    std::cerr << "layertrace: internal error: " << e.what() << "\n";
+    return 1;
+  } catch (const std::bad_alloc&) {
+    std::cerr << "layertrace: out of memory\n";
+    return 1;
+  } catch (const std::exception& e) {
+    std::cerr << "layertrace: internal error: " << e.what() << "\n";
+    return 1;
+  }
+  return 1;
+}

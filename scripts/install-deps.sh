@@ -1,0 +1,27 @@
+#!/usr/bin/env bash
+# Installs everything layertrace needs on Debian 12, non-interactively and idempotently.
+# Starts from a minimal Debian 12 that has only git and make. Uses sudo when not root.
+set -euo pipefail
+
+packages=(
+  build-essential cmake pkg-config ca-certificates
+  libembree-dev libassimp-dev libtbb-dev libglm-dev libcli11-dev nlohmann-json3-dev
+  libopenexr-dev libgtest-dev libbenchmark-dev libstb-dev
+  python3 python3-matplotlib npm unzip zip
+)
+
+missing=()
+for p in "${packages[@]}"; do
+  dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")
+done
+if [ ${#missing[@]} -eq 0 ]; then
+  echo "install-deps: all ${#packages[@]} packages present"
+  exit 0
+fi
+
+SUDO=""
+if [ "$(id -u)" -ne 0 ]; then SUDO="sudo"; fi
+echo "install-deps: installing ${missing[*]}"
+export DEBIAN_FRONTEND=noninteractive
+$SUDO apt-get update -qq
+$SUDO apt-get install -y -qq --no-install-recommends "${missing[@]}"

@@ -1,0 +1,96 @@
+#include <algorithm>
+#include <filesystem>
+#include <iostream>
+
+#include "layertrace/app/commands.h"
+#include "layertrace/eval/verify_layers.h"
+#include "layertrace/geometry/embree_scene.h"
+#include "layertrace/util/error.h"
+#include "layertrace/util/image.h"
+
+namespace lt {
+namespace fs = std::filesystem;
+
+void writeStats(const std::string& path, const std::string& json) {
+  if (!path.empty()) writeFileAtomic(path, json + "\n");
+}
+
+void ensureDirectory(const std::string& dir, const std::string& option) {
+  std::error_code ec;
+  fs::create_directories(dir, ec);
+  if (ec || !fs::is_directory(dir)) inputError(option, " ", dir, ": cannot create directory");
+}
+
+int runLayers(const LayersOptions& o) {
+  const std::string outDir = o.run.output.empty() ? "out/layers" : o.run.output;
+  Frame frame = buildFrame(o.run.frame);
+  nlohmann::json stats = frameStats(frame);
+  stats["tracer"] = nullptr;
+  stats["effect"] = nullptr;
+
+  if (o.verify) {
+    const EmbreeScene embree(frame.scene);
+    const VerifyResult v = verifyLayers(frame.lists, frame.camera, embree);
+    stats["verify"] = {{"pixels", v.pixels},
+                       {"pixels_matching", v.matching},
+                       {"match_fraction", v.matchFraction()},
+                       {"pixels_fewer_fragments", v.fewerFragments},
+                       {"pixels_more_fragments", v.moreFragments},
+                       {"pixels_depth_mismatch", v.depthMismatch},
+                       {"relative_depth_tolerance", kVerifyRelativeTolerance}};
+  }
+
+  // Images: everything is computed before the first file is written.
+  const LayerArrays& L = frame.layers;
+  const int W = L.width, H = L.height;
+  float dmin = frame.camera.far(), dmax = frame.camera.near();
+  for (size_t p = 0; p < L.count.size(); ++p)
+    for (int i = 0; i < L.count[p]; ++i) {
+      dmin = std::min(dmin, L.slots[p * size_t(L.k) + size_t(i)].depth);
+      dmax = std::max(dmax, L.slots[p * size_t(L.k) + size_t(i)].depth);
+    }
+  std::vector<std::pair<std::string, Image>> images;
+  for (int layer = 0; layer < L.k; ++layer) {
+    Image albedo(W, H), normal(W, H), depth(W, H, 1);
+    for (int y = 0; y < H; ++y)
+      for (int x = 0; x < W; ++x) {
+        if (layer >= L.countAt(x, y)) continue;
+        const FragmentNode& f = L.pixel(x, y)[layer];
+        albedo.set(x, y, unpackAlbedo(f.albedoSpec));
+        normal.set(x, y, decodeOctahedral(f.normal) * 0.5f + 0.5f);
+        depth.at(x, y)[0] = dmax > dmin ? 1.0f - 0.9f * (f.depth - dmin) / (dmax - dmin) : 1.0f;
+      }
+    images.emplace_back(cat("layer", layer, "_albedo.png"), std::move(albedo));
+    images.emplace_back(cat("layer", layer, "_normal.png"), std::move(normal));
+    images.emplace_back(cat("layer", layer, "_depth.png"), std::move(depth));
+  }
+  uint32_t maxDc = 1;
+  for (uint32_t c : frame.lists.complexity) maxDc = std::max(maxDc, c);
+  Image heat(W, H), counts(W, H, 1);
+  for (int y = 0; y < H; ++y)
+    for (int x = 0; x < W; ++x) {
+      const uint32_t c = frame.lists.complexity[frame.lists.pixelIndex(x, y)];
+      heat.set(x, y, c == 0 ? glm::vec3(0.0f) : heatColor(float(c) / float(maxDc)));
+      counts.at(x, y)[0] = float(c);
+    }
+  images.emplace_back("depth_complexity.png", std::move(heat));
+  images.emplace_back("depth_complexity.exr", std::move(counts));
+
+  ensureDirectory(outDir, "-o");
+  for (const auto& [name, image] : images) {
+    const bool data = name.find("_depth") != std::string::npos || name.find("_normal") != std::string::npos;
+    writeImage((fs::path(outDir) / name).string(), image, !data);
+  }
+  writeStats(o.run.statsPath, stats.dump(2));
+  if (!o.run.quiet) {
+    std::cout << "layers: " << frame.scene.name << " " << W << "x" << H << " k=" << L.k << ": "
+              << frame.lists.generated << " fragments, depth complexity mean "
+              << stats["fragments"]["depth_complexity_mean"].get<double>() << " max " << maxDc << "; raster "
+              << frame.rasterMs << " ms, sort " << frame.sortMs << " ms";
+    if (o.verify) std::cout << "; verify match " << stats["verify"]["match_fraction"].get<double>();
+    std::cout << "\n  wrote " << images.size() << " images to " << outDir << "\n";
+  }
+  return 0;
+}
+
+}  // namespace lt

@@ -1,0 +1,35 @@
+// The subcommands of the CLI (DESIGN.md), as library functions: main() only parses options.
+#pragma once
+
+#include <string>
+
+#include "layertrace/app/frame.h"
+
+namespace lt {
+
+/// Options every subcommand has beside the frame's.
+struct RunOptions {
+  FrameOptions frame;
+  std::string output;      ///< -o: an image path (render) or a folder (layers, compare, bench)
+  std::string statsPath;   ///< --stats FILE.json
+  std::string pixelStats;  ///< --pixelstats DIR
+  int threads = 0;         ///< --threads; 0 = all cores
+  uint64_t seed = 1;       ///< --seed
+  bool quiet = false;      ///< --quiet
+};
+
+struct LayersOptions {
+  RunOptions run;
+  bool verify = false;  ///< --verify against Embree all-hit primary rays
+};
+
+/// `layertrace layers`: per-layer albedo/normal/depth images, depth-complexity map, stats.
+int runLayers(const LayersOptions& options);
+
+/// Writes `json` to `path` atomically (pretty-printed), if `path` is not empty.
+void writeStats(const std::string& path, const std::string& json);
+
+/// Creates `dir` (and parents); InputError naming the option if impossible.
+void ensureDirectory(const std::string& dir, const std::string& option);
+
+}  // namespace lt

@@ -1,0 +1,143 @@
+#include "layertrace/app/frame.h"
+
+#include <chrono>
+#include <cmath>
+#include <fstream>
+
+#include <glm/geometric.hpp>
+
+#include "layertrace/scene/load.h"
+#include "layertrace/util/error.h"
+
+namespace lt {
+
+namespace {
+double msSince(std::chrono::steady_clock::time_point t) {
+  return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t).count();
+}
+}  // namespace
+
+uint64_t availableMemoryBytes() {
+  std::ifstream in("/proc/meminfo");
+  std::string key;
+  uint64_t value = 0;
+  std::string unit;
+  while (in >> key >> value >> unit)
+    if (key == "MemAvailable:") return value * 1024;
+  return 0;
+}
+
+void validateFrameOptions(const FrameOptions& o) {
+  if (o.width <= 0) inputError("--width ", o.width, ": must be positive");
+  if (o.height <= 0) inputError("--height ", o.height, ": must be positive");
+  if (o.width > 32768 || o.height > 32768) inputError("--width/--height ", o.width, "x", o.height, ": at most 32768 per side");
+  if (o.layers < 1 || o.layers > 16) inputError("--layers ", o.layers, ": must be between 1 and 16");
+  if (o.thickness && !(*o.thickness > 0.0f)) inputError("--thickness ", *o.thickness, ": must be positive");
+  if (o.fov && !(*o.fov > 0.0f && *o.fov < 180.0f)) inputError("--fov ", *o.fov, ": must be in (0, 180) degrees");
+  for (const glm::vec4& l : o.lights)
+    if (!(l.w >= 0.0f) || !std::isfinite(l.x + l.y + l.z + l.w)) inputError("--light ", l.x, ",", l.y, ",", l.z, ",", l.w, ": invalid");
+  // Buffers per pixel: heads + counters (8), the initial pool of 8 fragments (8 × 20),
+  // k layer slots (k × 20 + 1), and images/tracer state (~64).
+  const uint64_t pixels = uint64_t(o.width) * uint64_t(o.height);
+  const uint64_t pool = o.pool ? o.pool * 20 : pixels * 160;
+  const uint64_t need = pixels * (8 + uint64_t(o.layers) * 21 + 64) + pool;
+  const uint64_t avail = availableMemoryBytes();
+  if (avail && need > avail)
+    inputError("--width/--height ", o.width, "x", o.height, ": buffers need ", need >> 20, " MiB, only ", avail >> 20,
+               " MiB available");
+}
+
+PointLight defaultLight(const Camera& camera) {
+  const CameraDesc& d = camera.desc();
+  const float dist = glm::length(d.target - d.eye);
+  const glm::vec3 up = glm::normalize(camera.dirToWorld({0.0f, 1.0f, 0.0f}));
+  return {d.eye + up * (0.1f * dist), glm::vec3(dist * dist)};
+}
+
+void loadFrameScene(const FrameOptions& o, Frame& frame) {
+  validateFrameOptions(o);
+  const auto t0 = std::chrono::steady_clock::now();
+  frame.scene = loadScene(o.scenePath);
+  frame.loadMs = msSince(t0);
+  CameraDesc desc;
+  if (!o.cameraName.empty()) {
+    bool found = false;
+    std::string names;
+    for (const CameraDesc& c : frame.scene.cameras) {
+      names += (names.empty() ? "" : ", ") + c.name;
+      if (c.name == o.cameraName) desc = c, found = true;
+    }
+    if (!found)
+      inputError("--camera ", o.cameraName, ": no such camera in ", o.scenePath,
+                 names.empty() ? std::string(" (it has none)") : " (has: " + names + ")");
+  } else if (!frame.scene.cameras.empty()) {
+    desc = frame.scene.cameras.front();
+  } else {
+    desc = autoCamera(frame.scene);
+  }
+  if (o.eye) desc.eye = *o.eye, desc.name = "custom";
+  if (o.target) desc.target = *o.target, desc.name = "custom";
+  if (o.up) desc.up = *o.up;
+  if (o.fov) desc.fovY = *o.fov;
+  frame.camera = Camera(withClipPlanes(desc, frame.scene), o.width, o.height);
+  frame.lights = frame.scene.lights;
+  for (const glm::vec4& l : o.lights) frame.lights.push_back({glm::vec3(l), glm::vec3(l.w)});
+  if (frame.lights.empty()) frame.lights.push_back(defaultLight(frame.camera));
+  frame.thickness = o.thickness ? *o.thickness : defaultThickness(frame.scene.bounds().diagonal());
+}
+
+void rasterizeFrame(const FrameOptions& o, Frame& frame) {
+  RasterConfig rc;
+  rc.poolCapacity = o.pool;
+  rc.growOnOverflow = o.pool == 0;
+  frame.lists = rasterize(frame.scene, frame.camera, rc, &frame.raster);
+  frame.rasterMs = frame.raster.ms;
+  if (frame.lists.lost() > 0)
+    inputError("--pool ", o.pool, ": fragment pool overflow: ", frame.lists.generated, " fragments generated, ",
+               frame.lists.stored, " stored, ", frame.lists.lost(), " lost (use --pool ", frame.lists.generated,
+               " or more, or 0 for automatic)");
+  const auto t0 = std::chrono::steady_clock::now();
+  LayerConfig lc;
+  lc.k = o.layers;
+  lc.thickness = frame.thickness;
+  lc.minSeparation = o.minSeparation;
+  frame.layers = sortAndTruncate(frame.lists, lc);
+  frame.sortMs = msSince(t0);
+}
+
+Frame buildFrame(const FrameOptions& o) {
+  Frame frame;
+  loadFrameScene(o, frame);
+  rasterizeFrame(o, frame);
+  return frame;
+}
+
+nlohmann::json frameStats(const Frame& f) {
+  nlohmann::json j;
+  j["scene"] = f.scene.name;
+  j["width"] = f.camera.width();
+  j["height"] = f.camera.height();
+  j["layers"] = f.layers.k;
+  j["camera"] = f.camera.desc().name;
+  j["thickness"] = f.thickness;
+  j["triangles"] = f.scene.triangleCount();
+  j["timings_ms"]["load"] = f.loadMs;
+  j["timings_ms"]["raster"] = f.rasterMs;
+  j["timings_ms"]["sort"] = f.sortMs;
+  j["memory_bytes"]["lists"] = f.lists.memoryBytes();
+  j["memory_bytes"]["arrays"] = f.layers.memoryBytes();
+  uint64_t maxDc = 0;
+  for (uint32_t c : f.lists.complexity) maxDc = std::max<uint64_t>(maxDc, c);
+  const double pixels = double(f.lists.complexity.size());
+  j["fragments"]["total"] = f.lists.generated;
+  j["fragments"]["stored"] = f.lists.stored;
+  j["fragments"]["depth_complexity_mean"] = pixels > 0 ? double(f.lists.generated) / pixels : 0.0;
+  j["fragments"]["depth_complexity_max"] = maxDc;
+  j["fragments"]["overflow"] = f.lists.lost();
+  j["fragments"]["overflow_first_pass"] = f.raster.overflowLost;
+  j["fragments"]["raster_passes"] = f.raster.passes;
+  j["fragments"]["pool_capacity"] = f.lists.capacity();
+  return j;
+}
+
+}  // namespace lt

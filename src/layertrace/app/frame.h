@@ -1,0 +1,69 @@
+// One frame of the pipeline, shared by every subcommand: load the scene, choose the camera and
+// lights, rasterize all fragments, sort and truncate to k layers (seed 000 §4.1–4.2).
+#pragma once
+
+#include <optional>
+#include <string>
+#include <vector>
+
+#include <glm/vec3.hpp>
+#include <glm/vec4.hpp>
+#include <nlohmann/json.hpp>
+
+#include "layertrace/raster/layer_arrays.h"
+#include "layertrace/raster/rasterizer.h"
+#include "layertrace/scene/camera.h"
+#include "layertrace/scene/scene.h"
+
+namespace lt {
+
+/// The common options of DESIGN.md's CLI contract.
+struct FrameOptions {
+  std::string scenePath;
+  std::string cameraName;              ///< --camera; empty = the scene's first camera, else auto-framed
+  std::optional<glm::vec3> eye, target, up;  ///< --eye/--target/--up override the camera
+  std::optional<float> fov;            ///< --fov, vertical degrees
+  int width = 1280, height = 720;      ///< --width --height
+  int layers = 4;                      ///< --layers (k)
+  std::optional<float> thickness;      ///< --thickness; default: defaultThickness(scene diagonal)
+  float minSeparation = 0.0f;          ///< --min-separation
+  uint64_t pool = 0;                   ///< --pool fragments; 0 = automatic (grows on overflow)
+  std::vector<glm::vec4> lights;       ///< --light x,y,z[,intensity] (repeatable)
+};
+
+struct Frame {
+  Scene scene;
+  Camera camera;
+  std::vector<PointLight> lights;  ///< the lights in effect (scene's, --light, or the default)
+  FragmentLists lists;
+  LayerArrays layers;
+  float thickness = 0.0f;
+  double loadMs = 0.0, rasterMs = 0.0, sortMs = 0.0;
+  RasterStats raster;
+};
+
+/// Checks values that need no scene (sizes, k, memory); throws InputError naming the option.
+void validateFrameOptions(const FrameOptions& options);
+
+/// Loads the scene and sets up camera and lights (no rasterization).
+void loadFrameScene(const FrameOptions& options, Frame& frame);
+
+/// Rasterizes and sorts for the frame's camera. Throws InputError on fragment-pool overflow
+/// when --pool fixed the capacity, with the exact counts.
+void rasterizeFrame(const FrameOptions& options, Frame& frame);
+
+/// loadFrameScene + rasterizeFrame.
+Frame buildFrame(const FrameOptions& options);
+
+/// The default light of a scene without lights: one point light 10 % of the eye-to-target
+/// distance above the eye, bright enough to light the target (intensity = distance²).
+PointLight defaultLight(const Camera& camera);
+
+/// The stats keys every subcommand shares: scene, width, height, layers, timings (raster, sort),
+/// memory (lists, arrays), fragments.
+nlohmann::json frameStats(const Frame& frame);
+
+/// Available memory in bytes (MemAvailable), or 0 when unknown.
+uint64_t availableMemoryBytes();
+
+}  // namespace lt

@@ -1,0 +1,50 @@
+#include "layertrace/eval/verify_layers.h"
+
+#include <algorithm>
+#include <atomic>
+#include <cmath>
+
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_for.h>
+
+namespace lt {
+
+VerifyResult verifyLayers(const FragmentLists& lists, const Camera& camera, const EmbreeScene& embree) {
+  std::atomic<uint64_t> matching{0}, fewer{0}, more{0}, depth{0};
+  const glm::vec3 eye = camera.desc().eye;
+  tbb::parallel_for(tbb::blocked_range<int>(0, lists.height, 4), [&](const tbb::blocked_range<int>& r) {
+    std::vector<GeoHit> hits;
+    std::vector<float> frags;
+    uint64_t m = 0, f = 0, mo = 0, d = 0;
+    for (int y = r.begin(); y != r.end(); ++y)
+      for (int x = 0; x < lists.width; ++x) {
+        // Direction with unit depth component: Embree's t is then the fragment depth.
+        const glm::vec3 dir = camera.dirToWorld(camera.rayThrough({float(x) + 0.5f, float(y) + 0.5f}));
+        embree.allHits(eye, dir, camera.near(), camera.far(), hits);
+        frags.clear();
+        for (uint32_t i = lists.head[lists.pixelIndex(x, y)]; i != kNullIndex; i = lists.nodes[i].next)
+          frags.push_back(lists.nodes[i].depth);
+        std::sort(frags.begin(), frags.end());
+        if (frags.size() < hits.size()) {
+          ++f;
+        } else if (frags.size() > hits.size()) {
+          ++mo;
+        } else {
+          bool ok = true;
+          for (size_t i = 0; i < frags.size() && ok; ++i)
+            ok = std::abs(frags[i] - hits[i].t) <= kVerifyRelativeTolerance * hits[i].t;
+          ok ? ++m : ++d;
+        }
+      }
+    matching += m, fewer += f, more += mo, depth += d;
+  });
+  VerifyResult res;
+  res.pixels = uint64_t(lists.width) * uint64_t(lists.height);
+  res.matching = matching;
+  res.fewerFragments = fewer;
+  res.moreFragments = more;
+  res.depthMismatch = depth;
+  return res;
+}
+
+}  // namespace lt

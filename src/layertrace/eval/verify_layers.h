@@ -1,0 +1,29 @@
+// `layers --verify`: the rasterizer's fragment lists against Embree's all-hit primary rays.
+#pragma once
+
+#include <cstdint>
+
+#include "layertrace/geometry/embree_scene.h"
+#include "layertrace/raster/fragment_lists.h"
+#include "layertrace/scene/camera.h"
+
+namespace lt {
+
+struct VerifyResult {
+  uint64_t pixels = 0;
+  uint64_t matching = 0;       ///< same number of surfaces, every depth within tolerance
+  uint64_t fewerFragments = 0;  ///< Embree found more surfaces than the list holds
+  uint64_t moreFragments = 0;   ///< the list holds more fragments than Embree found
+  uint64_t depthMismatch = 0;   ///< same count, some depth outside tolerance
+  double matchFraction() const { return pixels ? double(matching) / double(pixels) : 1.0; }
+};
+
+/// Relative depth tolerance of the comparison. Both sides evaluate the same pixel-centre ray
+/// against the same plane in float, so they agree to a few ulps except at grazing angles.
+inline constexpr float kVerifyRelativeTolerance = 1e-4f;
+
+/// For each pixel, casts the pixel-centre ray through Embree between the near and far planes,
+/// collects all hits (deduplicated by triangle) and compares them with the pixel's list.
+VerifyResult verifyLayers(const FragmentLists& lists, const Camera& camera, const EmbreeScene& embree);
+
+}  // namespace lt

@@ -1,0 +1,154 @@
+#include "layertrace/geometry/embree_scene.h"
+
+#include <algorithm>
+#include <atomic>
+#include <chrono>
+#include <limits>
+
+#include <embree3/rtcore.h>
+#include <pmmintrin.h>
+#include <xmmintrin.h>
+
+#include "layertrace/util/error.h"
+
+namespace lt {
+
+void enableFlushDenormals() {
+  _MM_SET_FLUSH_ZERO_MODE(_MM_FLUSH_ZERO_ON);
+  _MM_SET_DENORMALS_ZERO_MODE(_MM_DENORMALS_ZERO_ON);
+}
+
+namespace {
+
+std::atomic<int64_t> gEmbreeBytes{0};
+
+bool memoryMonitor(void*, ssize_t bytes, bool) {
+  gEmbreeBytes += bytes;
+  return true;
+}
+
+void errorCallback(void*, RTCError code, const char* str) {
+  if (code == RTC_ERROR_OUT_OF_MEMORY) return;  // reported by the failing call below
+  (void)str;
+}
+
+RTCRayHit makeRay(glm::vec3 o, glm::vec3 d, float tnear, float tfar) {
+  RTCRayHit rh{};
+  rh.ray.org_x = o.x, rh.ray.org_y = o.y, rh.ray.org_z = o.z;
+  rh.ray.dir_x = d.x, rh.ray.dir_y = d.y, rh.ray.dir_z = d.z;
+  rh.ray.tnear = tnear;
+  rh.ray.tfar = tfar;
+  rh.ray.mask = 0xFFFFFFFFu;
+  rh.ray.flags = 0;
+  rh.hit.geomID = RTC_INVALID_GEOMETRY_ID;
+  rh.hit.primID = RTC_INVALID_GEOMETRY_ID;
+  return rh;
+}
+
+/// Intersect context whose filter records every hit and rejects it, so traversal continues.
+struct CollectContext {
+  RTCIntersectContext base;
+  std::vector<GeoHit>* out;
+};
+
+void collectFilter(const RTCFilterFunctionNArguments* args) {
+  auto* ctx = reinterpret_cast<const CollectContext*>(args->context);
+  for (unsigned i = 0; i < args->N; ++i) {
+    if (args->valid[i] == 0) continue;
+    GeoHit h;
+    h.t = RTCRayN_tfar(args->ray, args->N, i);
+    h.triangle = RTCHitN_primID(args->hit, args->N, i);
+    h.ng = {RTCHitN_Ng_x(args->hit, args->N, i), RTCHitN_Ng_y(args->hit, args->N, i), RTCHitN_Ng_z(args->hit, args->N, i)};
+    ctx->out->push_back(h);
+    args->valid[i] = 0;  // reject: keep looking
+  }
+}
+
+}  // namespace
+
+struct EmbreeScene::Impl {
+  RTCDevice device = nullptr;
+  RTCScene scene = nullptr;
+  int64_t bytes = 0;
+  ~Impl() {
+    if (scene) rtcReleaseScene(scene);
+    if (device) rtcReleaseDevice(device);
+  }
+};
+
+EmbreeScene::EmbreeScene(const Scene& scene) : impl_(std::make_unique<Impl>()) {
+  const auto start = std::chrono::steady_clock::now();
+  enableFlushDenormals();
+  const int64_t before = gEmbreeBytes.load();
+  impl_->device = rtcNewDevice("threads=0");
+  if (!impl_->device) throw InternalError("embree: cannot create device");
+  rtcSetDeviceErrorFunction(impl_->device, errorCallback, nullptr);
+  rtcSetDeviceMemoryMonitorFunction(impl_->device, memoryMonitor, nullptr);
+  impl_->scene = rtcNewScene(impl_->device);
+  rtcSetSceneFlags(impl_->scene, RTC_SCENE_FLAG_CONTEXT_FILTER_FUNCTION | RTC_SCENE_FLAG_ROBUST);
+  rtcSetSceneBuildQuality(impl_->scene, RTC_BUILD_QUALITY_HIGH);
+  RTCGeometry geom = rtcNewGeometry(impl_->device, RTC_GEOMETRY_TYPE_TRIANGLE);
+  auto* v = static_cast<float*>(rtcSetNewGeometryBuffer(geom, RTC_BUFFER_TYPE_VERTEX, 0, RTC_FORMAT_FLOAT3,
+                                                        3 * sizeof(float), scene.positions.size()));
+  auto* idx = static_cast<uint32_t*>(rtcSetNewGeometryBuffer(geom, RTC_BUFFER_TYPE_INDEX, 0, RTC_FORMAT_UINT3,
+                                                             3 * sizeof(uint32_t), scene.triangles.size()));
+  if (!v || !idx) throw InternalError("embree: cannot allocate geometry buffers");
+  for (size_t i = 0; i < scene.positions.size(); ++i)
+    v[3 * i] = scene.positions[i].x, v[3 * i + 1] = scene.positions[i].y, v[3 * i + 2] = scene.positions[i].z;
+  for (size_t i = 0; i < scene.triangles.size(); ++i)
+    idx[3 * i] = scene.triangles[i].x, idx[3 * i + 1] = scene.triangles[i].y, idx[3 * i + 2] = scene.triangles[i].z;
+  rtcCommitGeometry(geom);
+  rtcAttachGeometry(impl_->scene, geom);
+  rtcReleaseGeometry(geom);
+  rtcCommitScene(impl_->scene);
+  if (rtcGetDeviceError(impl_->device) != RTC_ERROR_NONE) throw InternalError("embree: scene build failed");
+  impl_->bytes = gEmbreeBytes.load() - before;
+  buildMs_ = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
+}
+
+EmbreeScene::~EmbreeScene() = default;
+
+size_t EmbreeScene::memoryBytes() const { return size_t(std::max<int64_t>(impl_->bytes, 0)); }
+
+GeoHit EmbreeScene::intersect(glm::vec3 o, glm::vec3 d, float tnear, float tfar) const {
+  enableFlushDenormals();
+  RTCIntersectContext ctx;
+  rtcInitIntersectContext(&ctx);
+  RTCRayHit rh = makeRay(o, d, tnear, tfar);
+  rtcIntersect1(impl_->scene, &ctx, &rh);
+  GeoHit h;
+  if (rh.hit.geomID != RTC_INVALID_GEOMETRY_ID) {
+    h.t = rh.ray.tfar;
+    h.triangle = rh.hit.primID;
+    h.ng = {rh.hit.Ng_x, rh.hit.Ng_y, rh.hit.Ng_z};
+  }
+  return h;
+}
+
+bool EmbreeScene::occluded(glm::vec3 o, glm::vec3 d, float tnear, float tfar) const {
+  enableFlushDenormals();
+  RTCIntersectContext ctx;
+  rtcInitIntersectContext(&ctx);
+  RTCRay r = makeRay(o, d, tnear, tfar).ray;
+  rtcOccluded1(impl_->scene, &ctx, &r);
+  return r.tfar < 0.0f;  // Embree sets tfar = -inf on occlusion
+}
+
+void EmbreeScene::allHits(glm::vec3 o, glm::vec3 d, float tnear, float tfar, std::vector<GeoHit>& out) const {
+  enableFlushDenormals();
+  out.clear();
+  CollectContext ctx;
+  rtcInitIntersectContext(&ctx.base);
+  ctx.base.filter = collectFilter;
+  ctx.out = &out;
+  RTCRayHit rh = makeRay(o, d, tnear, tfar);
+  rtcIntersect1(impl_->scene, &ctx.base, &rh);
+  std::sort(out.begin(), out.end(), [](const GeoHit& a, const GeoHit& b) {
+    return a.triangle != b.triangle ? a.triangle < b.triangle : a.t < b.t;
+  });
+  out.erase(std::unique(out.begin(), out.end(), [](const GeoHit& a, const GeoHit& b) { return a.triangle == b.triangle; }),
+            out.end());
+  std::sort(out.begin(), out.end(), [](const GeoHit& a, const GeoHit& b) { return a.t < b.t; });
+}
+
+}  // namespace lt

@@ -1,0 +1,90 @@
+#include "layertrace/raster/layer_arrays.h"
+
+#include <algorithm>
+#include <cmath>
+
+#include <tbb/blocked_range.h>
+#include <tbb/enumerable_thread_specific.h>
+#include <tbb/parallel_for.h>
+
+#include "layertrace/util/error.h"
+
+namespace lt {
+
+float defaultThickness(float sceneDiagonal) { return std::max(0.005f * sceneDiagonal, 1e-6f); }
+
+namespace {
+
+struct Entry {
+  float depth;
+  uint32_t node;
+};
+
+/// Seed 000 §4.2: insertion sort into k cells; fragments beyond the k-th are shifted out.
+int insertionSortK(const FragmentLists& lists, uint32_t head, int k, Entry* out) {
+  int n = 0;
+  for (uint32_t i = head; i != kNullIndex; i = lists.nodes[i].next) {
+    const float d = lists.nodes[i].depth;
+    if (n == k && !(d < out[k - 1].depth)) continue;
+    int j = std::min(n, k - 1);
+    while (j > 0 && d < out[j - 1].depth) {  // strict: equal depths keep list order
+      out[j] = out[j - 1];
+      --j;
+    }
+    out[j] = {d, i};
+    n = std::min(n + 1, k);
+  }
+  return n;
+}
+
+/// Minimum separation: sort the whole list, then keep a fragment only if it lies at least
+/// `sep` behind the previously kept one (McGuire & Mara; seed 000 §4.2 notes the risk).
+int separatedK(const FragmentLists& lists, uint32_t head, int k, float sep, std::vector<Entry>& all, Entry* out) {
+  all.clear();
+  for (uint32_t i = head; i != kNullIndex; i = lists.nodes[i].next) all.push_back({lists.nodes[i].depth, i});
+  std::stable_sort(all.begin(), all.end(), [](const Entry& a, const Entry& b) { return a.depth < b.depth; });
+  int n = 0;
+  for (const Entry& e : all) {
+    if (n == k) break;
+    if (n > 0 && e.depth < out[n - 1].depth + sep) continue;
+    out[n++] = e;
+  }
+  return n;
+}
+
+}  // namespace
+
+LayerArrays sortAndTruncate(const FragmentLists& lists, const LayerConfig& config) {
+  if (config.k < 1 || config.k > 16) inputError("--layers ", config.k, ": must be between 1 and 16");
+  if (!(config.thickness > 0.0f) || !std::isfinite(config.thickness))
+    inputError("--thickness ", config.thickness, ": must be a positive number");
+  if (!(config.minSeparation >= 0.0f)) inputError("--min-separation ", config.minSeparation, ": must be >= 0");
+  LayerArrays out;
+  out.width = lists.width;
+  out.height = lists.height;
+  out.k = config.k;
+  const size_t pixels = size_t(lists.width) * size_t(lists.height);
+  out.slots.resize(pixels * size_t(config.k));
+  out.count.assign(pixels, 0);
+  out.triangle.assign(pixels * size_t(config.k), kNullIndex);
+  tbb::enumerable_thread_specific<std::vector<Entry>> scratch;
+  tbb::parallel_for(tbb::blocked_range<size_t>(0, pixels, 1024), [&](const tbb::blocked_range<size_t>& r) {
+    Entry kept[16];
+    std::vector<Entry>& all = scratch.local();
+    for (size_t p = r.begin(); p != r.end(); ++p) {
+      const int n = config.minSeparation > 0.0f ? separatedK(lists, lists.head[p], config.k, config.minSeparation, all, kept)
+                                                : insertionSortK(lists, lists.head[p], config.k, kept);
+      out.count[p] = uint8_t(n);
+      FragmentNode* slot = &out.slots[p * size_t(config.k)];
+      for (int i = 0; i < n; ++i) {
+        slot[i] = lists.nodes[kept[i].node];
+        slot[i].setThickness(config.thickness);
+        out.triangle[p * size_t(config.k) + size_t(i)] = lists.triangle[kept[i].node];
+      }
+      for (int i = n; i < config.k; ++i) slot[i] = FragmentNode{0.0f, 0u, 0u, 0u};
+    }
+  });
+  return out;
+}
+
+}  // namespace lt

@@ -1,0 +1,48 @@
+// Sorted, truncated per-pixel arrays of the k front-most fragments (seed 000 §4.2, Figure 3
+// centre): each pixel owns k slots whether or not it fills them (coherent indexing, no
+// synchronisation), and each kept fragment carries its z-thickness in place of the list pointer,
+// giving the interval [depth, depth + thickness].
+#pragma once
+
+#include <cstdint>
+#include <vector>
+
+#include "layertrace/raster/fragment_lists.h"
+
+namespace lt {
+
+struct LayerConfig {
+  int k = 4;                 ///< layers kept per pixel, 1..16 (seed 000 §4.2: "4 to 8")
+  /// z-thickness of every fragment in scene units (seed 000 §4.2: "fixed, scene-dependent
+  /// [McGuire and Mara 2014] or adaptive"). Must be > 0; see defaultThickness().
+  float thickness = 0.1f;
+  /// Minimum separation between successive kept fragments (McGuire & Mara's deep G-buffer
+  /// rule, seed 000 §4.2 optional); 0 disables it.
+  float minSeparation = 0.0f;
+};
+
+/// Our scene-dependent default thickness: 0.5 % of the scene's bounding-box diagonal. Thick
+/// enough that a ray crossing a surface between two pixel centres still overlaps it at grazing
+/// angles, thin enough that a ray passing behind a chair leg misses it.
+float defaultThickness(float sceneDiagonal);
+
+struct LayerArrays {
+  int width = 0, height = 0, k = 0;
+  std::vector<FragmentNode> slots;  ///< pixel-major: slots[(y * width + x) * k + layer]
+  std::vector<uint8_t> count;       ///< valid slots per pixel (≤ k)
+  std::vector<uint32_t> triangle;   ///< side channel: scene triangle of each slot
+
+  size_t pixelIndex(int x, int y) const { return size_t(y) * size_t(width) + size_t(x); }
+  const FragmentNode* pixel(int x, int y) const { return &slots[pixelIndex(x, y) * size_t(k)]; }
+  int countAt(int x, int y) const { return count[pixelIndex(x, y)]; }
+  size_t memoryBytes() const {
+    return slots.size() * sizeof(FragmentNode) + count.size() + triangle.size() * sizeof(uint32_t);
+  }
+};
+
+/// Insertion sort of each pixel's list, keeping the k front-most fragments (ties keep list
+/// order, so the result is deterministic). Throws InputError for k outside 1..16 or a
+/// non-positive thickness.
+LayerArrays sortAndTruncate(const FragmentLists& lists, const LayerConfig& config);
+
+}  // namespace lt

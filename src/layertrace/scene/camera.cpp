@@ -1,0 +1,79 @@
+#include "layertrace/scene/camera.h"
+
+#include <algorithm>
+#include <cmath>
+
+#include <glm/geometric.hpp>
+#include <glm/trigonometric.hpp>
+#include <glm/gtc/matrix_transform.hpp>
+#include <glm/gtc/matrix_inverse.hpp>
+
+#include "layertrace/util/error.h"
+
+namespace lt {
+
+Camera::Camera(const CameraDesc& desc, int width, int height)
+    : desc_(desc), width_(width), height_(height), near_(desc.near), far_(desc.far) {
+  LT_CHECK(width > 0 && height > 0, width, "x", height);
+  LT_CHECK(near_ > 0.0f && far_ > near_, near_, " ", far_);
+  const glm::vec3 fwd = desc.target - desc.eye;
+  if (!(glm::length(fwd) > 0.0f)) inputError("camera ", desc.name, ": eye and target coincide");
+  if (!(glm::length(glm::cross(glm::normalize(fwd), desc.up)) > 1e-6f))
+    inputError("camera ", desc.name, ": up vector is parallel to the viewing direction");
+  if (!(desc.fovY > 0.0f && desc.fovY < 180.0f))
+    inputError("camera ", desc.name, ": fov ", desc.fovY, " is not in (0, 180) degrees");
+  view_ = glm::lookAt(desc.eye, desc.target, desc.up);
+  viewInv_ = glm::inverse(view_);
+  const float tanHalf = std::tan(glm::radians(desc.fovY) * 0.5f);
+  focal_ = float(height) * 0.5f / tanHalf;
+  pixelScale_ = 1.0f / focal_;
+  // Pixel projection: x_px = W/2 + f * x / depth, y_px = H/2 - f * y / depth, depth = -z.
+  pixelProj_ = glm::mat4(0.0f);
+  pixelProj_[0][0] = focal_;
+  pixelProj_[2][0] = -float(width) * 0.5f;
+  pixelProj_[1][1] = -focal_;
+  pixelProj_[2][1] = -float(height) * 0.5f;
+  pixelProj_[2][2] = 1.0f;   // z' = z (unused)
+  pixelProj_[2][3] = -1.0f;  // w = -z = depth
+  clipProj_ = glm::perspective(glm::radians(desc.fovY), float(width) / float(height), near_, far_);
+}
+
+glm::vec2 Camera::project(glm::vec3 cam) const {
+  const float depth = -cam.z;
+  return {float(width_) * 0.5f + focal_ * cam.x / depth, float(height_) * 0.5f - focal_ * cam.y / depth};
+}
+
+glm::vec3 Camera::rayThrough(glm::vec2 pixel) const {
+  return {(pixel.x - float(width_) * 0.5f) * pixelScale_, -(pixel.y - float(height_) * 0.5f) * pixelScale_, -1.0f};
+}
+
+CameraDesc autoCamera(const Scene& scene) {
+  const Bounds b = scene.bounds();
+  const glm::vec3 c = b.center();
+  const float r = 0.5f * b.diagonal();
+  CameraDesc d;
+  d.name = "auto";
+  d.fovY = 45.0f;
+  const float dist = r / std::sin(glm::radians(d.fovY) * 0.5f);
+  d.eye = c + glm::normalize(glm::vec3(0.35f, 0.45f, 1.0f)) * dist;
+  d.target = c;
+  d.up = {0.0f, 1.0f, 0.0f};
+  return d;
+}
+
+CameraDesc withClipPlanes(CameraDesc d, const Scene& scene) {
+  const Bounds b = scene.bounds();
+  if (d.near <= 0.0f) d.near = std::max(1e-4f, 1e-4f * b.diagonal());
+  if (d.far <= 0.0f) {
+    float farthest = 0.0f;
+    for (int i = 0; i < 8; ++i) {
+      const glm::vec3 corner((i & 1) ? b.hi.x : b.lo.x, (i & 2) ? b.hi.y : b.lo.y, (i & 4) ? b.hi.z : b.lo.z);
+      farthest = std::max(farthest, glm::length(corner - d.eye));
+    }
+    d.far = std::max(farthest * 1.01f, d.near * 10.0f);
+  }
+  if (!(d.far > d.near)) inputError("camera ", d.name, ": far ", d.far, " is not beyond near ", d.near);
+  return d;
+}
+
+}  // namespace lt

@@ -1,0 +1,36 @@
+// Scene loading. SCENE on the command line is either a JSON scene file (see scenes/README.md for
+// its format) or any model file assimp reads; Quake 3 archives (.pk3) and maps (.bsp) get the
+// fix-up described in load_model.cpp. Every failure is an InputError naming the file.
+#pragma once
+
+#include <string>
+
+#include <glm/mat4x4.hpp>
+
+#include "layertrace/scene/scene.h"
+
+namespace lt {
+
+/// Loads a JSON scene or a model file, chosen by extension (.json → JSON scene).
+Scene loadScene(const std::string& path);
+
+/// Loads one model file through assimp, transformed by `transform`.
+Scene loadModel(const std::string& path, const glm::mat4& transform = glm::mat4(1.0f));
+
+/// Loads a JSON scene file composing models, shapes, materials, lights and cameras.
+Scene loadJsonScene(const std::string& path);
+
+/// Parses a JSON scene from text; `baseDir` resolves relative model paths, `source` names the
+/// input in error messages.
+Scene parseJsonScene(const std::string& text, const std::string& baseDir, const std::string& source);
+
+// Built-in shapes (JSON "box", "sphere", "quad"), with outward normals, one material (index 0).
+Scene makeBox(glm::vec3 lo, glm::vec3 hi);
+Scene makeSphere(glm::vec3 center, float radius, int segments);
+/// A parallelogram corner, corner+u, corner+u+v, corner+v (two triangles).
+Scene makeQuad(glm::vec3 corner, glm::vec3 u, glm::vec3 v);
+
+/// Applies an affine transform to positions and (inverse-transpose) to normals.
+void transformScene(Scene& scene, const glm::mat4& m);
+
+}  // namespace lt

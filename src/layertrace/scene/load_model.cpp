@@ -1,0 +1,173 @@
+// Model files through assimp, with the Quake 3 fix-up of DATA.md.
+#include <algorithm>
+#include <cctype>
+#include <filesystem>
+#include <functional>
+
+#include <assimp/Importer.hpp>
+#include <assimp/postprocess.h>
+#include <assimp/scene.h>
+#include <glm/geometric.hpp>
+#include <glm/trigonometric.hpp>
+#include <glm/gtc/matrix_inverse.hpp>
+
+#include "layertrace/scene/load.h"
+#include "layertrace/util/error.h"
+
+namespace lt {
+namespace fs = std::filesystem;
+
+namespace {
+
+glm::mat4 toGlm(const aiMatrix4x4& m) {
+  // assimp is row-major, glm column-major.
+  return glm::mat4(m.a1, m.b1, m.c1, m.d1, m.a2, m.b2, m.c2, m.d2, m.a3, m.b3, m.c3, m.d3, m.a4, m.b4, m.c4, m.d4);
+}
+
+/// A stable, pleasant colour from a texture name: models whose materials only name textures
+/// (Quake 3 maps) still get distinguishable surfaces. Textures themselves are not decoded.
+glm::vec3 colorFromName(const std::string& name) {
+  const size_t h = std::hash<std::string>{}(name);
+  const float hue = float(h % 360u) / 60.0f;
+  const float x = 1.0f - std::abs(std::fmod(hue, 2.0f) - 1.0f);
+  glm::vec3 c = hue < 1 ? glm::vec3(1, x, 0) : hue < 2 ? glm::vec3(x, 1, 0) : hue < 3 ? glm::vec3(0, 1, x)
+              : hue < 4 ? glm::vec3(0, x, 1) : hue < 5 ? glm::vec3(x, 0, 1) : glm::vec3(1, 0, x);
+  return 0.25f + 0.5f * c;  // muted: keep albedo well inside (0, 1)
+}
+
+Material convertMaterial(const aiMaterial* am) {
+  Material m;
+  aiString name;
+  if (am->Get(AI_MATKEY_NAME, name) == AI_SUCCESS) m.name = name.C_Str();
+  aiColor4D c;
+  bool haveColor = false;
+  if (am->Get(AI_MATKEY_BASE_COLOR, c) == AI_SUCCESS || am->Get(AI_MATKEY_COLOR_DIFFUSE, c) == AI_SUCCESS) {
+    m.albedo = glm::clamp(glm::vec3(c.r, c.g, c.b), 0.0f, 1.0f);
+    haveColor = true;
+  }
+  aiString tex;
+  if (am->GetTexture(aiTextureType_DIFFUSE, 0, &tex) == AI_SUCCESS && tex.length > 0) {
+    // A texture multiplies a (usually white) colour: use a colour derived from its name instead.
+    if (!haveColor || m.albedo == glm::vec3(1.0f)) m.albedo = colorFromName(tex.C_Str());
+  }
+  aiColor4D s;
+  if (am->Get(AI_MATKEY_COLOR_SPECULAR, s) == AI_SUCCESS)
+    m.specular = std::clamp(0.2126f * s.r + 0.7152f * s.g + 0.0722f * s.b, 0.0f, 1.0f);
+  float shin = 0.0f;
+  if (am->Get(AI_MATKEY_SHININESS, shin) == AI_SUCCESS && shin > 0.0f) m.shininess = std::min(shin, 1024.0f);
+  float opacity = 1.0f;
+  if (am->Get(AI_MATKEY_OPACITY, opacity) == AI_SUCCESS && opacity < 0.999f && opacity >= 0.0f)
+    m.transmission = 1.0f - opacity;  // glass in IFC/OBJ files: refracts with ior 1.5
+  float ior = 0.0f;
+  if (am->Get(AI_MATKEY_REFRACTI, ior) == AI_SUCCESS && ior >= 1.0f && ior <= 4.0f) m.ior = ior;
+  return m;
+}
+
+/// The accumulated transform of a named node (identity if the name is not found).
+glm::mat4 nodeTransform(const aiScene* as, const aiString& name) {
+  glm::mat4 chain(1.0f);
+  for (const aiNode* n = as->mRootNode->FindNode(name); n; n = n->mParent) chain = toGlm(n->mTransformation) * chain;
+  return chain;
+}
+
+bool isQuake3(const std::string& ext) { return ext == ".pk3" || ext == ".bsp"; }
+
+}  // namespace
+
+Scene loadModel(const std::string& path, const glm::mat4& transform) {
+  std::error_code ec;
+  if (!fs::exists(path, ec)) inputError("scene ", path, ": file not found");
+  if (!fs::is_regular_file(path, ec)) inputError("scene ", path, ": not a regular file");
+  std::string ext = fs::path(path).extension().string();
+  std::transform(ext.begin(), ext.end(), ext.begin(), [](unsigned char ch) { return std::tolower(ch); });
+  const bool q3 = isQuake3(ext);
+
+  Assimp::Importer importer;
+  importer.SetPropertyFloat(AI_CONFIG_PP_GSN_MAX_SMOOTHING_ANGLE, 60.0f);
+  importer.SetPropertyInteger(AI_CONFIG_PP_SBP_REMOVE, aiPrimitiveType_POINT | aiPrimitiveType_LINE);
+  // Quake 3: assimp 5.2.5's Q3BSP importer never fills face indices, and post-processing trips
+  // over that; read raw (flags 0) and rebuild the triangles below.
+  const unsigned flags = q3 ? 0u
+                            : aiProcess_Triangulate | aiProcess_JoinIdenticalVertices | aiProcess_GenSmoothNormals |
+                                  aiProcess_SortByPType | aiProcess_ValidateDataStructure;
+  const aiScene* as = importer.ReadFile(path, flags);
+  if (!as || !as->mRootNode) {
+    std::string why = importer.GetErrorString();
+    std::replace(why.begin(), why.end(), '\n', ' ');
+    inputError("scene ", path, ": cannot load model (", why.empty() ? "unknown format" : why, ")");
+  }
+
+  Scene scene;
+  scene.name = fs::path(path).stem().string();
+  for (unsigned i = 0; i < as->mNumMaterials; ++i) scene.materials.push_back(convertMaterial(as->mMaterials[i]));
+  if (scene.materials.empty()) scene.materials.push_back(Material{"default"});
+
+  std::function<void(const aiNode*, const glm::mat4&)> visit = [&](const aiNode* node, const glm::mat4& parent) {
+    const glm::mat4 m = parent * toGlm(node->mTransformation);
+    const glm::mat3 nm = glm::inverseTranspose(glm::mat3(m));
+    for (unsigned k = 0; k < node->mNumMeshes; ++k) {
+      if (node->mMeshes[k] >= as->mNumMeshes) continue;
+      const aiMesh* mesh = as->mMeshes[node->mMeshes[k]];
+      if (!mesh || !mesh->mVertices) continue;
+      const auto base = uint32_t(scene.positions.size());
+      for (unsigned v = 0; v < mesh->mNumVertices; ++v) {
+        const aiVector3D p = mesh->mVertices[v];
+        scene.positions.push_back(glm::vec3(m * glm::vec4(p.x, p.y, p.z, 1.0f)));
+        glm::vec3 n(0.0f);
+        if (mesh->mNormals) {
+          const aiVector3D an = mesh->mNormals[v];
+          n = nm * glm::vec3(an.x, an.y, an.z);
+        }
+        scene.normals.push_back(n);  // zero length → derived from faces in finalize()
+      }
+      const uint32_t material = mesh->mMaterialIndex < scene.materials.size() ? mesh->mMaterialIndex : 0;
+      if (q3) {
+        // Consecutive vertices form triangles; Quake 3 winds front faces clockwise.
+        for (uint32_t t = 0; t + 2 < mesh->mNumVertices; t += 3) {
+          scene.triangles.push_back({base + t, base + t + 2, base + t + 1});
+          scene.triMaterial.push_back(material);
+        }
+        continue;
+      }
+      for (unsigned f = 0; f < mesh->mNumFaces; ++f) {
+        const aiFace& face = mesh->mFaces[f];
+        if (face.mNumIndices != 3) continue;  // points and lines are not surfaces
+        bool ok = true;
+        for (int c = 0; c < 3; ++c) ok = ok && face.mIndices[c] < mesh->mNumVertices;
+        if (!ok) inputError("scene ", path, ": face index out of range in mesh ", node->mMeshes[k]);
+        scene.triangles.push_back({base + face.mIndices[0], base + face.mIndices[1], base + face.mIndices[2]});
+        scene.triMaterial.push_back(material);
+      }
+    }
+    for (unsigned c = 0; c < node->mNumChildren; ++c) visit(node->mChildren[c], m);
+  };
+  visit(as->mRootNode, transform);
+
+  // Cameras and point lights placed by their nodes.
+  for (unsigned i = 0; i < as->mNumCameras; ++i) {
+    const aiCamera* ac = as->mCameras[i];
+    const glm::mat4 m = transform * nodeTransform(as, ac->mName);
+    CameraDesc cd;
+    cd.name = ac->mName.length ? ac->mName.C_Str() : cat("camera", i);
+    const glm::vec3 pos(ac->mPosition.x, ac->mPosition.y, ac->mPosition.z);
+    const glm::vec3 look(ac->mLookAt.x, ac->mLookAt.y, ac->mLookAt.z);
+    cd.eye = glm::vec3(m * glm::vec4(pos, 1.0f));
+    cd.target = glm::vec3(m * glm::vec4(pos + look, 1.0f));
+    cd.up = glm::normalize(glm::vec3(m * glm::vec4(ac->mUp.x, ac->mUp.y, ac->mUp.z, 0.0f)));
+    const float aspect = ac->mAspect > 0.0f ? ac->mAspect : 16.0f / 9.0f;
+    if (ac->mHorizontalFOV > 0.0f)
+      cd.fovY = glm::degrees(2.0f * std::atan(std::tan(ac->mHorizontalFOV * 0.5f) / aspect));
+    if (cd.fovY > 0.0f && cd.fovY < 180.0f && glm::length(cd.target - cd.eye) > 0.0f) scene.cameras.push_back(cd);
+  }
+  for (unsigned i = 0; i < as->mNumLights; ++i) {
+    const aiLight* al = as->mLights[i];
+    if (al->mType != aiLightSource_POINT) continue;
+    const glm::mat4 m = transform * nodeTransform(as, al->mName);
+    scene.lights.push_back({glm::vec3(m * glm::vec4(al->mPosition.x, al->mPosition.y, al->mPosition.z, 1.0f)),
+                            glm::vec3(al->mColorDiffuse.r, al->mColorDiffuse.g, al->mColorDiffuse.b)});
+  }
+  scene.finalize(path);
+  return scene;
+}
+
+}  // namespace lt

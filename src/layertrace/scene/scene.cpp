@@ -1,0 +1,72 @@
+#include "layertrace/scene/scene.h"
+
+#include <cmath>
+
+#include <glm/geometric.hpp>
+
+#include "layertrace/util/error.h"
+
+namespace lt {
+
+void Bounds::extend(glm::vec3 p) {
+  lo = glm::min(lo, p);
+  hi = glm::max(hi, p);
+}
+
+float Bounds::diagonal() const { return empty() ? 0.0f : glm::length(hi - lo); }
+
+Bounds Scene::bounds() const {
+  Bounds b;
+  for (const glm::uvec3& t : triangles)
+    for (int i = 0; i < 3; ++i) b.extend(positions[t[i]]);
+  return b;
+}
+
+void Scene::append(const Scene& other) {
+  const auto vbase = uint32_t(positions.size());
+  const auto mbase = uint32_t(materials.size());
+  positions.insert(positions.end(), other.positions.begin(), other.positions.end());
+  normals.insert(normals.end(), other.normals.begin(), other.normals.end());
+  normals.resize(positions.size(), glm::vec3(0.0f));
+  for (const glm::uvec3& t : other.triangles) triangles.push_back(t + glm::uvec3(vbase));
+  for (uint32_t m : other.triMaterial) triMaterial.push_back(m + mbase);
+  materials.insert(materials.end(), other.materials.begin(), other.materials.end());
+  lights.insert(lights.end(), other.lights.begin(), other.lights.end());
+  cameras.insert(cameras.end(), other.cameras.begin(), other.cameras.end());
+}
+
+void Scene::finalize(const std::string& source) {
+  if (triangles.empty()) inputError("scene ", source, ": contains no triangles");
+  if (materials.empty()) materials.push_back(Material{"default"});
+  triMaterial.resize(triangles.size(), 0);
+  normals.resize(positions.size(), glm::vec3(0.0f));
+  const auto nv = uint32_t(positions.size());
+  std::vector<glm::vec3> accum(positions.size(), glm::vec3(0.0f));
+  bool anyMissing = false;
+  for (size_t i = 0; i < triangles.size(); ++i) {
+    const glm::uvec3 t = triangles[i];
+    if (t.x >= nv || t.y >= nv || t.z >= nv)
+      inputError("scene ", source, ": triangle ", i, " has a vertex index beyond ", nv, " vertices");
+    if (triMaterial[i] >= materials.size())
+      inputError("scene ", source, ": triangle ", i, " has material index ", triMaterial[i]);
+    const glm::vec3 n = glm::cross(positions[t.y] - positions[t.x], positions[t.z] - positions[t.x]);
+    for (int k = 0; k < 3; ++k) accum[t[k]] += n;
+  }
+  for (const glm::vec3& p : positions)
+    if (!std::isfinite(p.x) || !std::isfinite(p.y) || !std::isfinite(p.z))
+      inputError("scene ", source, ": a vertex position is not finite");
+  for (size_t v = 0; v < normals.size(); ++v) {
+    const float len = glm::length(normals[v]);
+    if (!(len > 1e-12f) || !std::isfinite(len)) {
+      anyMissing = true;
+      const float a = glm::length(accum[v]);
+      normals[v] = a > 0.0f ? accum[v] / a : glm::vec3(0.0f, 0.0f, 1.0f);
+    } else {
+      normals[v] /= len;
+    }
+  }
+  (void)anyMissing;
+  if (bounds().diagonal() <= 0.0f) inputError("scene ", source, ": all vertices coincide");
+}
+
+}  // namespace lt

@@ -1,0 +1,73 @@
+// The scene: world-space triangles with a material per triangle, point lights, named cameras.
+//
+// Every loader (assimp model, Quake 3 archive, JSON composition, built-in shapes) produces this
+// one flat representation; rasterizer and geometric tracers read it and nothing else.
+#pragma once
+
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include <glm/vec3.hpp>
+
+namespace lt {
+
+/// Surface description used for shading and for the secondary effects.
+struct Material {
+  std::string name;
+  glm::vec3 albedo{0.7f};     ///< diffuse reflectance, linear RGB
+  float specular = 0.1f;      ///< Blinn-Phong specular weight in [0,1] (the 8-bit field of seed 000 §4.1)
+  float shininess = 32.0f;    ///< Blinn-Phong exponent
+  float mirror = 0.0f;        ///< weight of the mirror-reflected colour in [0,1]
+  float transmission = 0.0f;  ///< weight of the refracted colour in [0,1]
+  float ior = 1.5f;           ///< index of refraction for transmission
+};
+
+struct PointLight {
+  glm::vec3 position{0.0f};
+  glm::vec3 intensity{1.0f};  ///< radiant intensity, linear RGB; falls off with 1/d²
+};
+
+/// A named view. `fovY` is the vertical field of view in degrees.
+struct CameraDesc {
+  std::string name;
+  glm::vec3 eye{0.0f, 0.0f, 5.0f};
+  glm::vec3 target{0.0f};
+  glm::vec3 up{0.0f, 1.0f, 0.0f};
+  float fovY = 60.0f;
+  float near = 0.0f;  ///< 0 = derive from the scene size (see Scene::defaultNearFar)
+  float far = 0.0f;   ///< 0 = derive from the scene size
+};
+
+struct Bounds {
+  glm::vec3 lo{1e30f};
+  glm::vec3 hi{-1e30f};
+  void extend(glm::vec3 p);
+  bool empty() const { return lo.x > hi.x; }
+  glm::vec3 center() const { return (lo + hi) * 0.5f; }
+  float diagonal() const;
+};
+
+struct Scene {
+  std::string name;
+  std::vector<glm::vec3> positions;      ///< world-space vertex positions
+  std::vector<glm::vec3> normals;        ///< per-vertex shading normals (same size as positions)
+  std::vector<glm::uvec3> triangles;     ///< vertex indices
+  std::vector<uint32_t> triMaterial;     ///< material index per triangle
+  std::vector<Material> materials;
+  std::vector<PointLight> lights;
+  std::vector<CameraDesc> cameras;
+  glm::vec3 environment{0.05f, 0.06f, 0.08f};  ///< colour of rays that leave the scene
+
+  Bounds bounds() const;
+  size_t triangleCount() const { return triangles.size(); }
+
+  /// Appends another scene's geometry (materials re-indexed), lights and cameras.
+  void append(const Scene& other);
+
+  /// Replaces missing vertex normals by area-weighted face normals; validates indices.
+  /// Throws InputError naming `source` when the scene is empty or an index is out of range.
+  void finalize(const std::string& source);
+};
+
+}  // namespace lt

@@ -1,0 +1,180 @@
+#include "layertrace/util/image.h"
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+
+#include <unistd.h>
+
+#include <ImfArray.h>
+#include <ImfChannelList.h>
+#include <ImfFrameBuffer.h>
+#include <ImfHeader.h>
+#include <ImfInputFile.h>
+#include <ImfOutputFile.h>
+
+#define STB_IMAGE_WRITE_IMPLEMENTATION
+#define STB_IMAGE_IMPLEMENTATION
+#define STBI_ONLY_PNG
+#include <stb_image.h>
+#include <stb_image_write.h>
+
+#include "layertrace/util/error.h"
+
+namespace lt {
+namespace fs = std::filesystem;
+
+namespace {
+
+std::string extensionOf(const std::string& path) {
+  std::string ext = fs::path(path).extension().string();
+  std::transform(ext.begin(), ext.end(), ext.begin(), [](unsigned char c) { return std::tolower(c); });
+  return ext;
+}
+
+float linearToSrgb(float v) {
+  v = std::clamp(v, 0.0f, 1.0f);
+  return v <= 0.0031308f ? 12.92f * v : 1.055f * std::pow(v, 1.0f / 2.4f) - 0.055f;
+}
+
+float srgbToLinear(float v) {
+  return v <= 0.04045f ? v / 12.92f : std::pow((v + 0.055f) / 1.055f, 2.4f);
+}
+
+std::string tempNameFor(const std::string& path) {
+  return cat(path, ".tmp.", ::getpid());
+}
+
+void commit(const std::string& tmp, const std::string& path) {
+  std::error_code ec;
+  fs::rename(tmp, path, ec);
+  if (ec) {
+    fs::remove(tmp, ec);
+    inputError("output ", path, ": cannot write (", ec.message(), ")");
+  }
+}
+
+void writePng(const std::string& tmp, const Image& image, bool srgb) {
+  const int outChannels = image.channels == 1 ? 1 : 3;
+  std::vector<unsigned char> bytes(size_t(image.width) * size_t(image.height) * size_t(outChannels));
+  for (int y = 0; y < image.height; ++y)
+    for (int x = 0; x < image.width; ++x)
+      for (int c = 0; c < outChannels; ++c) {
+        float v = image.at(x, y)[std::min(c, image.channels - 1)];
+        v = srgb ? linearToSrgb(v) : std::clamp(v, 0.0f, 1.0f);
+        bytes[(size_t(y) * size_t(image.width) + size_t(x)) * size_t(outChannels) + size_t(c)] =
+            static_cast<unsigned char>(std::lround(v * 255.0f));
+      }
+  if (!stbi_write_png(tmp.c_str(), image.width, image.height, outChannels, bytes.data(),
+                      image.width * outChannels))
+    inputError("output ", tmp, ": cannot write PNG");
+}
+
+void writeExr(const std::string& tmp, const Image& image) {
+  static const char* names[4] = {"R", "G", "B", "A"};
+  Imf::Header header(image.width, image.height);
+  const bool grey = image.channels == 1;
+  const int n = std::min(image.channels, 4);
+  Imf::FrameBuffer fb;
+  const size_t xs = sizeof(float) * size_t(image.channels);
+  for (int c = 0; c < n; ++c) {
+    const char* name = grey ? "Y" : names[c];
+    header.channels().insert(name, Imf::Channel(Imf::FLOAT));
+    fb.insert(name, Imf::Slice(Imf::FLOAT, (char*)(image.data.data() + c), xs, xs * size_t(image.width)));
+  }
+  Imf::OutputFile file(tmp.c_str(), header);
+  file.setFrameBuffer(fb);
+  file.writePixels(image.height);
+}
+
+}  // namespace
+
+void writeFileAtomic(const std::string& path, const std::string& bytes) {
+  const std::string tmp = tempNameFor(path);
+  {
+    std::ofstream out(tmp, std::ios::binary);
+    if (!out) inputError("output ", path, ": cannot open for writing");
+    out.write(bytes.data(), std::streamsize(bytes.size()));
+    if (!out) {
+      out.close();
+      std::error_code ec;
+      fs::remove(tmp, ec);
+      inputError("output ", path, ": write failed");
+    }
+  }
+  commit(tmp, path);
+}
+
+void writeImage(const std::string& path, const Image& image, bool srgb) {
+  const std::string ext = extensionOf(path);
+  if (ext != ".png" && ext != ".exr")
+    inputError("output ", path, ": unknown image extension \"", ext, "\" (use .png or .exr)");
+  LT_CHECK(image.width > 0 && image.height > 0, image.width, "x", image.height);
+  const std::string tmp = tempNameFor(path) + ext;  // keep the extension for the writers
+  try {
+    if (ext == ".png")
+      writePng(tmp, image, srgb);
+    else
+      writeExr(tmp, image);
+  } catch (const InputError&) {
+    std::error_code ec;
+    fs::remove(tmp, ec);
+    throw;
+  } catch (const std::exception& e) {
+    std::error_code ec;
+    fs::remove(tmp, ec);
+    inputError("output ", path, ": cannot write (", e.what(), ")");
+  }
+  commit(tmp, path);
+}
+
+Image readImage(const std::string& path, bool srgb) {
+  const std::string ext = extensionOf(path);
+  if (ext == ".png") {
+    int w = 0, h = 0, c = 0;
+    unsigned char* px = stbi_load(path.c_str(), &w, &h, &c, 0);
+    if (!px) inputError("image ", path, ": cannot read PNG (", stbi_failure_reason(), ")");
+    Image image(w, h, c);
+    for (size_t i = 0; i < image.data.size(); ++i) {
+      const float v = float(px[i]) / 255.0f;
+      image.data[i] = srgb ? srgbToLinear(v) : v;
+    }
+    stbi_image_free(px);
+    return image;
+  }
+  if (ext == ".exr") {
+    try {
+      Imf::InputFile file(path.c_str());
+      const Imath::Box2i dw = file.header().dataWindow();
+      const int w = dw.max.x - dw.min.x + 1, h = dw.max.y - dw.min.y + 1;
+      const bool grey = file.header().channels().findChannel("Y") != nullptr;
+      Image image(w, h, grey ? 1 : 3);
+      Imf::FrameBuffer fb;
+      const size_t xs = sizeof(float) * size_t(image.channels);
+      char* base = (char*)(image.data.data()) - (size_t(dw.min.x) + size_t(dw.min.y) * size_t(w)) * xs;
+      const char* names[3] = {"R", "G", "B"};
+      for (int c = 0; c < image.channels; ++c)
+        fb.insert(grey ? "Y" : names[c], Imf::Slice(Imf::FLOAT, base + size_t(c) * sizeof(float), xs, xs * size_t(w)));
+      file.setFrameBuffer(fb);
+      file.readPixels(dw.min.y, dw.max.y);
+      return image;
+    } catch (const std::exception& e) {
+      inputError("image ", path, ": cannot read EXR (", e.what(), ")");
+    }
+  }
+  inputError("image ", path, ": unknown image extension \"", ext, "\"");
+}
+
+glm::vec3 heatColor(float t) {
+  t = std::clamp(t, 0.0f, 1.0f);
+  static const glm::vec3 stops[5] = {{0.0f, 0.0f, 0.6f}, {0.0f, 0.7f, 1.0f}, {0.1f, 0.8f, 0.1f},
+                                     {1.0f, 0.9f, 0.0f}, {0.9f, 0.0f, 0.0f}};
+  const float s = t * 4.0f;
+  const int i = std::min(int(s), 3);
+  const float f = s - float(i);
+  return stops[i] * (1.0f - f) + stops[i + 1] * f;
+}
+
+}  // namespace lt

@@ -1,0 +1,51 @@
+// Float images and their files. Images are chosen by extension (.png, .exr) and always written
+// through a temporary file and a rename, so no partial file is ever left behind.
+#pragma once
+
+#include <cstddef>
+#include <string>
+#include <vector>
+
+#include <glm/vec3.hpp>
+
+namespace lt {
+
+/// A row-major float image, row 0 at the top, `channels` interleaved floats per pixel.
+struct Image {
+  int width = 0;
+  int height = 0;
+  int channels = 3;
+  std::vector<float> data;
+
+  Image() = default;
+  Image(int w, int h, int c = 3, float fill = 0.0f)
+      : width(w), height(h), channels(c), data(size_t(w) * size_t(h) * size_t(c), fill) {}
+
+  float* at(int x, int y) { return &data[(size_t(y) * size_t(width) + size_t(x)) * size_t(channels)]; }
+  const float* at(int x, int y) const {
+    return &data[(size_t(y) * size_t(width) + size_t(x)) * size_t(channels)];
+  }
+  void set(int x, int y, glm::vec3 c) {
+    float* p = at(x, y);
+    for (int i = 0; i < channels && i < 3; ++i) p[i] = c[i];
+  }
+  glm::vec3 rgb(int x, int y) const {
+    const float* p = at(x, y);
+    return channels >= 3 ? glm::vec3(p[0], p[1], p[2]) : glm::vec3(p[0]);
+  }
+};
+
+/// Writes `.png` (linear values encoded to sRGB 8 bit; set `srgb=false` for data images) or
+/// `.exr` (32-bit float, linear). Throws InputError for an unknown extension or unwritable path.
+void writeImage(const std::string& path, const Image& image, bool srgb = true);
+
+/// Reads `.png` (decoded back to linear when `srgb`) or `.exr`. Used by round-trip tests.
+Image readImage(const std::string& path, bool srgb = true);
+
+/// Writes `bytes` to `path` through `path.tmp.<pid>` and a rename.
+void writeFileAtomic(const std::string& path, const std::string& bytes);
+
+/// Maps t in [0,1] to a perceptual heat colour (blue → cyan → green → yellow → red).
+glm::vec3 heatColor(float t);
+
+}  // namespace lt
