@@ -98,6 +98,16 @@ int main(int argc, char** argv) {
   addFrameOptions(layersCmd, layers.run, layersRaw);
   layersCmd->add_flag("--verify", layers.verify, "compare every pixel's fragment list with Embree all-hit primary rays");
 
+  std::string names;
+  bool known = false;
+  for (const CLI::App* sub : app.get_subcommands({})) {
+    names += (names.empty() ? "" : ", ") + sub->get_name();
+    known = known || (argc > 1 && sub->get_name() == argv[1]);
+  }
+  if (argc > 1 && argv[1][0] != '-' && !known) {
+    std::cerr << "layertrace: unknown subcommand \"" << argv[1] << "\" (use one of: " << names << ")\n";
+    return 2;
+  }
   try {
     app.parse(argc, argv);
   } catch (const CLI::CallForHelp& e) {

@@ -121,6 +121,11 @@ nlohmann::json frameStats(const Frame& f) {
   j["camera"] = f.camera.desc().name;
   j["thickness"] = f.thickness;
   j["triangles"] = f.scene.triangleCount();
+  const Bounds b = f.scene.bounds();
+  j["bounds"] = {{b.lo.x, b.lo.y, b.lo.z}, {b.hi.x, b.hi.y, b.hi.z}};
+  const CameraDesc& cd = f.camera.desc();
+  j["view"] = {{"eye", {cd.eye.x, cd.eye.y, cd.eye.z}}, {"target", {cd.target.x, cd.target.y, cd.target.z}},
+               {"up", {cd.up.x, cd.up.y, cd.up.z}}, {"fov", cd.fovY}, {"near", f.camera.near()}, {"far", f.camera.far()}};
   j["timings_ms"]["load"] = f.loadMs;
   j["timings_ms"]["raster"] = f.rasterMs;
   j["timings_ms"]["sort"] = f.sortMs;

@@ -99,7 +99,12 @@ Scene loadModel(const std::string& path, const glm::mat4& transform) {
 
   Scene scene;
   scene.name = fs::path(path).stem().string();
-  for (unsigned i = 0; i < as->mNumMaterials; ++i) scene.materials.push_back(convertMaterial(as->mMaterials[i]));
+  for (unsigned i = 0; i < as->mNumMaterials; ++i) {
+    Material m = convertMaterial(as->mMaterials[i]);
+    // Quake 3 surfaces are textured shaders without colours: colour them by shader name.
+    if (q3) m.albedo = colorFromName(m.name), m.specular = 0.1f;
+    scene.materials.push_back(m);
+  }
   if (scene.materials.empty()) scene.materials.push_back(Material{"default"});
 
   std::function<void(const aiNode*, const glm::mat4&)> visit = [&](const aiNode* node, const glm::mat4& parent) {

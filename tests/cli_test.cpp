@@ -1,0 +1,114 @@
+// The CLI contract of DESIGN.md: outputs and stats keys, and bad input → one line, status 2,
+// no output left behind.
+#include <filesystem>
+#include <fstream>
+#include <random>
+
+#include <nlohmann/json.hpp>
+
+#include "test_util.h"
+
+namespace lt {
+namespace {
+namespace fs = std::filesystem;
+
+const std::string kDefault = test::sourceDir() + "/scenes/default.json";
+
+nlohmann::json readJson(const std::string& path) {
+  std::ifstream in(path);
+  return nlohmann::json::parse(in);
+}
+
+TEST(CliLayers, WritesImagesAndStatsWithTheContractKeys) {
+  test::TempDir dir;
+  std::string err;
+  ASSERT_EQ(test::runCli("layers " + kDefault + " --width 320 --height 180 --layers 3 --verify --quiet -o " + (dir / "out") +
+                             " --stats " + (dir / "s.json"),
+                         &err),
+            0)
+      << err;
+  for (const char* f : {"layer0_albedo.png", "layer2_normal.png", "layer1_depth.png", "depth_complexity.png", "depth_complexity.exr"})
+    EXPECT_TRUE(fs::exists(dir / ("out/" + std::string(f)))) << f;
+  const auto j = readJson(dir / "s.json");
+  EXPECT_EQ(j["width"], 320);
+  EXPECT_EQ(j["layers"], 3);
+  for (const char* k : {"total", "depth_complexity_mean", "depth_complexity_max", "overflow"}) EXPECT_TRUE(j["fragments"].contains(k)) << k;
+  EXPECT_GT(j["memory_bytes"]["lists"].get<double>(), 0.0);
+  EXPECT_GT(j["memory_bytes"]["arrays"].get<double>(), 0.0);
+  EXPECT_TRUE(j["timings_ms"].contains("raster") && j["timings_ms"].contains("sort"));
+  EXPECT_EQ(j["verify"]["pixels"], 320 * 180);
+  EXPECT_GE(j["verify"]["match_fraction"].get<double>(), 0.999);
+}
+
+struct BadCase {
+  std::string args;
+  std::string mustMention;
+};
+
+void expectRejected(const BadCase& c, const test::TempDir& dir) {
+  std::string err;
+  const std::string out = dir / "out.png";
+  const int status = test::runCli(c.args + " -o " + out + " --stats " + (dir / "s.json") + " --quiet", &err);
+  EXPECT_EQ(status, 2) << c.args << "\n" << err;
+  EXPECT_NE(err.find(c.mustMention), std::string::npos) << c.args << "\nstderr: " << err;
+  EXPECT_EQ(std::count(err.begin(), err.end(), '\n'), 1) << "one line: " << err;
+  EXPECT_FALSE(fs::exists(out)) << c.args;
+  EXPECT_FALSE(fs::exists(dir / "s.json")) << c.args;
+  for (const auto& e : fs::directory_iterator(dir.path)) ADD_FAILURE() << "left behind: " << e.path() << " by " << c.args;
+}
+
+TEST(CliErrors, BadInputIsOneLineStatusTwoNoOutput) {
+  test::TempDir dir, in;
+  std::ofstream(in / "bad.json") << "{\n  \"objects\": [\n    {\"box\": {\"min\": [0,0,0] \"max\": [1,1,1]}}\n  ]\n}\n";
+  std::ofstream(in / "empty.json") << "{\"objects\": [{\"model\": \"none.obj\"}]}";
+  const std::vector<BadCase> cases = {
+      {"layers " + in / "nothere.json", "nothere.json"},
+      {"layers " + in / "bad.json", "line 3, column"},
+      {"layers " + in / "empty.json", "none.obj"},
+      {"layers " + kDefault + " --layers 0", "--layers 0"},
+      {"layers " + kDefault + " --layers 17", "--layers 17"},
+      {"layers " + kDefault + " --width 0", "--width 0"},
+      {"layers " + kDefault + " --height -4", "--height -4"},
+      {"layers " + kDefault + " --width 30000 --height 30000", "available"},
+      {"layers " + kDefault + " --camera nope", "--camera nope"},
+      {"layers " + kDefault + " --eye 1,2", "--eye 1,2"},
+      {"layers " + kDefault + " --eye 1,2,x", "\"x\""},
+      {"layers " + kDefault + " --fov 190", "--fov 190"},
+      {"layers " + kDefault + " --thickness -1", "--thickness -1"},
+      {"layers " + kDefault + " --light 1,2,3,-4", "--light"},
+      {"layers " + kDefault + " --width 64 --height 64 --pool 1000", "lost"},
+      {"layers " + kDefault + " --bogus", "--bogus"},
+      {"frobnicate " + kDefault, "frobnicate"},
+  };
+  for (const BadCase& c : cases) expectRejected(c, dir);
+}
+
+TEST(CliErrors, RandomBytesAsModelsAreRejectedCleanly) {
+  test::TempDir dir;
+  test::TempDir inputs;
+  std::mt19937_64 rng(test::testSeed());
+  for (const char* ext : {".obj", ".glb", ".json"}) {
+    std::string bytes(4096, '\0');
+    for (char& c : bytes) c = char(rng() & 0xFF);
+    const std::string path = inputs / (std::string("noise") + ext);
+    std::ofstream(path, std::ios::binary) << bytes;
+    expectRejected({"layers " + path, path}, dir);
+  }
+}
+
+TEST(CliErrors, OverflowReportsExactCounts) {
+  std::string err;
+  ASSERT_EQ(test::runCli("layers " + kDefault + " --width 64 --height 36 --pool 500 --quiet -o /tmp/layertrace_never", &err), 2);
+  // "... N fragments generated, S stored, L lost" with N = S + L
+  unsigned long n = 0, s = 0, l = 0;
+  const auto pos = err.find("overflow: ");
+  ASSERT_NE(pos, std::string::npos) << err;
+  ASSERT_EQ(std::sscanf(err.c_str() + pos, "overflow: %lu fragments generated, %lu stored, %lu lost", &n, &s, &l), 3) << err;
+  EXPECT_EQ(n, s + l);
+  EXPECT_LE(s, 500u);
+  EXPECT_GT(l, 0u);
+  EXPECT_FALSE(fs::exists("/tmp/layertrace_never"));
+}
+
+}  // namespace
+}  // namespace lt

@@ -1,0 +1,42 @@
+// Helpers shared by the tests: small scenes built in code, temporary folders, the CLI runner.
+#pragma once
+
+#include <cstdlib>
+#include <filesystem>
+#include <random>
+#include <string>
+
+#include <gtest/gtest.h>
+
+#include "layertrace/scene/camera.h"
+#include "layertrace/scene/scene.h"
+
+namespace lt::test {
+
+/// A fresh, empty folder under the system temp dir, removed at destruction.
+struct TempDir {
+  std::filesystem::path path;
+  TempDir();
+  ~TempDir();
+  std::string operator/(const std::string& name) const { return (path / name).string(); }
+};
+
+/// Runs the layertrace CLI with `args`; returns the exit status, stderr in `err`.
+int runCli(const std::string& args, std::string* err = nullptr, std::string* out = nullptr);
+
+/// The repository's source directory (for scenes/).
+inline std::string sourceDir() { return LAYERTRACE_SOURCE_DIR; }
+
+/// True when the fetched scenes are present (scripts/fetch-scenes.sh).
+bool haveFetchedScenes();
+
+/// A camera at the origin looking down -z (camera space = world space).
+CameraDesc originCamera(float fovY = 60.0f, float near = 0.01f, float far = 100.0f);
+
+/// Adds a triangle to a scene with one material.
+void addTriangle(Scene& s, glm::vec3 a, glm::vec3 b, glm::vec3 c, uint32_t material = 0);
+
+/// Seed for randomized tests: LAYERTRACE_TEST_SEED or a fixed default; printed on failure.
+uint64_t testSeed();
+
+}  // namespace lt::test
