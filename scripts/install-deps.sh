@@ -7,8 +7,11 @@ packages=(
   build-essential cmake pkg-config ca-certificates
   libembree-dev libassimp-dev libtbb-dev libglm-dev libcli11-dev nlohmann-json3-dev
   libopenexr-dev libgtest-dev libbenchmark-dev libstb-dev
-  python3 python3-matplotlib npm unzip zip
+  python3 python3-matplotlib unzip zip
 )
+# npm (for the small npm bunny) only when no npm is on the machine: some machines carry a
+# non-Debian Node.js that bundles npm and conflicts with Debian's package.
+command -v npm >/dev/null 2>&1 || packages+=(npm)
 
 missing=()
 for p in "${packages[@]}"; do
