@@ -1,0 +1,35 @@
+// Hierarchical multi-layer screen-space ray tracing (seed 000 §5): a conservative
+// Amanatides–Woo DDA over the interval pyramid. Start at level 0 skipping the origin pixel;
+// after n_up cells without an overlap ascend a level (unless the coarser cell contains the
+// origin pixel); on an overlap above level 0 advance to the interval's entry and descend one
+// level; report hits only at level 0. With levels = 1 this is the exhaustive image-space oracle
+// of DESIGN.md: every pixel the 2D line touches, every stored interval.
+#pragma once
+
+#include "layertrace/raster/layer_arrays.h"
+#include "layertrace/scene/camera.h"
+#include "layertrace/screen/interval_pyramid.h"
+#include "layertrace/screen/tracer.h"
+
+namespace lt {
+
+struct HssrConfig {
+  int nUp = 2;  ///< seed 000 §5.2: cells traversed without an overlap before ascending a level
+  int maxLevels = 16;  ///< use at most this many pyramid levels (1 = the exhaustive oracle)
+};
+
+class HssrTracer : public Tracer {
+ public:
+  HssrTracer(const Camera& camera, const LayerArrays& layers, const IntervalPyramid& pyramid, const HssrConfig& config = {});
+  const char* name() const override { return levels_ == 1 ? "exhaustive" : "hssr"; }
+  TraceHit trace(const ScreenRay& ray, RayCounters& counters) const override;
+
+ private:
+  const Camera& camera_;
+  const LayerArrays& layers_;
+  const IntervalPyramid& pyramid_;
+  HssrConfig config_;
+  int levels_;
+};
+
+}  // namespace lt

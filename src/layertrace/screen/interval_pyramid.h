@@ -1,0 +1,47 @@
+// The interval resolution pyramid of seed 000 §4.3 (Figure 3 right, Figure 4).
+//
+// Level 0 is the k-layer arrays themselves (interval [depth, depth + thickness] per fragment).
+// Level L ≥ 1 has ceil(W / 2^L) × ceil(H / 2^L) cells; each holds the intervals of its 2×2
+// children merged front to back while they stay within τ, as two floats per interval.
+// Invariant (checked by tests on every level of real scenes): every child interval lies inside
+// one interval of its parent cell — the hierarchy never hides geometry (hssr-pitfalls §3).
+#pragma once
+
+#include <cstdint>
+#include <vector>
+
+#include "layertrace/raster/layer_arrays.h"
+#include "layertrace/scene/camera.h"
+
+namespace lt {
+
+struct Interval {
+  float front, back;
+};
+
+struct PyramidConfig {
+  int levels = 5;        ///< levels including level 0 (seed 000 Figure 9: "5 levels")
+  /// τ as a multiple of the projected pixel footprint at the interval's start depth, for a
+  /// level-L cell 2^L pixels wide (seed 000 §4.3: "25 times the projected pixel-footprint").
+  float tau = 25.0f;
+};
+
+struct PyramidLevel {
+  int width = 0, height = 0;
+  std::vector<uint32_t> offset;  ///< per cell: first interval; offset[cells] = total
+  std::vector<Interval> intervals;
+  size_t cellIndex(int x, int y) const { return size_t(y) * size_t(width) + size_t(x); }
+};
+
+struct IntervalPyramid {
+  const LayerArrays* base = nullptr;
+  std::vector<PyramidLevel> levels;  ///< levels[0] is empty: level 0 is read from `base`
+  int levelCount() const { return int(levels.size()); }
+  size_t memoryBytes() const;
+  double buildMs = 0.0;
+};
+
+/// Builds levels 1..levels-1 (parallel over rows of cells).
+IntervalPyramid buildIntervalPyramid(const LayerArrays& layers, const Camera& camera, const PyramidConfig& config);
+
+}  // namespace lt

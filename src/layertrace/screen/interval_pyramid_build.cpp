@@ -1,0 +1,98 @@
+#include <algorithm>
+#include <chrono>
+
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_for.h>
+
+#include "layertrace/screen/interval_pyramid.h"
+#include "layertrace/util/error.h"
+
+namespace lt {
+
+size_t IntervalPyramid::memoryBytes() const {
+  size_t bytes = 0;
+  for (const PyramidLevel& l : levels) bytes += l.offset.size() * sizeof(uint32_t) + l.intervals.size() * sizeof(Interval);
+  return bytes;
+}
+
+namespace {
+
+/// seed 000 §4.3 merge of the 2×2 children's intervals (sorted by front). A parent interval
+/// starts at the front-most remaining child d_min and takes every child starting within
+/// [d_min, d_min + τ(d_min)]; a child that is longer than τ or overlaps the running interval
+/// extends it instead of being dropped or split (hssr-pitfalls §3: the merge must cover).
+void mergeChildren(std::vector<Interval>& children, float tauPerDepth, std::vector<Interval>& out) {
+  std::sort(children.begin(), children.end(), [](const Interval& a, const Interval& b) { return a.front < b.front; });
+  size_t i = 0;
+  while (i < children.size()) {
+    Interval cur = children[i++];
+    const float limit = cur.front + tauPerDepth * cur.front;
+    while (i < children.size() && (children[i].front <= limit || children[i].front <= cur.back)) {
+      cur.back = std::max(cur.back, children[i].back);
+      ++i;
+    }
+    out.push_back(cur);
+  }
+}
+
+}  // namespace
+
+IntervalPyramid buildIntervalPyramid(const LayerArrays& layers, const Camera& camera, const PyramidConfig& config) {
+  if (config.levels < 1 || config.levels > 16) inputError("--levels ", config.levels, ": must be between 1 and 16");
+  if (!(config.tau > 0.0f)) inputError("--tau ", config.tau, ": must be positive");
+  const auto start = std::chrono::steady_clock::now();
+  IntervalPyramid p;
+  p.base = &layers;
+  p.levels.resize(size_t(config.levels));
+  p.levels[0].width = layers.width;
+  p.levels[0].height = layers.height;
+  for (int L = 1; L < config.levels; ++L) {
+    const PyramidLevel& child = p.levels[size_t(L - 1)];
+    PyramidLevel& lvl = p.levels[size_t(L)];
+    lvl.width = (child.width + 1) / 2;
+    lvl.height = (child.height + 1) / 2;
+    // τ for this level: factor × footprint of a 2^L-pixel cell per unit depth.
+    const float tauPerDepth = config.tau * camera.pixelFootprint(1.0f) * float(1 << L);
+    std::vector<std::vector<Interval>> rows(size_t(lvl.height));
+    std::vector<std::vector<uint32_t>> rowCounts(size_t(lvl.height));
+    tbb::parallel_for(tbb::blocked_range<int>(0, lvl.height, 4), [&](const tbb::blocked_range<int>& r) {
+      std::vector<Interval> children;
+      for (int y = r.begin(); y != r.end(); ++y) {
+        std::vector<Interval>& row = rows[size_t(y)];
+        rowCounts[size_t(y)].resize(size_t(lvl.width));
+        for (int x = 0; x < lvl.width; ++x) {
+          children.clear();
+          for (int cy = 2 * y; cy < std::min(2 * y + 2, child.height); ++cy)
+            for (int cx = 2 * x; cx < std::min(2 * x + 2, child.width); ++cx) {
+              if (L == 1) {
+                const FragmentNode* f = layers.pixel(cx, cy);
+                for (int i = 0; i < layers.countAt(cx, cy); ++i) children.push_back({f[i].depth, f[i].back()});
+              } else {
+                const size_t c = child.cellIndex(cx, cy);
+                children.insert(children.end(), child.intervals.begin() + child.offset[c], child.intervals.begin() + child.offset[c + 1]);
+              }
+            }
+          const size_t before = row.size();
+          mergeChildren(children, tauPerDepth, row);
+          rowCounts[size_t(y)][size_t(x)] = uint32_t(row.size() - before);
+        }
+      }
+    });
+    lvl.offset.resize(size_t(lvl.width) * size_t(lvl.height) + 1);
+    uint32_t total = 0;
+    for (int y = 0; y < lvl.height; ++y)
+      for (int x = 0; x < lvl.width; ++x) {
+        lvl.offset[lvl.cellIndex(x, y)] = total;
+        total += rowCounts[size_t(y)][size_t(x)];
+      }
+    lvl.offset.back() = total;
+    lvl.intervals.resize(total);
+    tbb::parallel_for(0, lvl.height, [&](int y) {
+      std::copy(rows[size_t(y)].begin(), rows[size_t(y)].end(), lvl.intervals.begin() + lvl.offset[lvl.cellIndex(0, y)]);
+    });
+  }
+  p.buildMs = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
+  return p;
+}
+
+}  // namespace lt

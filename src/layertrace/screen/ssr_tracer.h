@@ -1,0 +1,37 @@
+// McGuire & Mara's screen-space ray tracer (seed 001; JCGT 2014): a 2D DDA along the projected
+// ray with perspective-correct depth, stride, jitter and z-thickness.
+//   ssr         tests the front layer only (the classic effect)
+//   ssr-layers  tests every interval of all k layers at each step (deep G-buffer style)
+#pragma once
+
+#include "layertrace/raster/layer_arrays.h"
+#include "layertrace/scene/camera.h"
+#include "layertrace/screen/tracer.h"
+
+namespace lt {
+
+struct SsrConfig {
+  float stride = 1.0f;   ///< pixels per step along the major axis (seed 001 "stride", >= 1)
+  float jitter = 0.0f;   ///< fraction of a stride to offset the start, in [0, 1] (seed 001 "jitter")
+  int maxSteps = 0;      ///< step limit; 0 = max(width, height) / stride + 1: always reaches the viewport edge
+  bool allLayers = false;  ///< ssr-layers: test all k intervals per pixel instead of the front one
+  /// Binary refinement of the hit between the last two samples for stride > 1 (seed 001's
+  /// suggested extension): log2(stride) extra samples.
+  bool refine = true;
+};
+
+class SsrTracer : public Tracer {
+ public:
+  SsrTracer(const Camera& camera, const LayerArrays& layers, const SsrConfig& config = {});
+  const char* name() const override { return config_.allLayers ? "ssr-layers" : "ssr"; }
+  TraceHit trace(const ScreenRay& ray, RayCounters& counters) const override;
+
+ private:
+  /// First interval of pixel (x, y) overlapping [zmin, zmax], or -1.
+  int overlap(int x, int y, float zmin, float zmax, RayCounters& c) const;
+  const Camera& camera_;
+  const LayerArrays& layers_;
+  SsrConfig config_;
+};
+
+}  // namespace lt
