@@ -24,8 +24,10 @@ fetch: deps
 # The main job on the embedded default scene.
 run: build
 	@mkdir -p $(OUT)
+	$(BUILD)/layertrace render $(SCENE) --tracer hssr --effect reflection --bounces 2 \
+	    -o $(OUT)/default_hssr_reflection.png --stats $(OUT)/default_hssr_reflection.json
 	$(BUILD)/layertrace layers $(SCENE) -o $(OUT)/layers --stats $(OUT)/layers.json --verify
-	@echo "wrote $(OUT)/layers/ and $(OUT)/layers.json"
+	@echo "wrote $(OUT)/default_hssr_reflection.png (+ .json), $(OUT)/layers/ and $(OUT)/layers.json"
 
 # The whole suite: Release tests (with the fetched scenes) and the unit tests under ASan+UBSan.
 test: build build-asan fetch

@@ -98,6 +98,25 @@ int main(int argc, char** argv) {
   addFrameOptions(layersCmd, layers.run, layersRaw);
   layersCmd->add_flag("--verify", layers.verify, "compare every pixel's fragment list with Embree all-hit primary rays");
 
+  lt::RenderOptions render;
+  RawFrameOptions renderRaw;
+  std::string effectName = "reflection";
+  CLI::App* renderCmd = app.add_subcommand("render", "image of one effect traced with one tracer");
+  addFrameOptions(renderCmd, render.run, renderRaw);
+  renderCmd->add_option("--tracer", render.tracer, "ssr | ssr-layers | hssr | embree")->capture_default_str();
+  renderCmd->add_option("--effect", effectName, "shade | reflection | refraction | ao | shadow")->capture_default_str();
+  renderCmd->add_option("--bounces", render.effect.bounces, "reflection bounces")->capture_default_str();
+  renderCmd->add_option("--ao-samples", render.effect.aoSamples, "AO rays per pixel")->capture_default_str();
+  renderCmd->add_option("--ao-radius", render.effect.aoRadius, "AO ray length (0 = 5% of the scene diagonal)")->capture_default_str();
+  renderCmd->add_option("--max-distance", render.effect.maxDistance, "ray length (0 = the scene diagonal)")->capture_default_str();
+  renderCmd->add_option("--stride", render.ssr.stride, "ssr: pixels per step")->capture_default_str();
+  renderCmd->add_option("--jitter", render.ssr.jitter, "ssr: start offset in strides, [0,1]")->capture_default_str();
+  renderCmd->add_option("--max-steps", render.ssr.maxSteps, "ssr: step limit (0 = to the viewport edge)")->capture_default_str();
+  renderCmd->add_option("--tau", render.pyramid.tau, "hssr: merge threshold in pixel footprints")->capture_default_str();
+  renderCmd->add_option("--levels", render.pyramid.levels, "hssr: pyramid levels incl. level 0")->capture_default_str();
+  renderCmd->add_option("--n-up", render.hssr.nUp, "hssr: cells without overlap before ascending")->capture_default_str();
+  renderCmd->add_flag("--check-exhaustive", render.checkExhaustive, "trace every ray with the exhaustive oracle too; count differences");
+
   std::string names;
   bool known = false;
   for (const CLI::App* sub : app.get_subcommands({})) {
@@ -130,6 +149,12 @@ int main(int argc, char** argv) {
       finishFrameOptions(layers.run, layersRaw);
       limitThreads(layers.run.threads);
       return lt::runLayers(layers);
+    }
+    if (renderCmd->parsed()) {
+      finishFrameOptions(render.run, renderRaw);
+      render.effect.effect = lt::parseEffect(effectName);
+      limitThreads(render.run.threads);
+      return lt::runRender(render);
     }
   } catch (const lt::InputError& e) {
     std::cerr << "layertrace: " << e.what() << "\n";

@@ -33,3 +33,24 @@ void writeStats(const std::string& path, const std::string& json);
 void ensureDirectory(const std::string& dir, const std::string& option);
 
 }  // namespace lt
+
+#include "layertrace/render/effects.h"
+#include "layertrace/screen/hssr_tracer.h"
+#include "layertrace/screen/ssr_tracer.h"
+
+namespace lt {
+
+struct RenderOptions {
+  RunOptions run;
+  std::string tracer = "hssr";  ///< ssr | ssr-layers | hssr | embree
+  EffectConfig effect;
+  SsrConfig ssr;
+  PyramidConfig pyramid;
+  HssrConfig hssr;
+  bool checkExhaustive = false;  ///< trace every ray with the exhaustive oracle too
+};
+
+/// `layertrace render`: one effect traced with one tracer → image, stats, per-pixel counters.
+int runRender(const RenderOptions& options);
+
+}  // namespace lt
