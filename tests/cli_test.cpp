@@ -112,3 +112,45 @@ TEST(CliErrors, OverflowReportsExactCounts) {
 
 }  // namespace
 }  // namespace lt
+
+namespace lt {
+namespace {
+
+std::string slurp(const std::string& p) {
+  std::ifstream in(p, std::ios::binary);
+  return std::string(std::istreambuf_iterator<char>(in), {});
+}
+
+TEST(CliRender, HssrStatsKeysAndSameBytesForOneAndTwoThreads) {
+  test::TempDir dir;
+  std::string err;
+  for (int threads : {1, 2}) {
+    const std::string n = std::to_string(threads);
+    ASSERT_EQ(test::runCli("render " + kDefault + " --width 240 --height 136 --tracer hssr --effect reflection --bounces 2"
+                           " --check-exhaustive --quiet --threads " + n + " -o " + (dir / ("r" + n + ".png")) +
+                           " --stats " + (dir / ("s" + n + ".json")) + " --pixelstats " + (dir / "ps"), &err), 0) << err;
+  }
+  EXPECT_EQ(slurp(dir / "r1.png"), slurp(dir / "r2.png"));
+  const auto j = readJson(dir / "s2.json");
+  EXPECT_EQ(j["tracer"], "hssr");
+  EXPECT_EQ(j["effect"], "reflection");
+  for (const char* k : {"count", "hits", "iterations_mean", "iterations_p99", "intervals_per_visited_pixel", "exhaustive_mismatch"})
+    EXPECT_TRUE(j["rays"].contains(k)) << k;
+  for (const char* k : {"raster", "sort", "hierarchy", "trace", "shade", "total"}) EXPECT_TRUE(j["timings_ms"].contains(k)) << k;
+  EXPECT_GT(j["rays"]["count"].get<double>(), 240.0 * 136.0);  // two bounces from most pixels
+  // Exactness on the full frame: differences from the oracle must stay a tiny residue.
+  EXPECT_LE(j["rays"]["exhaustive_mismatch"].get<double>(), 1e-3 * j["rays"]["count"].get<double>());
+  EXPECT_TRUE(fs::exists(dir / "ps/iterations.exr"));
+}
+
+TEST(CliRender, BadTracerAndEffectAreRejected) {
+  test::TempDir dir;
+  expectRejected({"render " + kDefault + " --tracer bvh", "--tracer bvh"}, dir);
+  expectRejected({"render " + kDefault + " --effect glow", "--effect glow"}, dir);
+  expectRejected({"render " + kDefault + " --stride 0", "--stride 0"}, dir);
+  expectRejected({"render " + kDefault + " --n-up 0", "--n-up 0"}, dir);
+  expectRejected({"render " + kDefault + " --bounces 0", "--bounces 0"}, dir);
+}
+
+}  // namespace
+}  // namespace lt

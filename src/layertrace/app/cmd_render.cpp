@@ -17,6 +17,14 @@ int runRender(const RenderOptions& o) {
   const bool screen = o.tracer == "ssr" || o.tracer == "ssr-layers" || o.tracer == "hssr";
   if (!screen && o.tracer != "embree") inputError("--tracer ", o.tracer, ": unknown (use ssr, ssr-layers, hssr, embree)");
   if (o.checkExhaustive && !screen) inputError("--check-exhaustive: needs an image-space tracer, not ", o.tracer);
+  // Every tracer option is checked, whichever tracer runs: a bad value is never silently unused.
+  if (!(o.ssr.stride >= 1.0f)) inputError("--stride ", o.ssr.stride, ": must be >= 1");
+  if (!(o.ssr.jitter >= 0.0f && o.ssr.jitter <= 1.0f)) inputError("--jitter ", o.ssr.jitter, ": must be in [0, 1]");
+  if (o.ssr.maxSteps < 0) inputError("--max-steps ", o.ssr.maxSteps, ": must be >= 0");
+  if (o.hssr.nUp < 1) inputError("--n-up ", o.hssr.nUp, ": must be >= 1");
+  if (o.pyramid.levels < 1 || o.pyramid.levels > 16) inputError("--levels ", o.pyramid.levels, ": must be between 1 and 16");
+  if (!(o.pyramid.tau > 0.0f)) inputError("--tau ", o.pyramid.tau, ": must be positive");
+  if (o.effect.bounces < 1 || o.effect.bounces > 16) inputError("--bounces ", o.effect.bounces, ": must be between 1 and 16");
   const auto t0 = std::chrono::steady_clock::now();
   Frame frame = buildFrame(o.run.frame);
 
