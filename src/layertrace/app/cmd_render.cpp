@@ -70,7 +70,8 @@ int runRender(const RenderOptions& o) {
                    {"hits", r.hits},
                    {"iterations_mean", r.rays ? double(r.iterationSum) / double(r.rays) : 0.0},
                    {"iterations_p99", r.iterationsP99},
-                   {"intervals_per_visited_pixel", r.pixelSum ? double(r.intervalSum) / double(r.pixelSum) : 0.0},
+                   // per visited cell at any level (hssr-pitfalls §10: the same unit for every tracer)
+                   {"intervals_per_visited_pixel", r.iterationSum ? double(r.intervalSum) / double(r.iterationSum) : 0.0},
                    {"visited_pixels_mean", r.rays ? double(r.pixelSum) / double(r.rays) : 0.0}};
   if (o.checkExhaustive) stats["rays"]["exhaustive_mismatch"] = r.exhaustiveMismatch;
   if (o.tracer == "hssr") {
