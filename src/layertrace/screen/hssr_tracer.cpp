@@ -61,6 +61,7 @@ TraceHit HssrTracer::trace(const ScreenRay& ray, RayCounters& c) const {
   const int W = camera_.width(), H = camera_.height();
   const int ox = std::clamp(int(std::floor(seg.p0.x)), 0, W - 1), oy = std::clamp(int(std::floor(seg.p0.y)), 0, H - 1);
   const bool increasing = seg.k1 <= seg.k0;  // depth grows along the ray (hssr-pitfalls §6)
+  const float backoff = 1.0f / (64.0f * std::max(std::abs(line.d.x), std::abs(line.d.y)));
 
   // seed 000 §5.1: skip the first pixel (no self-intersection with the origin's surface).
   float sIn, sOut;
@@ -103,7 +104,10 @@ TraceHit HssrTracer::trace(const ScreenRay& ray, RayCounters& c) const {
         if (iv.front > zmax) break;
         if (iv.back < zmin) continue;
         // Enter at the front when depth grows, at the back when it shrinks; never move back.
-        const float e = seg.paramAtDepth(increasing ? iv.front : iv.back);
+        // Step back 1/64 pixel from the computed entry: paramAtDepth rounds, and an entry that
+        // lands just past a pixel boundary would skip the pixel the oracle hits. Re-testing a
+        // little more is always safe; s0 keeps it from reaching behind the current position.
+        const float e = seg.paramAtDepth(increasing ? iv.front : iv.back) - backoff;
         sHit = std::min(sHit, std::clamp(std::isfinite(e) ? e : s0, s0, s1));
       }
       if (sHit != std::numeric_limits<float>::infinity()) {
