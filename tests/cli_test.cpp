@@ -154,3 +154,29 @@ TEST(CliRender, BadTracerAndEffectAreRejected) {
 
 }  // namespace
 }  // namespace lt
+
+namespace lt {
+namespace {
+
+TEST(CliRender, EveryEffectAndTracerGivesTheSameBytesForOneAndTwoThreads) {
+  test::TempDir dir;
+  std::string err;
+  for (const char* tracer : {"ssr", "ssr-layers", "embree"})
+    for (const char* effect : {"reflection", "refraction", "ao", "shadow", "shade"}) {
+      std::string bytes[2];
+      for (int threads : {1, 2}) {
+        const std::string out = dir / (std::string(tracer) + effect + std::to_string(threads) + ".png");
+        ASSERT_EQ(test::runCli("render " + kDefault + " --width 160 --height 90 --quiet --tracer " + tracer + " --effect " + effect +
+                                   " --stride 2 --jitter 0.5 --ao-samples 4 --threads " + std::to_string(threads) + " -o " + out,
+                               &err),
+                  0)
+            << err;
+        bytes[threads - 1] = slurp(out);
+      }
+      EXPECT_EQ(bytes[0], bytes[1]) << tracer << " " << effect;
+      EXPECT_GT(bytes[0].size(), 1000u);
+    }
+}
+
+}  // namespace
+}  // namespace lt
