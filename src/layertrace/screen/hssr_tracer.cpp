@@ -85,12 +85,12 @@ TraceHit HssrTracer::trace(const ScreenRay& ray, RayCounters& c) const {
     float zmin = std::min(za, zb), zmax = std::max(za, zb);
     if (L == 0) {
       ++c.pixels;
-      const FragmentNode* f = layers_.pixel(cx, cy);
-      const int n = layers_.countAt(cx, cy);
+      const Interval* f = pyramid_.base.pixel(cx, cy);
+      const int n = pyramid_.base.countAt(cx, cy);
       for (int i = 0; i < n; ++i) {
         ++c.intervals;
-        if (f[i].depth > zmax) break;
-        if (f[i].back() >= zmin) return fragmentHit(camera_, layers_, cx, cy, i);
+        if (f[i].front > zmax) break;
+        if (f[i].back >= zmin) return fragmentHit(camera_, layers_, cx, cy, i);
       }
     } else {
       // Coarse levels only accelerate: widen the range by a few ulps so rounding can never

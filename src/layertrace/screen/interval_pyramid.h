@@ -1,6 +1,6 @@
 // The interval resolution pyramid of seed 000 §4.3 (Figure 3 right, Figure 4).
 //
-// Level 0 is the k-layer arrays themselves (interval [depth, depth + thickness] per fragment).
+// Level 0 is the k-layer arrays as compact intervals [depth, depth + thickness] (IntervalLayers).
 // Level L ≥ 1 has ceil(W / 2^L) × ceil(H / 2^L) cells; each holds the intervals of its 2×2
 // children merged front to back while they stay within τ, as two floats per interval.
 // Invariant (checked by tests on every level of real scenes): every child interval lies inside
@@ -12,12 +12,9 @@
 
 #include "layertrace/raster/layer_arrays.h"
 #include "layertrace/scene/camera.h"
+#include "layertrace/screen/interval_layers.h"
 
 namespace lt {
-
-struct Interval {
-  float front, back;
-};
 
 struct PyramidConfig {
   int levels = 5;        ///< levels including level 0 (seed 000 Figure 9: "5 levels")
@@ -34,8 +31,8 @@ struct PyramidLevel {
 };
 
 struct IntervalPyramid {
-  const LayerArrays* base = nullptr;
-  std::vector<PyramidLevel> levels;  ///< levels[0] is empty: level 0 is read from `base`
+  IntervalLayers base;                ///< level 0: k intervals per pixel
+  std::vector<PyramidLevel> levels;  ///< levels[0] only records the size: level 0 is `base`
   int levelCount() const { return int(levels.size()); }
   size_t memoryBytes() const;
   double buildMs = 0.0;

@@ -10,7 +10,7 @@
 namespace lt {
 
 size_t IntervalPyramid::memoryBytes() const {
-  size_t bytes = 0;
+  size_t bytes = base.memoryBytes();
   for (const PyramidLevel& l : levels) bytes += l.offset.size() * sizeof(uint32_t) + l.intervals.size() * sizeof(Interval);
   return bytes;
 }
@@ -42,7 +42,7 @@ IntervalPyramid buildIntervalPyramid(const LayerArrays& layers, const Camera& ca
   if (!(config.tau > 0.0f)) inputError("--tau ", config.tau, ": must be positive");
   const auto start = std::chrono::steady_clock::now();
   IntervalPyramid p;
-  p.base = &layers;
+  p.base = makeIntervalLayers(layers, layers.k);
   p.levels.resize(size_t(config.levels));
   p.levels[0].width = layers.width;
   p.levels[0].height = layers.height;
@@ -65,8 +65,8 @@ IntervalPyramid buildIntervalPyramid(const LayerArrays& layers, const Camera& ca
           for (int cy = 2 * y; cy < std::min(2 * y + 2, child.height); ++cy)
             for (int cx = 2 * x; cx < std::min(2 * x + 2, child.width); ++cx) {
               if (L == 1) {
-                const FragmentNode* f = layers.pixel(cx, cy);
-                for (int i = 0; i < layers.countAt(cx, cy); ++i) children.push_back({f[i].depth, f[i].back()});
+                const Interval* f = p.base.pixel(cx, cy);
+                children.insert(children.end(), f, f + p.base.countAt(cx, cy));
               } else {
                 const size_t c = child.cellIndex(cx, cy);
                 children.insert(children.end(), child.intervals.begin() + child.offset[c], child.intervals.begin() + child.offset[c + 1]);

@@ -10,7 +10,7 @@
 namespace lt {
 
 SsrTracer::SsrTracer(const Camera& camera, const LayerArrays& layers, const SsrConfig& config)
-    : camera_(camera), layers_(layers), config_(config) {
+    : camera_(camera), layers_(layers), depth_(makeIntervalLayers(layers, config.allLayers ? layers.k : 1)), config_(config) {
   if (!(config_.stride >= 1.0f)) inputError("--stride ", config_.stride, ": must be >= 1");
   if (!(config_.jitter >= 0.0f && config_.jitter <= 1.0f)) inputError("--jitter ", config_.jitter, ": must be in [0, 1]");
   if (config_.maxSteps < 0) inputError("--max-steps ", config_.maxSteps, ": must be >= 0");
@@ -18,12 +18,12 @@ SsrTracer::SsrTracer(const Camera& camera, const LayerArrays& layers, const SsrC
 }
 
 int SsrTracer::overlap(int x, int y, float zmin, float zmax, RayCounters& c) const {
-  const int n = config_.allLayers ? layers_.countAt(x, y) : std::min(1, layers_.countAt(x, y));
-  const FragmentNode* f = layers_.pixel(x, y);
+  const int n = depth_.countAt(x, y);
+  const Interval* f = depth_.pixel(x, y);
   for (int i = 0; i < n; ++i) {
     ++c.intervals;
-    if (f[i].depth > zmax) break;  // sorted by front: nothing further can overlap
-    if (f[i].back() >= zmin) return i;
+    if (f[i].front > zmax) break;  // sorted by front: nothing further can overlap
+    if (f[i].back >= zmin) return i;
   }
   return -1;
 }
@@ -57,36 +57,50 @@ TraceHit SsrTracer::trace(const ScreenRay& ray, RayCounters& c) const {
     zmin = std::min(a, b), zmax = std::max(a, b);
   };
 
-  // Skip the origin's own pixel (as HSSR does, seed 000 §5.1), then march with stride and jitter.
-  const float sEnd = 1.0f;
-  float s = ds * stride * (1.0f + config_.jitter);
-  for (int step = 0; step < config_.maxSteps && s <= sEnd; ++step, s += ds * stride) {
+  // Skip the origin's own pixel (as HSSR does, seed 000 §5.1), then march with stride and
+  // jitter. As in seed 001 the state advances incrementally (P += dP, k += dk) and each step
+  // costs one division: the depth estimate half a step ahead, reused as the next step's start.
+  const float dsStep = ds * stride;
+  const float dk = (seg.k1 - seg.k0) * dsStep;
+  const glm::vec2 dP = (P1 - P0) * dsStep;
+  const float kLo = std::min(seg.k0, seg.k1), kHi = std::max(seg.k0, seg.k1);
+  float s = dsStep * (1.0f + config_.jitter);
+  glm::vec2 P = P0 + (P1 - P0) * s;
+  float kHalf = seg.k0 + (seg.k1 - seg.k0) * std::max(s - 0.5f * dsStep, 0.0f);
+  float prevDepth = 1.0f / kHalf;
+  kHalf += dk;
+  for (int step = 0; step < config_.maxSteps && s <= 1.0f; ++step, s += dsStep, P += dP, kHalf += dk) {
     ++c.iterations;
-    int x, y;
-    if (!pixelAt(s, x, y)) break;
+    const int px = int(std::floor(P.x)), py = int(std::floor(P.y));
+    const int x = permute ? py : px, y = permute ? px : py;
+    if (x < 0 || y < 0 || x >= W || y >= H) break;
     ++c.pixels;
-    float zmin, zmax;
-    rangeAt(s, 0.5f * ds * stride, zmin, zmax);
+    // Half a step ahead, but not beyond the segment's end.
+    const float nextDepth = 1.0f / std::clamp(kHalf, kLo, kHi);
+    const float zmin = std::min(prevDepth, nextDepth), zmax = std::max(prevDepth, nextDepth);
+    prevDepth = nextDepth;
     int layer = overlap(x, y, zmin, zmax, c);
     if (layer < 0) continue;
+    int hx = x, hy = y;
     if (config_.refine && stride > 1.0f) {
       // Binary search between the previous (missed) sample and this one for the first hit.
-      float lo = s - ds * stride, hi = s;
-      int hx = x, hy = y, hl = layer;
-      while ((hi - lo) > ds * 1.0f) {
+      float lo = s - dsStep, hi = s;
+      while ((hi - lo) > ds) {
         const float mid = 0.5f * (lo + hi);
         int mx, my;
         ++c.iterations;
-        if (!pixelAt(mid, mx, my)) { lo = mid; continue; }
+        if (!pixelAt(mid, mx, my)) {
+          lo = mid;
+          continue;
+        }
         float a, b;
         rangeAt(mid, 0.25f * (hi - lo), a, b);
         const int ml = overlap(mx, my, a, b, c);
-        if (ml >= 0) hi = mid, hx = mx, hy = my, hl = ml;
+        if (ml >= 0) hi = mid, hx = mx, hy = my, layer = ml;
         else lo = mid;
       }
-      x = hx, y = hy, layer = hl;
     }
-    return fragmentHit(camera_, layers_, x, y, layer);
+    return fragmentHit(camera_, layers_, hx, hy, layer);
   }
   return {};
 }

@@ -6,6 +6,7 @@
 
 #include "layertrace/raster/layer_arrays.h"
 #include "layertrace/scene/camera.h"
+#include "layertrace/screen/interval_layers.h"
 #include "layertrace/screen/tracer.h"
 
 namespace lt {
@@ -31,6 +32,7 @@ class SsrTracer : public Tracer {
   int overlap(int x, int y, float zmin, float zmax, RayCounters& c) const;
   const Camera& camera_;
   const LayerArrays& layers_;
+  IntervalLayers depth_;  ///< what the march reads: the front layer (ssr) or all k (ssr-layers)
   SsrConfig config_;
 };
 
