@@ -104,6 +104,15 @@ INSTANTIATE_TEST_SUITE_P(Scenes, RealSceneHssr,
                            return n;
                          });
 
+TEST(Hssr, MatchesExhaustiveOracleWithAdaptiveThickness) {
+  FrameOptions o;
+  o.scenePath = test::sourceDir() + "/scenes/default.json";
+  o.width = 320, o.height = 180;
+  o.adaptiveThickness = true;
+  o.layers = 2;
+  expectExact(buildFrame(o), 10000);
+}
+
 /// hssr-pitfalls §3: every level-0 interval lies inside one interval of the cell above it, on
 /// every level (so by induction every level's intervals are covered by every coarser level).
 void expectCovered(const Frame& f) {

@@ -225,6 +225,25 @@ TEST(SortTruncate, MinimumSeparationSkipsCloseFragments) {
   for (int i = 0; i < 4; ++i) EXPECT_EQ(L.slots[size_t(i)].depth, expect[i]);
 }
 
+TEST(SortTruncate, AdaptiveThicknessMergesOverlappingFragments) {
+  // Thickness 0.5, k = 3: 1.0, 1.3 and 1.7 chain into one interval [1.0, 2.2]; 3.0 and 3.2
+  // into [3.0, 3.7]; 5.0 takes the last layer; 9.0 and 12.0 are dropped.
+  const FragmentLists lists = makeLists({{9.0f, 1.3f, 3.2f, 1.0f, 5.0f, 1.7f, 3.0f, 12.0f}});
+  LayerConfig c{3, 0.5f, 0.0f};
+  c.adaptiveThickness = true;
+  const LayerArrays L = sortAndTruncate(lists, c);
+  ASSERT_EQ(L.count[0], 3);
+  EXPECT_EQ(L.slots[0].depth, 1.0f);
+  EXPECT_NEAR(L.slots[0].back(), 2.2f, 1e-6f);
+  EXPECT_EQ(L.slots[1].depth, 3.0f);
+  EXPECT_NEAR(L.slots[1].back(), 3.7f, 1e-6f);
+  EXPECT_EQ(L.slots[2].depth, 5.0f);
+  EXPECT_NEAR(L.slots[2].back(), 5.5f, 1e-6f);
+  // Without merging the same k = 3 stops at 1.7.
+  const LayerArrays plain = sortAndTruncate(lists, LayerConfig{3, 0.5f, 0.0f});
+  EXPECT_EQ(plain.slots[2].depth, 1.7f);
+}
+
 TEST(SortTruncate, RejectsInvalidK) {
   const FragmentLists lists = makeLists({{1.0f}});
   EXPECT_THROW(sortAndTruncate(lists, LayerConfig{0, 0.1f, 0.0f}), InputError);

@@ -61,6 +61,7 @@ void addFrameOptions(CLI::App* app, lt::RunOptions& run, RawFrameOptions& raw) {
   app->add_option("--layers", f.layers, "layers k kept per pixel, 1..16")->capture_default_str();
   app->add_option("--thickness", raw.thickness, "fragment z-thickness in scene units (default: 0.5% of the scene diagonal)");
   app->add_option("--min-separation", f.minSeparation, "minimum depth separation of kept layers (0 = off)")->capture_default_str();
+  app->add_flag("--adaptive-thickness", f.adaptiveThickness, "merge fragments that start inside the previous kept interval (seed 000 §4.2)");
   app->add_option("--pool", f.pool, "fragment pool capacity (0 = automatic, grows on overflow)")->capture_default_str();
   app->add_option("--light", raw.lights, "add a point light x,y,z[,intensity] (repeatable; default light: above the eye)");
   app->add_option("--threads", run.threads, "worker threads (0 = all cores)")->capture_default_str();

@@ -77,8 +77,17 @@ int runRender(const RenderOptions& o) {
   if (o.tracer == "hssr") {
     stats["hssr"] = {{"tau", o.pyramid.tau}, {"levels", o.pyramid.levels}, {"n_up", o.hssr.nUp}};
     nlohmann::json perLevel = nlohmann::json::array();
-    for (const PyramidLevel& l : pyramid.levels) perLevel.push_back(l.intervals.size());
+    uint64_t base = 0;
+    for (uint8_t n : pyramid.base.count) base += n;
+    perLevel.push_back(base);
+    for (size_t l = 1; l < pyramid.levels.size(); ++l) perLevel.push_back(pyramid.levels[l].intervals.size());
     stats["hssr"]["intervals_per_level"] = perLevel;
+    // Where the traversal spends its steps (a proxy for time per level: one iteration = one
+    // visited cell, and every cell costs about the same).
+    nlohmann::json itLevel = nlohmann::json::array();
+    for (int l = 0; l < std::min(o.pyramid.levels, int(RayCounters::kLevels)); ++l)
+      itLevel.push_back(r.rays ? double(r.levelIterations[l]) / double(r.rays) : 0.0);
+    stats["hssr"]["iterations_per_ray_by_level"] = itLevel;
   }
   if (!screen) stats["rays"].erase("intervals_per_visited_pixel");
 

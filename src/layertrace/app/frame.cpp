@@ -101,6 +101,7 @@ void rasterizeFrame(const FrameOptions& o, Frame& frame) {
   lc.k = o.layers;
   lc.thickness = frame.thickness;
   lc.minSeparation = o.minSeparation;
+  lc.adaptiveThickness = o.adaptiveThickness;
   frame.layers = sortAndTruncate(frame.lists, lc);
   frame.sortMs = msSince(t0);
 }

@@ -27,6 +27,7 @@ struct FrameOptions {
   int layers = 4;                      ///< --layers (k)
   std::optional<float> thickness;      ///< --thickness; default: defaultThickness(scene diagonal)
   float minSeparation = 0.0f;          ///< --min-separation
+  bool adaptiveThickness = false;      ///< --adaptive-thickness (seed 000 §4.2)
   uint64_t pool = 0;                   ///< --pool fragments; 0 = automatic (grows on overflow)
   std::vector<glm::vec4> lights;       ///< --light x,y,z[,intensity] (repeatable)
 };

@@ -52,6 +52,25 @@ int separatedK(const FragmentLists& lists, uint32_t head, int k, float sep, std:
   return n;
 }
 
+/// Adaptive thickness (seed 000 §4.2): sort the whole list; a fragment whose front lies within
+/// the previous kept interval extends that interval; otherwise it opens the next layer.
+int adaptiveK(const FragmentLists& lists, uint32_t head, int k, float thickness, std::vector<Entry>& all, Entry* out, float* backs) {
+  all.clear();
+  for (uint32_t i = head; i != kNullIndex; i = lists.nodes[i].next) all.push_back({lists.nodes[i].depth, i});
+  std::stable_sort(all.begin(), all.end(), [](const Entry& a, const Entry& b) { return a.depth < b.depth; });
+  int n = 0;
+  for (const Entry& e : all) {
+    if (n > 0 && e.depth <= backs[n - 1]) {
+      backs[n - 1] = std::max(backs[n - 1], e.depth + thickness);
+      continue;
+    }
+    if (n == k) break;
+    out[n] = e;
+    backs[n++] = e.depth + thickness;
+  }
+  return n;
+}
+
 }  // namespace
 
 LayerArrays sortAndTruncate(const FragmentLists& lists, const LayerConfig& config) {
@@ -70,15 +89,17 @@ LayerArrays sortAndTruncate(const FragmentLists& lists, const LayerConfig& confi
   tbb::enumerable_thread_specific<std::vector<Entry>> scratch;
   tbb::parallel_for(tbb::blocked_range<size_t>(0, pixels, 1024), [&](const tbb::blocked_range<size_t>& r) {
     Entry kept[16];
+    float backs[16];
     std::vector<Entry>& all = scratch.local();
     for (size_t p = r.begin(); p != r.end(); ++p) {
-      const int n = config.minSeparation > 0.0f ? separatedK(lists, lists.head[p], config.k, config.minSeparation, all, kept)
-                                                : insertionSortK(lists, lists.head[p], config.k, kept);
+      const int n = config.adaptiveThickness   ? adaptiveK(lists, lists.head[p], config.k, config.thickness, all, kept, backs)
+                    : config.minSeparation > 0 ? separatedK(lists, lists.head[p], config.k, config.minSeparation, all, kept)
+                                               : insertionSortK(lists, lists.head[p], config.k, kept);
       out.count[p] = uint8_t(n);
       FragmentNode* slot = &out.slots[p * size_t(config.k)];
       for (int i = 0; i < n; ++i) {
         slot[i] = lists.nodes[kept[i].node];
-        slot[i].setThickness(config.thickness);
+        slot[i].setThickness(config.adaptiveThickness ? backs[i] - kept[i].depth : config.thickness);
         out.triangle[p * size_t(config.k) + size_t(i)] = lists.triangle[kept[i].node];
       }
       for (int i = n; i < config.k; ++i) slot[i] = FragmentNode{0.0f, 0u, 0u, 0u};

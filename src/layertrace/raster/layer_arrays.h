@@ -19,6 +19,10 @@ struct LayerConfig {
   /// Minimum separation between successive kept fragments (McGuire & Mara's deep G-buffer
   /// rule, seed 000 §4.2 optional); 0 disables it.
   float minSeparation = 0.0f;
+  /// seed 000 §4.2's adaptive thickness: a fragment that starts inside the previous kept
+  /// interval is merged into it (the interval grows to cover it) instead of taking a layer, so
+  /// the k slots reach deeper. The merged interval keeps the front fragment's attributes.
+  bool adaptiveThickness = false;
 };
 
 /// Our scene-dependent default thickness: 0.5 % of the scene's bounding-box diagonal. Thick

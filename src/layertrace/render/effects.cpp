@@ -41,6 +41,7 @@ constexpr int kHistogramMax = 1 << 16;
 
 struct Accum {
   uint64_t rays = 0, hits = 0, it = 0, iv = 0, px = 0, mismatch = 0;
+  uint64_t level[RayCounters::kLevels] = {};
   std::vector<uint64_t> histogram = std::vector<uint64_t>(kHistogramMax + 1, 0);
 };
 
@@ -68,6 +69,7 @@ class Renderer {
     ++a.rays;
     a.hits += h.hit;
     a.it += c.iterations, a.iv += c.intervals, a.px += c.pixels;
+    for (int l = 0; l < RayCounters::kLevels; ++l) a.level[l] += c.levelIterations[l];
     ++a.histogram[std::min<uint32_t>(c.iterations, kHistogramMax)];
     pixIt += float(c.iterations), pixIv += float(c.intervals);
     if (oracle_) {
@@ -239,6 +241,7 @@ EffectResult renderEffect(const Frame& frame, const Tracer& tracer, const Effect
   for (const Accum& a : accums) {
     res.rays += a.rays, res.hits += a.hits, res.iterationSum += a.it, res.intervalSum += a.iv, res.pixelSum += a.px;
     res.exhaustiveMismatch += a.mismatch;
+    for (int l = 0; l < RayCounters::kLevels; ++l) res.levelIterations[l] += a.level[l];
     for (size_t i = 0; i < histogram.size(); ++i) histogram[i] += a.histogram[i];
   }
   uint64_t seen = 0;

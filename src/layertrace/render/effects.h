@@ -37,6 +37,7 @@ struct EffectResult {
   uint64_t rays = 0, hits = 0;
   uint64_t iterationSum = 0, intervalSum = 0, pixelSum = 0;
   uint64_t iterationsP99 = 0;
+  uint64_t levelIterations[RayCounters::kLevels] = {};  ///< HSSR: visited cells per level, summed
   uint64_t exhaustiveMismatch = 0;  ///< rays where `oracle` answered differently
   double traceMs = 0.0;
 };

@@ -81,6 +81,7 @@ TraceHit HssrTracer::trace(const ScreenRay& ray, RayCounters& c) const {
     const float s1 = std::min(sOut, 1.0f);
     if (s0 > 1.0f) return {};  // the segment ended before this cell
     ++c.iterations;
+    ++c.levelIterations[std::min(L, RayCounters::kLevels - 1)];
     const float za = seg.depthAt(s0), zb = seg.depthAt(s1);
     float zmin = std::min(za, zb), zmax = std::max(za, zb);
     if (L == 0) {

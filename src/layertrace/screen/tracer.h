@@ -29,9 +29,11 @@ struct TraceHit {
 /// Per-ray traversal counters (hssr-pitfalls §10: one iteration = one visited cell at any level
 /// for HSSR, one step for SSR; intervals counted at every visited cell).
 struct RayCounters {
+  static constexpr int kLevels = 8;  ///< per-level counts kept for levels 0..7 (higher ones go to 7)
   uint32_t iterations = 0;
   uint32_t intervals = 0;
   uint32_t pixels = 0;  ///< visited level-0 pixels (screen tracers)
+  uint32_t levelIterations[kLevels] = {};  ///< HSSR: visited cells per pyramid level
 };
 
 class Tracer {
