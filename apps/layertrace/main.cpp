@@ -72,6 +72,23 @@ void addFrameOptions(CLI::App* app, lt::RunOptions& run, RawFrameOptions& raw) {
   app->add_flag("--quiet", run.quiet, "no progress or summary output");
 }
 
+void addTracerOptions(CLI::App* app, lt::TracerOptions& t) {
+  app->add_option("--stride", t.ssr.stride, "ssr: pixels per step")->capture_default_str();
+  app->add_option("--jitter", t.ssr.jitter, "ssr: start offset in strides, [0,1]")->capture_default_str();
+  app->add_option("--max-steps", t.ssr.maxSteps, "ssr: step limit (0 = to the viewport edge)")->capture_default_str();
+  app->add_option("--tau", t.pyramid.tau, "hssr: merge threshold in pixel footprints")->capture_default_str();
+  app->add_option("--levels", t.pyramid.levels, "hssr: pyramid levels incl. level 0")->capture_default_str();
+  app->add_option("--n-up", t.hssr.nUp, "hssr: cells without overlap before ascending")->capture_default_str();
+}
+
+std::vector<std::string> splitList(const std::string& s) {
+  std::vector<std::string> out;
+  std::stringstream ss(s);
+  std::string item;
+  while (std::getline(ss, item, ',')) out.push_back(item);
+  return out;
+}
+
 void finishFrameOptions(lt::RunOptions& run, const RawFrameOptions& raw) {
   lt::FrameOptions& f = run.frame;
   if (!raw.eye.empty()) f.eye = parseVec3("--eye", raw.eye);
@@ -110,13 +127,22 @@ int main(int argc, char** argv) {
   renderCmd->add_option("--ao-samples", render.effect.aoSamples, "AO rays per pixel")->capture_default_str();
   renderCmd->add_option("--ao-radius", render.effect.aoRadius, "AO ray length (0 = 5% of the scene diagonal)")->capture_default_str();
   renderCmd->add_option("--max-distance", render.effect.maxDistance, "ray length (0 = the scene diagonal)")->capture_default_str();
-  renderCmd->add_option("--stride", render.ssr.stride, "ssr: pixels per step")->capture_default_str();
-  renderCmd->add_option("--jitter", render.ssr.jitter, "ssr: start offset in strides, [0,1]")->capture_default_str();
-  renderCmd->add_option("--max-steps", render.ssr.maxSteps, "ssr: step limit (0 = to the viewport edge)")->capture_default_str();
-  renderCmd->add_option("--tau", render.pyramid.tau, "hssr: merge threshold in pixel footprints")->capture_default_str();
-  renderCmd->add_option("--levels", render.pyramid.levels, "hssr: pyramid levels incl. level 0")->capture_default_str();
-  renderCmd->add_option("--n-up", render.hssr.nUp, "hssr: cells without overlap before ascending")->capture_default_str();
+  addTracerOptions(renderCmd, render.tracers);
   renderCmd->add_flag("--check-exhaustive", render.checkExhaustive, "trace every ray with the exhaustive oracle too; count differences");
+
+  lt::CompareOptions compare;
+  RawFrameOptions compareRaw;
+  std::string compareEffect = "reflection", compareTracers = "ssr,ssr-layers,hssr";
+  CLI::App* compareCmd = app.add_subcommand("compare", "same rays through several tracers + Embree: accuracy and cost table");
+  addFrameOptions(compareCmd, compare.run, compareRaw);
+  compareCmd->add_option("--tracers", compareTracers, "comma list of ssr, ssr-layers, hssr, embree")->capture_default_str();
+  compareCmd->add_option("--effect", compareEffect, "shade | reflection | refraction | ao | shadow")->capture_default_str();
+  compareCmd->add_option("--bounces", compare.effect.bounces, "reflection bounces")->capture_default_str();
+  compareCmd->add_option("--ao-samples", compare.effect.aoSamples, "AO rays per pixel")->capture_default_str();
+  compareCmd->add_option("--ao-radius", compare.effect.aoRadius, "AO ray length (0 = 5% of the scene diagonal)")->capture_default_str();
+  compareCmd->add_option("--max-distance", compare.effect.maxDistance, "ray length (0 = the scene diagonal)")->capture_default_str();
+  addTracerOptions(compareCmd, compare.options);
+  compareCmd->add_option("--report", compare.report, "also write an HTML report (one self-contained page) to this folder");
 
   std::string names;
   bool known = false;
@@ -150,6 +176,13 @@ int main(int argc, char** argv) {
       finishFrameOptions(layers.run, layersRaw);
       limitThreads(layers.run.threads);
       return lt::runLayers(layers);
+    }
+    if (compareCmd->parsed()) {
+      finishFrameOptions(compare.run, compareRaw);
+      compare.effect.effect = lt::parseEffect(compareEffect);
+      compare.tracers = splitList(compareTracers);
+      limitThreads(compare.run.threads);
+      return lt::runCompare(compare);
     }
     if (renderCmd->parsed()) {
       finishFrameOptions(render.run, renderRaw);

@@ -34,9 +34,8 @@ void ensureDirectory(const std::string& dir, const std::string& option);
 
 }  // namespace lt
 
+#include "layertrace/app/tracer_factory.h"
 #include "layertrace/render/effects.h"
-#include "layertrace/screen/hssr_tracer.h"
-#include "layertrace/screen/ssr_tracer.h"
 
 namespace lt {
 
@@ -44,13 +43,27 @@ struct RenderOptions {
   RunOptions run;
   std::string tracer = "hssr";  ///< ssr | ssr-layers | hssr | embree
   EffectConfig effect;
-  SsrConfig ssr;
-  PyramidConfig pyramid;
-  HssrConfig hssr;
+  TracerOptions tracers;
   bool checkExhaustive = false;  ///< trace every ray with the exhaustive oracle too
 };
 
 /// `layertrace render`: one effect traced with one tracer → image, stats, per-pixel counters.
 int runRender(const RenderOptions& options);
+
+struct CompareOptions {
+  RunOptions run;
+  std::vector<std::string> tracers = {"ssr", "ssr-layers", "hssr"};  ///< --tracers, comma list
+  EffectConfig effect;
+  TracerOptions options;
+  std::string report;  ///< --report DIR: one HTML page with images and the table
+};
+
+/// The `rays.*` stats of one traced effect (render and compare).
+nlohmann::json rayStats(const EffectResult& r, bool screenTracer);
+/// Writes iterations.exr/.png and intervals.exr to `dir` (--pixelstats).
+void writePixelStats(const std::string& dir, const EffectResult& r);
+
+/// `layertrace compare`: the same rays through several tracers and Embree → accuracy and cost.
+int runCompare(const CompareOptions& options);
 
 }  // namespace lt

@@ -42,6 +42,8 @@ constexpr int kHistogramMax = 1 << 16;
 struct Accum {
   uint64_t rays = 0, hits = 0, it = 0, iv = 0, px = 0, mismatch = 0;
   uint64_t level[RayCounters::kLevels] = {};
+  uint64_t classes[kRayClasses] = {};
+  int firstClass = -1;  ///< class of the current pixel's first ray (reset per pixel)
   std::vector<uint64_t> histogram = std::vector<uint64_t>(kHistogramMax + 1, 0);
 };
 
@@ -54,7 +56,8 @@ struct Surface {
 
 class Renderer {
  public:
-  Renderer(const Frame& f, const Tracer& t, const EffectConfig& c, const Tracer* o) : f_(f), tracer_(t), config_(c), oracle_(o) {
+  Renderer(const Frame& f, const Tracer& t, const EffectConfig& c, const Tracer* o, const Tracer* ref)
+      : f_(f), tracer_(t), config_(c), oracle_(o), reference_(ref) {
     for (const PointLight& l : f.lights) lights_.push_back({f.camera.toCamera(l.position), l.intensity});
     const float diag = f.scene.bounds().diagonal();
     maxDist_ = c.maxDistance > 0.0f ? c.maxDistance : diag;
@@ -62,7 +65,8 @@ class Renderer {
     eps_ = 1e-4f * diag;
   }
 
-  /// Traces one ray, counting it for the pixel and comparing with the oracle.
+  /// Traces one ray, counting it for the pixel, comparing with the oracle and classifying it
+  /// against the reference. `firstClass` receives the class of the pixel's first ray.
   TraceHit trace(const ScreenRay& r, Accum& a, float& pixIt, float& pixIv) const {
     RayCounters c;
     const TraceHit h = tracer_.trace(r, c);
@@ -77,6 +81,13 @@ class Renderer {
       const TraceHit o = oracle_->trace(r, oc);
       const bool same = o.hit == h.hit && (!h.hit || (o.x == h.x && o.y == h.y && o.layer == h.layer));
       a.mismatch += !same;
+    }
+    if (reference_) {
+      RayCounters rc;
+      const TraceHit truth = reference_->trace(r, rc);
+      const RayClass cls = classifyRay(h, truth, f_.camera, f_.layers, f_.thickness);
+      ++a.classes[int(cls)];
+      if (a.firstClass < 0) a.firstClass = int(cls);
     }
     return h;
   }
@@ -207,13 +218,15 @@ class Renderer {
   const Tracer& tracer_;
   EffectConfig config_;
   const Tracer* oracle_;
+  const Tracer* reference_;
   std::vector<std::pair<glm::vec3, glm::vec3>> lights_;  ///< camera-space position, intensity
   float maxDist_ = 1.0f, aoRadius_ = 1.0f, eps_ = 1e-4f;
 };
 
 }  // namespace
 
-EffectResult renderEffect(const Frame& frame, const Tracer& tracer, const EffectConfig& config, const Tracer* oracle) {
+EffectResult renderEffect(const Frame& frame, const Tracer& tracer, const EffectConfig& config, const Tracer* oracle,
+                          const Tracer* reference) {
   if (config.bounces < 1 || config.bounces > 16) inputError("--bounces ", config.bounces, ": must be between 1 and 16");
   if (config.aoSamples < 1 || config.aoSamples > 4096) inputError("--ao-samples ", config.aoSamples, ": must be between 1 and 4096");
   if (config.aoRadius < 0.0f) inputError("--ao-radius ", config.aoRadius, ": must be >= 0");
@@ -223,7 +236,8 @@ EffectResult renderEffect(const Frame& frame, const Tracer& tracer, const Effect
   res.image = Image(W, H);
   res.iterations = Image(W, H, 1);
   res.intervals = Image(W, H, 1);
-  const Renderer renderer(frame, tracer, config, oracle);
+  if (reference) res.classImage = Image(W, H);
+  const Renderer renderer(frame, tracer, config, oracle, reference);
   tbb::enumerable_thread_specific<Accum> accums;
   const auto start = std::chrono::steady_clock::now();
   tbb::parallel_for(tbb::blocked_range<int>(0, H, 2), [&](const tbb::blocked_range<int>& r) {
@@ -231,7 +245,9 @@ EffectResult renderEffect(const Frame& frame, const Tracer& tracer, const Effect
     for (int y = r.begin(); y != r.end(); ++y)
       for (int x = 0; x < W; ++x) {
         float it = 0.0f, iv = 0.0f;
+        a.firstClass = -1;
         res.image.set(x, y, renderer.pixel(x, y, a, it, iv));
+        if (reference && a.firstClass >= 0) res.classImage.set(x, y, rayClassColor(RayClass(a.firstClass)));
         res.iterations.at(x, y)[0] = it;
         res.intervals.at(x, y)[0] = iv;
       }
@@ -242,6 +258,7 @@ EffectResult renderEffect(const Frame& frame, const Tracer& tracer, const Effect
     res.rays += a.rays, res.hits += a.hits, res.iterationSum += a.it, res.intervalSum += a.iv, res.pixelSum += a.px;
     res.exhaustiveMismatch += a.mismatch;
     for (int l = 0; l < RayCounters::kLevels; ++l) res.levelIterations[l] += a.level[l];
+    for (int c = 0; c < kRayClasses; ++c) res.classCounts[c] += a.classes[c];
     for (size_t i = 0; i < histogram.size(); ++i) histogram[i] += a.histogram[i];
   }
   uint64_t seen = 0;

@@ -10,6 +10,7 @@
 #include <string>
 
 #include "layertrace/app/frame.h"
+#include "layertrace/eval/classify.h"
 #include "layertrace/screen/tracer.h"
 #include "layertrace/util/image.h"
 
@@ -40,10 +41,16 @@ struct EffectResult {
   uint64_t levelIterations[RayCounters::kLevels] = {};  ///< HSSR: visited cells per level, summed
   uint64_t exhaustiveMismatch = 0;  ///< rays where `oracle` answered differently
   double traceMs = 0.0;
+  /// With a geometric reference: rays per class, and per pixel the class of its first ray
+  /// (an RGB legend image; pixels without rays stay black).
+  uint64_t classCounts[kRayClasses] = {};
+  Image classImage;
 };
 
-/// Renders the effect with `tracer`; when `oracle` is given every ray is traced by it too and
-/// the answers compared (same hit fragment, or both miss).
-EffectResult renderEffect(const Frame& frame, const Tracer& tracer, const EffectConfig& config, const Tracer* oracle = nullptr);
+/// Renders the effect with `tracer`. When `oracle` is given every ray is traced by it too and
+/// the answers compared (same hit fragment, or both miss); when `reference` (a geometric
+/// tracer) is given every ray is traced by it too and classified (eval/classify.h).
+EffectResult renderEffect(const Frame& frame, const Tracer& tracer, const EffectConfig& config, const Tracer* oracle = nullptr,
+                          const Tracer* reference = nullptr);
 
 }  // namespace lt

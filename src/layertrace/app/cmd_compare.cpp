@@ -1,0 +1,139 @@
+#include <chrono>
+#include <cmath>
+#include <filesystem>
+#include <iomanip>
+#include <iostream>
+#include <sstream>
+
+#include "layertrace/app/commands.h"
+#include "layertrace/app/report.h"
+#include "layertrace/util/error.h"
+
+namespace lt {
+namespace fs = std::filesystem;
+
+namespace {
+
+/// RMSE and PSNR of `a` against `b` on linear RGB clamped to [0, 1] (the displayable range;
+/// PSNR = 10 log10(1 / MSE)).
+std::pair<double, double> rmsePsnr(const Image& a, const Image& b) {
+  double sum = 0.0;
+  for (size_t i = 0; i < a.data.size(); ++i) {
+    const double d = std::clamp(a.data[i], 0.0f, 1.0f) - std::clamp(b.data[i], 0.0f, 1.0f);
+    sum += d * d;
+  }
+  const double mse = sum / double(std::max<size_t>(a.data.size(), 1));
+  return {std::sqrt(mse), mse > 0.0 ? 10.0 * std::log10(1.0 / mse) : 99.0};
+}
+
+/// Images side by side at half resolution (nearest of each 2×2 block's average).
+Image sideBySide(const std::vector<const Image*>& images) {
+  const int w = (images[0]->width + 1) / 2, h = (images[0]->height + 1) / 2;
+  Image out(w * int(images.size()), h);
+  for (size_t k = 0; k < images.size(); ++k)
+    for (int y = 0; y < h; ++y)
+      for (int x = 0; x < w; ++x) {
+        glm::vec3 c(0.0f);
+        int n = 0;
+        for (int dy = 0; dy < 2; ++dy)
+          for (int dx = 0; dx < 2; ++dx)
+            if (2 * x + dx < images[k]->width && 2 * y + dy < images[k]->height) c += images[k]->rgb(2 * x + dx, 2 * y + dy), ++n;
+        out.set(int(k) * w + x, y, c / float(n));
+      }
+  return out;
+}
+
+}  // namespace
+
+int runCompare(const CompareOptions& o) {
+  const std::string outDir = o.run.output.empty() ? "out/compare" : o.run.output;
+  if (o.tracers.empty()) inputError("--tracers: empty list");
+  for (const std::string& t : o.tracers)
+    if (!isKnownTracer(t)) inputError("--tracers ", t, ": unknown (use ssr, ssr-layers, hssr, embree)");
+  validateTracerOptions(o.options);
+  if (o.effect.bounces < 1 || o.effect.bounces > 16) inputError("--bounces ", o.effect.bounces, ": must be between 1 and 16");
+  Frame frame = buildFrame(o.run.frame);
+  EffectConfig ec = o.effect;
+  ec.seed = o.run.seed;
+
+  const BuiltTracer reference = buildTracer("embree", frame, o.options);
+  const EffectResult ref = renderEffect(frame, *reference.tracer, ec);
+  const BuiltTracer oracle = buildOracle(frame);
+
+  nlohmann::json stats = frameStats(frame);
+  stats["effect"] = effectName(ec.effect);
+  stats["bounces"] = ec.bounces;
+  stats["threads"] = o.run.threads;
+  stats["tracers"] = o.tracers;
+  stats["reference"] = {{"tracer", "embree"}, {"trace_ms", ref.traceMs}, {"build_ms", reference.buildMs}, {"rays", ref.rays}};
+  std::vector<std::pair<std::string, Image>> images;
+  std::vector<EffectResult> results;
+  for (const std::string& name : o.tracers) {
+    const BuiltTracer built = buildTracer(name, frame, o.options);
+    const bool screen = isScreenTracer(name);
+    // Two passes over the same rays: one timed alone, one traced beside the oracle and the
+    // reference for the per-ray verdicts (their cost must not count as the tracer's).
+    const EffectResult timed = renderEffect(frame, *built.tracer, ec);
+    EffectResult r = renderEffect(frame, *built.tracer, ec, screen ? oracle.tracer.get() : nullptr, reference.tracer.get());
+    r.traceMs = timed.traceMs;
+    const auto [rmse, psnr] = rmsePsnr(r.image, ref.image);
+    nlohmann::json t;
+    const double rays = double(std::max<uint64_t>(r.rays, 1));
+    for (int c = 0; c < kRayClasses; ++c) t[rayClassName(RayClass(c))] = double(r.classCounts[c]) / rays;
+    if (screen) t["exhaustive_mismatch"] = r.exhaustiveMismatch;
+    t["psnr_db"] = psnr;
+    t["rmse"] = rmse;
+    t["trace_ms"] = r.traceMs;
+    t["hierarchy_ms"] = built.buildMs;
+    t["memory_bytes"] = built.memoryBytes;
+    t["iterations_mean"] = r.rays ? double(r.iterationSum) / double(r.rays) : 0.0;
+    t["rays"] = rayStats(r, screen);
+    stats["compare"][name] = t;
+    images.emplace_back(name + ".png", r.image);
+    images.emplace_back(name + "_classes.png", r.classImage);
+    results.push_back(std::move(r));
+  }
+  images.emplace_back("reference.png", ref.image);
+  std::vector<const Image*> row{&ref.image};
+  for (const EffectResult& r : results) row.push_back(&r.image);
+  images.emplace_back("side_by_side.png", sideBySide(row));
+  std::vector<const Image*> classRow;
+  for (const EffectResult& r : results) classRow.push_back(&r.classImage);
+  images.emplace_back("classes_side_by_side.png", sideBySide(classRow));
+
+  // The table.
+  std::ostringstream table;
+  table << std::left << std::setw(12) << "tracer" << std::right;
+  for (const char* h : {"correct", "wrong", "falsemiss", "infomiss", "corrmiss", "oracle≠", "PSNR dB", "trace ms", "iter/ray"})
+    table << std::setw(11) << h;
+  table << "\n";
+  for (const std::string& name : o.tracers) {
+    const nlohmann::json& t = stats["compare"][name];
+    table << std::left << std::setw(12) << name << std::right << std::fixed;
+    for (int c = 0; c < kRayClasses; ++c) table << std::setw(10) << std::setprecision(2) << 100.0 * t[rayClassName(RayClass(c))].get<double>() << "%";
+    table << std::setw(11) << (t.contains("exhaustive_mismatch") ? std::to_string(t["exhaustive_mismatch"].get<uint64_t>()) : "-");
+    table << std::setw(11) << std::setprecision(2) << t["psnr_db"].get<double>() << std::setw(11) << std::setprecision(1)
+          << t["trace_ms"].get<double>() << std::setw(11) << std::setprecision(1) << t["iterations_mean"].get<double>() << "\n";
+  }
+
+  ensureDirectory(outDir, "-o");
+  for (const auto& [name, image] : images) writeImage((fs::path(outDir) / name).string(), image);
+  writeFileAtomic((fs::path(outDir) / "compare.json").string(), stats.dump(2) + "\n");
+  writeStats(o.run.statsPath, stats.dump(2));
+  if (!o.report.empty()) {
+    ReportPage page;
+    page.title = cat("layertrace compare: ", frame.scene.name, " — ", effectName(ec.effect));
+    page.table = table.str();
+    page.json = stats;
+    for (const auto& [name, image] : images) page.images.push_back({name, &image});
+    writeReport(o.report, page);
+  }
+  if (!o.run.quiet) {
+    std::cout << "compare: " << frame.scene.name << " " << frame.camera.width() << "x" << frame.camera.height() << " "
+              << effectName(ec.effect) << ", reference embree (" << ref.rays << " rays, " << ref.traceMs << " ms)\n"
+              << table.str() << "  wrote " << images.size() << " images and compare.json to " << outDir << "\n";
+  }
+  return 0;
+}
+
+}  // namespace lt

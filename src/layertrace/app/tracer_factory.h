@@ -1,0 +1,43 @@
+// Builds any tracer by name for a frame, owning the structure it needs (pyramid, Embree BVH).
+#pragma once
+
+#include <memory>
+#include <string>
+
+#include "layertrace/app/frame.h"
+#include "layertrace/geometry/embree_scene.h"
+#include "layertrace/screen/hssr_tracer.h"
+#include "layertrace/screen/interval_pyramid.h"
+#include "layertrace/screen/ssr_tracer.h"
+
+namespace lt {
+
+/// Options of every tracer (DESIGN.md names): ssr's stride etc., hssr's τ, levels, n_up.
+struct TracerOptions {
+  SsrConfig ssr;
+  PyramidConfig pyramid;
+  HssrConfig hssr;
+};
+
+/// Throws InputError naming the option for any invalid value, whichever tracer will run.
+void validateTracerOptions(const TracerOptions& options);
+
+/// Known tracer names: ssr, ssr-layers, hssr, embree.
+bool isScreenTracer(const std::string& name);
+bool isKnownTracer(const std::string& name);
+
+struct BuiltTracer {
+  std::unique_ptr<Tracer> tracer;
+  std::unique_ptr<IntervalPyramid> pyramid;  ///< hssr
+  std::unique_ptr<EmbreeScene> embree;       ///< embree
+  double buildMs = 0.0;                      ///< hierarchy / BVH construction
+  size_t memoryBytes = 0;                    ///< the structure's bytes
+};
+
+/// InputError for an unknown name.
+BuiltTracer buildTracer(const std::string& name, const Frame& frame, const TracerOptions& options);
+
+/// The exhaustive image-space oracle (hssr traversal with one level).
+BuiltTracer buildOracle(const Frame& frame);
+
+}  // namespace lt

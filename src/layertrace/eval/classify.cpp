@@ -1,0 +1,63 @@
+#include "layertrace/eval/classify.h"
+
+#include <cmath>
+
+#include <glm/geometric.hpp>
+
+namespace lt {
+
+const char* rayClassName(RayClass c) {
+  switch (c) {
+    case RayClass::CorrectHit: return "correct_hit";
+    case RayClass::WrongHit: return "wrong_hit";
+    case RayClass::FalseMiss: return "false_miss";
+    case RayClass::InfoMiss: return "info_miss";
+    case RayClass::CorrectMiss: return "correct_miss";
+  }
+  return "?";
+}
+
+glm::vec3 rayClassColor(RayClass c) {
+  switch (c) {
+    case RayClass::CorrectHit: return {0.1f, 0.65f, 0.15f};  // green
+    case RayClass::WrongHit: return {0.9f, 0.1f, 0.1f};      // red
+    case RayClass::FalseMiss: return {1.0f, 0.8f, 0.0f};     // yellow
+    case RayClass::InfoMiss: return {0.15f, 0.35f, 0.95f};   // blue
+    case RayClass::CorrectMiss: return {0.25f, 0.25f, 0.25f};  // grey
+  }
+  return glm::vec3(0.0f);
+}
+
+float sameSurfaceTolerance(const Camera& camera, float depth, float thickness) {
+  return 2.0f * camera.pixelFootprint(std::max(depth, camera.near())) + thickness;
+}
+
+bool storedInLayers(const TraceHit& truth, const Camera& camera, const LayerArrays& layers) {
+  if (!truth.hit) return false;
+  const float depth = -truth.point.z;
+  if (depth < camera.near() || depth > camera.far()) return false;
+  const glm::vec2 p = camera.project(truth.point);
+  if (!(p.x >= 0.0f && p.y >= 0.0f && p.x < float(camera.width()) && p.y < float(camera.height()))) return false;
+  const int x = int(p.x), y = int(p.y);
+  const FragmentNode* f = layers.pixel(x, y);
+  const size_t base = layers.pixelIndex(x, y) * size_t(layers.k);
+  for (int i = 0; i < layers.countAt(x, y); ++i) {
+    if (layers.triangle[base + size_t(i)] == truth.triangle) return true;
+    if (f[i].depth <= depth && depth <= f[i].back()) return true;
+  }
+  return false;
+}
+
+RayClass classifyRay(const TraceHit& tracer, const TraceHit& truth, const Camera& camera, const LayerArrays& layers,
+                     float thickness) {
+  if (tracer.hit) {
+    if (!truth.hit) return RayClass::WrongHit;
+    if (tracer.triangle == truth.triangle) return RayClass::CorrectHit;
+    const float tol = sameSurfaceTolerance(camera, -truth.point.z, thickness);
+    return glm::length(tracer.point - truth.point) <= tol ? RayClass::CorrectHit : RayClass::WrongHit;
+  }
+  if (!truth.hit) return RayClass::CorrectMiss;
+  return storedInLayers(truth, camera, layers) ? RayClass::FalseMiss : RayClass::InfoMiss;
+}
+
+}  // namespace lt
