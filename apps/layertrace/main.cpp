@@ -144,6 +144,15 @@ int main(int argc, char** argv) {
   addTracerOptions(compareCmd, compare.options);
   compareCmd->add_option("--report", compare.report, "also write an HTML report (one self-contained page) to this folder");
 
+  lt::BenchOptions bench;
+  RawFrameOptions benchRaw;
+  CLI::App* benchCmd = app.add_subcommand("bench", "the paper's experiments: stride|layers|tau|memory|resolution|threads");
+  addFrameOptions(benchCmd, bench.run, benchRaw);
+  benchCmd->add_option("--experiment", bench.experiment, "stride | layers | tau | memory | resolution | threads")->required();
+  benchCmd->add_option("--repeat", bench.repeat, "runs per measurement (the median is reported)")->capture_default_str();
+  addTracerOptions(benchCmd, bench.options);
+  benchCmd->add_option("--report", bench.report, "also write an HTML report to this folder");
+
   std::string names;
   bool known = false;
   for (const CLI::App* sub : app.get_subcommands({})) {
@@ -176,6 +185,11 @@ int main(int argc, char** argv) {
       finishFrameOptions(layers.run, layersRaw);
       limitThreads(layers.run.threads);
       return lt::runLayers(layers);
+    }
+    if (benchCmd->parsed()) {
+      finishFrameOptions(bench.run, benchRaw);
+      limitThreads(bench.run.threads);
+      return lt::runBench(bench);
     }
     if (compareCmd->parsed()) {
       finishFrameOptions(compare.run, compareRaw);

@@ -58,6 +58,18 @@ struct CompareOptions {
   std::string report;  ///< --report DIR: one HTML page with images and the table
 };
 
+struct BenchOptions {
+  RunOptions run;
+  std::string experiment;  ///< stride | layers | tau | memory | resolution | threads
+  int repeat = 3;          ///< runs per measurement; the median is reported
+  EffectConfig effect;     ///< one-bounce reflections from every pixel, as in seed 000 §6
+  TracerOptions options;
+  std::string report;      ///< --report DIR
+};
+
+/// `layertrace bench`: seed 000's experiments on your scene → CSV, JSON, PNG plot.
+int runBench(const BenchOptions& options);
+
 /// The `rays.*` stats of one traced effect (render and compare).
 nlohmann::json rayStats(const EffectResult& r, bool screenTracer);
 /// Writes iterations.exr/.png and intervals.exr to `dir` (--pixelstats).

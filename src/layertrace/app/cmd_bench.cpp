@@ -1,0 +1,302 @@
+// `layertrace bench --experiment NAME`: seed 000 §6's measurements on the user's scene.
+//   stride      SSR trace time and false-miss rate at strides 1–8 against HSSR (Figures 10–12)
+//   layers      construction time by stage for k = 1…8 (Figure 8)
+//   memory      bytes by stage at 720p and 1080p (Figure 9)
+//   tau         hierarchy build and trace time for τ from 1 to 128 (Figure 14)
+//   resolution  cost from 640×360 to 3840×2160
+//   threads     scaling from 1 thread to all cores
+// Every time is the median of --repeat runs on the same rays; results carry the machine, the
+// build type and the date, and go to DIR/NAME.csv, DIR/NAME.json and DIR/NAME.png.
+#include <algorithm>
+#include <chrono>
+#include <ctime>
+#include <filesystem>
+#include <fstream>
+#include <iostream>
+#include <sstream>
+#include <thread>
+
+#include <tbb/global_control.h>
+
+#include "layertrace/app/commands.h"
+#include "layertrace/app/report.h"
+#include "layertrace/util/error.h"
+
+#ifndef LAYERTRACE_TOOLS_DIR
+#define LAYERTRACE_TOOLS_DIR "tools"
+#endif
+#ifndef LAYERTRACE_BUILD_TYPE
+#define LAYERTRACE_BUILD_TYPE "unknown"
+#endif
+
+namespace lt {
+namespace fs = std::filesystem;
+
+namespace {
+
+double median(std::vector<double> v) {
+  std::sort(v.begin(), v.end());
+  return v.empty() ? 0.0 : v.size() % 2 ? v[v.size() / 2] : 0.5 * (v[v.size() / 2 - 1] + v[v.size() / 2]);
+}
+
+template <typename F>
+double medianMs(int repeat, F&& f) {
+  std::vector<double> t;
+  for (int i = 0; i < repeat; ++i) {
+    const auto s = std::chrono::steady_clock::now();
+    f();
+    t.push_back(std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - s).count());
+  }
+  return median(t);
+}
+
+std::string machine() {
+  std::ifstream in("/proc/cpuinfo");
+  std::string line;
+  while (std::getline(in, line))
+    if (line.rfind("model name", 0) == 0) return line.substr(line.find(':') + 2) + cat(", ", std::thread::hardware_concurrency(), " threads");
+  return cat(std::thread::hardware_concurrency(), " threads");
+}
+
+std::string today() {
+  const std::time_t t = std::time(nullptr);
+  char buf[32];
+  std::strftime(buf, sizeof buf, "%Y-%m-%dT%H:%M:%SZ", std::gmtime(&t));
+  return buf;
+}
+
+/// A table of rows with named columns, written as CSV and JSON.
+struct Table {
+  std::vector<std::string> columns;
+  std::vector<std::vector<nlohmann::json>> rows;
+  std::string csv() const {
+    std::ostringstream s;
+    for (size_t i = 0; i < columns.size(); ++i) s << (i ? "," : "") << columns[i];
+    s << "\n";
+    for (const auto& r : rows) {
+      for (size_t i = 0; i < r.size(); ++i) s << (i ? "," : "") << (r[i].is_string() ? r[i].get<std::string>() : r[i].dump());
+      s << "\n";
+    }
+    return s.str();
+  }
+  nlohmann::json json() const {
+    nlohmann::json a = nlohmann::json::array();
+    for (const auto& r : rows) {
+      nlohmann::json o;
+      for (size_t i = 0; i < r.size(); ++i) o[columns[i]] = r[i];
+      a.push_back(o);
+    }
+    return a;
+  }
+};
+
+class Progress {
+ public:
+  Progress(bool quiet, std::string name, int total) : quiet_(quiet), name_(std::move(name)), total_(total) {}
+  void step(const std::string& what) {
+    if (!quiet_) std::cerr << "\r" << name_ << ": " << ++done_ << "/" << total_ << " " << what << "          " << std::flush;
+  }
+  ~Progress() {
+    if (!quiet_ && done_) std::cerr << "\n";
+  }
+
+ private:
+  bool quiet_;
+  std::string name_;
+  int total_, done_ = 0;
+};
+
+struct Classified {
+  double traceMs = 0.0, iterations = 0.0, falseMiss = 0.0, correctHit = 0.0;
+};
+
+/// Median trace time of `tracer` over the effect's rays, plus (optionally) its classification.
+Classified measure(const Frame& frame, const Tracer& tracer, const EffectConfig& ec, int repeat, const Tracer* reference) {
+  Classified c;
+  std::vector<double> times;
+  EffectResult r;
+  for (int i = 0; i < repeat; ++i) {
+    r = renderEffect(frame, tracer, ec);
+    times.push_back(r.traceMs);
+  }
+  c.traceMs = median(times);
+  c.iterations = r.rays ? double(r.iterationSum) / double(r.rays) : 0.0;
+  if (reference) {
+    const EffectResult k = renderEffect(frame, tracer, ec, nullptr, reference);
+    const double n = double(std::max<uint64_t>(k.rays, 1));
+    c.falseMiss = double(k.classCounts[int(RayClass::FalseMiss)]) / n;
+    c.correctHit = double(k.classCounts[int(RayClass::CorrectHit)]) / n;
+  }
+  return c;
+}
+
+}  // namespace
+
+int runBench(const BenchOptions& o) {
+  static const char* kExperiments[] = {"stride", "layers", "tau", "memory", "resolution", "threads"};
+  if (std::find_if(std::begin(kExperiments), std::end(kExperiments), [&](const char* e) { return o.experiment == e; }) ==
+      std::end(kExperiments))
+    inputError("--experiment ", o.experiment.empty() ? "(none)" : o.experiment,
+               ": unknown (use stride, layers, tau, memory, resolution, threads)");
+  if (o.repeat < 1 || o.repeat > 100) inputError("--repeat ", o.repeat, ": must be between 1 and 100");
+  validateTracerOptions(o.options);
+  const std::string outDir = o.run.output.empty() ? "out/bench" : o.run.output;
+  EffectConfig ec = o.effect;
+  ec.seed = o.run.seed;
+
+  Frame frame;
+  loadFrameScene(o.run.frame, frame);
+  Table t;
+  const std::string& e = o.experiment;
+  if (e == "stride") {
+    rasterizeFrame(o.run.frame, frame);
+    const BuiltTracer ref = buildTracer("embree", frame, o.options);
+    t.columns = {"tracer", "stride", "trace_ms", "iterations_mean", "false_miss", "correct_hit", "relative_trace"};
+    Progress p(o.run.quiet, e, 9);
+    const BuiltTracer hssr = buildTracer("hssr", frame, o.options);
+    p.step("hssr");
+    const Classified h = measure(frame, *hssr.tracer, ec, o.repeat, ref.tracer.get());
+    std::vector<std::vector<nlohmann::json>> rows;
+    double stride1 = 0.0;
+    for (int s = 1; s <= 8; ++s) {
+      p.step(cat("ssr-layers stride ", s));
+      TracerOptions to = o.options;
+      to.ssr.stride = float(s);
+      const BuiltTracer b = buildTracer("ssr-layers", frame, to);
+      const Classified c = measure(frame, *b.tracer, ec, o.repeat, ref.tracer.get());
+      if (s == 1) stride1 = c.traceMs;
+      rows.push_back({"ssr-layers", s, c.traceMs, c.iterations, c.falseMiss, c.correctHit, 0.0});
+    }
+    rows.push_back({"hssr", 1, h.traceMs, h.iterations, h.falseMiss, h.correctHit, 0.0});
+    for (auto& r : rows) r[6] = r[2].get<double>() / stride1;  // normalised to SSR stride 1 (Figure 12)
+    t.rows = rows;
+  } else if (e == "layers") {
+    t.columns = {"k", "raster_ms", "sort_ms", "hierarchy_ms", "fragments"};
+    Progress p(o.run.quiet, e, 8);
+    for (int k = 1; k <= 8; ++k) {
+      p.step(cat("k = ", k));
+      FrameOptions fo = o.run.frame;
+      fo.layers = k;
+      double raster = 0.0, sort = 0.0, hier = 0.0;
+      std::vector<double> rs, ss, hs;
+      for (int i = 0; i < o.repeat; ++i) {
+        rasterizeFrame(fo, frame);
+        rs.push_back(frame.rasterMs), ss.push_back(frame.sortMs);
+        hs.push_back(buildIntervalPyramid(frame.layers, frame.camera, o.options.pyramid).buildMs);
+      }
+      raster = median(rs), sort = median(ss), hier = median(hs);
+      t.rows.push_back({k, raster, sort, hier, frame.lists.generated});
+    }
+  } else if (e == "memory") {
+    t.columns = {"resolution", "lists_bytes", "arrays_bytes", "hierarchy_bytes", "total_bytes", "depth_complexity_mean"};
+    Progress p(o.run.quiet, e, 2);
+    for (auto [w, h] : {std::pair{1280, 720}, std::pair{1920, 1080}}) {
+      p.step(cat(w, "x", h));
+      FrameOptions fo = o.run.frame;
+      fo.width = w, fo.height = h;
+      Frame f;
+      loadFrameScene(fo, f);
+      rasterizeFrame(fo, f);
+      const IntervalPyramid pyr = buildIntervalPyramid(f.layers, f.camera, o.options.pyramid);
+      const size_t lists = f.lists.memoryBytes(), arrays = f.layers.memoryBytes(), hier = pyr.memoryBytes();
+      t.rows.push_back({cat(w, "x", h), lists, arrays, hier, lists + arrays + hier, double(f.lists.generated) / double(w * h)});
+    }
+  } else if (e == "tau") {
+    rasterizeFrame(o.run.frame, frame);
+    t.columns = {"tau", "hierarchy_ms", "trace_ms", "iterations_mean", "intervals_level1"};
+    const float taus[] = {1, 2, 4, 8, 16, 25, 32, 64, 128};
+    Progress p(o.run.quiet, e, 9);
+    for (float tau : taus) {
+      p.step(cat("tau ", tau));
+      TracerOptions to = o.options;
+      to.pyramid.tau = tau;
+      IntervalPyramid pyr;
+      const double build = medianMs(o.repeat, [&] { pyr = buildIntervalPyramid(frame.layers, frame.camera, to.pyramid); });
+      HssrConfig hc = to.hssr;
+      hc.maxLevels = to.pyramid.levels;
+      const HssrTracer tr(frame.camera, frame.layers, pyr, hc);
+      const Classified c = measure(frame, tr, ec, o.repeat, nullptr);
+      t.rows.push_back({tau, build, c.traceMs, c.iterations, pyr.levels.size() > 1 ? pyr.levels[1].intervals.size() : 0});
+    }
+  } else if (e == "resolution") {
+    t.columns = {"resolution", "pixels", "raster_ms", "sort_ms", "hierarchy_ms", "trace_hssr_ms", "trace_ssr_layers_ms", "fragments"};
+    const std::pair<int, int> sizes[] = {{640, 360}, {1280, 720}, {1920, 1080}, {2560, 1440}, {3840, 2160}};
+    Progress p(o.run.quiet, e, 5);
+    for (auto [w, h] : sizes) {
+      p.step(cat(w, "x", h));
+      FrameOptions fo = o.run.frame;
+      fo.width = w, fo.height = h;
+      Frame f;
+      loadFrameScene(fo, f);
+      std::vector<double> rs, ss;
+      for (int i = 0; i < o.repeat; ++i) rasterizeFrame(fo, f), rs.push_back(f.rasterMs), ss.push_back(f.sortMs);
+      const BuiltTracer hs = buildTracer("hssr", f, o.options);
+      const double hier = medianMs(o.repeat, [&] { buildIntervalPyramid(f.layers, f.camera, o.options.pyramid); });
+      const BuiltTracer sl = buildTracer("ssr-layers", f, o.options);
+      const Classified a = measure(f, *hs.tracer, ec, o.repeat, nullptr), b = measure(f, *sl.tracer, ec, o.repeat, nullptr);
+      t.rows.push_back({cat(w, "x", h), w * h, median(rs), median(ss), hier, a.traceMs, b.traceMs, f.lists.generated});
+    }
+  } else if (e == "threads") {
+    t.columns = {"threads", "raster_ms", "sort_ms", "hierarchy_ms", "trace_hssr_ms", "speedup_trace"};
+    const int maxThreads = int(std::thread::hardware_concurrency());
+    Progress p(o.run.quiet, e, maxThreads);
+    double one = 0.0;
+    for (int n = 1; n <= maxThreads; ++n) {
+      p.step(cat(n, " threads"));
+      tbb::global_control gc(tbb::global_control::max_allowed_parallelism, size_t(n));
+      std::vector<double> rs, ss;
+      for (int i = 0; i < o.repeat; ++i) rasterizeFrame(o.run.frame, frame), rs.push_back(frame.rasterMs), ss.push_back(frame.sortMs);
+      const double hier = medianMs(o.repeat, [&] { buildIntervalPyramid(frame.layers, frame.camera, o.options.pyramid); });
+      const BuiltTracer hs = buildTracer("hssr", frame, o.options);
+      const Classified a = measure(frame, *hs.tracer, ec, o.repeat, nullptr);
+      if (n == 1) one = a.traceMs;
+      t.rows.push_back({n, median(rs), median(ss), hier, a.traceMs, one / a.traceMs});
+    }
+  }
+
+  nlohmann::json result;
+  result["experiment"] = e;
+  result["scene"] = frame.scene.name;
+  result["camera"] = frame.camera.desc().name;
+  result["width"] = o.run.frame.width;
+  result["height"] = o.run.frame.height;
+  result["layers"] = o.run.frame.layers;
+  result["effect"] = effectName(ec.effect);
+  result["repeat"] = o.repeat;
+  result["machine"] = machine();
+  result["build_type"] = LAYERTRACE_BUILD_TYPE;
+  result["date"] = today();
+  result["hssr"] = {{"tau", o.options.pyramid.tau}, {"levels", o.options.pyramid.levels}, {"n_up", o.options.hssr.nUp}};
+  result["rows"] = t.json();
+
+  ensureDirectory(outDir, "-o");
+  const std::string base = (fs::path(outDir) / e).string();
+  writeFileAtomic(base + ".csv", t.csv());
+  writeFileAtomic(base + ".json", result.dump(2) + "\n");
+  writeStats(o.run.statsPath, result.dump(2));
+  // The plot: python3 + matplotlib (tools/plot_bench.py); a missing Python is not an error.
+  const std::string script = std::string(LAYERTRACE_TOOLS_DIR) + "/plot_bench.py";
+  bool plotted = false;
+  if (fs::exists(script)) {
+    // Debian's interpreter first: python3-matplotlib is installed for it.
+    const std::string python = fs::exists("/usr/bin/python3") ? "/usr/bin/python3" : "python3";
+    const std::string cmd = python + " '" + script + "' '" + base + ".json' '" + base + ".png' >/dev/null 2>&1";
+    plotted = std::system(cmd.c_str()) == 0 && fs::exists(base + ".png");
+  }
+  if (!o.report.empty()) {
+    ReportPage page;
+    page.title = cat("layertrace bench ", e, ": ", frame.scene.name);
+    page.table = t.csv();
+    page.json = result;
+    if (plotted) page.files.push_back({e + ".png", base + ".png"});
+    writeReport(o.report, page);
+  }
+  if (!o.run.quiet) {
+    std::cout << "bench " << e << ": " << frame.scene.name << " (" << machine() << ", " << LAYERTRACE_BUILD_TYPE << ")\n"
+              << t.csv() << "  wrote " << base << ".csv, .json" << (plotted ? ", .png" : " (no plot: python3/matplotlib missing)")
+              << "\n";
+  }
+  return 0;
+}
+
+}  // namespace lt

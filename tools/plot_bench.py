@@ -1,0 +1,70 @@
+#!/usr/bin/env python3
+"""Plots one `layertrace bench` result (NAME.json) to a PNG. Usage: plot_bench.py IN.json OUT.png"""
+import json
+import sys
+
+import matplotlib
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt  # noqa: E402
+
+
+def main():
+    data = json.load(open(sys.argv[1]))
+    rows, exp = data["rows"], data["experiment"]
+    fig, ax = plt.subplots(figsize=(7, 4.2))
+    title = f"{exp}: {data['scene']} ({data['width']}x{data['height']}, k={data['layers']})"
+    if exp == "stride":
+        ssr = [r for r in rows if r["tracer"] == "ssr-layers"]
+        hssr = [r for r in rows if r["tracer"] == "hssr"][0]
+        ax.plot([r["stride"] for r in ssr], [r["trace_ms"] for r in ssr], "o-", label="ssr-layers trace ms")
+        ax.axhline(hssr["trace_ms"], color="C1", label="hssr trace ms")
+        ax.set_xlabel("SSR stride")
+        ax.set_ylabel("trace time [ms]")
+        ax2 = ax.twinx()
+        ax2.plot([r["stride"] for r in ssr], [100 * r["false_miss"] for r in ssr], "s--", color="C2", label="ssr-layers false miss %")
+        ax2.axhline(100 * hssr["false_miss"], color="C3", ls="--", label="hssr false miss %")
+        ax2.set_ylabel("false misses [% of rays]")
+        ax2.legend(loc="upper center")
+    elif exp == "layers":
+        ks = [r["k"] for r in rows]
+        ax.stackplot(ks, [r["raster_ms"] for r in rows], [r["sort_ms"] for r in rows], [r["hierarchy_ms"] for r in rows],
+                     labels=["raster (all fragments)", "sort + truncate", "hierarchy"])
+        ax.set_xlabel("layers k")
+        ax.set_ylabel("time [ms]")
+    elif exp == "memory":
+        names = [r["resolution"] for r in rows]
+        mib = lambda k: [r[k] / 2**20 for r in rows]  # noqa: E731
+        b1, b2, b3 = mib("lists_bytes"), mib("arrays_bytes"), mib("hierarchy_bytes")
+        ax.bar(names, b1, label="lists")
+        ax.bar(names, b2, bottom=b1, label="arrays")
+        ax.bar(names, b3, bottom=[a + b for a, b in zip(b1, b2)], label="hierarchy")
+        ax.set_ylabel("memory [MiB]")
+    elif exp == "tau":
+        taus = [r["tau"] for r in rows]
+        ax.semilogx(taus, [r["hierarchy_ms"] for r in rows], "o-", color="C3", label="hierarchy build ms")
+        ax.semilogx(taus, [r["trace_ms"] for r in rows], "o-", color="C0", label="trace ms")
+        ax.set_xlabel("tau [pixel footprints]")
+        ax.set_ylabel("time [ms]")
+    elif exp == "resolution":
+        px = [r["pixels"] / 1e6 for r in rows]
+        for key, lab in [("raster_ms", "raster"), ("sort_ms", "sort"), ("hierarchy_ms", "hierarchy"),
+                         ("trace_hssr_ms", "trace hssr"), ("trace_ssr_layers_ms", "trace ssr-layers")]:
+            ax.plot(px, [r[key] for r in rows], "o-", label=lab)
+        ax.set_xlabel("megapixels")
+        ax.set_ylabel("time [ms]")
+    elif exp == "threads":
+        th = [r["threads"] for r in rows]
+        for key, lab in [("raster_ms", "raster"), ("sort_ms", "sort"), ("hierarchy_ms", "hierarchy"), ("trace_hssr_ms", "trace hssr")]:
+            ax.plot(th, [r[key] for r in rows], "o-", label=lab)
+        ax.set_xlabel("threads")
+        ax.set_ylabel("time [ms]")
+    ax.set_title(title, fontsize=10)
+    ax.legend(loc="upper left", fontsize=8)
+    fig.text(0.01, 0.01, f"{data['machine']} · {data['build_type']} · {data['date']} · median of {data['repeat']}", fontsize=6)
+    fig.tight_layout()
+    fig.savefig(sys.argv[2], dpi=110)
+
+
+if __name__ == "__main__":
+    main()
