@@ -180,3 +180,63 @@ TEST(CliRender, EveryEffectAndTracerGivesTheSameBytesForOneAndTwoThreads) {
 
 }  // namespace
 }  // namespace lt
+
+namespace lt {
+namespace {
+
+TEST(CliCompare, WritesTheCompareSchemaImagesAndReport) {
+  test::TempDir dir;
+  std::string err;
+  ASSERT_EQ(test::runCli("compare " + kDefault + " --width 200 --height 112 --tracers ssr,hssr --quiet -o " + (dir / "c") +
+                             " --report " + (dir / "r") + " --stats " + (dir / "s.json"),
+                         &err),
+            0)
+      << err;
+  const auto j = readJson(dir / "c/compare.json");
+  EXPECT_EQ(readJson(dir / "s.json"), j);
+  for (const char* t : {"ssr", "hssr"}) {
+    const auto& c = j["compare"][t];
+    double sum = 0.0;
+    for (const char* k : {"correct_hit", "wrong_hit", "false_miss", "info_miss", "correct_miss"}) {
+      ASSERT_TRUE(c.contains(k)) << t << " " << k;
+      sum += c[k].get<double>();
+    }
+    EXPECT_NEAR(sum, 1.0, 1e-9) << t;  // every ray gets exactly one class
+    for (const char* k : {"exhaustive_mismatch", "psnr_db", "rmse", "trace_ms", "iterations_mean"}) EXPECT_TRUE(c.contains(k)) << t << " " << k;
+  }
+  EXPECT_EQ(j["compare"]["hssr"]["exhaustive_mismatch"], 0);
+  EXPECT_GT(j["compare"]["ssr"]["iterations_mean"].get<double>(), j["compare"]["hssr"]["iterations_mean"].get<double>());
+  for (const char* f : {"reference.png", "ssr.png", "hssr_classes.png", "side_by_side.png"}) EXPECT_TRUE(fs::exists(dir / ("c/" + std::string(f)))) << f;
+  const std::string html = slurp(dir / "r/index.html");
+  EXPECT_NE(html.find("data:image/png;base64,"), std::string::npos);
+  EXPECT_EQ(html.find("http"), std::string::npos) << "the report must open without a network";
+}
+
+TEST(CliBench, WritesCsvJsonWithMachineBuildAndDate) {
+  test::TempDir dir;
+  std::string err;
+  for (const char* e : {"tau", "memory"}) {
+    ASSERT_EQ(test::runCli(std::string("bench ") + kDefault + " --experiment " + e + " --width 160 --height 90 --repeat 1 --quiet -o " +
+                               (dir / "b"),
+                           &err),
+              0)
+        << err;
+    const auto j = readJson(dir / ("b/" + std::string(e) + ".json"));
+    for (const char* k : {"machine", "build_type", "date", "scene", "rows", "repeat"}) EXPECT_TRUE(j.contains(k)) << e << " " << k;
+    EXPECT_TRUE(fs::exists(dir / ("b/" + std::string(e) + ".csv")));
+    ASSERT_FALSE(j["rows"].empty());
+    if (std::string(e) == "tau") {
+      EXPECT_EQ(j["rows"].size(), 9u);
+      for (const auto& r : j["rows"]) EXPECT_GT(r["trace_ms"].get<double>(), 0.0);
+    } else {
+      EXPECT_EQ(j["rows"].size(), 2u);
+      // 1080p holds 2.25× the pixels of 720p: every per-pixel buffer grows with it.
+      EXPECT_GT(j["rows"][1]["arrays_bytes"].get<double>(), 2.2 * j["rows"][0]["arrays_bytes"].get<double>());
+    }
+  }
+  test::TempDir clean;
+  expectRejected({"bench " + kDefault + " --experiment warp", "--experiment warp"}, clean);
+}
+
+}  // namespace
+}  // namespace lt

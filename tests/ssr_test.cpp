@@ -280,3 +280,104 @@ TEST(ScreenTracers, SsrSkipRateAgainstTheExhaustiveOracleIsMeasured) {
 
 }  // namespace
 }  // namespace lt
+
+#include "layertrace/eval/classify.h"
+
+namespace lt {
+namespace {
+
+RayClass classifyWith(const Tracer& tracer, const Tracer& reference, const Frame& f, const ScreenRay& r) {
+  RayCounters c;
+  return classifyRay(tracer.trace(r, c), reference.trace(r, c), f.camera, f.layers, f.thickness);
+}
+
+// Issue 5 §6: each class constructed on purpose.
+TEST(Classify, ReflectionOfSomethingOffScreenIsAnInformationMiss) {
+  const Frame f = floorAndWall(320, 180, 4, 0.1f, 0.3f);
+  const Tracers t(f);
+  const Tracer& hssr = *t.all[2];
+  const Tracer& embree = *t.all[4];
+  int info = 0, correct = 0;
+  for (int y = 100; y < 180; y += 4)
+    for (int x = 20; x < 300; x += 20) {
+      if (std::abs(decodeOctahedral(f.layers.pixel(x, y)[0].normal).y) < 0.9f) continue;
+      const ScreenRay r = mirrorRayAt(f, x, y);
+      const RayClass c = classifyWith(hssr, embree, f, r);
+      RayCounters rc;
+      const TraceHit truth = embree.trace(r, rc);
+      const glm::vec2 p = f.camera.project(truth.point);
+      const bool outside = p.y < -2.0f || p.x < -2.0f || p.x > 322.0f;
+      const bool inside = p.y > 2.0f && p.x > 2.0f && p.x < 318.0f;
+      if (outside) {
+        EXPECT_EQ(c, RayClass::InfoMiss) << x << "," << y;
+        ++info;
+      } else if (inside) {
+        EXPECT_EQ(c, RayClass::CorrectHit) << x << "," << y << " truth at " << p.x << "," << p.y << " depth " << -truth.point.z;
+        ++correct;
+      }
+    }
+  EXPECT_GT(info, 20);
+  EXPECT_GT(correct, 20);
+}
+
+Frame hiddenQuadFrame(int k) {
+  Frame f;
+  Scene s = makeQuad({-30, -1, -0.2f}, {0, 0, -19.8f}, {60, 0, 0});
+  s.append(makeQuad({-3, -1, -4.0f}, {6, 0, 0}, {0, 6, 0}));
+  s.append(makeQuad({-2, -1, -8.0f}, {4, 0, 0}, {0, 4, 0}));
+  s.finalize("hidden");
+  f.scene = s;
+  f.camera = Camera(test::originCamera(60.0f, 0.05f, 100.0f), 200, 120);
+  FrameOptions o;
+  o.width = 200, o.height = 120, o.thickness = 0.1f, o.layers = k;
+  f.thickness = 0.1f;
+  rasterizeFrame(o, f);
+  return f;
+}
+
+TEST(Classify, SurfaceBehindTheFrontLayerIsInformationMissWithOneLayerCorrectHitWithFour) {
+  const glm::vec3 start(0.5f, -1.0f, -6.0f);
+  const ScreenRay r{start, glm::normalize(glm::vec3(0.0f, 1.0f, -8.0f) - start), 100.0f};
+  for (int k : {1, 4}) {
+    const Frame f = hiddenQuadFrame(k);
+    const Tracers t(f);
+    const RayClass c = classifyWith(*t.all[2], *t.all[4], f, r);
+    EXPECT_EQ(c, k == 1 ? RayClass::InfoMiss : RayClass::CorrectHit) << "k " << k << ": " << rayClassName(c);
+  }
+}
+
+TEST(Classify, LargeStrideSkippingAThinPoleIsAFalseMiss) {
+  // A pole 0.05 wide (1.6 pixels: it covers two pixel centres) at depth 5; rays cross it.
+  Frame f;
+  Scene s = makeQuad({-30, -1, -0.2f}, {0, 0, -19.8f}, {60, 0, 0});
+  s.append(makeBox({-0.025f, -1.0f, -5.025f}, {0.025f, 3.0f, -4.975f}));
+  s.finalize("pole");
+  f.scene = s;
+  f.camera = Camera(test::originCamera(60.0f, 0.05f, 100.0f), 320, 180);
+  FrameOptions o;
+  o.width = 320, o.height = 180, o.thickness = 0.1f;
+  f.thickness = 0.1f;
+  rasterizeFrame(o, f);
+  const Tracers t(f);
+  SsrConfig wide;
+  wide.allLayers = true;
+  wide.stride = 8.0f;
+  wide.refine = false;
+  const SsrTracer ssr8(f.camera, f.layers, wide);
+  int falseMisses = 0, hssrCorrect = 0, rays = 0;
+  for (int i = 0; i < 16; ++i) {
+    // Horizontal rays at the pole's depth, starting left of it at varying offsets.
+    const glm::vec3 start(-1.5f - 0.013f * float(i), 0.5f, -5.0f);
+    const ScreenRay r{start, glm::vec3(1.0f, 0.0f, 0.0f), 10.0f};
+    ++rays;
+    hssrCorrect += classifyWith(*t.all[2], *t.all[4], f, r) == RayClass::CorrectHit;
+    const RayClass c = classifyWith(ssr8, *t.all[4], f, r);
+    EXPECT_TRUE(c == RayClass::FalseMiss || c == RayClass::CorrectHit) << rayClassName(c);
+    falseMisses += c == RayClass::FalseMiss;
+  }
+  EXPECT_EQ(hssrCorrect, rays);  // the conservative DDA never skips the pole
+  EXPECT_GT(falseMisses, rays / 2) << "stride 8 should step over a one-pixel pole most of the time";
+}
+
+}  // namespace
+}  // namespace lt

@@ -1,5 +1,6 @@
 #include "layertrace/eval/classify.h"
 
+#include <algorithm>
 #include <cmath>
 
 #include <glm/geometric.hpp>
@@ -40,11 +41,16 @@ bool storedInLayers(const TraceHit& truth, const Camera& camera, const LayerArra
   if (!(p.x >= 0.0f && p.y >= 0.0f && p.x < float(camera.width()) && p.y < float(camera.height()))) return false;
   const int x = int(p.x), y = int(p.y);
   const FragmentNode* f = layers.pixel(x, y);
-  const size_t base = layers.pixelIndex(x, y) * size_t(layers.k);
-  for (int i = 0; i < layers.countAt(x, y); ++i) {
-    if (layers.triangle[base + size_t(i)] == truth.triangle) return true;
+  for (int i = 0; i < layers.countAt(x, y); ++i)
     if (f[i].depth <= depth && depth <= f[i].back()) return true;
-  }
+  // The true point lies somewhere inside its pixel, the fragments at pixel centres: accept the
+  // same triangle in the pixel or a neighbour (a sliver may miss this pixel's centre).
+  for (int ny = std::max(y - 1, 0); ny <= std::min(y + 1, layers.height - 1); ++ny)
+    for (int nx = std::max(x - 1, 0); nx <= std::min(x + 1, layers.width - 1); ++nx) {
+      const size_t base = layers.pixelIndex(nx, ny) * size_t(layers.k);
+      for (int i = 0; i < layers.countAt(nx, ny); ++i)
+        if (layers.triangle[base + size_t(i)] == truth.triangle) return true;
+    }
   return false;
 }
 

@@ -31,8 +31,9 @@ glm::vec3 rayClassColor(RayClass c);   ///< legend colours of the classification
 float sameSurfaceTolerance(const Camera& camera, float depth, float thickness);
 
 /// Is the surface hit by `truth` stored in the layers? True if its point projects into the
-/// screen in front of the near plane and that pixel keeps a fragment of the same triangle, or one
-/// whose interval contains the true depth.
+/// screen in front of the near plane and that pixel keeps a fragment whose interval contains
+/// the true depth, or that pixel or one of its 8 neighbours keeps a fragment of the same
+/// triangle (the true point lies anywhere in its pixel, fragments sit at pixel centres).
 bool storedInLayers(const TraceHit& truth, const Camera& camera, const LayerArrays& layers);
 
 RayClass classifyRay(const TraceHit& tracer, const TraceHit& truth, const Camera& camera, const LayerArrays& layers,
