@@ -30,7 +30,12 @@ std::vector<ScreenRay> sampleRays(const Frame& f, size_t count, uint64_t seed) {
     r.origin = f.camera.rayThrough({x + 0.5f, y + 0.5f}) * frag.depth;
     const glm::vec3 n = decodeOctahedral(frag.normal);
     const glm::vec3 v = glm::normalize(r.origin);
-    if (rays.size() % 2 == 0) {
+    if (rays.size() % 4 == 3) {
+      // Exactly diagonal or axis-parallel screen lines through pixel corners (hssr-pitfalls §7):
+      // a direction parallel to the image plane projects to a line of the same direction.
+      static const glm::vec3 dirs[8] = {{1, 1, 0}, {1, -1, 0}, {-1, 1, 0}, {-1, -1, 0}, {1, 0, 0}, {-1, 0, 0}, {0, 1, 0}, {0, -1, 0}};
+      r.dir = glm::normalize(dirs[rays.size() / 4 % 8]);
+    } else if (rays.size() % 2 == 0) {
       r.dir = glm::reflect(v, glm::dot(n, v) > 0.0f ? -n : n);
     } else {
       r.dir = glm::normalize(glm::vec3(g(rng), g(rng), g(rng)));
@@ -43,14 +48,29 @@ std::vector<ScreenRay> sampleRays(const Frame& f, size_t count, uint64_t seed) {
 
 void expectExact(const Frame& f, size_t count) {
   const uint64_t seed = test::testSeed();
-  const std::vector<ScreenRay> rays = sampleRays(f, count, seed);
+  std::vector<ScreenRay> rays = sampleRays(f, count, seed);
   const IntervalPyramid one = buildIntervalPyramid(f.layers, f.camera, PyramidConfig{1, 25.0f});
   const HssrTracer oracle(f.camera, f.layers, one, HssrConfig{1, 1});
-  std::vector<TraceHit> truth(rays.size());
-  tbb::parallel_for(size_t(0), rays.size(), [&](size_t i) {
-    RayCounters c;
-    truth[i] = oracle.trace(rays[i], c);
-  });
+  auto traceAll = [&](const std::vector<ScreenRay>& rs) {
+    std::vector<TraceHit> out(rs.size());
+    tbb::parallel_for(size_t(0), rs.size(), [&](size_t i) {
+      RayCounters c;
+      out[i] = oracle.trace(rs[i], c);
+    });
+    return out;
+  };
+  std::vector<TraceHit> truth = traceAll(rays);
+  // Second bounces: mirror rays from the oracle's hits (origins on deeper layers, arbitrary
+  // screen positions — what multi-bounce effects trace).
+  std::vector<ScreenRay> second;
+  for (size_t i = 0; i < rays.size(); ++i) {
+    if (!truth[i].hit) continue;
+    const glm::vec3 n = glm::dot(truth[i].normal, rays[i].dir) > 0.0f ? -truth[i].normal : truth[i].normal;
+    second.push_back({truth[i].point, glm::normalize(glm::reflect(rays[i].dir, n)), rays[i].maxDistance});
+  }
+  const std::vector<TraceHit> secondTruth = traceAll(second);
+  rays.insert(rays.end(), second.begin(), second.end());
+  truth.insert(truth.end(), secondTruth.begin(), secondTruth.end());
   const size_t hits = size_t(std::count_if(truth.begin(), truth.end(), [](const TraceHit& h) { return h.hit; }));
   EXPECT_GT(hits, rays.size() / 10) << "too few hits to mean anything";
   for (float tau : {1.0f, 5.0f, 25.0f, 128.0f})

@@ -44,6 +44,18 @@ TEST(SceneJson, ComposesShapesMaterialsLightsCameras) {
   for (const glm::vec3& n : s.normals) EXPECT_NEAR(glm::length(n), 1.0f, 1e-5f);
 }
 
+TEST(SceneJson, OverrideChangesOnlyTheNamedAttributes) {
+  const Scene s = parseJsonScene(R"({
+    "materials": {"m": {"albedo": [0.5, 0.25, 1], "specular": 0.3}},
+    "objects": [{"box": {"min": [0,0,0], "max": [1,1,1]}, "material": "m", "override": {"mirror": 0.4}}]
+  })", ".", "inline");
+  EXPECT_EQ(s.materials[0].mirror, 0.4f);
+  EXPECT_EQ(s.materials[0].specular, 0.3f);
+  EXPECT_EQ(s.materials[0].albedo, glm::vec3(0.5f, 0.25f, 1.0f));
+  EXPECT_THROW(parseJsonScene(R"({"objects": [{"box": {"min": [0,0,0], "max": [1,1,1]}, "override": {"mirror": 3}}]})", ".", "x"),
+               InputError);
+}
+
 TEST(SceneJson, ErrorsNameTheInputAndValue) {
   auto err = [](const std::string& text) { return errorOf([&] { parseJsonScene(text, ".", "x.json"); }); };
   EXPECT_NE(err("{\"objects\": [\n {\"box\": }]}").find("line 2, column"), std::string::npos) << err("{\"objects\": [\n {\"box\": }]}");

@@ -152,7 +152,7 @@ Scene parseJsonScene(const std::string& text, const std::string& baseDir, const 
   for (size_t i = 0; i < objects.size(); ++i) {
     const std::string where = cat("objects[", i, "]");
     const json& o = objects[i];
-    r.allowKeys(o, where, {"model", "box", "sphere", "quad", "transform", "material", "materials", "name"});
+    r.allowKeys(o, where, {"model", "box", "sphere", "quad", "transform", "material", "materials", "override", "name"});
     const glm::mat4 m = o.contains("transform") ? r.transform(o["transform"], where + ".transform") : glm::mat4(1.0f);
     Scene part;
     int kinds = 0;
@@ -201,6 +201,20 @@ Scene parseJsonScene(const std::string& text, const std::string& baseDir, const 
         for (Material& pm : part.materials)
           if (pm.name == it.key()) pm = mat, found = true;
         if (!found) r.fail(where + ".materials", cat("the model has no material \"", it.key(), "\""));
+      }
+    }
+    if (o.contains("override")) {  // change some attributes of every material, keep the rest
+      const json& ov = o["override"];
+      const std::string w = where + ".override";
+      r.allowKeys(ov, w, {"albedo", "specular", "shininess", "mirror", "transmission", "ior"});
+      const Material probe = r.material(ov, "override", w);  // validates the values
+      for (Material& pm : part.materials) {
+        if (ov.contains("albedo")) pm.albedo = probe.albedo;
+        if (ov.contains("specular")) pm.specular = probe.specular;
+        if (ov.contains("shininess")) pm.shininess = probe.shininess;
+        if (ov.contains("mirror")) pm.mirror = probe.mirror;
+        if (ov.contains("transmission")) pm.transmission = probe.transmission;
+        if (ov.contains("ior")) pm.ior = probe.ior;
       }
     }
     scene.append(part);

@@ -71,6 +71,9 @@ TraceHit HssrTracer::trace(const ScreenRay& ray, RayCounters& c) const {
   float s = sStart;
   int L = 0, cx = ox + (exitX ? line.stepX : 0), cy = oy + (exitX ? 0 : line.stepY);
   int misses = 0;
+  // Parameter of the last zero-length (corner) cell the DDA stepped out of: a descent at that
+  // same parameter must not go back into it (the oracle visits it once).
+  float cornerLeft = -1.0f;
   const int safety = 8 * (W + H) * levels_ + 64;
   for (int guard = 0; guard < safety; ++guard) {
     const PyramidLevel& lvl = pyramid_.levels[size_t(L)];
@@ -116,16 +119,25 @@ TraceHit HssrTracer::trace(const ScreenRay& ray, RayCounters& c) const {
         s = std::max(s, sHit);
         --L;
         const int half = size >> 1;
+        // The child holding s, chosen as the oracle's DDA reaches it (hssr-pitfalls §7, §8).
+        // The child being left (exit == s) is done. Where the line passes exactly through a
+        // corner, the DDA steps in x first and visits that zero-length cell (entry == exit == s)
+        // before the diagonal one: prefer it (smallest exit), so level-0 visits match the
+        // oracle's, ties included.
         int best = -1;
-        float bestOut = -1.0f;
+        float bestOut = 0.0f;
         for (int k = 0; k < 4; ++k) {
           const int nx = 2 * cx + (k & 1), ny = 2 * cy + (k >> 1);
           float a, b;
           bool ex;
           line.cellParams(nx, ny, half, a, b, ex);
-          if (a <= s && s < b && (best < 0 || b < bestOut)) best = k, bestOut = b;
+          if (!(a <= s && s <= b) || (b == s && a < b)) continue;
+          // A zero-length cell is one the x-first DDA steps into at a corner and leaves through
+          // y; the other corner cell (left through x) it never visits. Once left, not again.
+          if (a == b && (ex || a == cornerLeft)) continue;
+          if (best < 0 || b < bestOut) best = k, bestOut = b;
         }
-        if (best < 0) {  // s at the very end of the cell: continue from its last child
+        if (best < 0) {  // rounding left s just outside every child: take the one under P(s)
           const glm::vec2 p = seg.pointAt(s);
           best = (p.x >= float((2 * cx + 1) * half) ? 1 : 0) + (p.y >= float((2 * cy + 1) * half) ? 2 : 0);
         }
@@ -136,6 +148,7 @@ TraceHit HssrTracer::trace(const ScreenRay& ray, RayCounters& c) const {
       }
     }
     // No overlap: step to the next cell of this level.
+    if (sIn == sOut) cornerLeft = sOut;
     s = std::max(s, s1);
     if (sOut >= 1.0f) return {};
     if (exitX) cx += line.stepX;
