@@ -55,6 +55,7 @@ int runCompare(const CompareOptions& o) {
   Frame frame = buildFrame(o.run.frame);
   EffectConfig ec = o.effect;
   ec.seed = o.run.seed;
+  ec.progress = !o.run.quiet;
 
   const BuiltTracer reference = buildTracer("embree", frame, o.options);
   const EffectResult ref = renderEffect(frame, *reference.tracer, ec);

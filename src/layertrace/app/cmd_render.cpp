@@ -48,6 +48,7 @@ int runRender(const RenderOptions& o) {
   if (o.checkExhaustive) oracle = buildOracle(frame);
   EffectConfig ec = o.effect;
   ec.seed = o.run.seed;
+  ec.progress = !o.run.quiet;
   const EffectResult r = renderEffect(frame, *built.tracer, ec, oracle.tracer.get());
   const double totalMs = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
 

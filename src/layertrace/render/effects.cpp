@@ -12,6 +12,7 @@
 #include <tbb/parallel_for.h>
 
 #include "layertrace/util/error.h"
+#include "layertrace/util/progress.h"
 
 namespace lt {
 
@@ -239,6 +240,7 @@ EffectResult renderEffect(const Frame& frame, const Tracer& tracer, const Effect
   if (reference) res.classImage = Image(W, H);
   const Renderer renderer(frame, tracer, config, oracle, reference);
   tbb::enumerable_thread_specific<Accum> accums;
+  Progress progress(cat(tracer.name(), " ", effectName(config.effect)), uint64_t(H), config.progress);
   const auto start = std::chrono::steady_clock::now();
   tbb::parallel_for(tbb::blocked_range<int>(0, H, 2), [&](const tbb::blocked_range<int>& r) {
     Accum& a = accums.local();
@@ -251,6 +253,7 @@ EffectResult renderEffect(const Frame& frame, const Tracer& tracer, const Effect
         res.iterations.at(x, y)[0] = it;
         res.intervals.at(x, y)[0] = iv;
       }
+    progress.add(uint64_t(r.end() - r.begin()));
   });
   res.traceMs = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
   std::vector<uint64_t> histogram(kHistogramMax + 1, 0);

@@ -29,6 +29,7 @@ struct EffectConfig {
   float aoRadius = 0.0f;     ///< AO ray length; 0 = 5 % of the scene diagonal
   float maxDistance = 0.0f;  ///< ray length for reflection/refraction; 0 = the scene diagonal
   uint64_t seed = 1;         ///< per-pixel random streams derive from it (thread-count independent)
+  bool progress = false;     ///< progress on stderr for runs longer than a second
 };
 
 struct EffectResult {
