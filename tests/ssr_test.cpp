@@ -66,7 +66,7 @@ struct Tracers {
     all.push_back(std::make_unique<SsrTracer>(f.camera, f.layers, layered));
     all.push_back(std::make_unique<HssrTracer>(f.camera, f.layers, pyramid, HssrConfig{2, 5}));
     all.push_back(std::make_unique<HssrTracer>(f.camera, f.layers, one, HssrConfig{2, 1}));
-    all.push_back(std::make_unique<EmbreeTracer>(f.scene, f.camera, *embree));
+    all.push_back(makeEmbreeTracer(f.scene, f.camera, *embree));
   }
 };
 

@@ -79,6 +79,8 @@ void addTracerOptions(CLI::App* app, lt::TracerOptions& t) {
   app->add_option("--tau", t.pyramid.tau, "hssr: merge threshold in pixel footprints")->capture_default_str();
   app->add_option("--levels", t.pyramid.levels, "hssr: pyramid levels incl. level 0")->capture_default_str();
   app->add_option("--n-up", t.hssr.nUp, "hssr: cells without overlap before ascending")->capture_default_str();
+  app->add_option("--lambda1", t.grid.lambda1, "grid: top-level density (seed 003)")->capture_default_str();
+  app->add_option("--lambda2", t.grid.lambda2, "grid: second-level density (seed 003)")->capture_default_str();
 }
 
 std::vector<std::string> splitList(const std::string& s) {
@@ -121,7 +123,7 @@ int main(int argc, char** argv) {
   std::string effectName = "reflection";
   CLI::App* renderCmd = app.add_subcommand("render", "image of one effect traced with one tracer");
   addFrameOptions(renderCmd, render.run, renderRaw);
-  renderCmd->add_option("--tracer", render.tracer, "ssr | ssr-layers | hssr | embree")->capture_default_str();
+  renderCmd->add_option("--tracer", render.tracer, "ssr | ssr-layers | hssr | embree | grid")->capture_default_str();
   renderCmd->add_option("--effect", effectName, "shade | reflection | refraction | ao | shadow")->capture_default_str();
   renderCmd->add_option("--bounces", render.effect.bounces, "reflection bounces")->capture_default_str();
   renderCmd->add_option("--ao-samples", render.effect.aoSamples, "AO rays per pixel")->capture_default_str();
@@ -135,7 +137,7 @@ int main(int argc, char** argv) {
   std::string compareEffect = "reflection", compareTracers = "ssr,ssr-layers,hssr";
   CLI::App* compareCmd = app.add_subcommand("compare", "same rays through several tracers + Embree: accuracy and cost table");
   addFrameOptions(compareCmd, compare.run, compareRaw);
-  compareCmd->add_option("--tracers", compareTracers, "comma list of ssr, ssr-layers, hssr, embree")->capture_default_str();
+  compareCmd->add_option("--tracers", compareTracers, "comma list of ssr, ssr-layers, hssr, embree, grid")->capture_default_str();
   compareCmd->add_option("--effect", compareEffect, "shade | reflection | refraction | ao | shadow")->capture_default_str();
   compareCmd->add_option("--bounces", compare.effect.bounces, "reflection bounces")->capture_default_str();
   compareCmd->add_option("--ao-samples", compare.effect.aoSamples, "AO rays per pixel")->capture_default_str();

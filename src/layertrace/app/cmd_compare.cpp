@@ -49,7 +49,7 @@ int runCompare(const CompareOptions& o) {
   const std::string outDir = o.run.output.empty() ? "out/compare" : o.run.output;
   if (o.tracers.empty()) inputError("--tracers: empty list");
   for (const std::string& t : o.tracers)
-    if (!isKnownTracer(t)) inputError("--tracers ", t, ": unknown (use ssr, ssr-layers, hssr, embree)");
+    if (!isKnownTracer(t)) inputError("--tracers ", t, ": unknown (use ssr, ssr-layers, hssr, embree, grid)");
   validateTracerOptions(o.options);
   if (o.effect.bounces < 1 || o.effect.bounces > 16) inputError("--bounces ", o.effect.bounces, ": must be between 1 and 16");
   Frame frame = buildFrame(o.run.frame);

@@ -10,12 +10,14 @@ void validateTracerOptions(const TracerOptions& o) {
   if (!(o.ssr.jitter >= 0.0f && o.ssr.jitter <= 1.0f)) inputError("--jitter ", o.ssr.jitter, ": must be in [0, 1]");
   if (o.ssr.maxSteps < 0) inputError("--max-steps ", o.ssr.maxSteps, ": must be >= 0");
   if (o.hssr.nUp < 1) inputError("--n-up ", o.hssr.nUp, ": must be >= 1");
+  if (!(o.grid.lambda1 > 0.0f)) inputError("--lambda1 ", o.grid.lambda1, ": must be positive");
+  if (!(o.grid.lambda2 > 0.0f)) inputError("--lambda2 ", o.grid.lambda2, ": must be positive");
   if (o.pyramid.levels < 1 || o.pyramid.levels > 16) inputError("--levels ", o.pyramid.levels, ": must be between 1 and 16");
   if (!(o.pyramid.tau > 0.0f)) inputError("--tau ", o.pyramid.tau, ": must be positive");
 }
 
 bool isScreenTracer(const std::string& n) { return n == "ssr" || n == "ssr-layers" || n == "hssr"; }
-bool isKnownTracer(const std::string& n) { return isScreenTracer(n) || n == "embree"; }
+bool isKnownTracer(const std::string& n) { return isScreenTracer(n) || n == "embree" || n == "grid"; }
 
 BuiltTracer buildTracer(const std::string& name, const Frame& frame, const TracerOptions& o) {
   BuiltTracer b;
@@ -34,9 +36,14 @@ BuiltTracer buildTracer(const std::string& name, const Frame& frame, const Trace
     b.embree = std::make_unique<EmbreeScene>(frame.scene);
     b.buildMs = b.embree->buildMs();
     b.memoryBytes = b.embree->memoryBytes();
-    b.tracer = std::make_unique<EmbreeTracer>(frame.scene, frame.camera, *b.embree);
+    b.tracer = makeEmbreeTracer(frame.scene, frame.camera, *b.embree);
+  } else if (name == "grid") {
+    b.grid = std::make_unique<IrregularGrid>(frame.scene, o.grid);
+    b.buildMs = b.grid->stats().buildMs;
+    b.memoryBytes = b.grid->memoryBytes();
+    b.tracer = makeGridTracer(frame.scene, frame.camera, *b.grid);
   } else {
-    inputError("--tracer ", name, ": unknown (use ssr, ssr-layers, hssr, embree)");
+    inputError("--tracer ", name, ": unknown (use ssr, ssr-layers, hssr, embree, grid)");
   }
   return b;
 }

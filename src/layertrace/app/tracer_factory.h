@@ -6,6 +6,7 @@
 
 #include "layertrace/app/frame.h"
 #include "layertrace/geometry/embree_scene.h"
+#include "layertrace/geometry/irregular_grid.h"
 #include "layertrace/screen/hssr_tracer.h"
 #include "layertrace/screen/interval_pyramid.h"
 #include "layertrace/screen/ssr_tracer.h"
@@ -17,12 +18,13 @@ struct TracerOptions {
   SsrConfig ssr;
   PyramidConfig pyramid;
   HssrConfig hssr;
+  GridConfig grid;
 };
 
 /// Throws InputError naming the option for any invalid value, whichever tracer will run.
 void validateTracerOptions(const TracerOptions& options);
 
-/// Known tracer names: ssr, ssr-layers, hssr, embree.
+/// Known tracer names: ssr, ssr-layers, hssr (screen space); embree, grid (geometric).
 bool isScreenTracer(const std::string& name);
 bool isKnownTracer(const std::string& name);
 
@@ -30,6 +32,7 @@ struct BuiltTracer {
   std::unique_ptr<Tracer> tracer;
   std::unique_ptr<IntervalPyramid> pyramid;  ///< hssr
   std::unique_ptr<EmbreeScene> embree;       ///< embree
+  std::unique_ptr<IrregularGrid> grid;       ///< grid
   double buildMs = 0.0;                      ///< hierarchy / BVH construction
   size_t memoryBytes = 0;                    ///< the structure's bytes
 };

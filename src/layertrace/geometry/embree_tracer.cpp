@@ -1,5 +1,6 @@
 #include "layertrace/geometry/embree_tracer.h"
 
+#include <algorithm>
 #include <cmath>
 
 #include <glm/geometric.hpp>
@@ -8,17 +9,18 @@
 
 namespace lt {
 
-EmbreeTracer::EmbreeTracer(const Scene& scene, const Camera& camera, const EmbreeScene& embree)
-    : scene_(scene), camera_(camera), embree_(embree) {
+GeometricTracer::GeometricTracer(const char* name, const Scene& scene, const Camera& camera, Query query)
+    : name_(name), scene_(scene), camera_(camera), query_(std::move(query)) {
   for (const Material& m : scene.materials) packed_.push_back(packAlbedoSpec(m.albedo, m.specular));
 }
 
-TraceHit EmbreeTracer::trace(const ScreenRay& ray, RayCounters& c) const {
-  ++c.iterations;
+TraceHit GeometricTracer::trace(const ScreenRay& ray, RayCounters& c) const {
   // A relative offset keeps the ray off the surface it starts on (screen tracers skip the
   // origin pixel for the same reason).
   const float eps = 1e-4f * std::max(1.0f, glm::length(ray.origin));
-  const GeoHit g = embree_.intersect(camera_.toWorld(ray.origin), camera_.dirToWorld(ray.dir), eps, ray.maxDistance);
+  uint32_t steps = 0;
+  const GeoHit g = query_(camera_.toWorld(ray.origin), camera_.dirToWorld(ray.dir), eps, ray.maxDistance, &steps);
+  c.iterations += std::max(steps, 1u);
   TraceHit h;
   if (!g.hit()) return h;
   h.hit = true;
@@ -43,6 +45,18 @@ TraceHit EmbreeTracer::trace(const ScreenRay& ray, RayCounters& c) const {
     if (p.x >= 0 && p.y >= 0 && p.x < float(camera_.width()) && p.y < float(camera_.height())) h.x = int(p.x), h.y = int(p.y);
   }
   return h;
+}
+
+std::unique_ptr<Tracer> makeEmbreeTracer(const Scene& scene, const Camera& camera, const EmbreeScene& embree) {
+  return std::make_unique<GeometricTracer>("embree", scene, camera, [&embree](glm::vec3 o, glm::vec3 d, float tn, float tf, uint32_t*) {
+    return embree.intersect(o, d, tn, tf);
+  });
+}
+
+std::unique_ptr<Tracer> makeGridTracer(const Scene& scene, const Camera& camera, const IrregularGrid& grid) {
+  return std::make_unique<GeometricTracer>("grid", scene, camera, [&grid](glm::vec3 o, glm::vec3 d, float tn, float tf, uint32_t* steps) {
+    return grid.intersect(o, d, tn, tf, steps);
+  });
 }
 
 }  // namespace lt

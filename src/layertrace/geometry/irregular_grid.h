@@ -1,0 +1,98 @@
+// The irregular grid of seed 003 (Pérard-Gayot, Kalojanov, Slusallek, EG 2017), on the CPU.
+//
+// Construction (irregular_grid_build.cpp):
+//   1. a coarse uniform top-level grid, resolution R = d · cbrt(λ1 N / V) per axis (Cleary);
+//   2. in each top cell an octree of depth D_i from the same formula with λ2 and the cell's own
+//      object count and volume, clamped to a power of two — stored fully subdivided, so the
+//      voxel map is a compact two-level grid (top cell → depth, offset → leaf cell ids);
+//      all cells are aligned on a virtual grid of resolution R · 2^D, D = max D_i;
+//   3. cell merging: a cell and its neighbour whose union is a box merge when the SAH criterion
+//      holds, for empty and non-empty cells, repeated until N_after ≥ α N_before;
+//   4. cell expansion: each cell's exit boundaries grow over neighbours whose references are a
+//      subset of its own (traversal stays correct: every primitive of the skipped region was
+//      already tested), a fixed number of passes (3 for static scenes).
+// Traversal (grid_tracer.cpp): stackless and ordered — locate the origin's cell in the voxel
+// map, intersect its primitives, stop when the closest hit lies inside the (expanded) cell,
+// otherwise move to the cell beyond the exit point.
+#pragma once
+
+#include <cstdint>
+#include <vector>
+
+#include <glm/vec3.hpp>
+
+#include "layertrace/geometry/embree_scene.h"
+#include "layertrace/scene/scene.h"
+
+namespace lt {
+
+struct GridConfig {
+  float lambda1 = 0.12f;      ///< top-level density (seed 003: λ1 = 0.12)
+  float lambda2 = 2.4f;       ///< second-level density (seed 003: λ2 = 2.4)
+  int maxDepth = 6;           ///< cap on the per-cell octree depth (2^6 = 64 leaves per axis)
+  bool merge = true;          ///< cell merging
+  float alpha = 0.995f;       ///< stop merging when N_after ≥ α N_before
+  /// Cost of one traversal step relative to one intersection, in the SAH merge test:
+  /// merge A, B when SA(A∪B)(C_t + |R(A∪B)|) ≤ SA(A)(C_t + |R(A)|) + SA(B)(C_t + |R(B)|).
+  /// (Our reading of the slides' C_t: a traversal step costs like a primitive test.)
+  float traversalCost = 1.0f;
+  int expansionPasses = 3;    ///< seed 003: 3 for static scenes, 1 for dynamic ones
+};
+
+struct GridCell {
+  int lo[3], hi[3];    ///< the cell in virtual-grid voxels [lo, hi)
+  int elo[3], ehi[3];  ///< the expanded box used to find the exit point (⊇ [lo, hi))
+  uint32_t refBegin = 0, refEnd = 0;
+};
+
+struct GridStats {
+  double buildMs = 0.0;
+  int top[3] = {0, 0, 0};
+  int depth = 0;  ///< D: virtual resolution = top · 2^D
+  size_t cellsInitial = 0, cellsAfterMerge = 0, refs = 0, expandedFaces = 0;
+  int mergePasses = 0;
+};
+
+class IrregularGrid {
+ public:
+  IrregularGrid(const Scene& scene, const GridConfig& config = {});
+
+  /// Closest hit with t in [tnear, tfar]; `steps` counts visited cells.
+  GeoHit intersect(glm::vec3 origin, glm::vec3 dir, float tnear, float tfar, uint32_t* steps = nullptr) const;
+  /// Any hit with t in [tnear, tfar].
+  bool occluded(glm::vec3 origin, glm::vec3 dir, float tnear, float tfar) const;
+
+  const GridStats& stats() const { return stats_; }
+  size_t memoryBytes() const;
+  const std::vector<GridCell>& cells() const { return cells_; }
+  const std::vector<uint32_t>& refs() const { return refs_; }
+  /// The cell containing virtual voxel v (the voxel map lookup).
+  uint32_t cellAt(const int v[3]) const;
+  int virtualResolution(int axis) const { return virt_[axis]; }
+  glm::vec3 voxelSize() const { return voxel_; }
+  glm::vec3 origin() const { return lo_; }
+
+ private:
+  template <bool AnyHit>
+  GeoHit traverse(glm::vec3 o, glm::vec3 d, float tnear, float tfar, uint32_t* steps) const;
+  friend struct GridBuilder;
+
+  const Scene* scene_;
+  glm::vec3 lo_{0.0f}, hi_{0.0f}, voxel_{1.0f};
+  int top_[3] = {1, 1, 1};
+  int depth_ = 0;
+  int virt_[3] = {1, 1, 1};
+  std::vector<uint8_t> topDepth_;   ///< voxel map, level 1: octree depth of each top cell
+  std::vector<uint32_t> topOffset_; ///< voxel map, level 1: first leaf entry of each top cell
+  std::vector<uint32_t> leaf_;      ///< voxel map, level 2: cell id of each leaf
+  std::vector<GridCell> cells_;
+  std::vector<uint32_t> refs_;
+  std::vector<glm::vec3> v0_, e1_, e2_;  ///< triangle data for intersection
+  GridStats stats_;
+};
+
+/// Triangle / axis-aligned box overlap (separating axis theorem, Akenine-Möller), with the box
+/// grown by `eps` so that references are conservative.
+bool triangleBoxOverlap(glm::vec3 a, glm::vec3 b, glm::vec3 c, glm::vec3 boxLo, glm::vec3 boxHi, float eps);
+
+}  // namespace lt

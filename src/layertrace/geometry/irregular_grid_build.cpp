@@ -1,0 +1,296 @@
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+
+#include <glm/geometric.hpp>
+#include <tbb/parallel_for.h>
+
+#include "layertrace/geometry/irregular_grid.h"
+#include "layertrace/util/error.h"
+
+namespace lt {
+
+bool triangleBoxOverlap(glm::vec3 a, glm::vec3 b, glm::vec3 c, glm::vec3 boxLo, glm::vec3 boxHi, float eps) {
+  const glm::vec3 center = (boxLo + boxHi) * 0.5f, half = (boxHi - boxLo) * 0.5f + glm::vec3(eps);
+  const glm::vec3 v[3] = {a - center, b - center, c - center};
+  for (int i = 0; i < 3; ++i) {  // box normals
+    const float mn = std::min({v[0][i], v[1][i], v[2][i]}), mx = std::max({v[0][i], v[1][i], v[2][i]});
+    if (mn > half[i] || mx < -half[i]) return false;
+  }
+  const glm::vec3 e[3] = {v[1] - v[0], v[2] - v[1], v[0] - v[2]};
+  const glm::vec3 n = glm::cross(e[0], e[1]);  // triangle normal
+  {
+    const float r = half.x * std::abs(n.x) + half.y * std::abs(n.y) + half.z * std::abs(n.z);
+    const float s = glm::dot(n, v[0]);
+    if (std::abs(s) > r * (1.0f + 1e-5f) + 1e-30f) return false;
+  }
+  for (int i = 0; i < 3; ++i)  // edge × box axis
+    for (int k = 0; k < 3; ++k) {
+      glm::vec3 axis(0.0f);
+      axis[k] = 1.0f;
+      const glm::vec3 ax = glm::cross(e[i], axis);
+      if (glm::dot(ax, ax) < 1e-30f) continue;
+      const float p0 = glm::dot(v[0], ax), p1 = glm::dot(v[1], ax), p2 = glm::dot(v[2], ax);
+      const float r = half.x * std::abs(ax.x) + half.y * std::abs(ax.y) + half.z * std::abs(ax.z);
+      if (std::min({p0, p1, p2}) > r * (1.0f + 1e-5f) || std::max({p0, p1, p2}) < -r * (1.0f + 1e-5f)) return false;
+    }
+  return true;
+}
+
+/// Everything the build needs beside the grid itself.
+struct GridBuilder {
+  IrregularGrid& g;
+  const Scene& scene;
+  const GridConfig& cfg;
+  std::vector<std::vector<uint32_t>> cellRefs;  ///< during the build: sorted references per cell
+  std::vector<uint32_t> forward;                ///< merged cells point to the cell that absorbed them
+
+  glm::vec3 voxelLo(const int v[3]) const { return g.lo_ + glm::vec3(v[0], v[1], v[2]) * g.voxel_; }
+  float area(const int lo[3], const int hi[3]) const {
+    const glm::vec3 e = glm::vec3(hi[0] - lo[0], hi[1] - lo[1], hi[2] - lo[2]) * g.voxel_;
+    return e.x * e.y + e.y * e.z + e.z * e.x;
+  }
+  uint32_t live(uint32_t c) const {
+    while (forward[c] != c) c = forward[c];
+    return c;
+  }
+
+  void initialGrid() {
+    const Bounds b = scene.bounds();
+    const glm::vec3 ext = b.hi - b.lo;
+    const float pad = 1e-4f * glm::length(ext) + 1e-6f;
+    g.lo_ = b.lo - glm::vec3(pad);
+    g.hi_ = b.hi + glm::vec3(pad);
+    const glm::vec3 d = g.hi_ - g.lo_;
+    const float volume = d.x * d.y * d.z;
+    const float density = std::cbrt(cfg.lambda1 * float(scene.triangleCount()) / volume);  // Cleary et al.
+    for (int i = 0; i < 3; ++i) g.top_[i] = std::clamp(int(d[i] * density), 1, 512);
+    const glm::vec3 topSize = d / glm::vec3(g.top_[0], g.top_[1], g.top_[2]);
+    const size_t numTop = size_t(g.top_[0]) * size_t(g.top_[1]) * size_t(g.top_[2]);
+
+    // References of the top cells (exact triangle/box overlap).
+    std::vector<std::vector<uint32_t>> topRefs(numTop);
+    for (uint32_t t = 0; t < scene.triangleCount(); ++t) {
+      const glm::vec3 a = scene.positions[scene.triangles[t].x], bb = scene.positions[scene.triangles[t].y],
+                      c = scene.positions[scene.triangles[t].z];
+      const glm::vec3 mn = glm::min(a, glm::min(bb, c)), mx = glm::max(a, glm::max(bb, c));
+      int lo[3], hi[3];
+      for (int i = 0; i < 3; ++i) {
+        lo[i] = std::clamp(int((mn[i] - g.lo_[i]) / topSize[i]), 0, g.top_[i] - 1);
+        hi[i] = std::clamp(int((mx[i] - g.lo_[i]) / topSize[i]), 0, g.top_[i] - 1);
+      }
+      for (int z = lo[2]; z <= hi[2]; ++z)
+        for (int y = lo[1]; y <= hi[1]; ++y)
+          for (int x = lo[0]; x <= hi[0]; ++x) {
+            const glm::vec3 bl = g.lo_ + glm::vec3(x, y, z) * topSize;
+            if (triangleBoxOverlap(a, bb, c, bl, bl + topSize, 1e-5f * glm::length(topSize)))
+              topRefs[(size_t(z) * size_t(g.top_[1]) + size_t(y)) * size_t(g.top_[0]) + size_t(x)].push_back(t);
+          }
+    }
+    // Octree depth per top cell: the same formula with λ2 and the cell's own count and volume.
+    g.topDepth_.assign(numTop, 0);
+    const float topVolume = topSize.x * topSize.y * topSize.z;
+    for (size_t c = 0; c < numTop; ++c) {
+      if (topRefs[c].empty()) continue;
+      const float dens = std::cbrt(cfg.lambda2 * float(topRefs[c].size()) / topVolume);
+      const float r = std::max({topSize.x * dens, topSize.y * dens, topSize.z * dens});
+      g.topDepth_[c] = uint8_t(std::clamp(int(std::ceil(std::log2(std::max(r, 1.0f)))), 0, cfg.maxDepth));
+    }
+    g.depth_ = *std::max_element(g.topDepth_.begin(), g.topDepth_.end());
+    for (int i = 0; i < 3; ++i) g.virt_[i] = g.top_[i] << g.depth_;
+    g.voxel_ = d / glm::vec3(g.virt_[0], g.virt_[1], g.virt_[2]);
+
+    // Leaves: each top cell fully subdivided to its depth; leaf references from its top cell's.
+    g.topOffset_.resize(numTop + 1);
+    uint32_t total = 0;
+    for (size_t c = 0; c < numTop; ++c) g.topOffset_[c] = total, total += 1u << (3 * g.topDepth_[c]);
+    g.topOffset_[numTop] = total;
+    g.leaf_.resize(total);
+    g.cells_.resize(total);
+    cellRefs.resize(total);
+    tbb::parallel_for(size_t(0), numTop, [&](size_t c) {
+      const int tx = int(c % size_t(g.top_[0])), ty = int(c / size_t(g.top_[0]) % size_t(g.top_[1])),
+                tz = int(c / (size_t(g.top_[0]) * size_t(g.top_[1])));
+      const int depth = g.topDepth_[c], n = 1 << depth, span = 1 << (g.depth_ - depth);
+      for (int z = 0; z < n; ++z)
+        for (int y = 0; y < n; ++y)
+          for (int x = 0; x < n; ++x) {
+            const uint32_t id = g.topOffset_[c] + uint32_t((z * n + y) * n + x);
+            g.leaf_[id] = id;
+            GridCell& cell = g.cells_[id];
+            const int base[3] = {tx << g.depth_, ty << g.depth_, tz << g.depth_};
+            const int off[3] = {x, y, z};
+            for (int i = 0; i < 3; ++i) {
+              cell.lo[i] = cell.elo[i] = base[i] + off[i] * span;
+              cell.hi[i] = cell.ehi[i] = cell.lo[i] + span;
+            }
+            if (depth == 0) {
+              cellRefs[id] = topRefs[c];
+              continue;
+            }
+            const glm::vec3 bl = voxelLo(cell.lo), bh = voxelLo(cell.hi);
+            const float eps = 1e-5f * glm::length(bh - bl);
+            for (uint32_t t : topRefs[c]) {
+              const glm::uvec3 tri = scene.triangles[t];
+              if (triangleBoxOverlap(scene.positions[tri.x], scene.positions[tri.y], scene.positions[tri.z], bl, bh, eps))
+                cellRefs[id].push_back(t);
+            }
+          }
+    });
+    forward.resize(total);
+    for (uint32_t i = 0; i < total; ++i) forward[i] = i;
+    g.stats_.cellsInitial = total;
+    for (int i = 0; i < 3; ++i) g.stats_.top[i] = g.top_[i];
+    g.stats_.depth = g.depth_;
+  }
+
+  /// Current (live) cell containing virtual voxel v.
+  uint32_t at(const int v[3]) const { return live(g.cellAt(v)); }
+
+  static bool subset(const std::vector<uint32_t>& small, const std::vector<uint32_t>& big) {
+    return std::includes(big.begin(), big.end(), small.begin(), small.end());
+  }
+
+  /// seed 003 cell merging: one pass along `axis`; returns the number of merges.
+  size_t mergePass(int axis) {
+    const int u = (axis + 1) % 3, w = (axis + 2) % 3;
+    std::vector<uint8_t> touched(g.cells_.size(), 0);
+    size_t merges = 0;
+    std::vector<uint32_t> uni;
+    for (uint32_t a = 0; a < g.cells_.size(); ++a) {
+      if (forward[a] != a || touched[a]) continue;
+      GridCell& A = g.cells_[a];
+      if (A.hi[axis] >= g.virt_[axis]) continue;
+      int probe[3];
+      probe[axis] = A.hi[axis], probe[u] = A.lo[u], probe[w] = A.lo[w];
+      const uint32_t b = at(probe);
+      if (b == a || touched[b]) continue;
+      const GridCell& B = g.cells_[b];
+      if (B.lo[axis] != A.hi[axis] || B.lo[u] != A.lo[u] || B.hi[u] != A.hi[u] || B.lo[w] != A.lo[w] || B.hi[w] != A.hi[w]) continue;
+      uni.clear();
+      std::set_union(cellRefs[a].begin(), cellRefs[a].end(), cellRefs[b].begin(), cellRefs[b].end(), std::back_inserter(uni));
+      int lo[3] = {A.lo[0], A.lo[1], A.lo[2]}, hi[3] = {A.hi[0], A.hi[1], A.hi[2]};
+      hi[axis] = B.hi[axis];
+      const float ct = cfg.traversalCost;
+      const float before = area(A.lo, A.hi) * (ct + float(cellRefs[a].size())) + area(B.lo, B.hi) * (ct + float(cellRefs[b].size()));
+      const float after = area(lo, hi) * (ct + float(uni.size()));
+      if (after > before) continue;
+      A.hi[axis] = A.ehi[axis] = B.hi[axis];
+      cellRefs[a].swap(uni);
+      std::vector<uint32_t>().swap(cellRefs[b]);
+      forward[b] = a;
+      touched[a] = touched[b] = 1;
+      ++merges;
+    }
+    return merges;
+  }
+
+  void merge() {
+    size_t liveCells = g.cells_.size();
+    for (int round = 0; round < 64; ++round) {
+      size_t merged = 0;
+      for (int axis = 0; axis < 3; ++axis) merged += mergePass(axis), ++g.stats_.mergePasses;
+      const size_t after = liveCells - merged;
+      const bool done = float(after) >= cfg.alpha * float(liveCells);
+      liveCells = after;
+      if (done) break;
+    }
+  }
+
+  /// Compacts live cells, rewrites the voxel map, flattens the references.
+  void compact() {
+    std::vector<uint32_t> newId(g.cells_.size(), 0xFFFFFFFFu);
+    std::vector<GridCell> cells;
+    for (uint32_t c = 0; c < g.cells_.size(); ++c)
+      if (forward[c] == c) newId[c] = uint32_t(cells.size()), cells.push_back(g.cells_[c]);
+    for (uint32_t& l : g.leaf_) l = newId[live(l)];
+    std::vector<std::vector<uint32_t>> refs(cells.size());
+    for (uint32_t c = 0; c < g.cells_.size(); ++c)
+      if (forward[c] == c) refs[newId[c]].swap(cellRefs[c]);
+    cellRefs.swap(refs);
+    g.cells_.swap(cells);
+    forward.resize(g.cells_.size());
+    for (uint32_t i = 0; i < forward.size(); ++i) forward[i] = i;
+  }
+
+  /// seed 003 cell expansion: grow each exit face over the neighbours beyond it when all of
+  /// them reference a subset of this cell's primitives (R(B) ⊆ R(A)); binary per face, by the
+  /// thinnest neighbour's depth.
+  size_t expandPass() {
+    size_t grown = 0;
+    for (uint32_t a = 0; a < g.cells_.size(); ++a) {
+      for (int axis = 0; axis < 3; ++axis)
+        for (int side = 0; side < 2; ++side) {
+          GridCell& A = g.cells_[a];
+          const int u = (axis + 1) % 3, w = (axis + 2) % 3;
+          const int face = side ? A.ehi[axis] : A.elo[axis];
+          if ((side && face >= g.virt_[axis]) || (!side && face <= 0)) continue;
+          const int layer = side ? face : face - 1;  // voxel layer just beyond the face
+          int depth = 1 << 30;
+          bool ok = true;
+          for (int vw = A.elo[w]; vw < A.ehi[w] && ok;) {
+            int nextW = A.ehi[w];
+            for (int vu = A.elo[u]; vu < A.ehi[u] && ok;) {
+              int p[3];
+              p[axis] = layer, p[u] = vu, p[w] = vw;
+              const uint32_t b = g.cellAt(p);
+              const GridCell& B = g.cells_[b];
+              ok = b == a || subset(cellRefs[b], cellRefs[a]);
+              depth = std::min(depth, side ? B.hi[axis] - face : face - B.lo[axis]);
+              nextW = std::min(nextW, B.hi[w]);
+              vu = B.hi[u];
+            }
+            vw = nextW;
+          }
+          if (!ok || depth <= 0 || depth == (1 << 30)) continue;
+          if (side) A.ehi[axis] += depth;
+          else A.elo[axis] -= depth;
+          ++grown;
+        }
+    }
+    return grown;
+  }
+};
+
+IrregularGrid::IrregularGrid(const Scene& scene, const GridConfig& config) : scene_(&scene) {
+  if (!(config.lambda1 > 0.0f)) inputError("--lambda1 ", config.lambda1, ": must be positive");
+  if (!(config.lambda2 > 0.0f)) inputError("--lambda2 ", config.lambda2, ": must be positive");
+  if (config.maxDepth < 0 || config.maxDepth > 10) inputError("grid max depth ", config.maxDepth, ": must be in [0, 10]");
+  const auto start = std::chrono::steady_clock::now();
+  GridBuilder b{*this, scene, config, {}, {}};
+  b.initialGrid();
+  if (config.merge) b.merge();
+  b.compact();
+  stats_.cellsAfterMerge = cells_.size();
+  for (int p = 0; p < config.expansionPasses; ++p) stats_.expandedFaces += b.expandPass();
+  for (size_t c = 0; c < cells_.size(); ++c) {
+    cells_[c].refBegin = uint32_t(refs_.size());
+    refs_.insert(refs_.end(), b.cellRefs[c].begin(), b.cellRefs[c].end());
+    cells_[c].refEnd = uint32_t(refs_.size());
+  }
+  stats_.refs = refs_.size();
+  v0_.resize(scene.triangleCount()), e1_.resize(scene.triangleCount()), e2_.resize(scene.triangleCount());
+  for (size_t t = 0; t < scene.triangleCount(); ++t) {
+    const glm::uvec3 i = scene.triangles[t];
+    v0_[t] = scene.positions[i.x];
+    e1_[t] = scene.positions[i.y] - v0_[t];
+    e2_[t] = scene.positions[i.z] - v0_[t];
+  }
+  stats_.buildMs = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
+}
+
+uint32_t IrregularGrid::cellAt(const int v[3]) const {
+  int t[3], l[3];
+  for (int i = 0; i < 3; ++i) t[i] = v[i] >> depth_;
+  const size_t top = (size_t(t[2]) * size_t(top_[1]) + size_t(t[1])) * size_t(top_[0]) + size_t(t[0]);
+  const int d = topDepth_[top];
+  for (int i = 0; i < 3; ++i) l[i] = (v[i] & ((1 << depth_) - 1)) >> (depth_ - d);
+  return leaf_[topOffset_[top] + uint32_t((l[2] << (2 * d)) + (l[1] << d) + l[0])];
+}
+
+size_t IrregularGrid::memoryBytes() const {
+  return topDepth_.size() + topOffset_.size() * 4 + leaf_.size() * 4 + cells_.size() * sizeof(GridCell) + refs_.size() * 4 +
+         3 * v0_.size() * sizeof(glm::vec3);
+}
+
+}  // namespace lt

@@ -1,0 +1,108 @@
+// seed 003 traversal: locate the origin's cell, intersect its primitives, exit if the hit lies
+// within the cell, otherwise locate the exit point and move to the next cell. Stackless and
+// ordered; the next cell is found in the voxel map from integer virtual-grid coordinates on the
+// far side of the exit face, so rounding can never step back or skip a cell along the ray.
+#include <algorithm>
+#include <cmath>
+#include <limits>
+
+#include <glm/geometric.hpp>
+
+#include "layertrace/geometry/irregular_grid.h"
+
+namespace lt {
+
+namespace {
+
+/// Möller–Trumbore; edges are inclusive (u, v ≥ 0, u + v ≤ 1) so rays through shared edges
+/// hit one of the two triangles.
+inline bool hitTriangle(glm::vec3 o, glm::vec3 d, glm::vec3 v0, glm::vec3 e1, glm::vec3 e2, float tmin, float tmax, float& t) {
+  const glm::vec3 p = glm::cross(d, e2);
+  const float det = glm::dot(e1, p);
+  if (det == 0.0f) return false;
+  const float inv = 1.0f / det;
+  const glm::vec3 s = o - v0;
+  const float u = glm::dot(s, p) * inv;
+  if (u < 0.0f || u > 1.0f) return false;
+  const glm::vec3 q = glm::cross(s, e1);
+  const float v = glm::dot(d, q) * inv;
+  if (v < 0.0f || u + v > 1.0f) return false;
+  t = glm::dot(e2, q) * inv;
+  return t >= tmin && t <= tmax;
+}
+
+}  // namespace
+
+template <bool AnyHit>
+GeoHit IrregularGrid::traverse(glm::vec3 o, glm::vec3 d, float tnear, float tfar, uint32_t* steps) const {
+  GeoHit best;
+  // Clip to the grid's box.
+  float t0 = tnear, t1 = tfar;
+  const glm::vec3 inv = 1.0f / d;
+  for (int i = 0; i < 3; ++i) {
+    float a = (lo_[i] - o[i]) * inv[i], b = (hi_[i] - o[i]) * inv[i];
+    if (a > b) std::swap(a, b);
+    if (!(a == a)) a = -std::numeric_limits<float>::infinity();  // 0 · inf
+    if (!(b == b)) b = std::numeric_limits<float>::infinity();
+    t0 = std::max(t0, a);
+    t1 = std::min(t1, b);
+  }
+  if (t0 > t1) return best;
+  // Locate the origin's (entry point's) voxel.
+  int v[3];
+  const glm::vec3 p = (o + d * t0 - lo_) / voxel_;
+  for (int i = 0; i < 3; ++i) v[i] = std::clamp(int(std::floor(p[i])), 0, virt_[i] - 1);
+  float bestT = tfar;
+  const int maxSteps = 4 * (virt_[0] + virt_[1] + virt_[2]) + 16;
+  for (int step = 0; step < maxSteps; ++step) {
+    const GridCell& c = cells_[cellAt(v)];
+    if (steps) ++*steps;
+    for (uint32_t r = c.refBegin; r < c.refEnd; ++r) {
+      const uint32_t tri = refs_[r];
+      float t;
+      if (hitTriangle(o, d, v0_[tri], e1_[tri], e2_[tri], tnear, bestT, t)) {
+        if (AnyHit) {
+          best.t = t, best.triangle = tri;
+          return best;
+        }
+        if (t < bestT || (t == bestT && tri < best.triangle)) bestT = t, best.t = t, best.triangle = tri;
+      }
+    }
+    // Exit of the expanded box.
+    float tExit = std::numeric_limits<float>::infinity();
+    int axis = 0;
+    for (int i = 0; i < 3; ++i) {
+      if (d[i] == 0.0f) continue;
+      const float bound = lo_[i] + float(d[i] > 0.0f ? c.ehi[i] : c.elo[i]) * voxel_[i];
+      const float t = (bound - o[i]) * inv[i];
+      if (t < tExit) tExit = t, axis = i;
+    }
+    if (best.hit() && bestT <= tExit) break;  // the closest hit lies inside this cell
+    if (tExit >= t1) break;
+    // The voxel beyond the exit face: integer on the exit axis, clamped to the face elsewhere.
+    const glm::vec3 q = (o + d * tExit - lo_) / voxel_;
+    for (int i = 0; i < 3; ++i) {
+      if (i == axis) {
+        v[i] = d[i] > 0.0f ? c.ehi[i] : c.elo[i] - 1;
+      } else {
+        v[i] = std::clamp(int(std::floor(q[i])), c.elo[i], c.ehi[i] - 1);
+      }
+    }
+    if (v[axis] < 0 || v[axis] >= virt_[axis]) break;
+  }
+  if (best.hit()) {
+    const glm::uvec3 i = scene_->triangles[best.triangle];
+    best.ng = glm::cross(scene_->positions[i.y] - scene_->positions[i.x], scene_->positions[i.z] - scene_->positions[i.x]);
+  }
+  return best;
+}
+
+GeoHit IrregularGrid::intersect(glm::vec3 origin, glm::vec3 dir, float tnear, float tfar, uint32_t* steps) const {
+  return traverse<false>(origin, dir, tnear, tfar, steps);
+}
+
+bool IrregularGrid::occluded(glm::vec3 origin, glm::vec3 dir, float tnear, float tfar) const {
+  return traverse<true>(origin, dir, tnear, tfar, nullptr).hit();
+}
+
+}  // namespace lt

@@ -1,0 +1,133 @@
+// The irregular grid (seed 003) against Embree: closest hits agree (same triangle, or the same
+// distance within 1e-4 relative — two triangles sharing an edge or vertex the ray passes
+// through), any-hit queries agree, and the structure keeps its invariants.
+#include <random>
+
+#include <glm/geometric.hpp>
+#include <tbb/parallel_for.h>
+
+#include "layertrace/app/frame.h"
+#include "layertrace/geometry/embree_scene.h"
+#include "layertrace/geometry/irregular_grid.h"
+#include "layertrace/scene/load.h"
+#include "test_util.h"
+
+namespace lt {
+namespace {
+
+struct Agreement {
+  size_t rays = 0, agree = 0;
+  double fraction() const { return rays ? double(agree) / double(rays) : 1.0; }
+};
+
+bool sameHit(const GeoHit& a, const GeoHit& b) {
+  if (a.hit() != b.hit()) return false;
+  if (!a.hit()) return true;
+  return a.triangle == b.triangle || std::abs(a.t - b.t) <= 1e-4f * std::max(a.t, b.t) + 1e-6f;
+}
+
+/// Primary rays from a camera, diffuse bounces from their hits, and AO rays (any-hit, short).
+Agreement compareWithEmbree(const Scene& scene, const CameraDesc& cd, const IrregularGrid& grid, int W, int H, uint64_t seed) {
+  const EmbreeScene embree(scene);
+  const Camera cam(withClipPlanes(cd, scene), W, H);
+  const float diag = scene.bounds().diagonal();
+  std::vector<uint8_t> ok(size_t(W) * size_t(H) * 3, 1);
+  tbb::parallel_for(0, H, [&](int y) {
+    std::mt19937_64 rng(seed + uint64_t(y));
+    std::normal_distribution<float> g;
+    for (int x = 0; x < W; ++x) {
+      const size_t k = (size_t(y) * size_t(W) + size_t(x)) * 3;
+      const glm::vec3 o = cd.eye, d = glm::normalize(cam.dirToWorld(cam.rayThrough({x + 0.5f, y + 0.5f})));
+      const GeoHit e = embree.intersect(o, d, 0.0f, 1e30f), gh = grid.intersect(o, d, 0.0f, 1e30f);
+      ok[k] = sameHit(e, gh);
+      if (!e.hit()) continue;
+      const glm::vec3 p = o + d * e.t;
+      glm::vec3 n = glm::normalize(e.ng);
+      if (glm::dot(n, d) > 0.0f) n = -n;
+      glm::vec3 r = glm::normalize(glm::vec3(g(rng), g(rng), g(rng)));
+      if (glm::dot(r, n) < 0.0f) r = -r;
+      const float eps = 1e-4f * diag;
+      ok[k + 1] = sameHit(embree.intersect(p, r, eps, 1e30f), grid.intersect(p, r, eps, 1e30f));
+      ok[k + 2] = embree.occluded(p, r, eps, 0.05f * diag) == grid.occluded(p, r, eps, 0.05f * diag);
+    }
+  });
+  Agreement a;
+  a.rays = ok.size();
+  for (uint8_t v : ok) a.agree += v;
+  return a;
+}
+
+TEST(Grid, TriangleBoxOverlapMatchesSampling) {
+  std::mt19937_64 rng(test::testSeed());
+  std::uniform_real_distribution<float> u(-1.0f, 1.0f);
+  int overlaps = 0;
+  for (int i = 0; i < 3000; ++i) {
+    const glm::vec3 a(u(rng), u(rng), u(rng)), b(u(rng), u(rng), u(rng)), c(u(rng), u(rng), u(rng));
+    const glm::vec3 lo(u(rng) * 0.5f - 0.25f, u(rng) * 0.5f - 0.25f, u(rng) * 0.5f - 0.25f), hi = lo + glm::vec3(0.3f);
+    // A sample of the triangle inside the box proves overlap: the test must then say so.
+    bool sampled = false;
+    for (int s = 0; s < 400 && !sampled; ++s) {
+      float x = std::abs(u(rng)), y = std::abs(u(rng));
+      if (x + y > 1.0f) x = 1.0f - x, y = 1.0f - y;
+      const glm::vec3 p = a + (b - a) * x + (c - a) * y;
+      sampled = glm::all(glm::greaterThanEqual(p, lo)) && glm::all(glm::lessThanEqual(p, hi));
+    }
+    const bool test = triangleBoxOverlap(a, b, c, lo, hi, 0.0f);
+    if (sampled) {
+      ASSERT_TRUE(test) << "case " << i;
+    }
+    overlaps += test;
+  }
+  EXPECT_GT(overlaps, 100);
+}
+
+TEST(Grid, CellsPartitionTheVirtualGridAndExpansionKeepsSubsets) {
+  FrameOptions o;
+  o.scenePath = test::sourceDir() + "/scenes/default.json";
+  Frame f;
+  loadFrameScene(o, f);
+  const IrregularGrid grid(f.scene);
+  const auto& cells = grid.cells();
+  EXPECT_LT(grid.stats().cellsAfterMerge, grid.stats().cellsInitial);  // merging did something
+  EXPECT_GT(grid.stats().expandedFaces, 0u);
+  // Every voxel maps to the cell whose box contains it.
+  for (int z = 0; z < grid.virtualResolution(2); z += 3)
+    for (int y = 0; y < grid.virtualResolution(1); y += 3)
+      for (int x = 0; x < grid.virtualResolution(0); x += 3) {
+        const int v[3] = {x, y, z};
+        const GridCell& c = cells[grid.cellAt(v)];
+        for (int i = 0; i < 3; ++i) ASSERT_TRUE(c.lo[i] <= v[i] && v[i] < c.hi[i]);
+      }
+  // Expansion: every voxel inside a cell's expanded box belongs to a cell whose references are
+  // a subset of that cell's (the traversal-correctness condition of seed 003).
+  const auto& refs = grid.refs();
+  for (size_t a = 0; a < cells.size(); a += 7) {
+    const GridCell& A = cells[a];
+    for (int z = A.elo[2]; z < A.ehi[2]; ++z)
+      for (int y = A.elo[1]; y < A.ehi[1]; ++y)
+        for (int x = A.elo[0]; x < A.ehi[0]; ++x) {
+          const int v[3] = {x, y, z};
+          const GridCell& B = cells[grid.cellAt(v)];
+          ASSERT_TRUE(std::includes(refs.begin() + A.refBegin, refs.begin() + A.refEnd, refs.begin() + B.refBegin,
+                                    refs.begin() + B.refEnd));
+        }
+  }
+}
+
+TEST(Grid, AgreesWithEmbreeOnTheDefaultScene) {
+  FrameOptions o;
+  o.scenePath = test::sourceDir() + "/scenes/default.json";
+  Frame f;
+  loadFrameScene(o, f);
+  for (bool merge : {false, true}) {
+    GridConfig gc;
+    gc.merge = merge;
+    gc.expansionPasses = merge ? 3 : 0;
+    const IrregularGrid grid(f.scene, gc);
+    const Agreement a = compareWithEmbree(f.scene, f.camera.desc(), grid, 320, 180, test::testSeed());
+    EXPECT_GE(a.fraction(), 0.9999) << "merge " << merge << ": " << a.agree << " of " << a.rays;
+  }
+}
+
+}  // namespace
+}  // namespace lt
