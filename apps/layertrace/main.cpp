@@ -155,6 +155,15 @@ int main(int argc, char** argv) {
   addTracerOptions(benchCmd, bench.options);
   benchCmd->add_option("--report", bench.report, "also write an HTML report to this folder");
 
+  lt::GeobenchOptions geobench;
+  RawFrameOptions geobenchRaw;
+  CLI::App* geobenchCmd = app.add_subcommand("geobench", "geometric tracers (grid vs embree): build, memory, MRays/s, agreement");
+  addFrameOptions(geobenchCmd, geobench.run, geobenchRaw);
+  geobenchCmd->add_option("--lambda1", geobench.grid.lambda1, "grid: top-level density (seed 003)")->capture_default_str();
+  geobenchCmd->add_option("--lambda2", geobench.grid.lambda2, "grid: second-level density (seed 003)")->capture_default_str();
+  geobenchCmd->add_option("--repeat", geobench.repeat, "runs per timing (the median is reported)")->capture_default_str();
+  geobenchCmd->add_flag("--sweep", geobench.sweep, "also sweep lambda1 x lambda2: build time vs traversal time");
+
   std::string names;
   bool known = false;
   for (const CLI::App* sub : app.get_subcommands({})) {
@@ -187,6 +196,11 @@ int main(int argc, char** argv) {
       finishFrameOptions(layers.run, layersRaw);
       limitThreads(layers.run.threads);
       return lt::runLayers(layers);
+    }
+    if (geobenchCmd->parsed()) {
+      finishFrameOptions(geobench.run, geobenchRaw);
+      limitThreads(geobench.run.threads);
+      return lt::runGeobench(geobench);
     }
     if (benchCmd->parsed()) {
       finishFrameOptions(bench.run, benchRaw);

@@ -70,6 +70,16 @@ struct BenchOptions {
 /// `layertrace bench`: seed 000's experiments on your scene → CSV, JSON, PNG plot.
 int runBench(const BenchOptions& options);
 
+struct GeobenchOptions {
+  RunOptions run;
+  GridConfig grid;
+  int repeat = 3;      ///< runs per timing; the median is reported
+  bool sweep = false;  ///< also sweep λ1 × λ2 (build time vs traversal time)
+};
+
+/// `layertrace geobench`: the geometric tracers (grid vs Embree) on the same rays.
+int runGeobench(const GeobenchOptions& options);
+
 /// The `rays.*` stats of one traced effect (render and compare).
 nlohmann::json rayStats(const EffectResult& r, bool screenTracer);
 /// Writes iterations.exr/.png and intervals.exr to `dir` (--pixelstats).

@@ -112,30 +112,44 @@ struct GridBuilder {
       const int tx = int(c % size_t(g.top_[0])), ty = int(c / size_t(g.top_[0]) % size_t(g.top_[1])),
                 tz = int(c / (size_t(g.top_[0]) * size_t(g.top_[1])));
       const int depth = g.topDepth_[c], n = 1 << depth, span = 1 << (g.depth_ - depth);
+      const int base[3] = {tx << g.depth_, ty << g.depth_, tz << g.depth_};
       for (int z = 0; z < n; ++z)
         for (int y = 0; y < n; ++y)
           for (int x = 0; x < n; ++x) {
             const uint32_t id = g.topOffset_[c] + uint32_t((z * n + y) * n + x);
             g.leaf_[id] = id;
             GridCell& cell = g.cells_[id];
-            const int base[3] = {tx << g.depth_, ty << g.depth_, tz << g.depth_};
             const int off[3] = {x, y, z};
             for (int i = 0; i < 3; ++i) {
               cell.lo[i] = cell.elo[i] = base[i] + off[i] * span;
               cell.hi[i] = cell.ehi[i] = cell.lo[i] + span;
             }
-            if (depth == 0) {
-              cellRefs[id] = topRefs[c];
-              continue;
-            }
-            const glm::vec3 bl = voxelLo(cell.lo), bh = voxelLo(cell.hi);
-            const float eps = 1e-5f * glm::length(bh - bl);
-            for (uint32_t t : topRefs[c]) {
-              const glm::uvec3 tri = scene.triangles[t];
-              if (triangleBoxOverlap(scene.positions[tri.x], scene.positions[tri.y], scene.positions[tri.z], bl, bh, eps))
-                cellRefs[id].push_back(t);
-            }
           }
+      if (depth == 0) {
+        cellRefs[g.topOffset_[c]] = topRefs[c];
+        return;
+      }
+      // Each triangle is tested only against the leaves its bounding box overlaps.
+      const glm::vec3 leafSize = g.voxel_ * float(span);
+      const glm::vec3 cellLo = g.lo_ + glm::vec3(base[0], base[1], base[2]) * g.voxel_;
+      for (uint32_t t : topRefs[c]) {
+        const glm::uvec3 tri = scene.triangles[t];
+        const glm::vec3 a = scene.positions[tri.x], bb = scene.positions[tri.y], cc = scene.positions[tri.z];
+        const glm::vec3 mn = (glm::min(a, glm::min(bb, cc)) - cellLo) / leafSize, mx = (glm::max(a, glm::max(bb, cc)) - cellLo) / leafSize;
+        int lo[3], hi[3];
+        for (int i = 0; i < 3; ++i) {
+          lo[i] = std::clamp(int(std::floor(mn[i])) - 1, 0, n - 1);
+          hi[i] = std::clamp(int(std::floor(mx[i])) + 1, 0, n - 1);
+        }
+        for (int z = lo[2]; z <= hi[2]; ++z)
+          for (int y = lo[1]; y <= hi[1]; ++y)
+            for (int x = lo[0]; x <= hi[0]; ++x) {
+              const uint32_t id = g.topOffset_[c] + uint32_t((z * n + y) * n + x);
+              const GridCell& cell = g.cells_[id];
+              const glm::vec3 bl = voxelLo(cell.lo), bh = voxelLo(cell.hi);
+              if (triangleBoxOverlap(a, bb, cc, bl, bh, 1e-5f * glm::length(bh - bl))) cellRefs[id].push_back(t);
+            }
+      }
     });
     forward.resize(total);
     for (uint32_t i = 0; i < total; ++i) forward[i] = i;

@@ -1,0 +1,189 @@
+// `layertrace geobench SCENE`: the irregular grid (seed 003) against Embree on the same rays —
+// primary rays through every pixel, AO rays (any hit, 5 % of the scene diagonal, cosine
+// distributed) and diffuse bounce rays (closest hit) from the primary hits: build time, memory,
+// MRays/s (median of --repeat) and agreement with Embree. --sweep adds the λ1 × λ2 table.
+#include <algorithm>
+#include <atomic>
+#include <chrono>
+#include <filesystem>
+#include <iomanip>
+#include <iostream>
+#include <random>
+#include <sstream>
+
+#include <glm/geometric.hpp>
+#include <glm/gtc/constants.hpp>
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_for.h>
+
+#include "layertrace/app/commands.h"
+#include "layertrace/util/error.h"
+
+namespace lt {
+namespace fs = std::filesystem;
+
+namespace {
+
+struct RaySet {
+  std::vector<glm::vec3> o, d;
+  float tnear = 0.0f, tfar = 1e30f;
+  bool anyHit = false;
+};
+
+template <typename F>
+double timeMedian(int repeat, F&& f) {
+  std::vector<double> t;
+  for (int i = 0; i < repeat; ++i) {
+    const auto s = std::chrono::steady_clock::now();
+    f();
+    t.push_back(std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - s).count());
+  }
+  std::sort(t.begin(), t.end());
+  return t[t.size() / 2];
+}
+
+/// Traces `rays` with `query` in parallel; returns per-ray answers (t or -1; any-hit: 1/0).
+template <typename Q>
+std::vector<float> traceAll(const RaySet& rays, Q&& query) {
+  std::vector<float> out(rays.o.size());
+  tbb::parallel_for(tbb::blocked_range<size_t>(0, rays.o.size(), 1024), [&](const tbb::blocked_range<size_t>& r) {
+    for (size_t i = r.begin(); i != r.end(); ++i) out[i] = query(rays.o[i], rays.d[i], rays.tnear, rays.tfar);
+  });
+  return out;
+}
+
+}  // namespace
+
+int runGeobench(const GeobenchOptions& o) {
+  if (o.repeat < 1 || o.repeat > 100) inputError("--repeat ", o.repeat, ": must be between 1 and 100");
+  TracerOptions to;
+  to.grid = o.grid;
+  validateTracerOptions(to);
+  Frame frame;
+  loadFrameScene(o.run.frame, frame);
+  const Scene& scene = frame.scene;
+  const Camera& cam = frame.camera;
+  const float diag = scene.bounds().diagonal();
+
+  EmbreeScene embree(scene);
+  const double embreeBuild = timeMedian(o.repeat, [&] { EmbreeScene e(scene); });
+  IrregularGrid grid(scene, o.grid);
+  const double gridBuild = timeMedian(o.repeat, [&] { IrregularGrid g(scene, o.grid); });
+
+  // The rays: primary through pixel centres; AO and diffuse from Embree's primary hits.
+  RaySet primary, ao, diffuse;
+  for (int y = 0; y < cam.height(); ++y)
+    for (int x = 0; x < cam.width(); ++x) {
+      primary.o.push_back(cam.desc().eye);
+      primary.d.push_back(glm::normalize(cam.dirToWorld(cam.rayThrough({x + 0.5f, y + 0.5f}))));
+    }
+  const float eps = 1e-4f * diag;
+  ao.tnear = diffuse.tnear = eps;
+  ao.tfar = 0.05f * diag;
+  ao.anyHit = true;
+  std::mt19937_64 rng(o.run.seed);
+  std::uniform_real_distribution<float> u(0.0f, 1.0f);
+  for (size_t i = 0; i < primary.o.size(); ++i) {
+    const GeoHit h = embree.intersect(primary.o[i], primary.d[i], 0.0f, 1e30f);
+    if (!h.hit()) continue;
+    const glm::vec3 p = primary.o[i] + primary.d[i] * h.t;
+    glm::vec3 n = glm::normalize(h.ng);
+    if (glm::dot(n, primary.d[i]) > 0.0f) n = -n;
+    const glm::vec3 t = glm::normalize(std::abs(n.x) > 0.5f ? glm::cross(n, {0, 1, 0}) : glm::cross(n, {1, 0, 0})), b = glm::cross(n, t);
+    for (RaySet* set : {&ao, &diffuse}) {
+      const float r1 = u(rng), r2 = u(rng), r = std::sqrt(r1), phi = 2.0f * glm::pi<float>() * r2;
+      set->o.push_back(p);
+      set->d.push_back(glm::normalize(t * (r * std::cos(phi)) + b * (r * std::sin(phi)) + n * std::sqrt(std::max(0.0f, 1.0f - r1))));
+    }
+  }
+
+  auto embreeQ = [&](const RaySet& s) {
+    return [&](glm::vec3 a, glm::vec3 d, float tn, float tf) {
+      if (s.anyHit) return embree.occluded(a, d, tn, tf) ? 1.0f : 0.0f;
+      const GeoHit h = embree.intersect(a, d, tn, tf);
+      return h.hit() ? h.t : -1.0f;
+    };
+  };
+  auto gridQ = [&](const IrregularGrid& g, const RaySet& s) {
+    return [&g, &s](glm::vec3 a, glm::vec3 d, float tn, float tf) {
+      if (s.anyHit) return g.occluded(a, d, tn, tf) ? 1.0f : 0.0f;
+      const GeoHit h = g.intersect(a, d, tn, tf);
+      return h.hit() ? h.t : -1.0f;
+    };
+  };
+  // Agreement: the same answer (any hit), or the same distance within 1e-4 relative (closest:
+  // two triangles sharing the edge a ray passes through have the same t).
+  auto agreement = [](const std::vector<float>& a, const std::vector<float>& b) {
+    size_t same = 0;
+    for (size_t i = 0; i < a.size(); ++i)
+      same += (a[i] < 0.0f && b[i] < 0.0f) || (a[i] >= 0.0f && b[i] >= 0.0f && std::abs(a[i] - b[i]) <= 1e-4f * std::max(a[i], b[i]) + 1e-6f);
+    return a.empty() ? 1.0 : double(same) / double(a.size());
+  };
+
+  nlohmann::json stats = frameStats(frame);
+  stats.erase("fragments");
+  stats.erase("memory_bytes");
+  stats["rays"] = {{"primary", primary.o.size()}, {"ao", ao.o.size()}, {"diffuse", diffuse.o.size()}};
+  const std::pair<const char*, RaySet*> sets[] = {{"primary", &primary}, {"ao", &ao}, {"diffuse", &diffuse}};
+  nlohmann::json& g = stats["geobench"];
+  g["embree"]["build_ms"] = embreeBuild;
+  g["embree"]["memory_bytes"] = embree.memoryBytes();
+  g["grid"]["build_ms"] = gridBuild;
+  g["grid"]["memory_bytes"] = grid.memoryBytes();
+  const GridStats& gs = grid.stats();
+  g["grid"]["structure"] = {{"top", {gs.top[0], gs.top[1], gs.top[2]}}, {"depth", gs.depth}, {"cells_initial", gs.cellsInitial},
+                            {"cells", gs.cellsAfterMerge}, {"references", gs.refs}, {"expanded_faces", gs.expandedFaces},
+                            {"merge_passes", gs.mergePasses}, {"lambda1", o.grid.lambda1}, {"lambda2", o.grid.lambda2}};
+  for (const auto& [name, set] : sets) {
+    std::vector<float> ea, ga;
+    const double te = timeMedian(o.repeat, [&] { ea = traceAll(*set, embreeQ(*set)); });
+    const double tg = timeMedian(o.repeat, [&] { ga = traceAll(*set, gridQ(grid, *set)); });
+    const double n = double(set->o.size());
+    g["embree"][std::string("mrays_") + name] = n / te * 1e-3;
+    g["grid"][std::string("mrays_") + name] = n / tg * 1e-3;
+    g["embree"][std::string("agreement_") + name] = 1.0;
+    g["grid"][std::string("agreement_") + name] = agreement(ea, ga);
+  }
+
+  std::ostringstream sweep;
+  if (o.sweep) {
+    sweep << "lambda1,lambda2,build_ms,cells,references,memory_bytes,mrays_primary,mrays_diffuse\n";
+    for (float l1 : {0.03f, 0.06f, 0.12f, 0.25f, 0.5f})
+      for (float l2 : {0.6f, 1.2f, 2.4f, 4.8f}) {
+        GridConfig gc = o.grid;
+        gc.lambda1 = l1, gc.lambda2 = l2;
+        std::unique_ptr<IrregularGrid> sg;
+        const double b = timeMedian(1, [&] { sg = std::make_unique<IrregularGrid>(scene, gc); });
+        const double tp = timeMedian(o.repeat, [&] { traceAll(primary, gridQ(*sg, primary)); });
+        const double td = timeMedian(o.repeat, [&] { traceAll(diffuse, gridQ(*sg, diffuse)); });
+        sweep << l1 << "," << l2 << "," << b << "," << sg->stats().cellsAfterMerge << "," << sg->stats().refs << ","
+              << sg->memoryBytes() << "," << double(primary.o.size()) / tp * 1e-3 << "," << double(diffuse.o.size()) / td * 1e-3 << "\n";
+      }
+  }
+
+  if (!o.run.output.empty()) {
+    ensureDirectory(o.run.output, "-o");
+    writeFileAtomic((fs::path(o.run.output) / "geobench.json").string(), stats.dump(2) + "\n");
+    if (o.sweep) writeFileAtomic((fs::path(o.run.output) / "geobench_sweep.csv").string(), sweep.str());
+  }
+  writeStats(o.run.statsPath, stats.dump(2));
+  if (!o.run.quiet) {
+    std::cout << "geobench: " << scene.name << " (" << scene.triangleCount() << " triangles), " << cam.width() << "x"
+              << cam.height() << " primary rays\n"
+              << std::left << std::setw(8) << "tracer" << std::right << std::setw(10) << "build ms" << std::setw(10) << "MiB ";
+    for (const auto& [name, set] : sets) std::cout << std::setw(14) << (std::string("MR/s ") + name) << std::setw(10) << "agree";
+    std::cout << "\n" << std::fixed;
+    for (const char* t : {"embree", "grid"}) {
+      std::cout << std::left << std::setw(8) << t << std::right << std::setw(10) << std::setprecision(1) << g[t]["build_ms"].get<double>()
+                << std::setw(10) << std::setprecision(1) << double(g[t]["memory_bytes"].get<size_t>()) / 1048576.0;
+      for (const auto& [name, set] : sets)
+        std::cout << std::setw(14) << std::setprecision(2) << g[t][std::string("mrays_") + name].get<double>() << std::setw(10)
+                  << std::setprecision(5) << g[t][std::string("agreement_") + name].get<double>();
+      std::cout << "\n";
+    }
+    if (o.sweep) std::cout << "λ1 × λ2 sweep (grid):\n" << sweep.str();
+  }
+  return 0;
+}
+
+}  // namespace lt
