@@ -161,7 +161,7 @@ namespace {
 TEST(CliRender, EveryEffectAndTracerGivesTheSameBytesForOneAndTwoThreads) {
   test::TempDir dir;
   std::string err;
-  for (const char* tracer : {"ssr", "ssr-layers", "embree"})
+  for (const char* tracer : {"ssr", "ssr-layers", "embree", "grid"})
     for (const char* effect : {"reflection", "refraction", "ao", "shadow", "shade"}) {
       std::string bytes[2];
       for (int threads : {1, 2}) {
@@ -236,6 +236,34 @@ TEST(CliBench, WritesCsvJsonWithMachineBuildAndDate) {
   }
   test::TempDir clean;
   expectRejected({"bench " + kDefault + " --experiment warp", "--experiment warp"}, clean);
+}
+
+}  // namespace
+}  // namespace lt
+
+namespace lt {
+namespace {
+
+TEST(CliGeobench, StatsKeysAndAgreement) {
+  test::TempDir dir;
+  std::string err;
+  ASSERT_EQ(test::runCli("geobench " + kDefault + " --width 160 --height 90 --repeat 1 --sweep --quiet -o " + (dir / "g") +
+                             " --stats " + (dir / "s.json"),
+                         &err),
+            0)
+      << err;
+  const auto j = readJson(dir / "s.json");
+  for (const char* t : {"grid", "embree"})
+    for (const char* k : {"build_ms", "memory_bytes", "mrays_primary", "mrays_ao", "mrays_diffuse", "agreement_primary",
+                          "agreement_ao", "agreement_diffuse"}) {
+      ASSERT_TRUE(j["geobench"][t].contains(k)) << t << " " << k;
+      if (std::string(k).rfind("agreement", 0) == 0) {
+        EXPECT_GE(j["geobench"][t][k].get<double>(), 0.9999) << t << " " << k;
+      }
+    }
+  EXPECT_TRUE(fs::exists(dir / "g/geobench_sweep.csv"));
+  test::TempDir clean;
+  expectRejected({"geobench " + kDefault + " --lambda1 0", "--lambda1 0"}, clean);
 }
 
 }  // namespace
