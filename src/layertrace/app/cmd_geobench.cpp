@@ -133,7 +133,8 @@ int runGeobench(const GeobenchOptions& o) {
   const GridStats& gs = grid.stats();
   g["grid"]["structure"] = {{"top", {gs.top[0], gs.top[1], gs.top[2]}}, {"depth", gs.depth}, {"cells_initial", gs.cellsInitial},
                             {"cells", gs.cellsAfterMerge}, {"references", gs.refs}, {"expanded_faces", gs.expandedFaces},
-                            {"merge_passes", gs.mergePasses}, {"lambda1", o.grid.lambda1}, {"lambda2", o.grid.lambda2}};
+                            {"merge_passes", gs.mergePasses}, {"lambda1", o.grid.lambda1}, {"lambda2", o.grid.lambda2},
+                            {"initial_ms", gs.initialMs}, {"merge_ms", gs.mergeMs}, {"expand_ms", gs.expandMs}};
   for (const auto& [name, set] : sets) {
     std::vector<float> ea, ga;
     const double te = timeMedian(o.repeat, [&] { ea = traceAll(*set, embreeQ(*set)); });

@@ -47,6 +47,7 @@ struct GridCell {
 
 struct GridStats {
   double buildMs = 0.0;
+  double initialMs = 0.0, mergeMs = 0.0, expandMs = 0.0;  ///< build time by phase
   int top[3] = {0, 0, 0};
   int depth = 0;  ///< D: virtual resolution = top · 2^D
   size_t cellsInitial = 0, cellsAfterMerge = 0, refs = 0, expandedFaces = 0;

@@ -271,12 +271,20 @@ IrregularGrid::IrregularGrid(const Scene& scene, const GridConfig& config) : sce
   if (!(config.lambda2 > 0.0f)) inputError("--lambda2 ", config.lambda2, ": must be positive");
   if (config.maxDepth < 0 || config.maxDepth > 10) inputError("grid max depth ", config.maxDepth, ": must be in [0, 10]");
   const auto start = std::chrono::steady_clock::now();
+  auto since = [](std::chrono::steady_clock::time_point t) {
+    return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t).count();
+  };
   GridBuilder b{*this, scene, config, {}, {}};
   b.initialGrid();
+  stats_.initialMs = since(start);
+  auto t = std::chrono::steady_clock::now();
   if (config.merge) b.merge();
   b.compact();
+  stats_.mergeMs = since(t);
   stats_.cellsAfterMerge = cells_.size();
+  t = std::chrono::steady_clock::now();
   for (int p = 0; p < config.expansionPasses; ++p) stats_.expandedFaces += b.expandPass();
+  stats_.expandMs = since(t);
   for (size_t c = 0; c < cells_.size(); ++c) {
     cells_[c].refBegin = uint32_t(refs_.size());
     refs_.insert(refs_.end(), b.cellRefs[c].begin(), b.cellRefs[c].end());
@@ -284,11 +292,11 @@ IrregularGrid::IrregularGrid(const Scene& scene, const GridConfig& config) : sce
   }
   stats_.refs = refs_.size();
   v0_.resize(scene.triangleCount()), e1_.resize(scene.triangleCount()), e2_.resize(scene.triangleCount());
-  for (size_t t = 0; t < scene.triangleCount(); ++t) {
-    const glm::uvec3 i = scene.triangles[t];
-    v0_[t] = scene.positions[i.x];
-    e1_[t] = scene.positions[i.y] - v0_[t];
-    e2_[t] = scene.positions[i.z] - v0_[t];
+  for (size_t tri = 0; tri < scene.triangleCount(); ++tri) {
+    const glm::uvec3 i = scene.triangles[tri];
+    v0_[tri] = scene.positions[i.x];
+    e1_[tri] = scene.positions[i.y] - v0_[tri];
+    e2_[tri] = scene.positions[i.z] - v0_[tri];
   }
   stats_.buildMs = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
 }
