@@ -21,23 +21,29 @@ namespace {
 
 constexpr float kWallDistance = 10.0f;
 
+/// A frame of an in-code scene: rasterized and sorted with the given view, size, k, thickness.
+Frame frameOf(const Scene& scene, const CameraDesc& view, int W, int H, int k = 4, float thickness = 0.1f) {
+  Frame f;
+  f.scene = scene;
+  f.camera = Camera(view, W, H);
+  f.thickness = thickness;
+  FrameOptions o;
+  o.width = W, o.height = H, o.layers = k, o.thickness = thickness;
+  rasterizeFrame(o, f);
+  return f;
+}
+
 /// Floor y = -1 (material 0) and a 20 m wall z = -10 (material 1) seen from the origin, looking
 /// down -z and tilted down by `tilt` (so that some reflections land above the screen).
 Frame floorAndWall(int W, int H, int k = 4, float thickness = 0.1f, float tilt = 0.0f) {
-  Frame f;
   Scene s = makeQuad({-30, -1, -0.2f}, {0, 0, -kWallDistance + 0.2f}, {60, 0, 0});
   Scene wall = makeQuad({-30, -1, -kWallDistance}, {60, 0, 0}, {0, 20, 0});
   wall.materials[0].albedo = {0.8f, 0.1f, 0.1f};
   s.append(wall);
   s.finalize("floor-and-wall");
-  f.scene = s;
   CameraDesc cd = test::originCamera(60.0f, 0.05f, 100.0f);
   cd.target = {0.0f, -tilt, -1.0f};
-  f.camera = Camera(cd, W, H);
-  f.thickness = thickness;
-  FrameOptions o;
-  o.width = W, o.height = H, o.layers = k, o.thickness = thickness;
-  rasterizeFrame(o, f);
+  Frame f = frameOf(s, cd, W, H, k, thickness);
   f.lights.push_back({{0, 3, -5}, glm::vec3(10.0f)});
   return f;
 }
@@ -128,18 +134,12 @@ TEST(ScreenTracers, RaysTowardTheCameraPassBehindTheNearPlaneAndMiss) {
 /// A thin occluder (z-thickness 0.1) at depth 5 in front of the wall, and rays from the floor
 /// that cross its depth either inside its pixels (hit) or 0.5 behind it (miss).
 TEST(ScreenTracers, ThicknessDecidesBetweenPassingBehindAndThrough) {
-  Frame f;
   Scene s = makeQuad({-30, -1, -0.2f}, {0, 0, -9.8f}, {60, 0, 0});
   Scene board = makeQuad({-1, -0.5f, -5.0f}, {2, 0, 0}, {0, 3, 0});  // faces the camera, depth 5
   board.materials[0].albedo = {0.1f, 0.1f, 0.9f};
   s.append(board);
   s.finalize("board");
-  f.scene = s;
-  f.camera = Camera(test::originCamera(60.0f, 0.05f, 100.0f), 200, 120);
-  FrameOptions o;
-  o.width = 200, o.height = 120, o.thickness = 0.1f;
-  f.thickness = 0.1f;
-  rasterizeFrame(o, f);
+  const Frame f = frameOf(s, test::originCamera(60.0f, 0.05f, 100.0f), 200, 120, 4);
   const Tracers t(f);
   const glm::vec3 start(0.0f, -1.0f, -2.0f);  // on the floor, in front of the board
   for (const auto& tracer : t.all) {
@@ -159,7 +159,6 @@ TEST(ScreenTracers, ThicknessDecidesBetweenPassingBehindAndThrough) {
 
 /// A surface hidden behind the front layer: only multi-layer tracers can find it.
 TEST(ScreenTracers, LayersFindSurfacesHiddenBehindTheFrontLayer) {
-  Frame f;
   Scene s = makeQuad({-30, -1, -0.2f}, {0, 0, -19.8f}, {60, 0, 0});
   Scene front = makeQuad({-3, -1, -4.0f}, {6, 0, 0}, {0, 6, 0});   // occluder at depth 4
   Scene hidden = makeQuad({-2, -1, -8.0f}, {4, 0, 0}, {0, 4, 0});  // fully behind it at depth 8
@@ -167,12 +166,7 @@ TEST(ScreenTracers, LayersFindSurfacesHiddenBehindTheFrontLayer) {
   s.append(front);
   s.append(hidden);
   s.finalize("hidden");
-  f.scene = s;
-  f.camera = Camera(test::originCamera(60.0f, 0.05f, 100.0f), 200, 120);
-  FrameOptions o;
-  o.width = 200, o.height = 120, o.thickness = 0.1f;
-  f.thickness = 0.1f;
-  rasterizeFrame(o, f);
+  const Frame f = frameOf(s, test::originCamera(60.0f, 0.05f, 100.0f), 200, 120, 4);
   const Tracers t(f);
   // From the floor between occluder and hidden quad (behind the occluder's depth), straight
   // at the hidden quad: every pixel it crosses shows the occluder in front.
@@ -321,17 +315,11 @@ TEST(Classify, ReflectionOfSomethingOffScreenIsAnInformationMiss) {
 }
 
 Frame hiddenQuadFrame(int k) {
-  Frame f;
   Scene s = makeQuad({-30, -1, -0.2f}, {0, 0, -19.8f}, {60, 0, 0});
   s.append(makeQuad({-3, -1, -4.0f}, {6, 0, 0}, {0, 6, 0}));
   s.append(makeQuad({-2, -1, -8.0f}, {4, 0, 0}, {0, 4, 0}));
   s.finalize("hidden");
-  f.scene = s;
-  f.camera = Camera(test::originCamera(60.0f, 0.05f, 100.0f), 200, 120);
-  FrameOptions o;
-  o.width = 200, o.height = 120, o.thickness = 0.1f, o.layers = k;
-  f.thickness = 0.1f;
-  rasterizeFrame(o, f);
+  const Frame f = frameOf(s, test::originCamera(60.0f, 0.05f, 100.0f), 200, 120, k);
   return f;
 }
 
@@ -348,16 +336,10 @@ TEST(Classify, SurfaceBehindTheFrontLayerIsInformationMissWithOneLayerCorrectHit
 
 TEST(Classify, LargeStrideSkippingAThinPoleIsAFalseMiss) {
   // A pole 0.05 wide (1.6 pixels: it covers two pixel centres) at depth 5; rays cross it.
-  Frame f;
   Scene s = makeQuad({-30, -1, -0.2f}, {0, 0, -19.8f}, {60, 0, 0});
   s.append(makeBox({-0.025f, -1.0f, -5.025f}, {0.025f, 3.0f, -4.975f}));
   s.finalize("pole");
-  f.scene = s;
-  f.camera = Camera(test::originCamera(60.0f, 0.05f, 100.0f), 320, 180);
-  FrameOptions o;
-  o.width = 320, o.height = 180, o.thickness = 0.1f;
-  f.thickness = 0.1f;
-  rasterizeFrame(o, f);
+  const Frame f = frameOf(s, test::originCamera(60.0f, 0.05f, 100.0f), 320, 180, 4);
   const Tracers t(f);
   SsrConfig wide;
   wide.allLayers = true;

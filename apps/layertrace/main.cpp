@@ -83,6 +83,14 @@ void addTracerOptions(CLI::App* app, lt::TracerOptions& t) {
   app->add_option("--lambda2", t.grid.lambda2, "grid: second-level density (seed 003)")->capture_default_str();
 }
 
+void addEffectOptions(CLI::App* app, lt::EffectConfig& e, std::string& effectName) {
+  app->add_option("--effect", effectName, "shade | reflection | refraction | ao | shadow")->capture_default_str();
+  app->add_option("--bounces", e.bounces, "reflection bounces")->capture_default_str();
+  app->add_option("--ao-samples", e.aoSamples, "AO rays per pixel")->capture_default_str();
+  app->add_option("--ao-radius", e.aoRadius, "AO ray length (0 = 5% of the scene diagonal)")->capture_default_str();
+  app->add_option("--max-distance", e.maxDistance, "ray length (0 = the scene diagonal)")->capture_default_str();
+}
+
 std::vector<std::string> splitList(const std::string& s) {
   std::vector<std::string> out;
   std::stringstream ss(s);
@@ -124,11 +132,7 @@ int main(int argc, char** argv) {
   CLI::App* renderCmd = app.add_subcommand("render", "image of one effect traced with one tracer");
   addFrameOptions(renderCmd, render.run, renderRaw);
   renderCmd->add_option("--tracer", render.tracer, "ssr | ssr-layers | hssr | embree | grid")->capture_default_str();
-  renderCmd->add_option("--effect", effectName, "shade | reflection | refraction | ao | shadow")->capture_default_str();
-  renderCmd->add_option("--bounces", render.effect.bounces, "reflection bounces")->capture_default_str();
-  renderCmd->add_option("--ao-samples", render.effect.aoSamples, "AO rays per pixel")->capture_default_str();
-  renderCmd->add_option("--ao-radius", render.effect.aoRadius, "AO ray length (0 = 5% of the scene diagonal)")->capture_default_str();
-  renderCmd->add_option("--max-distance", render.effect.maxDistance, "ray length (0 = the scene diagonal)")->capture_default_str();
+  addEffectOptions(renderCmd, render.effect, effectName);
   addTracerOptions(renderCmd, render.tracers);
   renderCmd->add_flag("--check-exhaustive", render.checkExhaustive, "trace every ray with the exhaustive oracle too; count differences");
 
@@ -138,11 +142,7 @@ int main(int argc, char** argv) {
   CLI::App* compareCmd = app.add_subcommand("compare", "same rays through several tracers + Embree: accuracy and cost table");
   addFrameOptions(compareCmd, compare.run, compareRaw);
   compareCmd->add_option("--tracers", compareTracers, "comma list of ssr, ssr-layers, hssr, embree, grid")->capture_default_str();
-  compareCmd->add_option("--effect", compareEffect, "shade | reflection | refraction | ao | shadow")->capture_default_str();
-  compareCmd->add_option("--bounces", compare.effect.bounces, "reflection bounces")->capture_default_str();
-  compareCmd->add_option("--ao-samples", compare.effect.aoSamples, "AO rays per pixel")->capture_default_str();
-  compareCmd->add_option("--ao-radius", compare.effect.aoRadius, "AO ray length (0 = 5% of the scene diagonal)")->capture_default_str();
-  compareCmd->add_option("--max-distance", compare.effect.maxDistance, "ray length (0 = the scene diagonal)")->capture_default_str();
+  addEffectOptions(compareCmd, compare.effect, compareEffect);
   addTracerOptions(compareCmd, compare.options);
   compareCmd->add_option("--report", compare.report, "also write an HTML report (one self-contained page) to this folder");
 

@@ -21,6 +21,7 @@
 #include "layertrace/app/commands.h"
 #include "layertrace/app/report.h"
 #include "layertrace/util/error.h"
+#include "layertrace/util/timing.h"
 
 #ifndef LAYERTRACE_TOOLS_DIR
 #define LAYERTRACE_TOOLS_DIR "tools"
@@ -33,22 +34,6 @@ namespace lt {
 namespace fs = std::filesystem;
 
 namespace {
-
-double median(std::vector<double> v) {
-  std::sort(v.begin(), v.end());
-  return v.empty() ? 0.0 : v.size() % 2 ? v[v.size() / 2] : 0.5 * (v[v.size() / 2 - 1] + v[v.size() / 2]);
-}
-
-template <typename F>
-double medianMs(int repeat, F&& f) {
-  std::vector<double> t;
-  for (int i = 0; i < repeat; ++i) {
-    const auto s = std::chrono::steady_clock::now();
-    f();
-    t.push_back(std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - s).count());
-  }
-  return median(t);
-}
 
 std::string machine() {
   std::ifstream in("/proc/cpuinfo");

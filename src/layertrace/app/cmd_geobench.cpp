@@ -18,6 +18,7 @@
 
 #include "layertrace/app/commands.h"
 #include "layertrace/util/error.h"
+#include "layertrace/util/timing.h"
 
 namespace lt {
 namespace fs = std::filesystem;
@@ -29,18 +30,6 @@ struct RaySet {
   float tnear = 0.0f, tfar = 1e30f;
   bool anyHit = false;
 };
-
-template <typename F>
-double timeMedian(int repeat, F&& f) {
-  std::vector<double> t;
-  for (int i = 0; i < repeat; ++i) {
-    const auto s = std::chrono::steady_clock::now();
-    f();
-    t.push_back(std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - s).count());
-  }
-  std::sort(t.begin(), t.end());
-  return t[t.size() / 2];
-}
 
 /// Traces `rays` with `query` in parallel; returns per-ray answers (t or -1; any-hit: 1/0).
 template <typename Q>
@@ -66,9 +55,9 @@ int runGeobench(const GeobenchOptions& o) {
   const float diag = scene.bounds().diagonal();
 
   EmbreeScene embree(scene);
-  const double embreeBuild = timeMedian(o.repeat, [&] { EmbreeScene e(scene); });
+  const double embreeBuild = medianMs(o.repeat, [&] { EmbreeScene e(scene); });
   IrregularGrid grid(scene, o.grid);
-  const double gridBuild = timeMedian(o.repeat, [&] { IrregularGrid g(scene, o.grid); });
+  const double gridBuild = medianMs(o.repeat, [&] { IrregularGrid g(scene, o.grid); });
 
   // The rays: primary through pixel centres; AO and diffuse from Embree's primary hits.
   RaySet primary, ao, diffuse;
@@ -137,8 +126,8 @@ int runGeobench(const GeobenchOptions& o) {
                             {"initial_ms", gs.initialMs}, {"merge_ms", gs.mergeMs}, {"expand_ms", gs.expandMs}};
   for (const auto& [name, set] : sets) {
     std::vector<float> ea, ga;
-    const double te = timeMedian(o.repeat, [&] { ea = traceAll(*set, embreeQ(*set)); });
-    const double tg = timeMedian(o.repeat, [&] { ga = traceAll(*set, gridQ(grid, *set)); });
+    const double te = medianMs(o.repeat, [&] { ea = traceAll(*set, embreeQ(*set)); });
+    const double tg = medianMs(o.repeat, [&] { ga = traceAll(*set, gridQ(grid, *set)); });
     const double n = double(set->o.size());
     g["embree"][std::string("mrays_") + name] = n / te * 1e-3;
     g["grid"][std::string("mrays_") + name] = n / tg * 1e-3;
@@ -154,9 +143,9 @@ int runGeobench(const GeobenchOptions& o) {
         GridConfig gc = o.grid;
         gc.lambda1 = l1, gc.lambda2 = l2;
         std::unique_ptr<IrregularGrid> sg;
-        const double b = timeMedian(1, [&] { sg = std::make_unique<IrregularGrid>(scene, gc); });
-        const double tp = timeMedian(o.repeat, [&] { traceAll(primary, gridQ(*sg, primary)); });
-        const double td = timeMedian(o.repeat, [&] { traceAll(diffuse, gridQ(*sg, diffuse)); });
+        const double b = medianMs(1, [&] { sg = std::make_unique<IrregularGrid>(scene, gc); });
+        const double tp = medianMs(o.repeat, [&] { traceAll(primary, gridQ(*sg, primary)); });
+        const double td = medianMs(o.repeat, [&] { traceAll(diffuse, gridQ(*sg, diffuse)); });
         sweep << l1 << "," << l2 << "," << b << "," << sg->stats().cellsAfterMerge << "," << sg->stats().refs << ","
               << sg->memoryBytes() << "," << double(primary.o.size()) / tp * 1e-3 << "," << double(diffuse.o.size()) / td * 1e-3 << "\n";
       }
