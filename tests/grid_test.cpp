@@ -119,13 +119,17 @@ TEST(Grid, AgreesWithEmbreeOnTheDefaultScene) {
   o.scenePath = test::sourceDir() + "/scenes/default.json";
   Frame f;
   loadFrameScene(o, f);
-  for (bool merge : {false, true}) {
+  for (int variant = 0; variant < 3; ++variant) {  // plain; merged + expanded; + partial expansion
     GridConfig gc;
-    gc.merge = merge;
-    gc.expansionPasses = merge ? 3 : 0;
+    gc.merge = variant > 0;
+    gc.expansionPasses = variant > 0 ? 3 : 0;
+    gc.partialExpansion = variant == 2;
     const IrregularGrid grid(f.scene, gc);
+    if (variant == 2) {
+      EXPECT_GT(grid.stats().expandedFaces, IrregularGrid(f.scene).stats().expandedFaces);
+    }
     const Agreement a = compareWithEmbree(f.scene, f.camera.desc(), grid, 320, 180, test::testSeed());
-    EXPECT_GE(a.fraction(), 0.9999) << "merge " << merge << ": " << a.agree << " of " << a.rays;
+    EXPECT_GE(a.fraction(), 0.9999) << "variant " << variant << ": " << a.agree << " of " << a.rays;
   }
 }
 
@@ -174,9 +178,13 @@ TEST_P(RealSceneGrid, AgreesWithEmbree) {
   o.cameraName = GetParam().second;
   Frame f;
   loadFrameScene(o, f);
-  const IrregularGrid grid(f.scene);
-  const Agreement a = compareWithEmbree(f.scene, f.camera.desc(), grid, 320, 180, test::testSeed());
-  EXPECT_GE(a.fraction(), 0.9999) << a.agree << " of " << a.rays;
+  for (bool partial : {false, true}) {
+    GridConfig gc;
+    gc.partialExpansion = partial;
+    const IrregularGrid grid(f.scene, gc);
+    const Agreement a = compareWithEmbree(f.scene, f.camera.desc(), grid, 320, 180, test::testSeed());
+    EXPECT_GE(a.fraction(), 0.9999) << "partial " << partial << ": " << a.agree << " of " << a.rays;
+  }
 }
 
 INSTANTIATE_TEST_SUITE_P(Scenes, RealSceneGrid,

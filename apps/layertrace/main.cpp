@@ -81,6 +81,7 @@ void addTracerOptions(CLI::App* app, lt::TracerOptions& t) {
   app->add_option("--n-up", t.hssr.nUp, "hssr: cells without overlap before ascending")->capture_default_str();
   app->add_option("--lambda1", t.grid.lambda1, "grid: top-level density (seed 003)")->capture_default_str();
   app->add_option("--lambda2", t.grid.lambda2, "grid: second-level density (seed 003)")->capture_default_str();
+  app->add_flag("--partial-expansion", t.grid.partialExpansion, "grid: also expand into neighbours whose swept part holds only shared primitives");
 }
 
 void addEffectOptions(CLI::App* app, lt::EffectConfig& e, std::string& effectName) {
@@ -161,6 +162,7 @@ int main(int argc, char** argv) {
   addFrameOptions(geobenchCmd, geobench.run, geobenchRaw);
   geobenchCmd->add_option("--lambda1", geobench.grid.lambda1, "grid: top-level density (seed 003)")->capture_default_str();
   geobenchCmd->add_option("--lambda2", geobench.grid.lambda2, "grid: second-level density (seed 003)")->capture_default_str();
+  geobenchCmd->add_flag("--partial-expansion", geobench.grid.partialExpansion, "grid: partial cell expansion");
   geobenchCmd->add_option("--repeat", geobench.repeat, "runs per timing (the median is reported)")->capture_default_str();
   geobenchCmd->add_flag("--sweep", geobench.sweep, "also sweep lambda1 x lambda2: build time vs traversal time");
 

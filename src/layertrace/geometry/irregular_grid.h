@@ -10,7 +10,7 @@
 //      holds, for empty and non-empty cells, repeated until N_after ≥ α N_before;
 //   4. cell expansion: each cell's exit boundaries grow over neighbours whose references are a
 //      subset of its own (traversal stays correct: every primitive of the skipped region was
-//      already tested), a fixed number of passes (3 for static scenes).
+//      already tested), a fixed number of passes (3 for static scenes); optionally partial.
 // Traversal (grid_tracer.cpp): stackless and ordered — locate the origin's cell in the voxel
 // map, intersect its primitives, stop when the closest hit lies inside the (expanded) cell,
 // otherwise move to the cell beyond the exit point.
@@ -37,6 +37,10 @@ struct GridConfig {
   /// (Our reading of the slides' C_t: a traversal step costs like a primitive test.)
   float traversalCost = 1.0f;
   int expansionPasses = 3;    ///< seed 003: 3 for static scenes, 1 for dynamic ones
+  /// Partial expansion (our extension; the slides' expansion is all-or-nothing per neighbour):
+  /// a face may also sweep into a neighbour B whose references are not a subset of A's, as
+  /// long as every primitive of B that overlaps the swept part of B is referenced by A.
+  bool partialExpansion = false;
 };
 
 struct GridCell {

@@ -1,8 +1,10 @@
 #include <algorithm>
+#include <atomic>
 #include <chrono>
 #include <cmath>
 
 #include <glm/geometric.hpp>
+#include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>
 
 #include "layertrace/geometry/irregular_grid.h"
@@ -231,38 +233,66 @@ struct GridBuilder {
   /// them reference a subset of this cell's primitives (R(B) ⊆ R(A)); binary per face, by the
   /// thinnest neighbour's depth.
   size_t expandPass() {
-    size_t grown = 0;
-    for (uint32_t a = 0; a < g.cells_.size(); ++a) {
-      for (int axis = 0; axis < 3; ++axis)
-        for (int side = 0; side < 2; ++side) {
-          GridCell& A = g.cells_[a];
-          const int u = (axis + 1) % 3, w = (axis + 2) % 3;
-          const int face = side ? A.ehi[axis] : A.elo[axis];
-          if ((side && face >= g.virt_[axis]) || (!side && face <= 0)) continue;
-          const int layer = side ? face : face - 1;  // voxel layer just beyond the face
-          int depth = 1 << 30;
-          bool ok = true;
-          for (int vw = A.elo[w]; vw < A.ehi[w] && ok;) {
-            int nextW = A.ehi[w];
-            for (int vu = A.elo[u]; vu < A.ehi[u] && ok;) {
-              int p[3];
-              p[axis] = layer, p[u] = vu, p[w] = vw;
-              const uint32_t b = g.cellAt(p);
-              const GridCell& B = g.cells_[b];
-              ok = b == a || subset(cellRefs[b], cellRefs[a]);
-              depth = std::min(depth, side ? B.hi[axis] - face : face - B.lo[axis]);
-              nextW = std::min(nextW, B.hi[w]);
-              vu = B.hi[u];
-            }
-            vw = nextW;
-          }
-          if (!ok || depth <= 0 || depth == (1 << 30)) continue;
-          if (side) A.ehi[axis] += depth;
-          else A.elo[axis] -= depth;
-          ++grown;
-        }
-    }
+    // Each cell only changes its own expanded box and reads its neighbours' cells and
+    // references, which expansion never changes: the cells expand in parallel, and the result
+    // does not depend on the order.
+    std::atomic<size_t> grown{0};
+    tbb::parallel_for(tbb::blocked_range<uint32_t>(0, uint32_t(g.cells_.size()), 256), [&](const tbb::blocked_range<uint32_t>& r) {
+      std::vector<uint32_t> neighbours;
+      size_t local = 0;
+      for (uint32_t a = r.begin(); a != r.end(); ++a)
+        for (int axis = 0; axis < 3; ++axis)
+          for (int side = 0; side < 2; ++side) local += expandFace(a, axis, side, neighbours);
+      grown += local;
+    });
     return grown;
+  }
+
+  /// Tries to move one exit face of cell a over the voxel layers beyond it.
+  bool expandFace(uint32_t a, int axis, int side, std::vector<uint32_t>& neighbours) {
+    GridCell& A = g.cells_[a];
+    const int u = (axis + 1) % 3, w = (axis + 2) % 3;
+    const int face = side ? A.ehi[axis] : A.elo[axis];
+    if ((side && face >= g.virt_[axis]) || (!side && face <= 0)) return false;
+    const int layer = side ? face : face - 1;  // voxel layer just beyond the face
+    int depth = 1 << 30;
+    neighbours.clear();
+    for (int vw = A.elo[w]; vw < A.ehi[w];) {
+      int nextW = A.ehi[w];
+      for (int vu = A.elo[u]; vu < A.ehi[u];) {
+        int p[3];
+        p[axis] = layer, p[u] = vu, p[w] = vw;
+        const uint32_t b = g.cellAt(p);
+        const GridCell& B = g.cells_[b];
+        if (b != a) neighbours.push_back(b);
+        depth = std::min(depth, side ? B.hi[axis] - face : face - B.lo[axis]);
+        nextW = std::min(nextW, B.hi[w]);
+        vu = B.hi[u];
+      }
+      vw = nextW;
+    }
+    if (depth <= 0 || depth == (1 << 30)) return false;
+    // The slab the face would sweep.
+    int slo[3] = {A.elo[0], A.elo[1], A.elo[2]}, shi[3] = {A.ehi[0], A.ehi[1], A.ehi[2]};
+    slo[axis] = side ? face : face - depth;
+    shi[axis] = side ? face + depth : face;
+    for (uint32_t b : neighbours) {
+      if (subset(cellRefs[b], cellRefs[a])) continue;
+      if (!cfg.partialExpansion) return false;
+      // Partial expansion: only B's primitives inside the swept part of B must be in R(A).
+      int blo[3], bhi[3];
+      for (int i = 0; i < 3; ++i) blo[i] = std::max(slo[i], g.cells_[b].lo[i]), bhi[i] = std::min(shi[i], g.cells_[b].hi[i]);
+      const glm::vec3 lo = voxelLo(blo), hi = voxelLo(bhi);
+      const float eps = 1e-5f * glm::length(hi - lo);
+      for (uint32_t t : cellRefs[b]) {
+        if (std::binary_search(cellRefs[a].begin(), cellRefs[a].end(), t)) continue;
+        const glm::uvec3 tri = scene.triangles[t];
+        if (triangleBoxOverlap(scene.positions[tri.x], scene.positions[tri.y], scene.positions[tri.z], lo, hi, eps)) return false;
+      }
+    }
+    if (side) A.ehi[axis] += depth;
+    else A.elo[axis] -= depth;
+    return true;
   }
 };
 
