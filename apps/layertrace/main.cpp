@@ -191,35 +191,33 @@ int main(int argc, char** argv) {
 
   try {
     std::unique_ptr<tbb::global_control> threads;
-    auto limitThreads = [&](int n) {
-      if (n > 0) threads = std::make_unique<tbb::global_control>(tbb::global_control::max_allowed_parallelism, size_t(n));
+    // Converts the raw vector options and applies --threads for the subcommand that ran.
+    auto prepare = [&](lt::RunOptions& run, const RawFrameOptions& raw) {
+      finishFrameOptions(run, raw);
+      if (run.threads > 0)
+        threads = std::make_unique<tbb::global_control>(tbb::global_control::max_allowed_parallelism, size_t(run.threads));
     };
     if (layersCmd->parsed()) {
-      finishFrameOptions(layers.run, layersRaw);
-      limitThreads(layers.run.threads);
+      prepare(layers.run, layersRaw);
       return lt::runLayers(layers);
     }
     if (geobenchCmd->parsed()) {
-      finishFrameOptions(geobench.run, geobenchRaw);
-      limitThreads(geobench.run.threads);
+      prepare(geobench.run, geobenchRaw);
       return lt::runGeobench(geobench);
     }
     if (benchCmd->parsed()) {
-      finishFrameOptions(bench.run, benchRaw);
-      limitThreads(bench.run.threads);
+      prepare(bench.run, benchRaw);
       return lt::runBench(bench);
     }
     if (compareCmd->parsed()) {
-      finishFrameOptions(compare.run, compareRaw);
+      prepare(compare.run, compareRaw);
       compare.effect.effect = lt::parseEffect(compareEffect);
       compare.tracers = splitList(compareTracers);
-      limitThreads(compare.run.threads);
       return lt::runCompare(compare);
     }
     if (renderCmd->parsed()) {
-      finishFrameOptions(render.run, renderRaw);
+      prepare(render.run, renderRaw);
       render.effect.effect = lt::parseEffect(effectName);
-      limitThreads(render.run.threads);
       return lt::runRender(render);
     }
   } catch (const lt::InputError& e) {

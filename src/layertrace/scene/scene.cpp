@@ -42,7 +42,6 @@ void Scene::finalize(const std::string& source) {
   normals.resize(positions.size(), glm::vec3(0.0f));
   const auto nv = uint32_t(positions.size());
   std::vector<glm::vec3> accum(positions.size(), glm::vec3(0.0f));
-  bool anyMissing = false;
   for (size_t i = 0; i < triangles.size(); ++i) {
     const glm::uvec3 t = triangles[i];
     if (t.x >= nv || t.y >= nv || t.z >= nv)
@@ -58,14 +57,12 @@ void Scene::finalize(const std::string& source) {
   for (size_t v = 0; v < normals.size(); ++v) {
     const float len = glm::length(normals[v]);
     if (!(len > 1e-12f) || !std::isfinite(len)) {
-      anyMissing = true;
       const float a = glm::length(accum[v]);
       normals[v] = a > 0.0f ? accum[v] / a : glm::vec3(0.0f, 0.0f, 1.0f);
     } else {
       normals[v] /= len;
     }
   }
-  (void)anyMissing;
   if (bounds().diagonal() <= 0.0f) inputError("scene ", source, ": all vertices coincide");
 }
 

@@ -14,8 +14,6 @@ ScreenSegment makeScreenSegment(const Camera& camera, const ScreenRay& ray) {
   const glm::vec3 end = ray.origin + ray.dir * std::max(len, 0.0f);
   seg.k0 = 1.0f / -ray.origin.z;
   seg.k1 = 1.0f / -end.z;
-  seg.q0 = ray.origin * seg.k0;
-  seg.q1 = end * seg.k1;
   seg.p0 = camera.project(ray.origin);
   seg.p1 = camera.project(end);
   // Clip the end to the viewport (the G3D version does, the published listing does not).
@@ -32,7 +30,6 @@ ScreenSegment makeScreenSegment(const Camera& camera, const ScreenRay& ray) {
   if (tEnd < 1.0f) {
     seg.p1 = seg.p0 + d * tEnd;
     seg.k1 = seg.k0 + (seg.k1 - seg.k0) * tEnd;
-    seg.q1 = seg.q0 + (seg.q1 - seg.q0) * tEnd;
   }
   seg.valid = std::isfinite(seg.p1.x) && std::isfinite(seg.p1.y) && seg.k1 > 0.0f;
   return seg;

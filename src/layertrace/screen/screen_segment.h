@@ -1,6 +1,8 @@
 // A camera-space ray as a 2D line in pixel space with homogeneous perspective-correct
-// interpolation (seed 001, McGuire & Mara): k = 1/depth and Q = point/depth are linear in the
-// screen-space parameter s ∈ [0, 1] from P0 to P1, so depth(s) = 1 / (k0 + s (k1 - k0)).
+// interpolation (seed 001, McGuire & Mara): k = 1/depth is linear in the screen-space parameter
+// s ∈ [0, 1] from P0 to P1, so depth(s) = 1 / (k0 + s (k1 - k0)). (Seed 001 also interpolates
+// Q = point/depth to return the hit point; our tracers return the hit fragment's own point, so
+// Q is not kept.)
 // The 3D segment is clipped to the near plane and its end to the viewport (hssr-pitfalls §9).
 #pragma once
 
@@ -15,14 +17,12 @@ namespace lt {
 struct ScreenSegment {
   glm::vec2 p0{0.0f}, p1{0.0f};  ///< pixel coordinates
   float k0 = 1.0f, k1 = 1.0f;    ///< 1 / depth at the ends
-  glm::vec3 q0{0.0f}, q1{0.0f};  ///< camera-space point / depth at the ends
   bool valid = false;            ///< false when nothing of the ray is in front of the near plane
 
   float depthAt(float s) const { return 1.0f / (k0 + s * (k1 - k0)); }
   glm::vec2 pointAt(float s) const { return p0 + s * (p1 - p0); }
   /// Screen parameter where the ray's depth equals `depth` (any s if the depth is constant).
   float paramAtDepth(float depth) const { return k1 != k0 ? (1.0f / depth - k0) / (k1 - k0) : 0.0f; }
-  glm::vec3 cameraPointAt(float s) const { return (q0 + s * (q1 - q0)) / (k0 + s * (k1 - k0)); }
 };
 
 ScreenSegment makeScreenSegment(const Camera& camera, const ScreenRay& ray);
