@@ -70,25 +70,33 @@ struct GridBuilder {
     const glm::vec3 topSize = d / glm::vec3(g.top_[0], g.top_[1], g.top_[2]);
     const size_t numTop = size_t(g.top_[0]) * size_t(g.top_[1]) * size_t(g.top_[2]);
 
-    // References of the top cells (exact triangle/box overlap).
-    std::vector<std::vector<uint32_t>> topRefs(numTop);
-    for (uint32_t t = 0; t < scene.triangleCount(); ++t) {
-      const glm::vec3 a = scene.positions[scene.triangles[t].x], bb = scene.positions[scene.triangles[t].y],
-                      c = scene.positions[scene.triangles[t].z];
-      const glm::vec3 mn = glm::min(a, glm::min(bb, c)), mx = glm::max(a, glm::max(bb, c));
-      int lo[3], hi[3];
-      for (int i = 0; i < 3; ++i) {
-        lo[i] = std::clamp(int((mn[i] - g.lo_[i]) / topSize[i]), 0, g.top_[i] - 1);
-        hi[i] = std::clamp(int((mx[i] - g.lo_[i]) / topSize[i]), 0, g.top_[i] - 1);
+    // References of the top cells (exact triangle/box overlap): pairs per chunk of triangles in
+    // parallel, then gathered in chunk order, so each cell's list stays sorted by triangle.
+    const size_t numTris = scene.triangleCount(), chunk = 4096;
+    std::vector<std::vector<std::pair<uint32_t, uint32_t>>> pairs((numTris + chunk - 1) / chunk);
+    tbb::parallel_for(size_t(0), pairs.size(), [&](size_t k) {
+      for (uint32_t t = uint32_t(k * chunk); t < std::min(numTris, (k + 1) * chunk); ++t) {
+        const glm::vec3 a = scene.positions[scene.triangles[t].x], bb = scene.positions[scene.triangles[t].y],
+                        c = scene.positions[scene.triangles[t].z];
+        const glm::vec3 mn = glm::min(a, glm::min(bb, c)), mx = glm::max(a, glm::max(bb, c));
+        int lo[3], hi[3];
+        for (int i = 0; i < 3; ++i) {
+          lo[i] = std::clamp(int((mn[i] - g.lo_[i]) / topSize[i]), 0, g.top_[i] - 1);
+          hi[i] = std::clamp(int((mx[i] - g.lo_[i]) / topSize[i]), 0, g.top_[i] - 1);
+        }
+        for (int z = lo[2]; z <= hi[2]; ++z)
+          for (int y = lo[1]; y <= hi[1]; ++y)
+            for (int x = lo[0]; x <= hi[0]; ++x) {
+              const glm::vec3 bl = g.lo_ + glm::vec3(x, y, z) * topSize;
+              if (triangleBoxOverlap(a, bb, c, bl, bl + topSize, 1e-5f * glm::length(topSize)))
+                pairs[k].emplace_back(uint32_t((size_t(z) * size_t(g.top_[1]) + size_t(y)) * size_t(g.top_[0]) + size_t(x)), t);
+            }
       }
-      for (int z = lo[2]; z <= hi[2]; ++z)
-        for (int y = lo[1]; y <= hi[1]; ++y)
-          for (int x = lo[0]; x <= hi[0]; ++x) {
-            const glm::vec3 bl = g.lo_ + glm::vec3(x, y, z) * topSize;
-            if (triangleBoxOverlap(a, bb, c, bl, bl + topSize, 1e-5f * glm::length(topSize)))
-              topRefs[(size_t(z) * size_t(g.top_[1]) + size_t(y)) * size_t(g.top_[0]) + size_t(x)].push_back(t);
-          }
-    }
+    });
+    std::vector<std::vector<uint32_t>> topRefs(numTop);
+    for (const auto& list : pairs)
+      for (const auto& [cell, t] : list) topRefs[cell].push_back(t);
+    pairs.clear();
     // Octree depth per top cell: the same formula with λ2 and the cell's own count and volume.
     g.topDepth_.assign(numTop, 0);
     const float topVolume = topSize.x * topSize.y * topSize.z;
