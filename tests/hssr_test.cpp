@@ -124,6 +124,14 @@ INSTANTIATE_TEST_SUITE_P(Scenes, RealSceneHssr,
                            return n;
                          });
 
+TEST(Hssr, MatchesExhaustiveOracleAtOddResolutionsAndTopDownView) {
+  FrameOptions o;
+  o.scenePath = test::sourceDir() + "/scenes/default.json";
+  o.width = 317, o.height = 179;  // partial cells on every pyramid level
+  o.eye = glm::vec3(0.1f, 2.9f, -0.4f), o.target = glm::vec3(0.1f, 0.0f, -0.4f);  // straight down: up falls back
+  expectExact(buildFrame(o), 10000);
+}
+
 TEST(Hssr, MatchesExhaustiveOracleWithAdaptiveThickness) {
   FrameOptions o;
   o.scenePath = test::sourceDir() + "/scenes/default.json";

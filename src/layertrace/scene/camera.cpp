@@ -18,11 +18,16 @@ Camera::Camera(const CameraDesc& desc, int width, int height)
   LT_CHECK(near_ > 0.0f && far_ > near_, near_, " ", far_);
   const glm::vec3 fwd = desc.target - desc.eye;
   if (!(glm::length(fwd) > 0.0f)) inputError("camera ", desc.name, ": eye and target coincide");
-  if (!(glm::length(glm::cross(glm::normalize(fwd), desc.up)) > 1e-6f))
-    inputError("camera ", desc.name, ": up vector is parallel to the viewing direction");
+  if (!(glm::length(desc.up) > 0.0f)) inputError("camera ", desc.name, ": up vector is zero");
+  if (!(glm::length(glm::cross(glm::normalize(fwd), glm::normalize(desc.up))) > 1e-4f)) {
+    // Looking straight along `up` (e.g. straight down at a Y-up scene): use the world axis least
+    // aligned with the view as up instead of failing.
+    const glm::vec3 f = glm::abs(glm::normalize(fwd));
+    desc_.up = f.x <= f.y && f.x <= f.z ? glm::vec3(1, 0, 0) : f.y <= f.z ? glm::vec3(0, 1, 0) : glm::vec3(0, 0, 1);
+  }
   if (!(desc.fovY > 0.0f && desc.fovY < 180.0f))
     inputError("camera ", desc.name, ": fov ", desc.fovY, " is not in (0, 180) degrees");
-  view_ = glm::lookAt(desc.eye, desc.target, desc.up);
+  view_ = glm::lookAt(desc_.eye, desc_.target, desc_.up);
   viewInv_ = glm::inverse(view_);
   const float tanHalf = std::tan(glm::radians(desc.fovY) * 0.5f);
   focal_ = float(height) * 0.5f / tanHalf;

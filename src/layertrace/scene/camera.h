@@ -57,6 +57,9 @@ class Camera {
   glm::mat4 view_{1.0f}, viewInv_{1.0f}, pixelProj_{1.0f}, clipProj_{1.0f};
 };
 
+// A view looking straight along its up vector gets the world axis least aligned with the view
+// direction as up (documented fallback instead of an error).
+
 /// Camera framing the whole scene from the front-top diagonal; used when a scene has no camera.
 CameraDesc autoCamera(const Scene& scene);
 
