@@ -34,6 +34,8 @@ extract() {
 extract assimp-testmodels usr/share/assimp/models/IFC/AC14-FZK-Haus.ifc "$DATA/models/AC14-FZK-Haus.ifc"
 extract assimp-testmodels usr/share/assimp/models/glTF2/2CylinderEngine-glTF-Binary/2CylinderEngine.glb "$DATA/models/2CylinderEngine.glb"
 extract assimp-testmodels usr/share/assimp/models/Collada/teapots.DAE "$DATA/models/teapots.DAE"
+# A malformed model on which assimp's importer aborts (tests the CLI's handling of that).
+extract assimp-testmodels usr/share/assimp/models/invalid/OutOfMemory.off "$DATA/models/invalid/OutOfMemory.off"
 extract glmark2-data usr/share/glmark2/models/bunny.obj "$DATA/models/bunny.obj"
 extract embree-tools usr/share/doc/embree3/models/cornell_box.obj "$DATA/models/cornell_box.obj"
 extract embree-tools usr/share/doc/embree3/models/cornell_box.mtl "$DATA/models/cornell_box.mtl"

@@ -268,3 +268,16 @@ TEST(CliGeobench, StatsKeysAndAgreement) {
 
 }  // namespace
 }  // namespace lt
+
+namespace lt {
+namespace {
+
+// assimp's OFF importer aborts on this file (an ai_assert): still one line, status 2.
+TEST(CliErrors, ImporterCrashIsReportedAsMalformedModel) {
+  ASSERT_TRUE(test::haveFetchedScenes()) << "run scripts/fetch-scenes.sh";
+  test::TempDir dir;
+  expectRejected({"render " + test::sourceDir() + "/data/models/invalid/OutOfMemory.off", "OutOfMemory.off"}, dir);
+}
+
+}  // namespace
+}  // namespace lt

@@ -4,6 +4,13 @@
 #include <filesystem>
 #include <functional>
 
+#include <csignal>
+#include <cstdio>
+#include <cstring>
+
+#include <fcntl.h>
+#include <unistd.h>
+
 #include <assimp/Importer.hpp>
 #include <assimp/postprocess.h>
 #include <assimp/scene.h>
@@ -72,6 +79,59 @@ glm::mat4 nodeTransform(const aiScene* as, const aiString& name) {
 
 bool isQuake3(const std::string& ext) { return ext == ".pk3" || ext == ".bsp"; }
 
+// Some of assimp's importers abort (ai_assert) or crash on malformed files. While one runs, a
+// fatal signal means "this model file is malformed": report it like any bad input (one line,
+// status 2 — nothing has been written yet) instead of dying. Outside the import the default
+// handlers stay, so our own bugs are never masked.
+char gImportPath[1024];
+int gStderr = 2;  // the real stderr while the importer's own stderr chatter is silenced
+
+extern "C" void importCrashed(int) {
+  static const char head[] = "layertrace: scene ";
+  static const char tail[] = ": the model importer crashed on this file (malformed model)\n";
+  ssize_t ignored = ::write(gStderr, head, sizeof head - 1);
+  ignored = ::write(gStderr, gImportPath, std::strlen(gImportPath));
+  ignored = ::write(gStderr, tail, sizeof tail - 1);
+  (void)ignored;
+  ::_exit(2);
+}
+
+class ImportGuard {
+ public:
+  explicit ImportGuard(const std::string& path) {
+    std::strncpy(gImportPath, path.c_str(), sizeof gImportPath - 1);
+    struct sigaction sa {};
+    sa.sa_handler = importCrashed;
+    sigemptyset(&sa.sa_mask);
+    for (int i = 0; i < 4; ++i) sigaction(kSignals[i], &sa, &old_[i]);
+    // assimp prints assertion text to stderr before aborting: keep our error to one line.
+    std::fflush(stderr);
+    saved_ = ::dup(2);
+    const int devnull = ::open("/dev/null", O_WRONLY);
+    if (saved_ >= 0 && devnull >= 0) {
+      ::dup2(devnull, 2);
+      gStderr = saved_;
+    }
+    if (devnull >= 0) ::close(devnull);
+  }
+  ~ImportGuard() {
+    std::fflush(stderr);
+    if (saved_ >= 0) {
+      ::dup2(saved_, 2);
+      ::close(saved_);
+    }
+    gStderr = 2;
+    for (int i = 0; i < 4; ++i) sigaction(kSignals[i], &old_[i], nullptr);
+  }
+  ImportGuard(const ImportGuard&) = delete;
+  ImportGuard& operator=(const ImportGuard&) = delete;
+
+ private:
+  static constexpr int kSignals[4] = {SIGABRT, SIGSEGV, SIGBUS, SIGFPE};
+  struct sigaction old_[4];
+  int saved_ = -1;
+};
+
 }  // namespace
 
 Scene loadModel(const std::string& path, const glm::mat4& transform) {
@@ -89,8 +149,12 @@ Scene loadModel(const std::string& path, const glm::mat4& transform) {
   // over that; read raw (flags 0) and rebuild the triangles below.
   const unsigned flags = q3 ? 0u
                             : aiProcess_Triangulate | aiProcess_JoinIdenticalVertices | aiProcess_GenSmoothNormals |
-                                  aiProcess_SortByPType | aiProcess_ValidateDataStructure;
-  const aiScene* as = importer.ReadFile(path, flags);
+                                  aiProcess_SortByPType;  // our reader checks indices itself; assimp's validation rejects files with an empty mesh
+  const aiScene* as = nullptr;
+  {
+    const ImportGuard guard(path);
+    as = importer.ReadFile(path, flags);
+  }
   if (!as || !as->mRootNode) {
     std::string why = importer.GetErrorString();
     std::replace(why.begin(), why.end(), '\n', ' ');
@@ -110,7 +174,7 @@ Scene loadModel(const std::string& path, const glm::mat4& transform) {
   std::function<void(const aiNode*, const glm::mat4&)> visit = [&](const aiNode* node, const glm::mat4& parent) {
     const glm::mat4 m = parent * toGlm(node->mTransformation);
     const glm::mat3 nm = glm::inverseTranspose(glm::mat3(m));
-    for (unsigned k = 0; k < node->mNumMeshes; ++k) {
+    for (unsigned k = 0; k < node->mNumMeshes && node->mMeshes; ++k) {
       if (node->mMeshes[k] >= as->mNumMeshes) continue;
       const aiMesh* mesh = as->mMeshes[node->mMeshes[k]];
       if (!mesh || !mesh->mVertices) continue;
@@ -134,9 +198,9 @@ Scene loadModel(const std::string& path, const glm::mat4& transform) {
         }
         continue;
       }
-      for (unsigned f = 0; f < mesh->mNumFaces; ++f) {
+      for (unsigned f = 0; f < mesh->mNumFaces && mesh->mFaces; ++f) {
         const aiFace& face = mesh->mFaces[f];
-        if (face.mNumIndices != 3) continue;  // points and lines are not surfaces
+        if (face.mNumIndices != 3 || !face.mIndices) continue;  // points and lines are not surfaces
         bool ok = true;
         for (int c = 0; c < 3; ++c) ok = ok && face.mIndices[c] < mesh->mNumVertices;
         if (!ok) inputError("scene ", path, ": face index out of range in mesh ", node->mMeshes[k]);
@@ -144,7 +208,8 @@ Scene loadModel(const std::string& path, const glm::mat4& transform) {
         scene.triMaterial.push_back(material);
       }
     }
-    for (unsigned c = 0; c < node->mNumChildren; ++c) visit(node->mChildren[c], m);
+    for (unsigned c = 0; c < node->mNumChildren && node->mChildren; ++c)
+      if (node->mChildren[c]) visit(node->mChildren[c], m);
   };
   visit(as->mRootNode, transform);
 
