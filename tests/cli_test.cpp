@@ -19,14 +19,17 @@ nlohmann::json readJson(const std::string& path) {
   return nlohmann::json::parse(in);
 }
 
+/// Runs the CLI and requires success (the arguments and stderr are shown otherwise).
+void expectRuns(const std::string& args) {
+  std::string err;
+  ASSERT_EQ(test::runCli(args, &err), 0) << args << "\n" << err;
+}
+
 TEST(CliLayers, WritesImagesAndStatsWithTheContractKeys) {
   test::TempDir dir;
   std::string err;
-  ASSERT_EQ(test::runCli("layers " + kDefault + " --width 320 --height 180 --layers 3 --verify --quiet -o " + (dir / "out") +
-                             " --stats " + (dir / "s.json"),
-                         &err),
-            0)
-      << err;
+  ASSERT_NO_FATAL_FAILURE(expectRuns("layers " + kDefault + " --width 320 --height 180 --layers 3 --verify --quiet -o " + (dir / "out") +
+                             " --stats " + (dir / "s.json")));
   for (const char* f : {"layer0_albedo.png", "layer2_normal.png", "layer1_depth.png", "depth_complexity.png", "depth_complexity.exr"})
     EXPECT_TRUE(fs::exists(dir / ("out/" + std::string(f)))) << f;
   const auto j = readJson(dir / "s.json");
@@ -123,12 +126,11 @@ std::string slurp(const std::string& p) {
 
 TEST(CliRender, HssrStatsKeysAndSameBytesForOneAndTwoThreads) {
   test::TempDir dir;
-  std::string err;
   for (int threads : {1, 2}) {
     const std::string n = std::to_string(threads);
-    ASSERT_EQ(test::runCli("render " + kDefault + " --width 240 --height 136 --tracer hssr --effect reflection --bounces 2"
+    ASSERT_NO_FATAL_FAILURE(expectRuns("render " + kDefault + " --width 240 --height 136 --tracer hssr --effect reflection --bounces 2"
                            " --check-exhaustive --quiet --threads " + n + " -o " + (dir / ("r" + n + ".png")) +
-                           " --stats " + (dir / ("s" + n + ".json")) + " --pixelstats " + (dir / "ps"), &err), 0) << err;
+                           " --stats " + (dir / ("s" + n + ".json")) + " --pixelstats " + (dir / "ps")));
   }
   EXPECT_EQ(slurp(dir / "r1.png"), slurp(dir / "r2.png"));
   const auto j = readJson(dir / "s2.json");
@@ -160,17 +162,13 @@ namespace {
 
 TEST(CliRender, EveryEffectAndTracerGivesTheSameBytesForOneAndTwoThreads) {
   test::TempDir dir;
-  std::string err;
   for (const char* tracer : {"ssr", "ssr-layers", "embree", "grid"})
     for (const char* effect : {"reflection", "refraction", "ao", "shadow", "shade"}) {
       std::string bytes[2];
       for (int threads : {1, 2}) {
         const std::string out = dir / (std::string(tracer) + effect + std::to_string(threads) + ".png");
-        ASSERT_EQ(test::runCli("render " + kDefault + " --width 160 --height 90 --quiet --tracer " + tracer + " --effect " + effect +
-                                   " --stride 2 --jitter 0.5 --ao-samples 4 --threads " + std::to_string(threads) + " -o " + out,
-                               &err),
-                  0)
-            << err;
+        ASSERT_NO_FATAL_FAILURE(expectRuns("render " + kDefault + " --width 160 --height 90 --quiet --tracer " + tracer + " --effect " + effect +
+                                   " --stride 2 --jitter 0.5 --ao-samples 4 --threads " + std::to_string(threads) + " -o " + out));
         bytes[threads - 1] = slurp(out);
       }
       EXPECT_EQ(bytes[0], bytes[1]) << tracer << " " << effect;
@@ -186,12 +184,8 @@ namespace {
 
 TEST(CliCompare, WritesTheCompareSchemaImagesAndReport) {
   test::TempDir dir;
-  std::string err;
-  ASSERT_EQ(test::runCli("compare " + kDefault + " --width 200 --height 112 --tracers ssr,hssr --quiet -o " + (dir / "c") +
-                             " --report " + (dir / "r") + " --stats " + (dir / "s.json"),
-                         &err),
-            0)
-      << err;
+  ASSERT_NO_FATAL_FAILURE(expectRuns("compare " + kDefault + " --width 200 --height 112 --tracers ssr,hssr --quiet -o " + (dir / "c") +
+                             " --report " + (dir / "r") + " --stats " + (dir / "s.json")));
   const auto j = readJson(dir / "c/compare.json");
   EXPECT_EQ(readJson(dir / "s.json"), j);
   for (const char* t : {"ssr", "hssr"}) {
@@ -214,13 +208,9 @@ TEST(CliCompare, WritesTheCompareSchemaImagesAndReport) {
 
 TEST(CliBench, WritesCsvJsonWithMachineBuildAndDate) {
   test::TempDir dir;
-  std::string err;
   for (const char* e : {"tau", "memory"}) {
-    ASSERT_EQ(test::runCli(std::string("bench ") + kDefault + " --experiment " + e + " --width 160 --height 90 --repeat 1 --quiet -o " +
-                               (dir / "b"),
-                           &err),
-              0)
-        << err;
+    ASSERT_NO_FATAL_FAILURE(expectRuns(std::string("bench ") + kDefault + " --experiment " + e + " --width 160 --height 90 --repeat 1 --quiet -o " +
+                               (dir / "b")));
     const auto j = readJson(dir / ("b/" + std::string(e) + ".json"));
     for (const char* k : {"machine", "build_type", "date", "scene", "rows", "repeat"}) EXPECT_TRUE(j.contains(k)) << e << " " << k;
     EXPECT_TRUE(fs::exists(dir / ("b/" + std::string(e) + ".csv")));
@@ -246,12 +236,8 @@ namespace {
 
 TEST(CliGeobench, StatsKeysAndAgreement) {
   test::TempDir dir;
-  std::string err;
-  ASSERT_EQ(test::runCli("geobench " + kDefault + " --width 160 --height 90 --repeat 1 --sweep --quiet -o " + (dir / "g") +
-                             " --stats " + (dir / "s.json"),
-                         &err),
-            0)
-      << err;
+  ASSERT_NO_FATAL_FAILURE(expectRuns("geobench " + kDefault + " --width 160 --height 90 --repeat 1 --sweep --quiet -o " + (dir / "g") +
+                             " --stats " + (dir / "s.json")));
   const auto j = readJson(dir / "s.json");
   for (const char* t : {"grid", "embree"})
     for (const char* k : {"build_ms", "memory_bytes", "mrays_primary", "mrays_ao", "mrays_diffuse", "agreement_primary",

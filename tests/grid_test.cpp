@@ -190,12 +190,7 @@ TEST_P(RealSceneGrid, AgreesWithEmbree) {
 INSTANTIATE_TEST_SUITE_P(Scenes, RealSceneGrid,
                          ::testing::Values(std::make_pair("fzk-haus.json", "interior"), std::make_pair("am-thornish.json", "hall"),
                                            std::make_pair("engine.json", "interior"), std::make_pair("bunny.json", "front")),
-                         [](const auto& p) {
-                           std::string n = p.param.first;
-                           n = n.substr(0, n.find('.'));
-                           std::replace(n.begin(), n.end(), '-', '_');
-                           return n;
-                         });
+                         [](const auto& p) { return test::sceneCaseName(p.param.first); });
 
 }  // namespace
 }  // namespace lt

@@ -36,12 +36,7 @@ TEST_P(RealSceneVerify, FragmentListsMatchEmbreeAllHits) {
 INSTANTIATE_TEST_SUITE_P(Scenes, RealSceneVerify,
                          ::testing::Values(VerifyCase{"fzk-haus.json", "interior"}, VerifyCase{"am-thornish.json", "hall"},
                                            VerifyCase{"engine.json", "interior"}),
-                         [](const auto& p) {
-                           std::string n = std::string(p.param.scene);
-                           n = n.substr(0, n.find('.'));
-                           std::replace(n.begin(), n.end(), '-', '_');
-                           return n;
-                         });
+                         [](const auto& p) { return test::sceneCaseName(p.param.scene); });
 
 }  // namespace
 }  // namespace lt

@@ -90,8 +90,11 @@ TEST(SceneLoad, RandomBytesAreInputErrorsNeverCrashes) {
       const std::string path = dir / (std::string("random") + std::to_string(trial) + ext);
       std::ofstream(path, std::ios::binary) << bytes;
       try {
-        loadScene(path);
-        // Some parsers accept noise; then it must at least have produced a valid scene.
+        // Some parsers accept noise; then it must still be a valid scene (finalize() checks
+        // indices and finite positions).
+        const Scene s = loadScene(path);
+        EXPECT_GT(s.triangleCount(), 0u) << path;
+        EXPECT_GT(s.bounds().diagonal(), 0.0f) << path;
       } catch (const InputError& e) {
         EXPECT_NE(std::string(e.what()).find(path), std::string::npos) << e.what();
       }

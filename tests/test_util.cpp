@@ -1,5 +1,6 @@
 #include "test_util.h"
 
+#include <algorithm>
 #include <array>
 #include <cstdio>
 #include <fstream>
@@ -59,6 +60,12 @@ void addTriangle(Scene& s, glm::vec3 a, glm::vec3 b, glm::vec3 c, uint32_t mater
   s.triangles.push_back({base, base + 1, base + 2});
   s.triMaterial.push_back(material);
   if (s.materials.empty()) s.materials.push_back(Material{"default"});
+}
+
+std::string sceneCaseName(const std::string& sceneFile) {
+  std::string n = sceneFile.substr(0, sceneFile.find('.'));
+  std::replace(n.begin(), n.end(), '-', '_');
+  return n;
 }
 
 uint64_t testSeed() {

@@ -36,6 +36,9 @@ CameraDesc originCamera(float fovY = 60.0f, float near = 0.01f, float far = 100.
 /// Adds a triangle to a scene with one material.
 void addTriangle(Scene& s, glm::vec3 a, glm::vec3 b, glm::vec3 c, uint32_t material = 0);
 
+/// gtest parameter name of a real-scene case: "fzk-haus.json" → "fzk_haus".
+std::string sceneCaseName(const std::string& sceneFile);
+
 /// Seed for randomized tests: LAYERTRACE_TEST_SEED or a fixed default; printed on failure.
 uint64_t testSeed();
 

@@ -72,6 +72,12 @@ void addFrameOptions(CLI::App* app, lt::RunOptions& run, RawFrameOptions& raw) {
   app->add_flag("--quiet", run.quiet, "no progress or summary output");
 }
 
+void addGridOptions(CLI::App* app, lt::GridConfig& g) {
+  app->add_option("--lambda1", g.lambda1, "grid: top-level density (seed 003)")->capture_default_str();
+  app->add_option("--lambda2", g.lambda2, "grid: second-level density (seed 003)")->capture_default_str();
+  app->add_flag("--partial-expansion", g.partialExpansion, "grid: also expand into neighbours whose swept part holds only shared primitives");
+}
+
 void addTracerOptions(CLI::App* app, lt::TracerOptions& t) {
   app->add_option("--stride", t.ssr.stride, "ssr: pixels per step")->capture_default_str();
   app->add_option("--jitter", t.ssr.jitter, "ssr: start offset in strides, [0,1]")->capture_default_str();
@@ -79,9 +85,7 @@ void addTracerOptions(CLI::App* app, lt::TracerOptions& t) {
   app->add_option("--tau", t.pyramid.tau, "hssr: merge threshold in pixel footprints")->capture_default_str();
   app->add_option("--levels", t.pyramid.levels, "hssr: pyramid levels incl. level 0")->capture_default_str();
   app->add_option("--n-up", t.hssr.nUp, "hssr: cells without overlap before ascending")->capture_default_str();
-  app->add_option("--lambda1", t.grid.lambda1, "grid: top-level density (seed 003)")->capture_default_str();
-  app->add_option("--lambda2", t.grid.lambda2, "grid: second-level density (seed 003)")->capture_default_str();
-  app->add_flag("--partial-expansion", t.grid.partialExpansion, "grid: also expand into neighbours whose swept part holds only shared primitives");
+  addGridOptions(app, t.grid);
 }
 
 void addEffectOptions(CLI::App* app, lt::EffectConfig& e, std::string& effectName) {
@@ -160,9 +164,7 @@ int main(int argc, char** argv) {
   RawFrameOptions geobenchRaw;
   CLI::App* geobenchCmd = app.add_subcommand("geobench", "geometric tracers (grid vs embree): build, memory, MRays/s, agreement");
   addFrameOptions(geobenchCmd, geobench.run, geobenchRaw);
-  geobenchCmd->add_option("--lambda1", geobench.grid.lambda1, "grid: top-level density (seed 003)")->capture_default_str();
-  geobenchCmd->add_option("--lambda2", geobench.grid.lambda2, "grid: second-level density (seed 003)")->capture_default_str();
-  geobenchCmd->add_flag("--partial-expansion", geobench.grid.partialExpansion, "grid: partial cell expansion");
+  addGridOptions(geobenchCmd, geobench.grid);
   geobenchCmd->add_option("--repeat", geobench.repeat, "runs per timing (the median is reported)")->capture_default_str();
   geobenchCmd->add_flag("--sweep", geobench.sweep, "also sweep lambda1 x lambda2: build time vs traversal time");
 

@@ -125,6 +125,7 @@ int runBench(const BenchOptions& o) {
                ": unknown (use stride, layers, tau, memory, resolution, threads)");
   if (o.repeat < 1 || o.repeat > 100) inputError("--repeat ", o.repeat, ": must be between 1 and 100");
   validateTracerOptions(o.options);
+  validateEffectConfig(o.effect);
   const std::string outDir = o.run.output.empty() ? "out/bench" : o.run.output;
   EffectConfig ec = o.effect;
   ec.seed = o.run.seed;

@@ -51,7 +51,7 @@ int runCompare(const CompareOptions& o) {
   for (const std::string& t : o.tracers)
     if (!isKnownTracer(t)) inputError("--tracers ", t, ": unknown (use ssr, ssr-layers, hssr, embree, grid)");
   validateTracerOptions(o.options);
-  if (o.effect.bounces < 1 || o.effect.bounces > 16) inputError("--bounces ", o.effect.bounces, ": must be between 1 and 16");
+  validateEffectConfig(o.effect);
   Frame frame = buildFrame(o.run.frame);
   EffectConfig ec = o.effect;
   ec.seed = o.run.seed;

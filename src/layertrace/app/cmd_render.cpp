@@ -40,7 +40,7 @@ int runRender(const RenderOptions& o) {
   const bool screen = isScreenTracer(o.tracer);
   if (o.checkExhaustive && !screen) inputError("--check-exhaustive: needs an image-space tracer, not ", o.tracer);
   validateTracerOptions(o.tracers);
-  if (o.effect.bounces < 1 || o.effect.bounces > 16) inputError("--bounces ", o.effect.bounces, ": must be between 1 and 16");
+  validateEffectConfig(o.effect);
   const auto t0 = std::chrono::steady_clock::now();
   Frame frame = buildFrame(o.run.frame);
   const BuiltTracer built = buildTracer(o.tracer, frame, o.tracers);

@@ -37,12 +37,17 @@ int insertionSortK(const FragmentLists& lists, uint32_t head, int k, Entry* out)
   return n;
 }
 
-/// Minimum separation: sort the whole list, then keep a fragment only if it lies at least
-/// `sep` behind the previously kept one (McGuire & Mara; seed 000 §4.2 notes the risk).
-int separatedK(const FragmentLists& lists, uint32_t head, int k, float sep, std::vector<Entry>& all, Entry* out) {
+/// The pixel's whole list sorted front to back (ties keep list order).
+void collectSorted(const FragmentLists& lists, uint32_t head, std::vector<Entry>& all) {
   all.clear();
   for (uint32_t i = head; i != kNullIndex; i = lists.nodes[i].next) all.push_back({lists.nodes[i].depth, i});
   std::stable_sort(all.begin(), all.end(), [](const Entry& a, const Entry& b) { return a.depth < b.depth; });
+}
+
+/// Minimum separation: sort the whole list, then keep a fragment only if it lies at least
+/// `sep` behind the previously kept one (McGuire & Mara; seed 000 §4.2 notes the risk).
+int separatedK(const FragmentLists& lists, uint32_t head, int k, float sep, std::vector<Entry>& all, Entry* out) {
+  collectSorted(lists, head, all);
   int n = 0;
   for (const Entry& e : all) {
     if (n == k) break;
@@ -55,9 +60,7 @@ int separatedK(const FragmentLists& lists, uint32_t head, int k, float sep, std:
 /// Adaptive thickness (seed 000 §4.2): sort the whole list; a fragment whose front lies within
 /// the previous kept interval extends that interval; otherwise it opens the next layer.
 int adaptiveK(const FragmentLists& lists, uint32_t head, int k, float thickness, std::vector<Entry>& all, Entry* out, float* backs) {
-  all.clear();
-  for (uint32_t i = head; i != kNullIndex; i = lists.nodes[i].next) all.push_back({lists.nodes[i].depth, i});
-  std::stable_sort(all.begin(), all.end(), [](const Entry& a, const Entry& b) { return a.depth < b.depth; });
+  collectSorted(lists, head, all);
   int n = 0;
   for (const Entry& e : all) {
     if (n > 0 && e.depth <= backs[n - 1]) {

@@ -3,7 +3,6 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
-#include <random>
 
 #include <glm/geometric.hpp>
 #include <glm/gtc/constants.hpp>
@@ -171,13 +170,20 @@ class Renderer {
         return c;
       }
       case Effect::AO: {
-        std::mt19937_64 rng(config_.seed * 0x9E3779B97F4A7C15ull + uint64_t(y) * 65537ull + uint64_t(x));
-        std::uniform_real_distribution<float> u(0.0f, 1.0f);
+        // One splitmix64 stream per pixel: deterministic for any thread count, and cheap to
+        // seed (a Mersenne Twister per pixel would cost more than its rays).
+        uint64_t state = config_.seed * 0x9E3779B97F4A7C15ull + uint64_t(y) * 65537ull + uint64_t(x);
+        auto u = [&state] {
+          uint64_t z = (state += 0x9E3779B97F4A7C15ull);
+          z = (z ^ (z >> 30)) * 0xBF58476D1CE4E5B9ull;
+          z = (z ^ (z >> 27)) * 0x94D049BB133111EBull;
+          return float((z ^ (z >> 31)) >> 40) * (1.0f / 16777216.0f);  // 24 bits → [0, 1)
+        };
         const glm::vec3 t = glm::normalize(std::abs(s.n.x) > 0.5f ? glm::cross(s.n, {0, 1, 0}) : glm::cross(s.n, {1, 0, 0}));
         const glm::vec3 bt = glm::cross(s.n, t);
         int open = 0;
         for (int k = 0; k < config_.aoSamples; ++k) {
-          const float r1 = u(rng), r2 = u(rng), r = std::sqrt(r1), phi = 2.0f * glm::pi<float>() * r2;
+          const float r1 = u(), r2 = u(), r = std::sqrt(r1), phi = 2.0f * glm::pi<float>() * r2;
           const glm::vec3 d = t * (r * std::cos(phi)) + bt * (r * std::sin(phi)) + s.n * std::sqrt(std::max(0.0f, 1.0f - r1));
           open += !trace(ray(s.p, d, aoRadius_), a, it, iv).hit;
         }
@@ -226,12 +232,16 @@ class Renderer {
 
 }  // namespace
 
-EffectResult renderEffect(const Frame& frame, const Tracer& tracer, const EffectConfig& config, const Tracer* oracle,
-                          const Tracer* reference) {
+void validateEffectConfig(const EffectConfig& config) {
   if (config.bounces < 1 || config.bounces > 16) inputError("--bounces ", config.bounces, ": must be between 1 and 16");
   if (config.aoSamples < 1 || config.aoSamples > 4096) inputError("--ao-samples ", config.aoSamples, ": must be between 1 and 4096");
-  if (config.aoRadius < 0.0f) inputError("--ao-radius ", config.aoRadius, ": must be >= 0");
-  if (config.maxDistance < 0.0f) inputError("--max-distance ", config.maxDistance, ": must be >= 0");
+  if (!(config.aoRadius >= 0.0f)) inputError("--ao-radius ", config.aoRadius, ": must be >= 0");
+  if (!(config.maxDistance >= 0.0f)) inputError("--max-distance ", config.maxDistance, ": must be >= 0");
+}
+
+EffectResult renderEffect(const Frame& frame, const Tracer& tracer, const EffectConfig& config, const Tracer* oracle,
+                          const Tracer* reference) {
+  validateEffectConfig(config);
   const int W = frame.camera.width(), H = frame.camera.height();
   EffectResult res;
   res.image = Image(W, H);

@@ -48,6 +48,10 @@ struct EffectResult {
   Image classImage;
 };
 
+/// Throws InputError naming the option for an invalid value (commands call it before the
+/// expensive frame build; renderEffect calls it again).
+void validateEffectConfig(const EffectConfig& config);
+
 /// Renders the effect with `tracer`. When `oracle` is given every ray is traced by it too and
 /// the answers compared (same hit fragment, or both miss); when `reference` (a geometric
 /// tracer) is given every ray is traced by it too and classified (eval/classify.h).
