@@ -15,7 +15,7 @@ build: deps
 	cmake --build $(BUILD) -j $(JOBS)
 
 build-asan: deps
-	cmake -S . -B $(ASAN) -DCMAKE_BUILD_TYPE=Debug -DLAYERTRACE_SANITIZE=ON -DLAYERTRACE_BENCH=OFF >/dev/null
+	cmake -S . -B $(ASAN) -DCMAKE_BUILD_TYPE=Debug -DLAYERTRACE_SANITIZE=ON -DLAYERTRACE_COUNTERS=OFF -DLAYERTRACE_BENCH=OFF >/dev/null
 	cmake --build $(ASAN) -j $(JOBS) --target layertrace_tests
 
 fetch: deps
@@ -30,6 +30,8 @@ run: build
 	@echo "wrote $(OUT)/default_hssr_reflection.png (+ .json), $(OUT)/layers/ and $(OUT)/layers.json"
 
 # The whole suite: Release tests (with the fetched scenes) and the unit tests under ASan+UBSan.
+# The sanitizer build also compiles the per-ray counters out (LAYERTRACE_COUNTERS=OFF), so
+# both configurations of the tracers are built and tested.
 test: build build-asan fetch
 	cd $(BUILD) && ctest --output-on-failure -j $(JOBS)
 	cd $(ASAN) && ASAN_OPTIONS=detect_leaks=1 UBSAN_OPTIONS=halt_on_error=1:print_stacktrace=1 \

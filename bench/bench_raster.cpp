@@ -8,7 +8,7 @@
 #include <tbb/global_control.h>
 #include <tbb/parallel_for.h>
 
-#include "layertrace/app/frame.h"
+#include "layertrace/pipeline/frame.h"
 #include "layertrace/geometry/embree_scene.h"
 
 namespace {

@@ -6,7 +6,7 @@
 #include <glm/geometric.hpp>
 #include <tbb/parallel_for.h>
 
-#include "layertrace/app/frame.h"
+#include "layertrace/pipeline/frame.h"
 #include "layertrace/geometry/embree_scene.h"
 #include "layertrace/geometry/irregular_grid.h"
 #include "layertrace/scene/load.h"

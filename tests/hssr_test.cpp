@@ -8,7 +8,7 @@
 
 #include <glm/geometric.hpp>
 
-#include "layertrace/app/frame.h"
+#include "layertrace/pipeline/frame.h"
 #include "layertrace/screen/hssr_tracer.h"
 #include "layertrace/screen/interval_pyramid.h"
 #include "test_util.h"
@@ -16,42 +16,12 @@
 namespace lt {
 namespace {
 
-std::vector<ScreenRay> sampleRays(const Frame& f, size_t count, uint64_t seed) {
-  std::mt19937_64 rng(seed);
-  std::uniform_int_distribution<int> px(0, f.camera.width() - 1), py(0, f.camera.height() - 1);
-  std::normal_distribution<float> g;
-  std::vector<ScreenRay> rays;
-  const float maxDist = f.scene.bounds().diagonal();
-  while (rays.size() < count) {
-    const int x = px(rng), y = py(rng);
-    if (f.layers.countAt(x, y) == 0) continue;
-    const FragmentNode& frag = f.layers.pixel(x, y)[0];
-    ScreenRay r;
-    r.origin = f.camera.rayThrough({x + 0.5f, y + 0.5f}) * frag.depth;
-    const glm::vec3 n = decodeOctahedral(frag.normal);
-    const glm::vec3 v = glm::normalize(r.origin);
-    if (rays.size() % 4 == 3) {
-      // Exactly diagonal or axis-parallel screen lines through pixel corners (hssr-pitfalls §7):
-      // a direction parallel to the image plane projects to a line of the same direction.
-      static const glm::vec3 dirs[8] = {{1, 1, 0}, {1, -1, 0}, {-1, 1, 0}, {-1, -1, 0}, {1, 0, 0}, {-1, 0, 0}, {0, 1, 0}, {0, -1, 0}};
-      r.dir = glm::normalize(dirs[rays.size() / 4 % 8]);
-    } else if (rays.size() % 2 == 0) {
-      r.dir = glm::reflect(v, glm::dot(n, v) > 0.0f ? -n : n);
-    } else {
-      r.dir = glm::normalize(glm::vec3(g(rng), g(rng), g(rng)));
-    }
-    r.maxDistance = maxDist;
-    rays.push_back(r);
-  }
-  return rays;
-}
-
 void expectExact(const Frame& f, size_t count) {
   const uint64_t seed = test::testSeed();
-  std::vector<ScreenRay> rays = sampleRays(f, count, seed);
+  std::vector<Ray> rays = test::sampleRays(f, count, seed);
   const IntervalPyramid one = buildIntervalPyramid(f.layers, f.camera, PyramidConfig{1, 25.0f});
   const HssrTracer oracle(f.camera, f.layers, one, HssrConfig{1, 1});
-  auto traceAll = [&](const std::vector<ScreenRay>& rs) {
+  auto traceAll = [&](const std::vector<Ray>& rs) {
     std::vector<TraceHit> out(rs.size());
     tbb::parallel_for(size_t(0), rs.size(), [&](size_t i) {
       RayCounters c;
@@ -62,7 +32,7 @@ void expectExact(const Frame& f, size_t count) {
   std::vector<TraceHit> truth = traceAll(rays);
   // Second bounces: mirror rays from the oracle's hits (origins on deeper layers, arbitrary
   // screen positions — what multi-bounce effects trace).
-  std::vector<ScreenRay> second;
+  std::vector<Ray> second;
   for (size_t i = 0; i < rays.size(); ++i) {
     if (!truth[i].hit) continue;
     const glm::vec3 n = glm::dot(truth[i].normal, rays[i].dir) > 0.0f ? -truth[i].normal : truth[i].normal;

@@ -1,7 +1,7 @@
 // The fetched real scenes (scripts/fetch-scenes.sh; `make test` fetches them first).
 #include <filesystem>
 
-#include "layertrace/app/frame.h"
+#include "layertrace/pipeline/frame.h"
 #include "layertrace/eval/verify_layers.h"
 #include "layertrace/geometry/embree_scene.h"
 #include "test_util.h"

@@ -8,8 +8,8 @@
 #include <glm/trigonometric.hpp>
 #include <tbb/global_control.h>
 
-#include "layertrace/app/frame.h"
-#include "layertrace/geometry/embree_tracer.h"
+#include "layertrace/pipeline/frame.h"
+#include "layertrace/geometry/geometric_tracer.h"
 #include "layertrace/scene/load.h"
 #include "layertrace/screen/hssr_tracer.h"
 #include "layertrace/screen/screen_segment.h"
@@ -48,9 +48,9 @@ Frame floorAndWall(int W, int H, int k = 4, float thickness = 0.1f, float tilt =
   return f;
 }
 
-ScreenRay mirrorRayAt(const Frame& f, int x, int y) {
+Ray mirrorRayAt(const Frame& f, int x, int y) {
   const FragmentNode& fr = f.layers.pixel(x, y)[0];
-  ScreenRay r;
+  Ray r;
   r.origin = f.camera.rayThrough({x + 0.5f, y + 0.5f}) * fr.depth;
   const glm::vec3 v = glm::normalize(r.origin), n = decodeOctahedral(fr.normal);
   r.dir = glm::reflect(v, glm::dot(n, v) > 0.0f ? -n : n);
@@ -86,7 +86,7 @@ TEST(ScreenTracers, MirrorFloorHitsTheAnalyticWallPixel) {
       for (int x = 0; x < W; x += 3) {
         ASSERT_GT(f.layers.countAt(x, y), 0);
         if (std::abs(decodeOctahedral(f.layers.pixel(x, y)[0].normal).y) < 0.9f) continue;  // the wall, not the floor
-        const ScreenRay r = mirrorRayAt(f, x, y);
+        const Ray r = mirrorRayAt(f, x, y);
         // The reflected ray comes from the camera mirrored in the floor, (0, -2, 0) in world space.
         const glm::vec3 mirrored(0, -2, 0), p = f.camera.toWorld(r.origin);
         const glm::vec3 w = mirrored + (p - mirrored) * (-kWallDistance / p.z);
@@ -122,7 +122,7 @@ TEST(ScreenTracers, RaysTowardTheCameraPassBehindTheNearPlaneAndMiss) {
   const Tracers t(f);
   for (const auto& tracer : t.all)
     for (int x = 5; x < 160; x += 10) {
-      ScreenRay r;
+      Ray r;
       r.origin = f.camera.rayThrough({x + 0.5f, 10.5f}) * f.layers.pixel(x, 10)[0].depth;  // on the wall
       r.dir = glm::normalize(glm::vec3(0.05f, 0.02f, 1.0f));
       r.maxDistance = 100.0f;
@@ -145,14 +145,14 @@ TEST(ScreenTracers, ThicknessDecidesBetweenPassingBehindAndThrough) {
   for (const auto& tracer : t.all) {
     if (std::string(tracer->name()) == "embree") continue;  // geometry has no thickness
     // Through: aim at the board's centre (depth 5 reached inside its pixels).
-    ScreenRay through{start, glm::normalize(glm::vec3(0.0f, 1.0f, -5.0f) - start), 100.0f};
+    Ray through{start, glm::normalize(glm::vec3(0.0f, 1.0f, -5.0f) - start), 100.0f};
     RayCounters c;
     const TraceHit h = tracer->trace(through, c);
     ASSERT_TRUE(h.hit) << tracer->name();
     EXPECT_NEAR(-h.point.z, 5.0f, 0.05f);
     // Behind: a ray that is beyond depth 5.5 whenever it is over the board's pixels. It rises
     // from the floor far behind the board: it passes the board's screen region at depths 6–9.
-    ScreenRay behind{glm::vec3(0.0f, -1.0f, -6.0f), glm::normalize(glm::vec3(0.2f, 1.0f, -0.4f)), 3.0f};
+    Ray behind{glm::vec3(0.0f, -1.0f, -6.0f), glm::normalize(glm::vec3(0.2f, 1.0f, -0.4f)), 3.0f};
     EXPECT_FALSE(tracer->trace(behind, c).hit) << tracer->name();
   }
 }
@@ -171,7 +171,7 @@ TEST(ScreenTracers, LayersFindSurfacesHiddenBehindTheFrontLayer) {
   // From the floor between occluder and hidden quad (behind the occluder's depth), straight
   // at the hidden quad: every pixel it crosses shows the occluder in front.
   const glm::vec3 start(0.5f, -1.0f, -6.0f);
-  const ScreenRay r{start, glm::normalize(glm::vec3(0.0f, 1.0f, -8.0f) - start), 100.0f};
+  const Ray r{start, glm::normalize(glm::vec3(0.0f, 1.0f, -8.0f) - start), 100.0f};
   for (const auto& tracer : t.all) {
     RayCounters c;
     const TraceHit h = tracer->trace(r, c);
@@ -185,15 +185,15 @@ TEST(ScreenTracers, LayersFindSurfacesHiddenBehindTheFrontLayer) {
   }
 }
 
-std::vector<ScreenRay> randomRays(const Frame& f, size_t n, uint64_t seed) {
+std::vector<Ray> randomRays(const Frame& f, size_t n, uint64_t seed) {
   std::mt19937_64 rng(seed);
   std::uniform_int_distribution<int> px(0, f.camera.width() - 1), py(0, f.camera.height() - 1);
   std::normal_distribution<float> g;
-  std::vector<ScreenRay> rays;
+  std::vector<Ray> rays;
   while (rays.size() < n) {
     const int x = px(rng), y = py(rng);
     if (!f.layers.countAt(x, y)) continue;
-    ScreenRay r = mirrorRayAt(f, x, y);
+    Ray r = mirrorRayAt(f, x, y);
     if (rays.size() % 2) r.dir = glm::normalize(glm::vec3(g(rng), g(rng), g(rng)));
     r.maxDistance = f.scene.bounds().diagonal();
     rays.push_back(r);
@@ -216,7 +216,7 @@ TEST(ScreenTracers, SsrLayersReportsNoFalsePositives) {
     sc.stride = stride;
     const SsrTracer ssr(f.camera, f.layers, sc);
     int hits = 0;
-    for (const ScreenRay& r : randomRays(f, 20000, seed)) {
+    for (const Ray& r : randomRays(f, 20000, seed)) {
       RayCounters c;
       const TraceHit h = ssr.trace(r, c);
       if (!h.hit) continue;
@@ -257,7 +257,7 @@ TEST(ScreenTracers, SsrSkipRateAgainstTheExhaustiveOracleIsMeasured) {
     sc.stride = stride;
     const SsrTracer ssr(f.camera, f.layers, sc);
     size_t oracleHits = 0, skipped = 0, differ = 0;
-    for (const ScreenRay& r : randomRays(f, 20000, test::testSeed())) {
+    for (const Ray& r : randomRays(f, 20000, test::testSeed())) {
       RayCounters c;
       const TraceHit a = oracle.trace(r, c), b = ssr.trace(r, c);
       oracleHits += a.hit;
@@ -280,7 +280,7 @@ TEST(ScreenTracers, SsrSkipRateAgainstTheExhaustiveOracleIsMeasured) {
 namespace lt {
 namespace {
 
-RayClass classifyWith(const Tracer& tracer, const Tracer& reference, const Frame& f, const ScreenRay& r) {
+RayClass classifyWith(const Tracer& tracer, const Tracer& reference, const Frame& f, const Ray& r) {
   RayCounters c;
   return classifyRay(tracer.trace(r, c), reference.trace(r, c), f.camera, f.layers, f.thickness);
 }
@@ -295,7 +295,7 @@ TEST(Classify, ReflectionOfSomethingOffScreenIsAnInformationMiss) {
   for (int y = 100; y < 180; y += 4)
     for (int x = 20; x < 300; x += 20) {
       if (std::abs(decodeOctahedral(f.layers.pixel(x, y)[0].normal).y) < 0.9f) continue;
-      const ScreenRay r = mirrorRayAt(f, x, y);
+      const Ray r = mirrorRayAt(f, x, y);
       const RayClass c = classifyWith(hssr, embree, f, r);
       RayCounters rc;
       const TraceHit truth = embree.trace(r, rc);
@@ -325,7 +325,7 @@ Frame hiddenQuadFrame(int k) {
 
 TEST(Classify, SurfaceBehindTheFrontLayerIsInformationMissWithOneLayerCorrectHitWithFour) {
   const glm::vec3 start(0.5f, -1.0f, -6.0f);
-  const ScreenRay r{start, glm::normalize(glm::vec3(0.0f, 1.0f, -8.0f) - start), 100.0f};
+  const Ray r{start, glm::normalize(glm::vec3(0.0f, 1.0f, -8.0f) - start), 100.0f};
   for (int k : {1, 4}) {
     const Frame f = hiddenQuadFrame(k);
     const Tracers t(f);
@@ -350,7 +350,7 @@ TEST(Classify, LargeStrideSkippingAThinPoleIsAFalseMiss) {
   for (int i = 0; i < 16; ++i) {
     // Horizontal rays at the pole's depth, starting left of it at varying offsets.
     const glm::vec3 start(-1.5f - 0.013f * float(i), 0.5f, -5.0f);
-    const ScreenRay r{start, glm::vec3(1.0f, 0.0f, 0.0f), 10.0f};
+    const Ray r{start, glm::vec3(1.0f, 0.0f, 0.0f), 10.0f};
     ++rays;
     hssrCorrect += classifyWith(*t.all[2], *t.all[4], f, r) == RayClass::CorrectHit;
     const RayClass c = classifyWith(ssr8, *t.all[4], f, r);

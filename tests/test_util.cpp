@@ -6,6 +6,8 @@
 #include <fstream>
 #include <sstream>
 
+#include <glm/geometric.hpp>
+
 #include <sys/wait.h>
 #include <unistd.h>
 
@@ -66,6 +68,36 @@ std::string sceneCaseName(const std::string& sceneFile) {
   std::string n = sceneFile.substr(0, sceneFile.find('.'));
   std::replace(n.begin(), n.end(), '-', '_');
   return n;
+}
+
+std::vector<Ray> sampleRays(const Frame& f, size_t count, uint64_t seed) {
+  std::mt19937_64 rng(seed);
+  std::uniform_int_distribution<int> px(0, f.camera.width() - 1), py(0, f.camera.height() - 1);
+  std::normal_distribution<float> g;
+  std::vector<Ray> rays;
+  const float maxDist = f.scene.bounds().diagonal();
+  while (rays.size() < count) {
+    const int x = px(rng), y = py(rng);
+    if (f.layers.countAt(x, y) == 0) continue;
+    const FragmentNode& frag = f.layers.pixel(x, y)[0];
+    Ray r;
+    r.origin = f.camera.rayThrough({x + 0.5f, y + 0.5f}) * frag.depth;
+    const glm::vec3 n = decodeOctahedral(frag.normal);
+    const glm::vec3 v = glm::normalize(r.origin);
+    if (rays.size() % 4 == 3) {
+      // Exactly diagonal or axis-parallel screen lines through pixel corners (hssr-pitfalls §7):
+      // a direction parallel to the image plane projects to a line of the same direction.
+      static const glm::vec3 dirs[8] = {{1, 1, 0}, {1, -1, 0}, {-1, 1, 0}, {-1, -1, 0}, {1, 0, 0}, {-1, 0, 0}, {0, 1, 0}, {0, -1, 0}};
+      r.dir = glm::normalize(dirs[rays.size() / 4 % 8]);
+    } else if (rays.size() % 2 == 0) {
+      r.dir = glm::reflect(v, glm::dot(n, v) > 0.0f ? -n : n);
+    } else {
+      r.dir = glm::normalize(glm::vec3(g(rng), g(rng), g(rng)));
+    }
+    r.maxDistance = maxDist;
+    rays.push_back(r);
+  }
+  return rays;
 }
 
 uint64_t testSeed() {

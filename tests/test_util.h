@@ -8,6 +8,8 @@
 
 #include <gtest/gtest.h>
 
+#include "layertrace/pipeline/frame.h"
+#include "layertrace/trace/tracer.h"
 #include "layertrace/scene/camera.h"
 #include "layertrace/scene/scene.h"
 
@@ -38,6 +40,10 @@ void addTriangle(Scene& s, glm::vec3 a, glm::vec3 b, glm::vec3 c, uint32_t mater
 
 /// gtest parameter name of a real-scene case: "fzk-haus.json" → "fzk_haus".
 std::string sceneCaseName(const std::string& sceneFile);
+
+/// `count` rays from random covered pixels' front surfaces: mirror reflections, random
+/// directions, and exactly diagonal or axis-parallel screen lines (hssr-pitfalls §7), in turn.
+std::vector<Ray> sampleRays(const Frame& f, size_t count, uint64_t seed);
 
 /// Seed for randomized tests: LAYERTRACE_TEST_SEED or a fixed default; printed on failure.
 uint64_t testSeed();

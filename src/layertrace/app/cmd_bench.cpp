@@ -20,6 +20,7 @@
 
 #include "layertrace/app/commands.h"
 #include "layertrace/app/report.h"
+#include "layertrace/eval/classify.h"
 #include "layertrace/util/error.h"
 #include "layertrace/util/timing.h"
 
@@ -100,17 +101,21 @@ Classified measure(const Frame& frame, const Tracer& tracer, const EffectConfig&
   Classified c;
   std::vector<double> times;
   EffectResult r;
+  EffectConfig timing = ec;
+  timing.countRays = false;  // times from the counter-free instantiation of the tracer
   for (int i = 0; i < repeat; ++i) {
-    r = renderEffect(frame, tracer, ec);
+    r = renderEffect(frame, tracer, timing);
     times.push_back(r.traceMs);
   }
   c.traceMs = median(times);
+  ClassifyObserver classes(reference ? *reference : tracer, frame.camera, frame.layers, frame.thickness);
+  r = renderEffect(frame, tracer, ec, reference ? &classes : nullptr);
   c.iterations = r.rays ? double(r.iterationSum) / double(r.rays) : 0.0;
   if (reference) {
-    const EffectResult k = renderEffect(frame, tracer, ec, nullptr, reference);
-    const double n = double(std::max<uint64_t>(k.rays, 1));
-    c.falseMiss = double(k.classCounts[int(RayClass::FalseMiss)]) / n;
-    c.correctHit = double(k.classCounts[int(RayClass::CorrectHit)]) / n;
+    const auto counts = classes.counts();
+    const double n = double(std::max<uint64_t>(r.rays, 1));
+    c.falseMiss = double(counts[size_t(RayClass::FalseMiss)]) / n;
+    c.correctHit = double(counts[size_t(RayClass::CorrectHit)]) / n;
   }
   return c;
 }

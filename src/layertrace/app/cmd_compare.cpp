@@ -7,6 +7,8 @@
 
 #include "layertrace/app/commands.h"
 #include "layertrace/app/report.h"
+#include "layertrace/eval/classify.h"
+#include "layertrace/eval/oracle_observer.h"
 #include "layertrace/util/error.h"
 
 namespace lt {
@@ -58,7 +60,9 @@ int runCompare(const CompareOptions& o) {
   ec.progress = !o.run.quiet;
 
   const BuiltTracer reference = buildTracer("embree", frame, o.options);
-  const EffectResult ref = renderEffect(frame, *reference.tracer, ec);
+  EffectConfig refConfig = ec;
+  refConfig.countRays = false;  // its trace time is the baseline: no counter code
+  const EffectResult ref = renderEffect(frame, *reference.tracer, refConfig);
   const BuiltTracer oracle = buildOracle(frame);
 
   nlohmann::json stats = frameStats(frame);
@@ -69,29 +73,41 @@ int runCompare(const CompareOptions& o) {
   stats["reference"] = {{"tracer", "embree"}, {"trace_ms", ref.traceMs}, {"build_ms", reference.buildMs}, {"rays", ref.rays}};
   std::vector<std::pair<std::string, Image>> images;
   std::vector<EffectResult> results;
+  std::vector<Image> classImages;
   for (const std::string& name : o.tracers) {
     const BuiltTracer built = buildTracer(name, frame, o.options);
     const bool screen = isScreenTracer(name);
-    // Two passes over the same rays: one timed alone, one traced beside the oracle and the
-    // reference for the per-ray verdicts (their cost must not count as the tracer's).
-    const EffectResult timed = renderEffect(frame, *built.tracer, ec);
-    EffectResult r = renderEffect(frame, *built.tracer, ec, screen ? oracle.tracer.get() : nullptr, reference.tracer.get());
+    // Two passes over the same rays: one timed alone without counters, one counted and watched
+    // by the oracle and the reference for the per-ray verdicts.
+    EffectConfig timing = ec;
+    timing.countRays = false;
+    timing.progress = false;
+    const EffectResult timed = renderEffect(frame, *built.tracer, timing);
+    MismatchObserver exhaustive(*oracle.tracer);
+    ClassifyObserver classes(*reference.tracer, frame.camera, frame.layers, frame.thickness);
+    ObserverList observers;
+    observers.add(&classes);
+    if (screen) observers.add(&exhaustive);
+    EffectResult r = renderEffect(frame, *built.tracer, ec, &observers);
     r.traceMs = timed.traceMs;
     const auto [rmse, psnr] = rmsePsnr(r.image, ref.image);
     nlohmann::json t;
     const double rays = double(std::max<uint64_t>(r.rays, 1));
-    for (int c = 0; c < kRayClasses; ++c) t[rayClassName(RayClass(c))] = double(r.classCounts[c]) / rays;
-    if (screen) t["exhaustive_mismatch"] = r.exhaustiveMismatch;
+    const auto counts = classes.counts();
+    for (int c = 0; c < kRayClasses; ++c) t[rayClassName(RayClass(c))] = double(counts[size_t(c)]) / rays;
+    if (screen) t["exhaustive_mismatch"] = exhaustive.mismatches();
     t["psnr_db"] = psnr;
     t["rmse"] = rmse;
     t["trace_ms"] = r.traceMs;
+    t["shade_ms"] = timed.shadeMs;
     t["hierarchy_ms"] = built.buildMs;
     t["memory_bytes"] = built.memoryBytes;
     t["iterations_mean"] = r.rays ? double(r.iterationSum) / double(r.rays) : 0.0;
     t["rays"] = rayStats(r, screen);
     stats["compare"][name] = t;
     images.emplace_back(name + ".png", r.image);
-    images.emplace_back(name + "_classes.png", r.classImage);
+    images.emplace_back(name + "_classes.png", classes.classImage());
+    classImages.push_back(classes.classImage());
     results.push_back(std::move(r));
   }
   images.emplace_back("reference.png", ref.image);
@@ -99,7 +115,7 @@ int runCompare(const CompareOptions& o) {
   for (const EffectResult& r : results) row.push_back(&r.image);
   images.emplace_back("side_by_side.png", sideBySide(row));
   std::vector<const Image*> classRow;
-  for (const EffectResult& r : results) classRow.push_back(&r.classImage);
+  for (const Image& c : classImages) classRow.push_back(&c);
   images.emplace_back("classes_side_by_side.png", sideBySide(classRow));
 
   // The table.

@@ -1,9 +1,12 @@
 // The subcommands of the CLI (DESIGN.md), as library functions: main() only parses options.
+//
+// Layer: app/ is the CLI only — the subcommands, option handling, reports. It may include every
+// layer; nothing under src/layertrace/ outside app/ includes it.
 #pragma once
 
 #include <string>
 
-#include "layertrace/app/frame.h"
+#include "layertrace/pipeline/frame.h"
 
 namespace lt {
 
@@ -34,7 +37,7 @@ void ensureDirectory(const std::string& dir, const std::string& option);
 
 }  // namespace lt
 
-#include "layertrace/app/tracer_factory.h"
+#include "layertrace/pipeline/tracer_factory.h"
 #include "layertrace/render/effects.h"
 
 namespace lt {

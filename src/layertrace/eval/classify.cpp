@@ -66,4 +66,34 @@ RayClass classifyRay(const TraceHit& tracer, const TraceHit& truth, const Camera
   return storedInLayers(truth, camera, layers) ? RayClass::FalseMiss : RayClass::InfoMiss;
 }
 
+ClassifyObserver::ClassifyObserver(const Tracer& reference, const Camera& camera, const LayerArrays& layers, float thickness)
+    : reference_(reference), camera_(camera), layers_(layers), thickness_(thickness), image_(camera.width(), camera.height()) {}
+
+void ClassifyObserver::observe(std::span<const RayEvent> events) {
+  Local& l = local_.local();
+  l.rays.resize(events.size());
+  l.truth.resize(events.size());
+  for (size_t i = 0; i < events.size(); ++i) l.rays[i] = *events[i].ray;
+  reference_.traceBatch(l.rays, l.truth, {});
+  for (size_t i = 0; i < events.size(); ++i) {
+    const RayEvent& e = events[i];
+    const TraceHit& h = *e.hit;
+    RayClass c;
+    if (e.query == Query::Any && h.hit) c = l.truth[i].hit ? RayClass::CorrectHit : RayClass::WrongHit;
+    else c = classifyRay(h, l.truth[i], camera_, layers_, thickness_);
+    ++l.counts[size_t(c)];
+    // A pixel's rays of one wave arrive together and in order: its first ray of wave 0 is the
+    // first event of that pixel in the batch.
+    const bool first = e.bounce == 0 && (i == 0 || events[i - 1].x != e.x || events[i - 1].y != e.y);
+    if (first) image_.set(e.x, e.y, rayClassColor(c));
+  }
+}
+
+std::array<uint64_t, kRayClasses> ClassifyObserver::counts() const {
+  std::array<uint64_t, kRayClasses> total{};
+  for (const Local& l : local_)
+    for (int c = 0; c < kRayClasses; ++c) total[size_t(c)] += l.counts[size_t(c)];
+  return total;
+}
+
 }  // namespace lt

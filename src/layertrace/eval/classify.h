@@ -1,15 +1,25 @@
 // Per-ray classification of a screen-space answer against the geometric one (DESIGN.md,
-// "Ground truth, two kinds").
+// "Ground truth, three kinds").
+//
+// Layer: eval/ measures what the layers below produce — observers of the effects' rays that
+// classify them against a geometric reference or compare them with an oracle, the layer
+// verification against Embree, metrics. It may include every layer except app/ (the CLI).
 #pragma once
 
 #include <array>
+#include <atomic>
 #include <cstdint>
+#include <vector>
+
+#include <tbb/enumerable_thread_specific.h>
 
 #include <glm/vec3.hpp>
 
 #include "layertrace/raster/layer_arrays.h"
 #include "layertrace/scene/camera.h"
-#include "layertrace/screen/tracer.h"
+#include "layertrace/render/ray_observer.h"
+#include "layertrace/trace/tracer.h"
+#include "layertrace/util/image.h"
 
 namespace lt {
 
@@ -38,5 +48,31 @@ bool storedInLayers(const TraceHit& truth, const Camera& camera, const LayerArra
 
 RayClass classifyRay(const TraceHit& tracer, const TraceHit& truth, const Camera& camera, const LayerArrays& layers,
                      float thickness);
+
+/// Classifies every observed ray against `reference` (a geometric tracer, asked for the closest
+/// hit of the same ray). Any-hit rays (shadow, AO) ask only whether something blocks the ray:
+/// a hit is correct when the reference also hits anything before maxDistance.
+class ClassifyObserver : public RayObserver {
+ public:
+  ClassifyObserver(const Tracer& reference, const Camera& camera, const LayerArrays& layers, float thickness);
+  void observe(std::span<const RayEvent> events) override;
+  /// Rays per class, summed over threads.
+  std::array<uint64_t, kRayClasses> counts() const;
+  /// Per pixel the legend colour of its first ray's class; black where a pixel traced no ray.
+  const Image& classImage() const { return image_; }
+
+ private:
+  const Tracer& reference_;
+  const Camera& camera_;
+  const LayerArrays& layers_;
+  float thickness_;
+  Image image_;
+  struct Local {
+    std::array<uint64_t, kRayClasses> counts{};
+    std::vector<Ray> rays;
+    std::vector<TraceHit> truth;
+  };
+  tbb::enumerable_thread_specific<Local> local_;
+};
 
 }  // namespace lt

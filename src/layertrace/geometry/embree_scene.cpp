@@ -110,8 +110,9 @@ EmbreeScene::~EmbreeScene() = default;
 
 size_t EmbreeScene::memoryBytes() const { return size_t(std::max<int64_t>(impl_->bytes, 0)); }
 
-GeoHit EmbreeScene::intersect(glm::vec3 o, glm::vec3 d, float tnear, float tfar) const {
+GeoHit EmbreeScene::intersect(glm::vec3 o, glm::vec3 d, float tnear, float tfar, uint32_t* steps) const {
   enableFlushDenormals();
+  if (steps) *steps = 1;
   RTCIntersectContext ctx;
   rtcInitIntersectContext(&ctx);
   RTCRayHit rh = makeRay(o, d, tnear, tfar);
@@ -125,8 +126,9 @@ GeoHit EmbreeScene::intersect(glm::vec3 o, glm::vec3 d, float tnear, float tfar)
   return h;
 }
 
-bool EmbreeScene::occluded(glm::vec3 o, glm::vec3 d, float tnear, float tfar) const {
+bool EmbreeScene::occluded(glm::vec3 o, glm::vec3 d, float tnear, float tfar, uint32_t* steps) const {
   enableFlushDenormals();
+  if (steps) *steps = 1;
   RTCIntersectContext ctx;
   rtcInitIntersectContext(&ctx);
   RTCRay r = makeRay(o, d, tnear, tfar).ray;

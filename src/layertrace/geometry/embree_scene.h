@@ -28,10 +28,10 @@ class EmbreeScene {
   EmbreeScene(const EmbreeScene&) = delete;
   EmbreeScene& operator=(const EmbreeScene&) = delete;
 
-  /// Closest hit with t in [tnear, tfar].
-  GeoHit intersect(glm::vec3 origin, glm::vec3 dir, float tnear, float tfar) const;
-  /// Any hit with t in [tnear, tfar].
-  bool occluded(glm::vec3 origin, glm::vec3 dir, float tnear, float tfar) const;
+  /// Closest hit with t in [tnear, tfar]; `steps` (if given) is set to 1: one BVH query.
+  GeoHit intersect(glm::vec3 origin, glm::vec3 dir, float tnear, float tfar, uint32_t* steps = nullptr) const;
+  /// Any hit with t in [tnear, tfar]; `steps` as for intersect.
+  bool occluded(glm::vec3 origin, glm::vec3 dir, float tnear, float tfar, uint32_t* steps = nullptr) const;
   /// Every hit along the ray with t in [tnear, tfar], sorted by t, each triangle once (with
   /// HIGH build quality Embree may report a triangle twice).
   void allHits(glm::vec3 origin, glm::vec3 dir, float tnear, float tfar, std::vector<GeoHit>& out) const;

@@ -65,7 +65,7 @@ class IrregularGrid {
   /// Closest hit with t in [tnear, tfar]; `steps` counts visited cells.
   GeoHit intersect(glm::vec3 origin, glm::vec3 dir, float tnear, float tfar, uint32_t* steps = nullptr) const;
   /// Any hit with t in [tnear, tfar].
-  bool occluded(glm::vec3 origin, glm::vec3 dir, float tnear, float tfar) const;
+  bool occluded(glm::vec3 origin, glm::vec3 dir, float tnear, float tfar, uint32_t* steps = nullptr) const;
 
   const GridStats& stats() const { return stats_; }
   size_t memoryBytes() const;

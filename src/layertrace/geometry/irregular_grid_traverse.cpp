@@ -103,8 +103,8 @@ GeoHit IrregularGrid::intersect(glm::vec3 origin, glm::vec3 dir, float tnear, fl
   return traverse<false>(origin, dir, tnear, tfar, steps);
 }
 
-bool IrregularGrid::occluded(glm::vec3 origin, glm::vec3 dir, float tnear, float tfar) const {
-  return traverse<true>(origin, dir, tnear, tfar, nullptr).hit();
+bool IrregularGrid::occluded(glm::vec3 origin, glm::vec3 dir, float tnear, float tfar, uint32_t* steps) const {
+  return traverse<true>(origin, dir, tnear, tfar, steps).hit();
 }
 
 }  // namespace lt

@@ -6,6 +6,9 @@
 // attributes are perspective-correct: they are evaluated where the pixel-centre ray meets the
 // triangle's plane, which is also what the Embree verification measures. Parallel over screen
 // tiles with TBB; the result is identical for any thread count.
+//
+// Layer: raster/ captures fragments — the rasterizer, fragment lists, sort/truncate to the k
+// layer arrays. It includes scene/ and util/; it knows no tracer.
 #pragma once
 
 #include <cstdint>

@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <vector>
 
 #include <glm/geometric.hpp>
 #include <glm/gtc/constants.hpp>
@@ -35,61 +36,226 @@ const char* effectName(Effect e) {
   return "?";
 }
 
+void validateEffectConfig(const EffectConfig& config) {
+  if (config.bounces < 1 || config.bounces > 16) inputError("--bounces ", config.bounces, ": must be between 1 and 16");
+  if (config.aoSamples < 1 || config.aoSamples > 4096) inputError("--ao-samples ", config.aoSamples, ": must be between 1 and 4096");
+  if (!(config.aoRadius >= 0.0f)) inputError("--ao-radius ", config.aoRadius, ": must be >= 0");
+  if (!(config.maxDistance >= 0.0f)) inputError("--max-distance ", config.maxDistance, ": must be >= 0");
+}
+
 namespace {
 
 constexpr int kHistogramMax = 1 << 16;
+constexpr size_t kBatchRays = 256;   ///< rays per traceBatch call
+constexpr size_t kBandRays = 4096;   ///< rays in flight per thread and wave (keeps buffers in L2)
+constexpr int kTile = 8;             ///< rays are laid out in kTile × kTile pixel tiles
+
+using Clock = std::chrono::steady_clock;
+double msSince(Clock::time_point t) { return std::chrono::duration<double, std::milli>(Clock::now() - t).count(); }
 
 struct Accum {
-  uint64_t rays = 0, hits = 0, it = 0, iv = 0, px = 0, mismatch = 0;
+  uint64_t rays = 0, hits = 0, it = 0, iv = 0, px = 0, giveUps = 0;
   uint64_t level[RayCounters::kLevels] = {};
-  uint64_t classes[kRayClasses] = {};
-  int firstClass = -1;  ///< class of the current pixel's first ray (reset per pixel)
-  std::vector<uint64_t> histogram = std::vector<uint64_t>(kHistogramMax + 1, 0);
+  std::vector<uint64_t> histogram;
+  double traceMs = 0.0, busyMs = 0.0;  ///< time inside tracer calls / processing bands
 };
 
 struct Surface {
-  glm::vec3 p, n;  ///< camera space; n faces the viewer of this surface
-  glm::vec3 albedo;
-  float specular;
-  const Material* material;
+  glm::vec3 p{0.0f}, n{0.0f};  ///< camera space; n faces the viewer of this surface
+  glm::vec3 albedo{0.0f};
+  float specular = 0.0f;
+  const Material* material = nullptr;
+};
+
+/// One pixel's path between waves: the effect's state machine (see effects.h).
+struct PathState {
+  int x = 0, y = 0;
+  bool done = true;        ///< issues no more rays; `result` is final
+  Surface s;               ///< the surface the next ray leaves from
+  glm::vec3 v{0.0f};       ///< view direction at the front surface
+  glm::vec3 incoming{0.0f};  ///< reflection: the direction arriving at s
+  glm::vec3 colour{0.0f}, weight{1.0f};  ///< reflection: accumulated colour and path weight
+  glm::vec3 dir{0.0f};     ///< the direction of the ray in flight, as computed (unnormalised)
+  glm::vec3 result{0.0f};
+  // Refraction: the front surface's reflection and what is seen through it.
+  float fresnel = 0.0f;
+  glm::vec3 reflected{0.0f}, through{0.0f}, out{0.0f};
+  Surface back;
+  float it = 0.0f, iv = 0.0f;  ///< counters summed over the pixel's rays
+  uint32_t first = 0, count = 0;  ///< the pixel's rays in the current wave's dense arrays
+};
+
+/// One ray slot of a wave: which pixel of the band issued it and its sample index.
+struct Slot {
+  Ray ray;
+  uint16_t sample = 0;
+};
+
+/// A thread's buffers for one band of pixels, reused across bands and waves.
+struct Band {
+  std::vector<PathState> states;
+  std::vector<Slot> slots;  ///< R fixed slots per pixel, as emitted
+  std::vector<Ray> rays;    ///< the wave's rays, dense, in tile order
+  std::vector<uint16_t> samples;
+  std::vector<TraceHit> hits;
+  std::vector<RayCounters> counters;
+  std::vector<RayEvent> events;
 };
 
 class Renderer {
  public:
-  Renderer(const Frame& f, const Tracer& t, const EffectConfig& c, const Tracer* o, const Tracer* ref)
-      : f_(f), tracer_(t), config_(c), oracle_(o), reference_(ref) {
+  Renderer(const Frame& f, const Tracer& t, const EffectConfig& c, RayObserver* observer)
+      : f_(f), tracer_(t), config_(c), observer_(observer) {
     for (const PointLight& l : f.lights) lights_.push_back({f.camera.toCamera(l.position), l.intensity});
     const float diag = f.scene.bounds().diagonal();
     maxDist_ = c.maxDistance > 0.0f ? c.maxDistance : diag;
     aoRadius_ = c.aoRadius > 0.0f ? c.aoRadius : 0.05f * diag;
     eps_ = 1e-4f * diag;
+    query_ = c.effect == Effect::AO || c.effect == Effect::Shadow ? Query::Any : Query::Closest;
   }
 
-  /// Traces one ray, counting it for the pixel, comparing with the oracle and classifying it
-  /// against the reference. `firstClass` receives the class of the pixel's first ray.
-  TraceHit trace(const ScreenRay& r, Accum& a, float& pixIt, float& pixIv) const {
-    RayCounters c;
-    const TraceHit h = tracer_.trace(r, c);
+  /// Bands of up to one 8×8 tile (fewer pixels when each pixel has many rays) are processed
+  /// by the worker threads independently, each wave by wave; the time inside the tracer calls
+  /// is attributed to `traceMs` as its share of the workers' busy time, times the wall time.
+  EffectResult run() {
+    const int W = f_.camera.width(), H = f_.camera.height();
+    EffectResult res;
+    res.image = Image(W, H);
+    res.iterations = Image(W, H, 1);
+    res.intervals = Image(W, H, 1);
+    const std::vector<uint32_t> order = tileOrder(W, H);
+    const size_t bandPixels = std::clamp<size_t>(kBandRays / size_t(maxRaysPerPixel()), 1, size_t(kTile * kTile));
+    const size_t bands = (order.size() + bandPixels - 1) / bandPixels;
+    Progress progress(cat(tracer_.name(), " ", effectName(config_.effect)), order.size(), config_.progress);
+    tbb::enumerable_thread_specific<Band> bandBuffers;
+    const auto start = Clock::now();
+    tbb::parallel_for(tbb::blocked_range<size_t>(0, bands, 1), [&](const tbb::blocked_range<size_t>& r) {
+      Band& band = bandBuffers.local();
+      Accum& a = accums_.local();
+      if (a.histogram.empty() && config_.countRays) a.histogram.assign(kHistogramMax + 1, 0);
+      const auto t0 = Clock::now();
+      for (size_t b = r.begin(); b != r.end(); ++b) {
+        const size_t p0 = b * bandPixels, n = std::min(bandPixels, order.size() - p0);
+        band.states.assign(n, PathState{});
+        for (size_t i = 0; i < n; ++i) begin(band.states[i], int(order[p0 + i] % uint32_t(W)), int(order[p0 + i] / uint32_t(W)));
+        for (int wave = 0; traceWave(wave, band, a); ++wave) {
+        }
+        for (const PathState& st : band.states) {
+          res.image.set(st.x, st.y, st.result);
+          res.iterations.at(st.x, st.y)[0] = st.it;
+          res.intervals.at(st.x, st.y)[0] = st.iv;
+        }
+        progress.add(n);
+      }
+      a.busyMs += msSince(t0);
+    });
+    const double wall = msSince(start);
+    double traceMs = 0.0, busyMs = 0.0;
+    for (const Accum& a : accums_) traceMs += a.traceMs, busyMs += a.busyMs;
+    res.traceMs = busyMs > 0.0 ? wall * traceMs / busyMs : 0.0;
+    res.shadeMs = wall - res.traceMs;
+    gather(res);
+    return res;
+  }
+
+ private:
+  /// Pixels in 8×8 tiles (tiles row by row, pixels row by row inside a tile).
+  static std::vector<uint32_t> tileOrder(int W, int H) {
+    std::vector<uint32_t> order;
+    order.reserve(size_t(W) * size_t(H));
+    for (int ty = 0; ty < H; ty += kTile)
+      for (int tx = 0; tx < W; tx += kTile)
+        for (int y = ty; y < std::min(ty + kTile, H); ++y)
+          for (int x = tx; x < std::min(tx + kTile, W); ++x) order.push_back(uint32_t(y) * uint32_t(W) + uint32_t(x));
+    return order;
+  }
+
+  int maxRaysPerPixel() const {
+    switch (config_.effect) {
+      case Effect::AO: return config_.aoSamples;
+      case Effect::Shadow: return std::max(1, int(lights_.size()));
+      case Effect::Refraction: return 2;
+      default: return 1;
+    }
+  }
+
+  /// One wave of a band: every active pixel emits its rays, they are traced in batches, each
+  /// pixel consumes its answers. Returns false when no pixel had a ray left.
+  bool traceWave(int wave, Band& band, Accum& a) const {
+    const size_t n = band.states.size();
+    const size_t R = size_t(maxRaysPerPixel());
+    band.slots.resize(n * R);
+    size_t total = 0;
+    for (size_t i = 0; i < n; ++i) {
+      PathState& st = band.states[i];
+      st.first = uint32_t(total);
+      st.count = 0;
+      if (st.done) continue;
+      Slot* slot = &band.slots[i * R];
+      for (size_t j = 0; j < R; ++j) slot[j].sample = uint16_t(j);
+      st.count = emit(wave, st, slot);
+      total += st.count;
+      if (st.count == 0) consume(wave, st, nullptr, nullptr);  // e.g. shadows with every light behind the surface
+    }
+    if (total == 0) return false;
+    band.rays.resize(total);
+    band.samples.resize(total);
+    band.hits.resize(total);
+    band.counters.assign(config_.countRays ? total : 0, RayCounters{});
+    for (size_t i = 0; i < n; ++i)
+      for (uint32_t j = 0; j < band.states[i].count; ++j) {
+        band.rays[band.states[i].first + j] = band.slots[i * R + j].ray;
+        band.samples[band.states[i].first + j] = band.slots[i * R + j].sample;
+      }
+    // Trace: the only part timed as tracing.
+    const auto t0 = Clock::now();
+    for (size_t b = 0; b < total; b += kBatchRays) {
+      const size_t len = std::min(kBatchRays, total - b);
+      const std::span<RayCounters> c = band.counters.empty() ? std::span<RayCounters>() : std::span<RayCounters>(&band.counters[b], len);
+      tracer_.query(query_, std::span<const Ray>(&band.rays[b], len), std::span<TraceHit>(&band.hits[b], len), c);
+    }
+    a.traceMs += msSince(t0);
+    // Consume, count and let the observer see the answers.
+    band.events.clear();
+    for (size_t i = 0; i < n; ++i) {
+      PathState& st = band.states[i];
+      if (st.count == 0) continue;
+      for (uint32_t j = st.first; j < st.first + st.count; ++j) {
+        count(st, band.hits[j], config_.countRays ? &band.counters[j] : nullptr, a);
+        if (observer_) band.events.push_back(RayEvent{&band.rays[j], &band.hits[j], st.x, st.y, wave, int(band.samples[j]), query_});
+      }
+      consume(wave, st, &band.hits[st.first], &band.samples[st.first]);
+    }
+    if (observer_ && !band.events.empty()) observer_->observe(band.events);
+    return true;
+  }
+
+  static void count(PathState& st, const TraceHit& h, const RayCounters* c, Accum& a) {
     ++a.rays;
     a.hits += h.hit;
-    a.it += c.iterations, a.iv += c.intervals, a.px += c.pixels;
-    for (int l = 0; l < RayCounters::kLevels; ++l) a.level[l] += c.levelIterations[l];
-    ++a.histogram[std::min<uint32_t>(c.iterations, kHistogramMax)];
-    pixIt += float(c.iterations), pixIv += float(c.intervals);
-    if (oracle_) {
-      RayCounters oc;
-      const TraceHit o = oracle_->trace(r, oc);
-      const bool same = o.hit == h.hit && (!h.hit || (o.x == h.x && o.y == h.y && o.layer == h.layer));
-      a.mismatch += !same;
+    if (!c) return;
+    a.it += c->iterations, a.iv += c->intervals, a.px += c->pixels, a.giveUps += c->giveUps;
+    for (int l = 0; l < RayCounters::kLevels; ++l) a.level[l] += c->levelIterations[l];
+    ++a.histogram[std::min<uint32_t>(c->iterations, kHistogramMax)];
+    st.it += float(c->iterations), st.iv += float(c->intervals);
+  }
+
+  void gather(EffectResult& res) {
+    std::vector<uint64_t> histogram(kHistogramMax + 1, 0);
+    for (const Accum& a : accums_) {
+      res.rays += a.rays, res.hits += a.hits, res.iterationSum += a.it, res.intervalSum += a.iv, res.pixelSum += a.px;
+      res.giveUps += a.giveUps;
+      for (int l = 0; l < RayCounters::kLevels; ++l) res.levelIterations[l] += a.level[l];
+      for (size_t i = 0; i < a.histogram.size(); ++i) histogram[i] += a.histogram[i];
     }
-    if (reference_) {
-      RayCounters rc;
-      const TraceHit truth = reference_->trace(r, rc);
-      const RayClass cls = classifyRay(h, truth, f_.camera, f_.layers, f_.thickness);
-      ++a.classes[int(cls)];
-      if (a.firstClass < 0) a.firstClass = int(cls);
+    uint64_t seen = 0;
+    for (size_t i = 0; config_.countRays && i < histogram.size(); ++i) {
+      seen += histogram[i];
+      if (res.rays && double(seen) >= 0.99 * double(res.rays)) {
+        res.iterationsP99 = i;
+        break;
+      }
     }
-    return h;
   }
 
   Surface surfaceOf(const TraceHit& h, glm::vec3 incoming) const {
@@ -121,168 +287,174 @@ class Renderer {
     return c;
   }
 
-  ScreenRay ray(glm::vec3 o, glm::vec3 d, float maxDist) const { return ScreenRay{o, glm::normalize(d), maxDist}; }
+  static Ray ray(glm::vec3 o, glm::vec3 d, float maxDist) { return Ray{o, glm::normalize(d), maxDist}; }
 
-  /// Mirror reflection path of `bounces` rays from s (every bounce traced, weights only blend).
-  glm::vec3 reflection(const Surface& s0, glm::vec3 incoming0, int bounces, Accum& a, float& it, float& iv) const {
-    glm::vec3 colour(0.0f), weight(1.0f);
-    Surface s = s0;
-    glm::vec3 incoming = incoming0;
-    for (int b = 0; b < bounces; ++b) {
-      const float m = s.material->mirror;
-      colour += weight * (1.0f - m) * local(s, incoming);
-      weight *= m;
-      const glm::vec3 dir = glm::reflect(incoming, s.n);
-      const TraceHit h = trace(ray(s.p, dir, maxDist_), a, it, iv);
-      if (!h.hit) return colour + weight * f_.scene.environment;
-      s = surfaceOf(h, dir);
-      incoming = dir;
+  /// The pixel's front surface; pixels without fragments show the environment and trace nothing.
+  void begin(PathState& st, int x, int y) const {
+    st.x = x, st.y = y;
+    const LayerArrays& L = f_.layers;
+    if (L.countAt(x, y) == 0) {
+      st.result = f_.scene.environment;
+      st.done = true;
+      return;
     }
-    return colour + weight * local(s, incoming);
+    TraceHit front;
+    const FragmentNode& fr = L.pixel(x, y)[0];
+    front.hit = true;
+    front.point = f_.camera.rayThrough({float(x) + 0.5f, float(y) + 0.5f}) * fr.depth;
+    front.normal = decodeOctahedral(fr.normal);
+    front.albedoSpec = fr.albedoSpec;
+    front.triangle = L.triangle[L.pixelIndex(x, y) * size_t(L.k)];
+    st.v = glm::normalize(front.point);
+    st.s = surfaceOf(front, st.v);
+    st.incoming = st.v;
+    st.done = false;
+    if (config_.effect == Effect::Shade) st.result = local(st.s, st.v), st.done = true;
+    if (config_.effect == Effect::Refraction && st.s.material->transmission <= 0.0f) st.result = local(st.s, st.v), st.done = true;
   }
 
-  glm::vec3 pixel(int x, int y, Accum& a, float& it, float& iv) const {
-    const LayerArrays& L = f_.layers;
-    if (L.countAt(x, y) == 0) return f_.scene.environment;
-    TraceHit front;
-    {
-      const FragmentNode& fr = L.pixel(x, y)[0];
-      front.hit = true;
-      front.point = f_.camera.rayThrough({x + 0.5f, y + 0.5f}) * fr.depth;
-      front.normal = decodeOctahedral(fr.normal);
-      front.albedoSpec = fr.albedoSpec;
-      front.triangle = L.triangle[L.pixelIndex(x, y) * size_t(L.k)];
-    }
-    const glm::vec3 v = glm::normalize(front.point);
-    const Surface s = surfaceOf(front, v);
+  /// Reflection, one bounce's start: blend in the surface's own light, continue the mirror path.
+  Ray reflectFrom(PathState& st) const {
+    const float m = st.s.material->mirror;
+    st.colour += st.weight * (1.0f - m) * local(st.s, st.incoming);
+    st.weight *= m;
+    st.dir = glm::reflect(st.incoming, st.s.n);
+    return ray(st.s.p, st.dir, maxDist_);
+  }
+
+  /// Writes the pixel's rays of `wave` to `out`; returns how many.
+  uint32_t emit(int wave, PathState& st, Slot* out) const {
     switch (config_.effect) {
-      case Effect::Shade: return local(s, v);
-      case Effect::Reflection: return reflection(s, v, config_.bounces, a, it, iv);
+      case Effect::Shade: return 0;
+      case Effect::Reflection: out[0].ray = reflectFrom(st); return 1;
       case Effect::Shadow: {
-        glm::vec3 c = 0.05f * s.albedo;
+        uint32_t n = 0;
         for (int i = 0; i < int(lights_.size()); ++i) {
-          const glm::vec3 toL = lights_[size_t(i)].first - s.p;
+          const glm::vec3 toL = lights_[size_t(i)].first - st.s.p;
           const float d = glm::length(toL);
-          if (glm::dot(toL, s.n) <= 0.0f) continue;  // facing away: dark without a ray
-          const TraceHit h = trace(ray(s.p, toL, std::max(d - eps_, 0.0f)), a, it, iv);
-          if (!h.hit) c += light(s, v, i);
+          if (glm::dot(toL, st.s.n) <= 0.0f) continue;  // facing away: dark without a ray
+          out[n].ray = ray(st.s.p, toL, std::max(d - eps_, 0.0f));
+          out[n++].sample = uint16_t(i);
         }
-        return c;
+        return n;
       }
       case Effect::AO: {
         // One splitmix64 stream per pixel: deterministic for any thread count, and cheap to
         // seed (a Mersenne Twister per pixel would cost more than its rays).
-        uint64_t state = config_.seed * 0x9E3779B97F4A7C15ull + uint64_t(y) * 65537ull + uint64_t(x);
+        uint64_t state = config_.seed * 0x9E3779B97F4A7C15ull + uint64_t(st.y) * 65537ull + uint64_t(st.x);
         auto u = [&state] {
           uint64_t z = (state += 0x9E3779B97F4A7C15ull);
           z = (z ^ (z >> 30)) * 0xBF58476D1CE4E5B9ull;
           z = (z ^ (z >> 27)) * 0x94D049BB133111EBull;
           return float((z ^ (z >> 31)) >> 40) * (1.0f / 16777216.0f);  // 24 bits → [0, 1)
         };
-        const glm::vec3 t = glm::normalize(std::abs(s.n.x) > 0.5f ? glm::cross(s.n, {0, 1, 0}) : glm::cross(s.n, {1, 0, 0}));
-        const glm::vec3 bt = glm::cross(s.n, t);
-        int open = 0;
+        const glm::vec3 n = st.s.n;
+        const glm::vec3 t = glm::normalize(std::abs(n.x) > 0.5f ? glm::cross(n, {0, 1, 0}) : glm::cross(n, {1, 0, 0}));
+        const glm::vec3 bt = glm::cross(n, t);
         for (int k = 0; k < config_.aoSamples; ++k) {
           const float r1 = u(), r2 = u(), r = std::sqrt(r1), phi = 2.0f * glm::pi<float>() * r2;
-          const glm::vec3 d = t * (r * std::cos(phi)) + bt * (r * std::sin(phi)) + s.n * std::sqrt(std::max(0.0f, 1.0f - r1));
-          open += !trace(ray(s.p, d, aoRadius_), a, it, iv).hit;
+          const glm::vec3 d = t * (r * std::cos(phi)) + bt * (r * std::sin(phi)) + n * std::sqrt(std::max(0.0f, 1.0f - r1));
+          out[k].ray = ray(st.s.p, d, aoRadius_);
         }
-        return glm::vec3(float(open) / float(std::max(1, config_.aoSamples)));
+        return uint32_t(config_.aoSamples);
       }
       case Effect::Refraction: {
-        const float tr = s.material->transmission;
-        if (tr <= 0.0f) return local(s, v);
-        // Enter (air → ior), travel to the back surface (a deeper layer), leave (ior → air).
-        const float eta = 1.0f / s.material->ior;
-        const float cosi = -glm::dot(v, s.n);
-        const float f0 = std::pow((1.0f - s.material->ior) / (1.0f + s.material->ior), 2.0f);
-        const float fresnel = f0 + (1.0f - f0) * std::pow(1.0f - std::clamp(cosi, 0.0f, 1.0f), 5.0f);
-        const glm::vec3 reflected = reflection(s, v, 1, a, it, iv);
-        glm::vec3 dir = glm::refract(v, s.n, eta);
-        glm::vec3 through = f_.scene.environment;
-        if (glm::dot(dir, dir) > 0.0f) {
-          const TraceHit inside = trace(ray(s.p, dir, maxDist_), a, it, iv);
-          if (inside.hit) {
-            const Surface back = surfaceOf(inside, dir);
-            glm::vec3 out = glm::refract(glm::normalize(dir), back.n, back.material->transmission > 0.0f ? back.material->ior : 1.0f);
-            if (glm::dot(out, out) == 0.0f) out = glm::reflect(glm::normalize(dir), back.n);  // total internal reflection
-            if (back.material->transmission <= 0.0f) {
-              through = local(back, dir);  // the refracted ray met an opaque surface
-            } else {
-              const TraceHit beyond = trace(ray(back.p, out, maxDist_), a, it, iv);
-              through = beyond.hit ? local(surfaceOf(beyond, out), out) : f_.scene.environment;
-            }
-          }
+        if (wave == 0) {
+          // Enter (air → ior), travel to the back surface (a deeper layer), leave (ior → air).
+          const Material& m = *st.s.material;
+          const float cosi = -glm::dot(st.v, st.s.n);
+          const float f0 = std::pow((1.0f - m.ior) / (1.0f + m.ior), 2.0f);
+          st.fresnel = f0 + (1.0f - f0) * std::pow(1.0f - std::clamp(cosi, 0.0f, 1.0f), 5.0f);
+          out[0].ray = reflectFrom(st);
+          st.reflected = st.dir;  // the reflection's direction until its answer arrives
+          st.out = glm::refract(st.v, st.s.n, 1.0f / m.ior);
+          st.through = f_.scene.environment;
+          if (glm::dot(st.out, st.out) == 0.0f) return 1;
+          out[1].ray = ray(st.s.p, st.out, maxDist_);
+          return 2;
         }
-        return (1.0f - tr) * local(s, v) + tr * ((1.0f - fresnel) * s.albedo * through + fresnel * reflected);
+        out[0].ray = ray(st.back.p, st.out, maxDist_);  // wave 1: leaving the transmissive back surface
+        return 1;
       }
     }
-    return glm::vec3(0.0f);
+    return 0;
   }
 
- private:
+  /// Takes the answers to the pixel's rays of `wave`.
+  void consume(int wave, PathState& st, const TraceHit* h, const uint16_t* samples) const {
+    switch (config_.effect) {
+      case Effect::Shade: break;
+      case Effect::Reflection: {
+        if (!h[0].hit) {
+          st.result = st.colour + st.weight * f_.scene.environment;
+          st.done = true;
+          return;
+        }
+        st.s = surfaceOf(h[0], st.dir);
+        st.incoming = st.dir;
+        if (wave + 1 == config_.bounces) st.result = st.colour + st.weight * local(st.s, st.incoming), st.done = true;
+        return;
+      }
+      case Effect::Shadow: {
+        glm::vec3 c = 0.05f * st.s.albedo;
+        for (uint32_t j = 0; j < st.count; ++j)
+          if (!h[j].hit) c += light(st.s, st.v, samples[j]);
+        st.result = c;
+        st.done = true;
+        return;
+      }
+      case Effect::AO: {
+        int open = 0;
+        for (uint32_t j = 0; j < st.count; ++j) open += !h[j].hit;
+        st.result = glm::vec3(float(open) / float(std::max(1, config_.aoSamples)));
+        st.done = true;
+        return;
+      }
+      case Effect::Refraction: {
+        if (wave == 0) {
+          const glm::vec3 rdir = st.reflected;
+          st.reflected = h[0].hit ? st.colour + st.weight * local(surfaceOf(h[0], rdir), rdir)
+                                  : st.colour + st.weight * f_.scene.environment;
+          if (st.count == 2 && h[1].hit) {
+            const glm::vec3 dir = st.out;
+            st.back = surfaceOf(h[1], dir);
+            glm::vec3 out = glm::refract(glm::normalize(dir), st.back.n,
+                                         st.back.material->transmission > 0.0f ? st.back.material->ior : 1.0f);
+            if (glm::dot(out, out) == 0.0f) out = glm::reflect(glm::normalize(dir), st.back.n);  // total internal reflection
+            if (st.back.material->transmission <= 0.0f) {
+              st.through = local(st.back, dir);  // the refracted ray met an opaque surface
+            } else {
+              st.out = out;
+              return;  // wave 1 leaves the back surface
+            }
+          }
+        } else {
+          st.through = h[0].hit ? local(surfaceOf(h[0], st.out), st.out) : f_.scene.environment;
+        }
+        const float tr = st.s.material->transmission;
+        st.result = (1.0f - tr) * local(st.s, st.v) + tr * ((1.0f - st.fresnel) * st.s.albedo * st.through + st.fresnel * st.reflected);
+        st.done = true;
+        return;
+      }
+    }
+  }
+
   const Frame& f_;
   const Tracer& tracer_;
   EffectConfig config_;
-  const Tracer* oracle_;
-  const Tracer* reference_;
+  RayObserver* observer_;
+  Query query_ = Query::Closest;
   std::vector<std::pair<glm::vec3, glm::vec3>> lights_;  ///< camera-space position, intensity
   float maxDist_ = 1.0f, aoRadius_ = 1.0f, eps_ = 1e-4f;
+  tbb::enumerable_thread_specific<Accum> accums_;
 };
 
 }  // namespace
 
-void validateEffectConfig(const EffectConfig& config) {
-  if (config.bounces < 1 || config.bounces > 16) inputError("--bounces ", config.bounces, ": must be between 1 and 16");
-  if (config.aoSamples < 1 || config.aoSamples > 4096) inputError("--ao-samples ", config.aoSamples, ": must be between 1 and 4096");
-  if (!(config.aoRadius >= 0.0f)) inputError("--ao-radius ", config.aoRadius, ": must be >= 0");
-  if (!(config.maxDistance >= 0.0f)) inputError("--max-distance ", config.maxDistance, ": must be >= 0");
-}
-
-EffectResult renderEffect(const Frame& frame, const Tracer& tracer, const EffectConfig& config, const Tracer* oracle,
-                          const Tracer* reference) {
+EffectResult renderEffect(const Frame& frame, const Tracer& tracer, const EffectConfig& config, RayObserver* observer) {
   validateEffectConfig(config);
-  const int W = frame.camera.width(), H = frame.camera.height();
-  EffectResult res;
-  res.image = Image(W, H);
-  res.iterations = Image(W, H, 1);
-  res.intervals = Image(W, H, 1);
-  if (reference) res.classImage = Image(W, H);
-  const Renderer renderer(frame, tracer, config, oracle, reference);
-  tbb::enumerable_thread_specific<Accum> accums;
-  Progress progress(cat(tracer.name(), " ", effectName(config.effect)), uint64_t(H), config.progress);
-  const auto start = std::chrono::steady_clock::now();
-  tbb::parallel_for(tbb::blocked_range<int>(0, H, 2), [&](const tbb::blocked_range<int>& r) {
-    Accum& a = accums.local();
-    for (int y = r.begin(); y != r.end(); ++y)
-      for (int x = 0; x < W; ++x) {
-        float it = 0.0f, iv = 0.0f;
-        a.firstClass = -1;
-        res.image.set(x, y, renderer.pixel(x, y, a, it, iv));
-        if (reference && a.firstClass >= 0) res.classImage.set(x, y, rayClassColor(RayClass(a.firstClass)));
-        res.iterations.at(x, y)[0] = it;
-        res.intervals.at(x, y)[0] = iv;
-      }
-    progress.add(uint64_t(r.end() - r.begin()));
-  });
-  res.traceMs = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
-  std::vector<uint64_t> histogram(kHistogramMax + 1, 0);
-  for (const Accum& a : accums) {
-    res.rays += a.rays, res.hits += a.hits, res.iterationSum += a.it, res.intervalSum += a.iv, res.pixelSum += a.px;
-    res.exhaustiveMismatch += a.mismatch;
-    for (int l = 0; l < RayCounters::kLevels; ++l) res.levelIterations[l] += a.level[l];
-    for (int c = 0; c < kRayClasses; ++c) res.classCounts[c] += a.classes[c];
-    for (size_t i = 0; i < histogram.size(); ++i) histogram[i] += a.histogram[i];
-  }
-  uint64_t seen = 0;
-  for (size_t i = 0; i < histogram.size(); ++i) {
-    seen += histogram[i];
-    if (res.rays && double(seen) >= 0.99 * double(res.rays)) {
-      res.iterationsP99 = i;
-      break;
-    }
-  }
-  return res;
+  Renderer renderer(frame, tracer, config, observer);
+  return renderer.run();
 }
 
 }  // namespace lt

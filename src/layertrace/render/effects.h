@@ -1,17 +1,28 @@
 // The secondary effects, written once against the Tracer interface (DESIGN.md): they work with
 // every tracer, screen-space or geometric.
 //
+// Layer: render/ turns a pipeline Frame and a Tracer into an image — ray generation, the
+// effects and shading. It includes pipeline/ and the layers below (trace/, raster/, scene/,
+// util/), never eval/ or app/: evaluation watches through a RayObserver (ray_observer.h).
+//
 // Shading model (documented choice): Blinn-Phong per point light, diffuse albedo·max(0, n·l),
 // specular s·((e+8)/8)·max(0, n·h)^e, both times intensity / d², plus an ambient term
 // 0.05·albedo. Mirror and transmission weights of the material blend in the traced colours.
+//
+// Execution: the image is processed in bands of rows; each pixel's path is a small state
+// machine advanced wave by wave (wave b holds every ray of bounce b of the band). A wave's rays
+// are laid out in 8×8-pixel tiles so that neighbouring pixels' rays sit together, and are traced
+// in batches of kBatchRays through Tracer::traceBatch (closest hit) or occludedBatch (shadow and
+// AO rays). The time inside those calls is `traceMs`; everything else (ray generation, shading,
+// counter bookkeeping, observers) is `shadeMs`.
 #pragma once
 
 #include <cstdint>
 #include <string>
 
-#include "layertrace/app/frame.h"
-#include "layertrace/eval/classify.h"
-#include "layertrace/screen/tracer.h"
+#include "layertrace/pipeline/frame.h"
+#include "layertrace/render/ray_observer.h"
+#include "layertrace/trace/tracer.h"
 #include "layertrace/util/image.h"
 
 namespace lt {
@@ -30,32 +41,28 @@ struct EffectConfig {
   float maxDistance = 0.0f;  ///< ray length for reflection/refraction; 0 = the scene diagonal
   uint64_t seed = 1;         ///< per-pixel random streams derive from it (thread-count independent)
   bool progress = false;     ///< progress on stderr for runs longer than a second
+  /// Count traversal work per ray (iterations, intervals, per-pixel counter images). Off for
+  /// timing runs: tracers then run their counter-free instantiation (trace/tracer.h).
+  bool countRays = true;
 };
 
 struct EffectResult {
   Image image;
-  Image iterations;  ///< per pixel: traversal iterations summed over the pixel's rays
-  Image intervals;   ///< per pixel: intervals tested summed over the pixel's rays
+  Image iterations;  ///< per pixel: traversal iterations summed over the pixel's rays (countRays)
+  Image intervals;   ///< per pixel: intervals tested summed over the pixel's rays (countRays)
   uint64_t rays = 0, hits = 0;
-  uint64_t iterationSum = 0, intervalSum = 0, pixelSum = 0;
+  uint64_t iterationSum = 0, intervalSum = 0, pixelSum = 0, giveUps = 0;
   uint64_t iterationsP99 = 0;
   uint64_t levelIterations[RayCounters::kLevels] = {};  ///< HSSR: visited cells per level, summed
-  uint64_t exhaustiveMismatch = 0;  ///< rays where `oracle` answered differently
-  double traceMs = 0.0;
-  /// With a geometric reference: rays per class, and per pixel the class of its first ray
-  /// (an RGB legend image; pixels without rays stay black).
-  uint64_t classCounts[kRayClasses] = {};
-  Image classImage;
+  double traceMs = 0.0;  ///< wall time inside the tracer's batch calls
+  double shadeMs = 0.0;  ///< wall time of the rest of the effect (rays, shading, observers)
 };
 
 /// Throws InputError naming the option for an invalid value (commands call it before the
 /// expensive frame build; renderEffect calls it again).
 void validateEffectConfig(const EffectConfig& config);
 
-/// Renders the effect with `tracer`. When `oracle` is given every ray is traced by it too and
-/// the answers compared (same hit fragment, or both miss); when `reference` (a geometric
-/// tracer) is given every ray is traced by it too and classified (eval/classify.h).
-EffectResult renderEffect(const Frame& frame, const Tracer& tracer, const EffectConfig& config, const Tracer* oracle = nullptr,
-                          const Tracer* reference = nullptr);
+/// Renders the effect with `tracer`; `observer` (optional) sees every traced ray and its answer.
+EffectResult renderEffect(const Frame& frame, const Tracer& tracer, const EffectConfig& config, RayObserver* observer = nullptr);
 
 }  // namespace lt

@@ -2,6 +2,9 @@
 //
 // Every loader (assimp model, Quake 3 archive, JSON composition, built-in shapes) produces this
 // one flat representation; rasterizer and geometric tracers read it and nothing else.
+//
+// Layer: scene/ holds the scene, the camera (and with it the depth convention) and the loaders.
+// It includes util/ only.
 #pragma once
 
 #include <cstdint>

@@ -3,7 +3,7 @@
 
 #include "layertrace/raster/layer_arrays.h"
 #include "layertrace/scene/camera.h"
-#include "layertrace/screen/tracer.h"
+#include "layertrace/trace/tracer.h"
 
 namespace lt {
 

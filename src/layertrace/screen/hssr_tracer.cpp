@@ -53,7 +53,8 @@ struct Line {
 
 }  // namespace
 
-TraceHit HssrTracer::trace(const ScreenRay& ray, RayCounters& c) const {
+template <class C>
+TraceHit HssrTracer::traceImpl(const Ray& ray, C& c) const {
   const ScreenSegment seg = makeScreenSegment(camera_, ray);
   if (!seg.valid) return {};
   const Line line(seg);
@@ -83,16 +84,15 @@ TraceHit HssrTracer::trace(const ScreenRay& ray, RayCounters& c) const {
     const float s0 = L == 0 ? std::max(sIn, sStart) : std::max(sIn, s);
     const float s1 = std::min(sOut, 1.0f);
     if (s0 > 1.0f) return {};  // the segment ended before this cell
-    ++c.iterations;
-    ++c.levelIterations[std::min(L, RayCounters::kLevels - 1)];
+    c.iteration(L);
     const float za = seg.depthAt(s0), zb = seg.depthAt(s1);
     float zmin = std::min(za, zb), zmax = std::max(za, zb);
     if (L == 0) {
-      ++c.pixels;
+      c.pixel();
       const Interval* f = pyramid_.base.pixel(cx, cy);
       const int n = pyramid_.base.countAt(cx, cy);
       for (int i = 0; i < n; ++i) {
-        ++c.intervals;
+        c.interval();
         if (f[i].front > zmax) break;
         if (f[i].back >= zmin) return fragmentHit(camera_, layers_, cx, cy, i);
       }
@@ -103,7 +103,7 @@ TraceHit HssrTracer::trace(const ScreenRay& ray, RayCounters& c) const {
       const size_t cell = lvl.cellIndex(cx, cy);
       float sHit = std::numeric_limits<float>::infinity();
       for (uint32_t i = lvl.offset[cell]; i < lvl.offset[cell + 1]; ++i) {
-        ++c.intervals;
+        c.interval();
         const Interval& iv = lvl.intervals[i];
         if (iv.front > zmax) break;
         if (iv.back < zmin) continue;
@@ -163,7 +163,11 @@ TraceHit HssrTracer::trace(const ScreenRay& ray, RayCounters& c) const {
       }
     }
   }
+  c.giveUp();  // the step cap: never reached by a conservative DDA (tested), counted if it is
   return {};
 }
+
+template TraceHit HssrTracer::traceImpl(const Ray&, RayCounters&) const;
+template TraceHit HssrTracer::traceImpl(const Ray&, NoCounters&) const;
 
 }  // namespace lt

@@ -9,7 +9,7 @@
 #include "layertrace/raster/layer_arrays.h"
 #include "layertrace/scene/camera.h"
 #include "layertrace/screen/interval_pyramid.h"
-#include "layertrace/screen/tracer.h"
+#include "layertrace/trace/tracer.h"
 
 namespace lt {
 
@@ -18,11 +18,13 @@ struct HssrConfig {
   int maxLevels = 16;  ///< use at most this many pyramid levels (1 = the exhaustive oracle)
 };
 
-class HssrTracer : public Tracer {
+class HssrTracer : public TracerImpl<HssrTracer> {
  public:
   HssrTracer(const Camera& camera, const LayerArrays& layers, const IntervalPyramid& pyramid, const HssrConfig& config = {});
   const char* name() const override { return levels_ == 1 ? "exhaustive" : "hssr"; }
-  TraceHit trace(const ScreenRay& ray, RayCounters& counters) const override;
+  /// seed 000 §5, written once against the counter calls (trace/tracer.h).
+  template <class C>
+  TraceHit traceImpl(const Ray& ray, C& counters) const;
 
  private:
   const Camera& camera_;

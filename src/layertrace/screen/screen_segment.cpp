@@ -5,7 +5,7 @@
 
 namespace lt {
 
-ScreenSegment makeScreenSegment(const Camera& camera, const ScreenRay& ray) {
+ScreenSegment makeScreenSegment(const Camera& camera, const Ray& ray) {
   ScreenSegment seg;
   const float nearZ = -camera.near();
   if (ray.origin.z > nearZ) return seg;  // origin behind the near plane

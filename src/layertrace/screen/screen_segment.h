@@ -10,7 +10,7 @@
 #include <glm/vec3.hpp>
 
 #include "layertrace/scene/camera.h"
-#include "layertrace/screen/tracer.h"
+#include "layertrace/trace/tracer.h"
 
 namespace lt {
 
@@ -25,6 +25,6 @@ struct ScreenSegment {
   float paramAtDepth(float depth) const { return k1 != k0 ? (1.0f / depth - k0) / (k1 - k0) : 0.0f; }
 };
 
-ScreenSegment makeScreenSegment(const Camera& camera, const ScreenRay& ray);
+ScreenSegment makeScreenSegment(const Camera& camera, const Ray& ray);
 
 }  // namespace lt

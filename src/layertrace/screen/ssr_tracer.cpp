@@ -17,18 +17,20 @@ SsrTracer::SsrTracer(const Camera& camera, const LayerArrays& layers, const SsrC
   if (config_.maxSteps == 0) config_.maxSteps = int(float(std::max(camera.width(), camera.height())) / config_.stride) + 2;
 }
 
-int SsrTracer::overlap(int x, int y, float zmin, float zmax, RayCounters& c) const {
+template <class C>
+int SsrTracer::overlap(int x, int y, float zmin, float zmax, C& c) const {
   const int n = depth_.countAt(x, y);
   const Interval* f = depth_.pixel(x, y);
   for (int i = 0; i < n; ++i) {
-    ++c.intervals;
+    c.interval();
     if (f[i].front > zmax) break;  // sorted by front: nothing further can overlap
     if (f[i].back >= zmin) return i;
   }
   return -1;
 }
 
-TraceHit SsrTracer::trace(const ScreenRay& ray, RayCounters& c) const {
+template <class C>
+TraceHit SsrTracer::traceImpl(const Ray& ray, C& c) const {
   const ScreenSegment seg = makeScreenSegment(camera_, ray);
   if (!seg.valid) return {};
   glm::vec2 P0 = seg.p0, P1 = seg.p1;
@@ -69,12 +71,13 @@ TraceHit SsrTracer::trace(const ScreenRay& ray, RayCounters& c) const {
   float kHalf = seg.k0 + (seg.k1 - seg.k0) * std::max(s - 0.5f * dsStep, 0.0f);
   float prevDepth = 1.0f / kHalf;
   kHalf += dk;
-  for (int step = 0; step < config_.maxSteps && s <= 1.0f; ++step, s += dsStep, P += dP, kHalf += dk) {
-    ++c.iterations;
+  int step = 0;
+  for (; step < config_.maxSteps && s <= 1.0f; ++step, s += dsStep, P += dP, kHalf += dk) {
+    c.iteration();
     const int px = int(std::floor(P.x)), py = int(std::floor(P.y));
     const int x = permute ? py : px, y = permute ? px : py;
     if (x < 0 || y < 0 || x >= W || y >= H) break;
-    ++c.pixels;
+    c.pixel();
     // Half a step ahead, but not beyond the segment's end.
     const float nextDepth = 1.0f / std::clamp(kHalf, kLo, kHi);
     const float zmin = std::min(prevDepth, nextDepth), zmax = std::max(prevDepth, nextDepth);
@@ -88,7 +91,7 @@ TraceHit SsrTracer::trace(const ScreenRay& ray, RayCounters& c) const {
       while ((hi - lo) > ds) {
         const float mid = 0.5f * (lo + hi);
         int mx, my;
-        ++c.iterations;
+        c.iteration();
         if (!pixelAt(mid, mx, my)) {
           lo = mid;
           continue;
@@ -102,7 +105,11 @@ TraceHit SsrTracer::trace(const ScreenRay& ray, RayCounters& c) const {
     }
     return fragmentHit(camera_, layers_, hx, hy, layer);
   }
+  if (step == config_.maxSteps && s <= 1.0f) c.giveUp();  // --max-steps ended the march early
   return {};
 }
+
+template TraceHit SsrTracer::traceImpl(const Ray&, RayCounters&) const;
+template TraceHit SsrTracer::traceImpl(const Ray&, NoCounters&) const;
 
 }  // namespace lt

@@ -7,7 +7,7 @@
 #include "layertrace/raster/layer_arrays.h"
 #include "layertrace/scene/camera.h"
 #include "layertrace/screen/interval_layers.h"
-#include "layertrace/screen/tracer.h"
+#include "layertrace/trace/tracer.h"
 
 namespace lt {
 
@@ -21,15 +21,18 @@ struct SsrConfig {
   bool refine = true;
 };
 
-class SsrTracer : public Tracer {
+class SsrTracer : public TracerImpl<SsrTracer> {
  public:
   SsrTracer(const Camera& camera, const LayerArrays& layers, const SsrConfig& config = {});
   const char* name() const override { return config_.allLayers ? "ssr-layers" : "ssr"; }
-  TraceHit trace(const ScreenRay& ray, RayCounters& counters) const override;
+  /// seed 001's march, written once against the counter calls (trace/tracer.h).
+  template <class C>
+  TraceHit traceImpl(const Ray& ray, C& counters) const;
 
  private:
   /// First interval of pixel (x, y) overlapping [zmin, zmax], or -1.
-  int overlap(int x, int y, float zmin, float zmax, RayCounters& c) const;
+  template <class C>
+  int overlap(int x, int y, float zmin, float zmax, C& c) const;
   const Camera& camera_;
   const LayerArrays& layers_;
   IntervalLayers depth_;  ///< what the march reads: the front layer (ssr) or all k (ssr-layers)

@@ -8,6 +8,9 @@
 //
 // LT_CHECK(cond, ...) is always on and prints the values involved (STYLE.md, two tiers);
 // LT_DCHECK is for hot loops and only exists in debug builds.
+//
+// Layer: util/ is the bottom layer — errors and checks, image I/O, progress, timing. It knows
+// no scene and includes nothing of layertrace outside util/.
 #pragma once
 
 #include <sstream>

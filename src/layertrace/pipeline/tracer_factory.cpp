@@ -1,6 +1,6 @@
-#include "layertrace/app/tracer_factory.h"
+#include "layertrace/pipeline/tracer_factory.h"
 
-#include "layertrace/geometry/embree_tracer.h"
+#include "layertrace/geometry/geometric_tracer.h"
 #include "layertrace/util/error.h"
 
 namespace lt {

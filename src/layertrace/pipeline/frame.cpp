@@ -1,4 +1,4 @@
-#include "layertrace/app/frame.h"
+#include "layertrace/pipeline/frame.h"
 
 #include <chrono>
 #include <cmath>

@@ -4,7 +4,7 @@
 #include <memory>
 #include <string>
 
-#include "layertrace/app/frame.h"
+#include "layertrace/pipeline/frame.h"
 #include "layertrace/geometry/embree_scene.h"
 #include "layertrace/geometry/irregular_grid.h"
 #include "layertrace/screen/hssr_tracer.h"

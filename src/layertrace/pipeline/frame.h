@@ -1,5 +1,9 @@
 // One frame of the pipeline, shared by every subcommand: load the scene, choose the camera and
 // lights, rasterize all fragments, sort and truncate to k layers (seed 000 §4.1–4.2).
+//
+// Layer: pipeline/ assembles a frame — load → capture → structures — and builds any tracer by
+// name with the structure it needs (tracer_factory.h). It includes screen/, geometry/ and the
+// layers below them; never render/, eval/ or app/.
 #pragma once
 
 #include <optional>

@@ -1,4 +1,4 @@
-#include "layertrace/geometry/embree_tracer.h"
+#include "layertrace/geometry/geometric_tracer.h"
 
 #include <algorithm>
 #include <cmath>
@@ -9,18 +9,13 @@
 
 namespace lt {
 
-GeometricTracer::GeometricTracer(const char* name, const Scene& scene, const Camera& camera, Query query)
-    : name_(name), scene_(scene), camera_(camera), query_(std::move(query)) {
+GeometricHits::GeometricHits(const Scene& scene, const Camera& camera) : scene_(scene), camera_(camera) {
   for (const Material& m : scene.materials) packed_.push_back(packAlbedoSpec(m.albedo, m.specular));
 }
 
-TraceHit GeometricTracer::trace(const ScreenRay& ray, RayCounters& c) const {
-  // A relative offset keeps the ray off the surface it starts on (screen tracers skip the
-  // origin pixel for the same reason).
-  const float eps = 1e-4f * std::max(1.0f, glm::length(ray.origin));
-  uint32_t steps = 0;
-  const GeoHit g = query_(camera_.toWorld(ray.origin), camera_.dirToWorld(ray.dir), eps, ray.maxDistance, &steps);
-  c.iterations += std::max(steps, 1u);
+float GeometricHits::originOffset(const Ray& ray) { return 1e-4f * std::max(1.0f, glm::length(ray.origin)); }
+
+TraceHit GeometricHits::makeHit(const Ray& ray, const GeoHit& g) const {
   TraceHit h;
   if (!g.hit()) return h;
   h.hit = true;
@@ -45,18 +40,6 @@ TraceHit GeometricTracer::trace(const ScreenRay& ray, RayCounters& c) const {
     if (p.x >= 0 && p.y >= 0 && p.x < float(camera_.width()) && p.y < float(camera_.height())) h.x = int(p.x), h.y = int(p.y);
   }
   return h;
-}
-
-std::unique_ptr<Tracer> makeEmbreeTracer(const Scene& scene, const Camera& camera, const EmbreeScene& embree) {
-  return std::make_unique<GeometricTracer>("embree", scene, camera, [&embree](glm::vec3 o, glm::vec3 d, float tn, float tf, uint32_t*) {
-    return embree.intersect(o, d, tn, tf);
-  });
-}
-
-std::unique_ptr<Tracer> makeGridTracer(const Scene& scene, const Camera& camera, const IrregularGrid& grid) {
-  return std::make_unique<GeometricTracer>("grid", scene, camera, [&grid](glm::vec3 o, glm::vec3 d, float tn, float tf, uint32_t* steps) {
-    return grid.intersect(o, d, tn, tf, steps);
-  });
 }
 
 }  // namespace lt

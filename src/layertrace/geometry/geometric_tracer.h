@@ -1,0 +1,82 @@
+// Geometric tracers behind the tracer interface: the answer of Embree or of the irregular grid
+// for the very rays the screen-space tracers trace (same camera-space origins and directions).
+#pragma once
+
+#include <memory>
+#include <vector>
+
+#include "layertrace/geometry/embree_scene.h"
+#include "layertrace/geometry/irregular_grid.h"
+#include "layertrace/scene/camera.h"
+#include "layertrace/trace/tracer.h"
+
+namespace lt {
+
+/// What both geometric tracers share: camera ↔ world, the offset that keeps a ray off the
+/// surface it starts on, and turning a triangle hit into a TraceHit (interpolated normal,
+/// material, projected pixel).
+class GeometricHits {
+ public:
+  GeometricHits(const Scene& scene, const Camera& camera);
+  /// A relative offset keeps the ray off the surface it starts on (screen tracers skip the
+  /// origin pixel for the same reason).
+  static float originOffset(const Ray& ray);
+  TraceHit makeHit(const Ray& ray, const GeoHit& g) const;
+  /// An any-hit answer: hit, no blocker details.
+  static TraceHit occludedHit(bool hit) {
+    TraceHit h;
+    h.hit = hit;
+    return h;
+  }
+  const Camera& camera() const { return camera_; }
+
+ private:
+  const Scene& scene_;
+  const Camera& camera_;
+  std::vector<uint32_t> packed_;  ///< per material: albedo + specular as stored in fragments
+};
+
+/// A geometric acceleration structure as a tracer: Accel is EmbreeScene ("embree": one
+/// rtcIntersect1 / rtcOccluded1 per ray, counted as one iteration) or IrregularGrid ("grid":
+/// iterations count visited cells). Both answer world-space queries
+///   intersect(origin, dir, tnear, tfar, steps*) and occluded(origin, dir, tnear, tfar, steps*).
+template <class Accel>
+class GeometricTracer : public TracerImpl<GeometricTracer<Accel>> {
+ public:
+  GeometricTracer(const char* name, const Scene& scene, const Camera& camera, const Accel& accel)
+      : name_(name), hits_(scene, camera), accel_(accel) {}
+  const char* name() const override { return name_; }
+  template <class C>
+  TraceHit traceImpl(const Ray& ray, C& c) const {
+    return hits_.makeHit(ray, query(ray, c, [this](auto... a) { return accel_.intersect(a...); }));
+  }
+  template <class C>
+  TraceHit occludedImpl(const Ray& ray, C& c) const {
+    return GeometricHits::occludedHit(query(ray, c, [this](auto... a) { return accel_.occluded(a...); }));
+  }
+
+ private:
+  template <class C, class Q>
+  auto query(const Ray& ray, C& c, Q&& q) const {
+    const Camera& cam = hits_.camera();
+    uint32_t steps = 0;
+    const auto answer = q(cam.toWorld(ray.origin), cam.dirToWorld(ray.dir), GeometricHits::originOffset(ray), ray.maxDistance,
+                          C::kEnabled ? &steps : nullptr);
+    c.addIterations(std::max(steps, 1u));
+    return answer;
+  }
+  const char* name_;
+  GeometricHits hits_;
+  const Accel& accel_;
+};
+using EmbreeTracer = GeometricTracer<EmbreeScene>;
+using GridTracer = GeometricTracer<IrregularGrid>;
+
+inline std::unique_ptr<Tracer> makeEmbreeTracer(const Scene& scene, const Camera& camera, const EmbreeScene& embree) {
+  return std::make_unique<EmbreeTracer>("embree", scene, camera, embree);
+}
+inline std::unique_ptr<Tracer> makeGridTracer(const Scene& scene, const Camera& camera, const IrregularGrid& grid) {
+  return std::make_unique<GridTracer>("grid", scene, camera, grid);
+}
+
+}  // namespace lt

@@ -1,0 +1,159 @@
+// The trace layer: what every tracer is and what it answers (DESIGN.md "Layout").
+//
+// Layer: trace/ holds the ray and hit types, the per-ray counters and the Tracer interface —
+// nothing that knows how a ray is answered. It may include util/ and scene/ only (plus the
+// standard library and glm). screen/ (image-space structures) and geometry/ (Embree, the
+// irregular grid) implement the interface and never include each other; render/ traces through
+// it without knowing which tracer runs; eval/ observes the rays it traces.
+//
+// The one question (DESIGN.md): given a camera-space ray and a maximum distance, which stored
+// surface does it hit first, if any? Screen-space tracers answer from the layer arrays, geometric
+// tracers from the triangles.
+#pragma once
+
+#include <cstdint>
+#include <span>
+
+#include <glm/vec3.hpp>
+
+namespace lt {
+
+/// A camera-space ray (camera.h: looking down -z, depth = -z).
+struct Ray {
+  glm::vec3 origin{0.0f};            ///< camera space, on a visible surface
+  glm::vec3 dir{0.0f, 0.0f, -1.0f};  ///< camera space, unit length
+  float maxDistance = 1e30f;         ///< the ray ends here (scene units)
+};
+
+/// The surface hit: enough to shade it and to start the next bounce.
+struct TraceHit {
+  bool hit = false;
+  int x = -1, y = -1;     ///< pixel of the hit fragment (screen tracers); projected pixel or -1 (geometric)
+  int layer = -1;         ///< layer index of the hit fragment (screen tracers)
+  glm::vec3 point{0.0f};  ///< camera-space hit point
+  glm::vec3 normal{0.0f, 0.0f, 1.0f};  ///< camera-space shading normal (as stored; not flipped)
+  uint32_t albedoSpec = 0;             ///< packed albedo + specular (fragment format)
+  uint32_t triangle = 0xFFFFFFFFu;     ///< scene triangle (material lookup, evaluation)
+};
+
+#ifndef LAYERTRACE_COUNTERS
+#define LAYERTRACE_COUNTERS 1
+#endif
+/// False in a build configured with LAYERTRACE_COUNTERS=OFF: every tracer then runs the
+/// NoCounters instantiation of its traversal even when counters are asked for.
+inline constexpr bool kCountersCompiled = LAYERTRACE_COUNTERS != 0;
+
+/// Per-ray traversal counters (hssr-pitfalls §10: one iteration = one visited cell at any level
+/// for HSSR, one step for SSR, one visited cell or BVH query for geometric tracers; intervals
+/// counted at every visited cell). Tracers count through the methods, which NoCounters
+/// implements as no-ops, so the traversal instantiated with NoCounters has no counter code.
+struct RayCounters {
+  static constexpr int kLevels = 8;  ///< per-level counts kept for levels 0..7 (higher ones go to 7)
+  static constexpr bool kEnabled = true;
+  uint32_t iterations = 0;
+  uint32_t intervals = 0;
+  uint32_t pixels = 0;  ///< visited level-0 pixels (screen tracers)
+  uint32_t giveUps = 0;  ///< traversals stopped by a step cap (an answer not backed by the data)
+  uint32_t levelIterations[kLevels] = {};  ///< HSSR: visited cells per pyramid level
+
+  void iteration(int level = 0) {
+    ++iterations;
+    ++levelIterations[level < kLevels ? level : kLevels - 1];
+  }
+  void addIterations(uint32_t n) { iterations += n, levelIterations[0] += n; }
+  void interval() { ++intervals; }
+  void pixel() { ++pixels; }
+  void giveUp() { ++giveUps; }
+};
+
+/// The counter type of timing runs: the same calls, no code.
+struct NoCounters {
+  static constexpr bool kEnabled = false;
+  void iteration(int = 0) {}
+  void addIterations(uint32_t) {}
+  void interval() {}
+  void pixel() {}
+  void giveUp() {}
+};
+
+/// What a query asks: the closest hit (shading, reflection) or any hit before maxDistance
+/// (shadow, AO), where a tracer may stop at the first surface it meets.
+enum class Query : uint8_t { Closest, Any };
+
+class Tracer {
+ public:
+  virtual ~Tracer() = default;
+  virtual const char* name() const = 0;
+
+  /// One ray, closest hit, counted into `counters` (added to what it holds). The simple path:
+  /// every batched or specialised path is tested against it.
+  virtual TraceHit trace(const Ray& ray, RayCounters& counters) const = 0;
+
+  /// A batch of closest-hit queries: hits[i] answers rays[i]. `counters` is either empty (the
+  /// rays are not counted: timing runs take the counter-free path) or one per ray, added to.
+  /// The default loops over trace(); a tracer overrides it to trace rays in groups.
+  virtual void traceBatch(std::span<const Ray> rays, std::span<TraceHit> hits, std::span<RayCounters> counters) const;
+
+  /// A batch of any-hit queries: hits[i].hit says whether anything lies on rays[i] before its
+  /// maxDistance. The other fields describe a blocker where the tracer knows one (screen
+  /// tracers report the first stored fragment; Embree's any-hit query reports none). The
+  /// default answers with traceBatch.
+  virtual void occludedBatch(std::span<const Ray> rays, std::span<TraceHit> hits, std::span<RayCounters> counters) const {
+    traceBatch(rays, hits, counters);
+  }
+
+  /// Dispatches to traceBatch or occludedBatch.
+  void query(Query q, std::span<const Ray> rays, std::span<TraceHit> hits, std::span<RayCounters> counters) const {
+    if (q == Query::Any) occludedBatch(rays, hits, counters);
+    else traceBatch(rays, hits, counters);
+  }
+};
+
+inline void Tracer::traceBatch(std::span<const Ray> rays, std::span<TraceHit> hits, std::span<RayCounters> counters) const {
+  RayCounters scratch;
+  for (size_t i = 0; i < rays.size(); ++i) hits[i] = trace(rays[i], counters.empty() ? scratch : counters[i]);
+}
+
+/// The tracer implementations' common base (CRTP): Derived provides
+///   template <class C> TraceHit traceImpl(const Ray&, C& counters) const;
+/// (and optionally occludedImpl) written once against the counter calls; this base
+/// instantiates it with RayCounters for counted calls and with NoCounters for uncounted batches
+/// (and for everything when counters are compiled out), and runs batches without a virtual call
+/// per ray.
+template <class Derived>
+class TracerImpl : public Tracer {
+ public:
+  TraceHit trace(const Ray& ray, RayCounters& counters) const override {
+    if constexpr (kCountersCompiled) {
+      return self().traceImpl(ray, counters);
+    } else {
+      NoCounters none;
+      return self().traceImpl(ray, none);
+    }
+  }
+  void traceBatch(std::span<const Ray> rays, std::span<TraceHit> hits, std::span<RayCounters> counters) const override {
+    run(rays, hits, counters, [this](const Ray& r, auto& c) { return self().traceImpl(r, c); });
+  }
+  void occludedBatch(std::span<const Ray> rays, std::span<TraceHit> hits, std::span<RayCounters> counters) const override {
+    run(rays, hits, counters, [this](const Ray& r, auto& c) { return self().occludedImpl(r, c); });
+  }
+  /// Default any-hit answer: the closest hit (a screen march meets the first surface first).
+  template <class C>
+  TraceHit occludedImpl(const Ray& ray, C& counters) const {
+    return self().traceImpl(ray, counters);
+  }
+
+ private:
+  const Derived& self() const { return static_cast<const Derived&>(*this); }
+  template <class F>
+  static void run(std::span<const Ray> rays, std::span<TraceHit> hits, std::span<RayCounters> counters, F&& f) {
+    if (kCountersCompiled && !counters.empty()) {
+      for (size_t i = 0; i < rays.size(); ++i) hits[i] = f(rays[i], counters[i]);
+    } else {
+      NoCounters none;
+      for (size_t i = 0; i < rays.size(); ++i) hits[i] = f(rays[i], none);
+    }
+  }
+};
+
+}  // namespace lt

@@ -1,0 +1,158 @@
+// The tracing core (trace/): every tracer's batch paths answer exactly as its one-ray reference
+// path, counted or not; effects report every traced ray to an observer without changing the
+// image; and the source tree keeps the layering of DESIGN.md.
+#include <cstring>
+#include <filesystem>
+#include <fstream>
+#include <map>
+#include <mutex>
+#include <regex>
+
+#include "layertrace/pipeline/tracer_factory.h"
+#include "layertrace/render/effects.h"
+#include "test_util.h"
+
+namespace lt {
+namespace {
+
+Frame defaultFrame(int w = 160, int h = 90) {
+  FrameOptions o;
+  o.scenePath = test::sourceDir() + "/scenes/default.json";
+  o.width = w, o.height = h;
+  return buildFrame(o);
+}
+
+/// Bitwise equality of everything a hit carries.
+::testing::AssertionResult sameHit(const TraceHit& a, const TraceHit& b) {
+  if (a.hit != b.hit) return ::testing::AssertionFailure() << "hit " << a.hit << " vs " << b.hit;
+  if (!a.hit) return ::testing::AssertionSuccess();
+  if (a.x != b.x || a.y != b.y || a.layer != b.layer || a.triangle != b.triangle || a.albedoSpec != b.albedoSpec ||
+      std::memcmp(&a.point, &b.point, sizeof a.point) != 0 || std::memcmp(&a.normal, &b.normal, sizeof a.normal) != 0)
+    return ::testing::AssertionFailure() << "pixel " << a.x << "," << a.y << " layer " << a.layer << " triangle " << a.triangle
+                                         << " vs pixel " << b.x << "," << b.y << " layer " << b.layer << " triangle " << b.triangle;
+  return ::testing::AssertionSuccess();
+}
+
+const char* const kTracers[] = {"ssr", "ssr-layers", "hssr", "embree", "grid"};
+
+TEST(TraceInterface, BatchPathsAnswerAsTheOneRayPathBitForBit) {
+  const Frame f = defaultFrame();
+  const std::vector<Ray> rays = test::sampleRays(f, 3000, test::testSeed());
+  for (const char* name : kTracers) {
+    SCOPED_TRACE(name);
+    const BuiltTracer b = buildTracer(name, f, TracerOptions{});
+    std::vector<TraceHit> uncounted(rays.size()), counted(rays.size()), any(rays.size());
+    std::vector<RayCounters> counters(rays.size());
+    b.tracer->traceBatch(rays, uncounted, {});
+    b.tracer->traceBatch(rays, counted, counters);
+    b.tracer->occludedBatch(rays, any, {});
+    uint64_t hits = 0, iterations = 0;
+    for (size_t i = 0; i < rays.size(); ++i) {
+      RayCounters c;
+      const TraceHit one = b.tracer->trace(rays[i], c);
+      hits += one.hit;
+      ASSERT_TRUE(sameHit(one, uncounted[i])) << "ray " << i << " (seed " << test::testSeed() << ")";
+      ASSERT_TRUE(sameHit(one, counted[i])) << "ray " << i;
+      ASSERT_EQ(one.hit, any[i].hit) << "any-hit answer of ray " << i;
+      ASSERT_EQ(c.iterations, counters[i].iterations) << "ray " << i;
+      ASSERT_EQ(c.intervals, counters[i].intervals) << "ray " << i;
+      iterations += c.iterations;
+    }
+    EXPECT_GT(hits, rays.size() / 4) << "too few hits for the comparison to mean anything";
+    if (kCountersCompiled) {
+      EXPECT_GE(iterations, rays.size() / 2) << "the counted path counted nothing";
+    }
+  }
+}
+
+/// Records every event, and re-traces its ray with the one-ray path to check the answer.
+class RecordingObserver : public RayObserver {
+ public:
+  explicit RecordingObserver(const Tracer& t) : tracer_(t) {}
+  void observe(std::span<const RayEvent> events) override {
+    std::lock_guard<std::mutex> lock(mutex_);
+    for (const RayEvent& e : events) {
+      RayCounters c;
+      const TraceHit one = tracer_.trace(*e.ray, c);
+      // Any-hit answers carry only the verdict (trace/tracer.h).
+      same += (e.query == Query::Any ? one.hit == e.hit->hit : bool(sameHit(one, *e.hit))) ? 1 : 0;
+      ++count;
+      ++perBounce[e.bounce];
+      maxSample = std::max(maxSample, e.sample);
+    }
+  }
+  uint64_t count = 0, same = 0;
+  int maxSample = 0;
+  std::map<int, uint64_t> perBounce;
+
+ private:
+  const Tracer& tracer_;
+  std::mutex mutex_;
+};
+
+TEST(TraceInterface, ObserverSeesEveryRayAndChangesNothing) {
+  const Frame f = defaultFrame();
+  for (const char* name : {"hssr", "embree"}) {
+    SCOPED_TRACE(name);
+    const BuiltTracer b = buildTracer(name, f, TracerOptions{});
+    for (Effect effect : {Effect::Reflection, Effect::AO, Effect::Refraction}) {
+      SCOPED_TRACE(effectName(effect));
+      EffectConfig ec;
+      ec.effect = effect;
+      ec.bounces = 2;
+      ec.aoSamples = 3;
+      RecordingObserver rec(*b.tracer);
+      const EffectResult watched = renderEffect(f, *b.tracer, ec, &rec);
+      const EffectResult plain = renderEffect(f, *b.tracer, ec);
+      ec.countRays = false;
+      const EffectResult uncounted = renderEffect(f, *b.tracer, ec);
+      EXPECT_EQ(watched.image.data, plain.image.data);
+      EXPECT_EQ(uncounted.image.data, plain.image.data);
+      EXPECT_EQ(rec.count, watched.rays);
+      EXPECT_EQ(rec.same, rec.count) << "an event carried another answer than the tracer gives its ray";
+      EXPECT_EQ(uncounted.rays, plain.rays);
+      EXPECT_EQ(uncounted.iterationSum, 0u);
+      if (kCountersCompiled) {
+        EXPECT_GT(plain.iterationSum, plain.rays / 2);
+      }
+      if (effect == Effect::Reflection) {
+        EXPECT_EQ(rec.perBounce.size(), 2u) << "two bounces, two waves";
+      }
+      if (effect == Effect::AO) {
+        EXPECT_EQ(rec.maxSample, 2);
+      }
+      EXPECT_GE(watched.traceMs, 0.0);
+      EXPECT_GE(watched.shadeMs, 0.0);
+    }
+  }
+}
+
+// DESIGN.md "Layout": a layer includes only layers below it; screen/ and geometry/ never
+// include each other.
+TEST(TraceInterface, SourceTreeKeepsTheLayering) {
+  const std::map<std::string, int> rank = {{"util", 0},     {"scene", 1},    {"raster", 2}, {"trace", 3}, {"screen", 4},
+                                           {"geometry", 4}, {"pipeline", 5}, {"render", 6}, {"eval", 7},  {"app", 8}};
+  const std::regex include(R"re(#include\s+"layertrace/([a-z_]+)/)re");
+  const std::filesystem::path root = std::filesystem::path(test::sourceDir()) / "src/layertrace";
+  size_t files = 0;
+  for (const auto& entry : std::filesystem::recursive_directory_iterator(root)) {
+    if (!entry.is_regular_file()) continue;
+    const std::string layer = entry.path().parent_path().filename().string();
+    ASSERT_TRUE(rank.count(layer)) << "folder " << layer << " is not a layer of DESIGN.md";
+    std::ifstream in(entry.path());
+    std::string line;
+    ++files;
+    while (std::getline(in, line)) {
+      std::smatch m;
+      if (!std::regex_search(line, m, include)) continue;
+      const std::string to = m[1];
+      ASSERT_TRUE(rank.count(to)) << entry.path() << " includes unknown layer " << to;
+      if (to == layer) continue;
+      EXPECT_LT(rank.at(to), rank.at(layer)) << entry.path() << " (" << layer << ") includes " << to << ": " << line;
+    }
+  }
+  EXPECT_GT(files, 40u);
+}
+
+}  // namespace
+}  // namespace lt
