@@ -191,12 +191,15 @@ TEST(CliCompare, WritesTheCompareSchemaImagesAndReport) {
   for (const char* t : {"ssr", "hssr"}) {
     const auto& c = j["compare"][t];
     double sum = 0.0;
-    for (const char* k : {"correct_hit", "wrong_hit", "false_miss", "info_miss", "correct_miss"}) {
+    for (const char* k : {"correct_hit", "wrong_hit", "false_miss", "origin_pixel_miss", "info_miss", "correct_miss"}) {
       ASSERT_TRUE(c.contains(k)) << t << " " << k;
       sum += c[k].get<double>();
     }
     EXPECT_NEAR(sum, 1.0, 1e-9) << t;  // every ray gets exactly one class
-    for (const char* k : {"exhaustive_mismatch", "psnr_db", "rmse", "trace_ms", "iterations_mean"}) EXPECT_TRUE(c.contains(k)) << t << " " << k;
+    EXPECT_NEAR(c["wrong_hit"].get<double>(),
+                c["wrong_hit_thickness"].get<double>() + c["wrong_hit_unstored"].get<double>() + c["wrong_hit_other"].get<double>(), 1e-9);
+    for (const char* k : {"exhaustive_mismatch", "oracle_mismatch", "psnr_db", "rmse", "trace_ms", "iterations_mean"})
+      EXPECT_TRUE(c.contains(k)) << t << " " << k;
   }
   EXPECT_EQ(j["compare"]["hssr"]["exhaustive_mismatch"], 0);
   EXPECT_GT(j["compare"]["ssr"]["iterations_mean"].get<double>(), j["compare"]["hssr"]["iterations_mean"].get<double>());

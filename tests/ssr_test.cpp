@@ -21,17 +21,7 @@ namespace {
 
 constexpr float kWallDistance = 10.0f;
 
-/// A frame of an in-code scene: rasterized and sorted with the given view, size, k, thickness.
-Frame frameOf(const Scene& scene, const CameraDesc& view, int W, int H, int k = 4, float thickness = 0.1f) {
-  Frame f;
-  f.scene = scene;
-  f.camera = Camera(view, W, H);
-  f.thickness = thickness;
-  FrameOptions o;
-  o.width = W, o.height = H, o.layers = k, o.thickness = thickness;
-  rasterizeFrame(o, f);
-  return f;
-}
+using test::frameOf;
 
 /// Floor y = -1 (material 0) and a 20 m wall z = -10 (material 1) seen from the origin, looking
 /// down -z and tilted down by `tilt` (so that some reflections land above the screen).
@@ -282,7 +272,7 @@ namespace {
 
 RayClass classifyWith(const Tracer& tracer, const Tracer& reference, const Frame& f, const Ray& r) {
   RayCounters c;
-  return classifyRay(tracer.trace(r, c), reference.trace(r, c), f.camera, f.layers, f.thickness);
+  return classifyRay(r, tracer.trace(r, c), reference.trace(r, c), Query::Closest, f.camera, f.layers);
 }
 
 // Issue 5 §6: each class constructed on purpose.

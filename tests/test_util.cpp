@@ -70,7 +70,7 @@ std::string sceneCaseName(const std::string& sceneFile) {
   return n;
 }
 
-std::vector<Ray> sampleRays(const Frame& f, size_t count, uint64_t seed) {
+std::vector<Ray> sampleRays(const Frame& f, size_t count, uint64_t seed, bool screenLines) {
   std::mt19937_64 rng(seed);
   std::uniform_int_distribution<int> px(0, f.camera.width() - 1), py(0, f.camera.height() - 1);
   std::normal_distribution<float> g;
@@ -84,7 +84,7 @@ std::vector<Ray> sampleRays(const Frame& f, size_t count, uint64_t seed) {
     r.origin = f.camera.rayThrough({x + 0.5f, y + 0.5f}) * frag.depth;
     const glm::vec3 n = decodeOctahedral(frag.normal);
     const glm::vec3 v = glm::normalize(r.origin);
-    if (rays.size() % 4 == 3) {
+    if (screenLines && rays.size() % 4 == 3) {
       // Exactly diagonal or axis-parallel screen lines through pixel corners (hssr-pitfalls §7):
       // a direction parallel to the image plane projects to a line of the same direction.
       static const glm::vec3 dirs[8] = {{1, 1, 0}, {1, -1, 0}, {-1, 1, 0}, {-1, -1, 0}, {1, 0, 0}, {-1, 0, 0}, {0, 1, 0}, {0, -1, 0}};
@@ -98,6 +98,18 @@ std::vector<Ray> sampleRays(const Frame& f, size_t count, uint64_t seed) {
     rays.push_back(r);
   }
   return rays;
+}
+
+/// A frame of an in-code scene: rasterized and sorted with the given view, size, k, thickness.
+Frame frameOf(const Scene& scene, const CameraDesc& view, int W, int H, int k, float thickness) {
+  Frame f;
+  f.scene = scene;
+  f.camera = Camera(view, W, H);
+  f.thickness = thickness;
+  FrameOptions o;
+  o.width = W, o.height = H, o.layers = k, o.thickness = thickness;
+  rasterizeFrame(o, f);
+  return f;
 }
 
 uint64_t testSeed() {

@@ -42,8 +42,12 @@ void addTriangle(Scene& s, glm::vec3 a, glm::vec3 b, glm::vec3 c, uint32_t mater
 std::string sceneCaseName(const std::string& sceneFile);
 
 /// `count` rays from random covered pixels' front surfaces: mirror reflections, random
-/// directions, and exactly diagonal or axis-parallel screen lines (hssr-pitfalls §7), in turn.
-std::vector<Ray> sampleRays(const Frame& f, size_t count, uint64_t seed);
+/// directions, and (with `screenLines`) exactly diagonal or axis-parallel screen lines
+/// (hssr-pitfalls §7), in turn.
+std::vector<Ray> sampleRays(const Frame& f, size_t count, uint64_t seed, bool screenLines = true);
+
+/// A frame of an in-code scene: rasterized and sorted with the given view, size, k, thickness.
+Frame frameOf(const Scene& scene, const CameraDesc& view, int W, int H, int k = 4, float thickness = 0.1f);
 
 /// Seed for randomized tests: LAYERTRACE_TEST_SEED or a fixed default; printed on failure.
 uint64_t testSeed();

@@ -140,6 +140,8 @@ int main(int argc, char** argv) {
   addEffectOptions(renderCmd, render.effect, effectName);
   addTracerOptions(renderCmd, render.tracers);
   renderCmd->add_flag("--check-exhaustive", render.checkExhaustive, "trace every ray with the exhaustive oracle too; count differences");
+  renderCmd->add_flag("--check-oracle", render.checkOracle,
+                      "trace every ray with the independent image-space oracle too; count differences (rays.oracle_mismatch)");
 
   lt::CompareOptions compare;
   RawFrameOptions compareRaw;

@@ -108,7 +108,7 @@ Classified measure(const Frame& frame, const Tracer& tracer, const EffectConfig&
     times.push_back(r.traceMs);
   }
   c.traceMs = median(times);
-  ClassifyObserver classes(reference ? *reference : tracer, frame.camera, frame.layers, frame.thickness);
+  ClassifyObserver classes(reference ? *reference : tracer, frame.camera, frame.layers);
   r = renderEffect(frame, tracer, ec, reference ? &classes : nullptr);
   c.iterations = r.rays ? double(r.iterationSum) / double(r.rays) : 0.0;
   if (reference) {

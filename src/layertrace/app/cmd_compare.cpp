@@ -8,6 +8,7 @@
 #include "layertrace/app/commands.h"
 #include "layertrace/app/report.h"
 #include "layertrace/eval/classify.h"
+#include "layertrace/eval/image_oracle.h"
 #include "layertrace/eval/oracle_observer.h"
 #include "layertrace/util/error.h"
 
@@ -64,6 +65,7 @@ int runCompare(const CompareOptions& o) {
   refConfig.countRays = false;  // its trace time is the baseline: no counter code
   const EffectResult ref = renderEffect(frame, *reference.tracer, refConfig);
   const BuiltTracer oracle = buildOracle(frame);
+  const ImageSpaceOracle independent(frame.camera, frame.layers);
 
   nlohmann::json stats = frameStats(frame);
   stats["effect"] = effectName(ec.effect);
@@ -84,18 +86,28 @@ int runCompare(const CompareOptions& o) {
     timing.progress = false;
     const EffectResult timed = renderEffect(frame, *built.tracer, timing);
     MismatchObserver exhaustive(*oracle.tracer);
-    ClassifyObserver classes(*reference.tracer, frame.camera, frame.layers, frame.thickness);
+    ClassifyObserver classes(*reference.tracer, frame.camera, frame.layers);
     ObserverList observers;
     observers.add(&classes);
-    if (screen) observers.add(&exhaustive);
+    OracleObserver oracleCheck(independent);
+    if (screen) observers.add(&exhaustive), observers.add(&oracleCheck);
     EffectResult r = renderEffect(frame, *built.tracer, ec, &observers);
     r.traceMs = timed.traceMs;
     const auto [rmse, psnr] = rmsePsnr(r.image, ref.image);
     nlohmann::json t;
     const double rays = double(std::max<uint64_t>(r.rays, 1));
     const auto counts = classes.counts();
-    for (int c = 0; c < kRayClasses; ++c) t[rayClassName(RayClass(c))] = double(counts[size_t(c)]) / rays;
-    if (screen) t["exhaustive_mismatch"] = exhaustive.mismatches();
+    double wrong = 0.0;
+    for (int c = 0; c < kRayClasses; ++c) {
+      t[rayClassName(RayClass(c))] = double(counts[size_t(c)]) / rays;
+      if (isWrongHit(RayClass(c))) wrong += double(counts[size_t(c)]) / rays;
+    }
+    t["wrong_hit"] = wrong;  // = wrong_hit_thickness + wrong_hit_unstored + wrong_hit_other
+    if (screen) {
+      t["exhaustive_mismatch"] = exhaustive.mismatches();
+      t["oracle_mismatch"] = oracleCheck.mismatches();
+      t["oracle_ambiguous"] = oracleCheck.ambiguous();
+    }
     t["psnr_db"] = psnr;
     t["rmse"] = rmse;
     t["trace_ms"] = r.traceMs;
@@ -121,14 +133,15 @@ int runCompare(const CompareOptions& o) {
   // The table.
   std::ostringstream table;
   table << std::left << std::setw(12) << "tracer" << std::right;
-  for (const char* h : {"correct", "wrong", "falsemiss", "infomiss", "corrmiss", "oracle≠", "PSNR dB", "trace ms", "iter/ray"})
+  for (const char* h : {"correct", "wr-thick", "wr-unst", "wr-other", "falsemiss", "origin", "infomiss", "corrmiss", "oracle≠",
+                        "PSNR dB", "trace ms", "iter/ray"})
     table << std::setw(11) << h;
   table << "\n";
   for (const std::string& name : o.tracers) {
     const nlohmann::json& t = stats["compare"][name];
     table << std::left << std::setw(12) << name << std::right << std::fixed;
     for (int c = 0; c < kRayClasses; ++c) table << std::setw(10) << std::setprecision(2) << 100.0 * t[rayClassName(RayClass(c))].get<double>() << "%";
-    table << std::setw(11) << (t.contains("exhaustive_mismatch") ? std::to_string(t["exhaustive_mismatch"].get<uint64_t>()) : "-");
+    table << std::setw(11) << (t.contains("oracle_mismatch") ? std::to_string(t["oracle_mismatch"].get<uint64_t>()) : "-");
     table << std::setw(11) << std::setprecision(2) << t["psnr_db"].get<double>() << std::setw(11) << std::setprecision(1)
           << t["trace_ms"].get<double>() << std::setw(11) << std::setprecision(1) << t["iterations_mean"].get<double>() << "\n";
   }

@@ -4,6 +4,7 @@
 #include <iostream>
 
 #include "layertrace/app/commands.h"
+#include "layertrace/eval/image_oracle.h"
 #include "layertrace/eval/oracle_observer.h"
 #include "layertrace/util/error.h"
 
@@ -43,6 +44,7 @@ int runRender(const RenderOptions& o) {
   if (!isKnownTracer(o.tracer)) inputError("--tracer ", o.tracer, ": unknown (use ssr, ssr-layers, hssr, embree, grid)");
   const bool screen = isScreenTracer(o.tracer);
   if (o.checkExhaustive && !screen) inputError("--check-exhaustive: needs an image-space tracer, not ", o.tracer);
+  if (o.checkOracle && !screen) inputError("--check-oracle: needs an image-space tracer, not ", o.tracer);
   validateTracerOptions(o.tracers);
   validateEffectConfig(o.effect);
   const auto t0 = std::chrono::steady_clock::now();
@@ -51,10 +53,15 @@ int runRender(const RenderOptions& o) {
   BuiltTracer oracle;
   std::optional<MismatchObserver> exhaustive;
   if (o.checkExhaustive) oracle = buildOracle(frame), exhaustive.emplace(*oracle.tracer);
+  const ImageSpaceOracle independent(frame.camera, frame.layers);
+  OracleObserver oracleCheck(independent);
+  ObserverList observers;
+  if (exhaustive) observers.add(&*exhaustive);
+  if (o.checkOracle) observers.add(&oracleCheck);
   EffectConfig ec = o.effect;
   ec.seed = o.run.seed;
   ec.progress = !o.run.quiet;
-  const EffectResult r = renderEffect(frame, *built.tracer, ec, exhaustive ? &*exhaustive : nullptr);
+  const EffectResult r = renderEffect(frame, *built.tracer, ec, observers.empty() ? nullptr : &observers);
   const double totalMs = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
 
   nlohmann::json stats = frameStats(frame);
@@ -69,6 +76,10 @@ int runRender(const RenderOptions& o) {
   stats["memory_bytes"]["hierarchy"] = built.memoryBytes;
   stats["rays"] = rayStats(r, screen);
   if (exhaustive) stats["rays"]["exhaustive_mismatch"] = exhaustive->mismatches();
+  if (o.checkOracle) {
+    stats["rays"]["oracle_mismatch"] = oracleCheck.mismatches();
+    stats["rays"]["oracle_ambiguous"] = oracleCheck.ambiguous();
+  }
   if (built.pyramid && o.tracer == "hssr") {
     const IntervalPyramid& p = *built.pyramid;
     stats["hssr"] = {{"tau", o.tracers.pyramid.tau}, {"levels", o.tracers.pyramid.levels}, {"n_up", o.tracers.hssr.nUp}};
@@ -97,6 +108,7 @@ int runRender(const RenderOptions& o) {
               << " ms, sort " << frame.sortMs << " ms, hierarchy " << built.buildMs << " ms, trace " << r.traceMs << " ms, shade "
               << r.shadeMs << " ms";
     if (exhaustive) std::cout << "; exhaustive mismatches " << exhaustive->mismatches();
+    if (o.checkOracle) std::cout << "; oracle mismatches " << oracleCheck.mismatches() << " (ambiguous " << oracleCheck.ambiguous() << ")";
     std::cout << "\n  wrote " << out << "\n";
   }
   return 0;

@@ -48,6 +48,7 @@ struct RenderOptions {
   EffectConfig effect;
   TracerOptions tracers;
   bool checkExhaustive = false;  ///< trace every ray with the exhaustive oracle too
+  bool checkOracle = false;      ///< trace every ray with the independent image-space oracle too
 };
 
 /// `layertrace render`: one effect traced with one tracer → image, stats, per-pixel counters.

@@ -10,8 +10,11 @@ namespace lt {
 const char* rayClassName(RayClass c) {
   switch (c) {
     case RayClass::CorrectHit: return "correct_hit";
-    case RayClass::WrongHit: return "wrong_hit";
+    case RayClass::WrongHitThickness: return "wrong_hit_thickness";
+    case RayClass::WrongHitUnstored: return "wrong_hit_unstored";
+    case RayClass::WrongHitOther: return "wrong_hit_other";
     case RayClass::FalseMiss: return "false_miss";
+    case RayClass::OriginPixelMiss: return "origin_pixel_miss";
     case RayClass::InfoMiss: return "info_miss";
     case RayClass::CorrectMiss: return "correct_miss";
   }
@@ -20,54 +23,101 @@ const char* rayClassName(RayClass c) {
 
 glm::vec3 rayClassColor(RayClass c) {
   switch (c) {
-    case RayClass::CorrectHit: return {0.1f, 0.65f, 0.15f};  // green
-    case RayClass::WrongHit: return {0.9f, 0.1f, 0.1f};      // red
-    case RayClass::FalseMiss: return {1.0f, 0.8f, 0.0f};     // yellow
-    case RayClass::InfoMiss: return {0.15f, 0.35f, 0.95f};   // blue
-    case RayClass::CorrectMiss: return {0.25f, 0.25f, 0.25f};  // grey
+    case RayClass::CorrectHit: return {0.1f, 0.65f, 0.15f};          // green
+    case RayClass::WrongHitThickness: return {0.9f, 0.1f, 0.1f};     // red
+    case RayClass::WrongHitUnstored: return {0.55f, 0.0f, 0.25f};    // dark red
+    case RayClass::WrongHitOther: return {0.95f, 0.3f, 0.75f};       // pink
+    case RayClass::FalseMiss: return {1.0f, 0.8f, 0.0f};             // yellow
+    case RayClass::OriginPixelMiss: return {0.0f, 0.85f, 0.85f};     // cyan
+    case RayClass::InfoMiss: return {0.15f, 0.35f, 0.95f};           // blue
+    case RayClass::CorrectMiss: return {0.25f, 0.25f, 0.25f};        // grey
   }
   return glm::vec3(0.0f);
 }
 
-float sameSurfaceTolerance(const Camera& camera, float depth, float thickness) {
-  return 2.0f * camera.pixelFootprint(std::max(depth, camera.near())) + thickness;
+namespace {
+
+bool inViewport(const Camera& camera, glm::vec2 p) {
+  return p.x >= 0.0f && p.y >= 0.0f && p.x < float(camera.width()) && p.y < float(camera.height());
 }
 
-bool storedInLayers(const TraceHit& truth, const Camera& camera, const LayerArrays& layers) {
-  if (!truth.hit) return false;
+/// Pixel of a camera-space point in front of the near plane, or false.
+bool pixelOf(const Camera& camera, glm::vec3 p, int& x, int& y) {
+  if (-p.z < camera.near()) return false;
+  const glm::vec2 s = camera.project(p);
+  if (!inViewport(camera, s)) return false;
+  x = int(s.x), y = int(s.y);
+  return true;
+}
+
+}  // namespace
+
+float depthTolerance(const Camera& camera, glm::vec3 p, glm::vec3 dir, glm::vec3 n) {
+  const float z = -p.z;
+  const float footprint = camera.pixelFootprint(z);
+  // The ray: depth per pixel of screen motion, d(depth)/dt over |d(screen)/dt|, where the
+  // screen motion of a point moving by dir at depth z is focal/z × |dir_xy + p_xy/z · dir_z|.
+  const glm::vec2 lateral = glm::vec2(dir.x, dir.y) - glm::vec2(p.x, p.y) / p.z * dir.z;
+  const float screen = glm::length(lateral) / footprint;
+  const float rayPerPixel = screen > 1e-12f ? std::abs(dir.z) / screen : std::numeric_limits<float>::infinity();
+  // The stored surface: a plane with normal n seen along the pixel ray r changes depth by
+  // footprint · |n_xy| / |n · r| per pixel (at most 20 footprints: grazing surfaces).
+  const glm::vec3 r = p / z;
+  const float nr = std::abs(glm::dot(n, r));
+  const float surfacePerPixel = footprint * std::min(20.0f, nr > 0.0f ? glm::length(glm::vec2(n.x, n.y)) / nr : 20.0f);
+  return 1.5f * (rayPerPixel + surfacePerPixel);
+}
+
+bool storedInLayers(const TraceHit& truth, glm::vec3 dir, const Camera& camera, const LayerArrays& layers) {
+  int x, y;
+  if (!truth.hit || !pixelOf(camera, truth.point, x, y)) return false;
   const float depth = -truth.point.z;
-  if (depth < camera.near() || depth > camera.far()) return false;
-  const glm::vec2 p = camera.project(truth.point);
-  if (!(p.x >= 0.0f && p.y >= 0.0f && p.x < float(camera.width()) && p.y < float(camera.height()))) return false;
-  const int x = int(p.x), y = int(p.y);
-  const FragmentNode* f = layers.pixel(x, y);
-  for (int i = 0; i < layers.countAt(x, y); ++i)
-    if (f[i].depth <= depth && depth <= f[i].back()) return true;
-  // The true point lies somewhere inside its pixel, the fragments at pixel centres: accept the
-  // same triangle in the pixel or a neighbour (a sliver may miss this pixel's centre).
   for (int ny = std::max(y - 1, 0); ny <= std::min(y + 1, layers.height - 1); ++ny)
     for (int nx = std::max(x - 1, 0); nx <= std::min(x + 1, layers.width - 1); ++nx) {
       const size_t base = layers.pixelIndex(nx, ny) * size_t(layers.k);
       for (int i = 0; i < layers.countAt(nx, ny); ++i)
         if (layers.triangle[base + size_t(i)] == truth.triangle) return true;
     }
+  const FragmentNode* f = layers.pixel(x, y);
+  for (int i = 0; i < layers.countAt(x, y); ++i)
+    if (const float delta = depthTolerance(camera, truth.point, dir, decodeOctahedral(f[i].normal));
+        f[i].depth - delta <= depth && depth <= f[i].back() + delta)
+      return true;
   return false;
 }
 
-RayClass classifyRay(const TraceHit& tracer, const TraceHit& truth, const Camera& camera, const LayerArrays& layers,
-                     float thickness) {
+RayClass classifyRay(const Ray& ray, const TraceHit& tracer, const TraceHit& truth, Query query, const Camera& camera,
+                     const LayerArrays& layers) {
+  int ox = -1, oy = -1, tx = -1, ty = -1;
+  pixelOf(camera, ray.origin, ox, oy);
+  const bool truthOnScreen = truth.hit && pixelOf(camera, truth.point, tx, ty);
+  const bool inOriginPixel = truthOnScreen && tx == ox && ty == oy;
   if (tracer.hit) {
-    if (!truth.hit) return RayClass::WrongHit;
-    if (tracer.triangle == truth.triangle) return RayClass::CorrectHit;
-    const float tol = sameSurfaceTolerance(camera, -truth.point.z, thickness);
-    return glm::length(tracer.point - truth.point) <= tol ? RayClass::CorrectHit : RayClass::WrongHit;
+    if (query == Query::Any) return truth.hit ? RayClass::CorrectHit : RayClass::WrongHitThickness;
+    if (tracer.layer < 0) {  // a geometric tracer's hit: the same triangle or the same distance
+      const float tr = glm::length(tracer.point - ray.origin), tt = glm::length(truth.point - ray.origin);
+      if (truth.hit && (truth.triangle == tracer.triangle || std::abs(tr - tt) <= 1e-4f * std::max(tr, tt)))
+        return RayClass::CorrectHit;
+    }
+    if (tracer.layer >= 0 && truthOnScreen && std::abs(tx - tracer.x) <= 1 && std::abs(ty - tracer.y) <= 1) {
+      if (truth.triangle == tracer.triangle) return RayClass::CorrectHit;
+      const FragmentNode& f = layers.pixel(tracer.x, tracer.y)[tracer.layer];
+      const float delta = depthTolerance(camera, truth.point, ray.dir, decodeOctahedral(f.normal)), z = -truth.point.z;
+      if (f.depth - delta <= z && z <= f.back() + delta) return RayClass::CorrectHit;
+    }
+    const float tReported = glm::dot(tracer.point - ray.origin, ray.dir);
+    const float tTrue = truth.hit ? glm::dot(truth.point - ray.origin, ray.dir) : std::numeric_limits<float>::infinity();
+    if (tTrue > tReported) return RayClass::WrongHitThickness;
+    if (inOriginPixel) return RayClass::OriginPixelMiss;
+    return storedInLayers(truth, ray.dir, camera, layers) ? RayClass::WrongHitOther : RayClass::WrongHitUnstored;
   }
   if (!truth.hit) return RayClass::CorrectMiss;
-  return storedInLayers(truth, camera, layers) ? RayClass::FalseMiss : RayClass::InfoMiss;
+  if (inOriginPixel) return RayClass::OriginPixelMiss;
+  return storedInLayers(truth, ray.dir, camera, layers) ? RayClass::FalseMiss : RayClass::InfoMiss;
 }
 
-ClassifyObserver::ClassifyObserver(const Tracer& reference, const Camera& camera, const LayerArrays& layers, float thickness)
-    : reference_(reference), camera_(camera), layers_(layers), thickness_(thickness), image_(camera.width(), camera.height()) {}
+ClassifyObserver::ClassifyObserver(const Tracer& reference, const Camera& camera, const LayerArrays& layers)
+    : reference_(reference), camera_(camera), layers_(layers), image_(camera.width(), camera.height()) {}
 
 void ClassifyObserver::observe(std::span<const RayEvent> events) {
   Local& l = local_.local();
@@ -77,10 +127,7 @@ void ClassifyObserver::observe(std::span<const RayEvent> events) {
   reference_.traceBatch(l.rays, l.truth, {});
   for (size_t i = 0; i < events.size(); ++i) {
     const RayEvent& e = events[i];
-    const TraceHit& h = *e.hit;
-    RayClass c;
-    if (e.query == Query::Any && h.hit) c = l.truth[i].hit ? RayClass::CorrectHit : RayClass::WrongHit;
-    else c = classifyRay(h, l.truth[i], camera_, layers_, thickness_);
+    const RayClass c = classifyRay(*e.ray, *e.hit, l.truth[i], e.query, camera_, layers_);
     ++l.counts[size_t(c)];
     // A pixel's rays of one wave arrive together and in order: its first ray of wave 0 is the
     // first event of that pixel in the batch.

@@ -45,6 +45,9 @@ class Camera {
   /// (so a point at parameter t along it has depth t).
   glm::vec3 rayThrough(glm::vec2 pixel) const;
 
+  /// Focal length in pixels: x_px = W/2 + focal·x/depth, y_px = H/2 − focal·y/depth.
+  float focal() const { return focal_; }
+
   /// Pixel footprint (world size of one pixel) at the given depth.
   float pixelFootprint(float depth) const { return depth * pixelScale_; }
 

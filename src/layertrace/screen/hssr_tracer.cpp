@@ -62,7 +62,17 @@ TraceHit HssrTracer::traceImpl(const Ray& ray, C& c) const {
   const int W = camera_.width(), H = camera_.height();
   const int ox = std::clamp(int(std::floor(seg.p0.x)), 0, W - 1), oy = std::clamp(int(std::floor(seg.p0.y)), 0, H - 1);
   const bool increasing = seg.k1 <= seg.k0;  // depth grows along the ray (hssr-pitfalls §6)
-  const float backoff = 1.0f / (64.0f * std::max(std::abs(line.d.x), std::abs(line.d.y)));
+  // Back-off for the coarse entry: paramAtDepth divides by k1 − k0, so its rounding error
+  // grows as the ray turns parallel to the image plane (|k1 − k0| ≪ k0). Step back at least
+  // 1/64 pixel, and at least 4× the error bound of the division (in units of s):
+  //   |Δs| ≤ 4 u (max(k0, k1, 1/z) / |k1 − k0| + |s|),  u = 2^-24,
+  // so rounding can never carry the entry past the pixel the level-0 scan would hit.
+  const float pixelBackoff = 1.0f / (64.0f * std::max(std::abs(line.d.x), std::abs(line.d.y)));
+  const float kScale = std::max(seg.k0, seg.k1) / std::abs(seg.k1 - seg.k0);
+  auto backoff = [&](float e, float z) {
+    constexpr float u = 1.0f / 16777216.0f;
+    return std::max(pixelBackoff, 4.0f * u * (std::max(kScale, 1.0f / (z * std::abs(seg.k1 - seg.k0))) + std::abs(e)));
+  };
 
   // seed 000 §5.1: skip the first pixel (no self-intersection with the origin's surface).
   float sIn, sOut;
@@ -89,13 +99,8 @@ TraceHit HssrTracer::traceImpl(const Ray& ray, C& c) const {
     float zmin = std::min(za, zb), zmax = std::max(za, zb);
     if (L == 0) {
       c.pixel();
-      const Interval* f = pyramid_.base.pixel(cx, cy);
-      const int n = pyramid_.base.countAt(cx, cy);
-      for (int i = 0; i < n; ++i) {
-        c.interval();
-        if (f[i].front > zmax) break;
-        if (f[i].back >= zmin) return fragmentHit(camera_, layers_, cx, cy, i);
-      }
+      const int i = firstMet(pyramid_.base.pixel(cx, cy), pyramid_.base.countAt(cx, cy), zmin, zmax, increasing, c);
+      if (i >= 0) return fragmentHit(camera_, layers_, cx, cy, i);
     } else {
       // Coarse levels only accelerate: widen the range by a few ulps so rounding can never
       // make them skip what level 0 would find.
@@ -108,10 +113,12 @@ TraceHit HssrTracer::traceImpl(const Ray& ray, C& c) const {
         if (iv.front > zmax) break;
         if (iv.back < zmin) continue;
         // Enter at the front when depth grows, at the back when it shrinks; never move back.
-        // Step back 1/64 pixel from the computed entry: paramAtDepth rounds, and an entry that
+        // Step back from the computed entry by its error bound (backoff above): an entry that
         // lands just past a pixel boundary would skip the pixel the oracle hits. Re-testing a
         // little more is always safe; s0 keeps it from reaching behind the current position.
-        const float e = seg.paramAtDepth(increasing ? iv.front : iv.back) - backoff;
+        const float z = increasing ? iv.front : iv.back;
+        const float p = seg.paramAtDepth(z);
+        const float e = p - backoff(p, z);
         sHit = std::min(sHit, std::clamp(std::isfinite(e) ? e : s0, s0, s1));
       }
       if (sHit != std::numeric_limits<float>::infinity()) {

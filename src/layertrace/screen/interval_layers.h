@@ -27,6 +27,27 @@ struct IntervalLayers {
   size_t memoryBytes() const { return slots.size() * sizeof(Interval) + count.size(); }
 };
 
+/// The stored interval a ray meets first while its depth covers [zmin, zmax] in one pixel, or
+/// -1 (`f` sorted by front, `n` intervals). When depth grows the ray enters at its smallest
+/// depth, so the first overlapping interval in front order is met first (ties: the front-most
+/// layer); when depth shrinks it enters at zmax, and meets first the interval with the largest
+/// entry depth min(back, zmax) (ties: the back-most layer). The independent oracle
+/// (eval/image_oracle.h) states the same rule in 3D.
+template <class C>
+int firstMet(const Interval* f, int n, float zmin, float zmax, bool increasing, C& counters) {
+  int best = -1;
+  float bestEntry = 0.0f;
+  for (int i = 0; i < n; ++i) {
+    counters.interval();
+    if (f[i].front > zmax) break;  // sorted by front: nothing further can overlap
+    if (f[i].back < zmin) continue;
+    if (increasing) return i;
+    const float entry = f[i].back < zmax ? f[i].back : zmax;
+    if (best < 0 || entry >= bestEntry) best = i, bestEntry = entry;
+  }
+  return best;
+}
+
 /// The first `maxLayers` intervals of every pixel (all k when maxLayers >= k).
 IntervalLayers makeIntervalLayers(const LayerArrays& layers, int maxLayers);
 

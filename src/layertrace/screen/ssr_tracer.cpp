@@ -18,18 +18,6 @@ SsrTracer::SsrTracer(const Camera& camera, const LayerArrays& layers, const SsrC
 }
 
 template <class C>
-int SsrTracer::overlap(int x, int y, float zmin, float zmax, C& c) const {
-  const int n = depth_.countAt(x, y);
-  const Interval* f = depth_.pixel(x, y);
-  for (int i = 0; i < n; ++i) {
-    c.interval();
-    if (f[i].front > zmax) break;  // sorted by front: nothing further can overlap
-    if (f[i].back >= zmin) return i;
-  }
-  return -1;
-}
-
-template <class C>
 TraceHit SsrTracer::traceImpl(const Ray& ray, C& c) const {
   const ScreenSegment seg = makeScreenSegment(camera_, ray);
   if (!seg.valid) return {};
@@ -44,6 +32,7 @@ TraceHit SsrTracer::traceImpl(const Ray& ray, C& c) const {
   // Derivatives per unit step along the major axis, in the segment parameter s.
   const float ds = invdx;  // ds per pixel of x
   const float stride = config_.stride;
+  const bool increasing = seg.k1 <= seg.k0;  // depth grows along the ray
   const int W = camera_.width(), H = camera_.height();
 
   auto pixelAt = [&](float s, int& x, int& y) {
@@ -82,7 +71,7 @@ TraceHit SsrTracer::traceImpl(const Ray& ray, C& c) const {
     const float nextDepth = 1.0f / std::clamp(kHalf, kLo, kHi);
     const float zmin = std::min(prevDepth, nextDepth), zmax = std::max(prevDepth, nextDepth);
     prevDepth = nextDepth;
-    int layer = overlap(x, y, zmin, zmax, c);
+    int layer = firstMet(depth_.pixel(x, y), depth_.countAt(x, y), zmin, zmax, increasing, c);
     if (layer < 0) continue;
     int hx = x, hy = y;
     if (config_.refine && stride > 1.0f) {
@@ -98,7 +87,7 @@ TraceHit SsrTracer::traceImpl(const Ray& ray, C& c) const {
         }
         float a, b;
         rangeAt(mid, 0.25f * (hi - lo), a, b);
-        const int ml = overlap(mx, my, a, b, c);
+        const int ml = firstMet(depth_.pixel(mx, my), depth_.countAt(mx, my), a, b, increasing, c);
         if (ml >= 0) hi = mid, hx = mx, hy = my, layer = ml;
         else lo = mid;
       }

@@ -30,9 +30,6 @@ class SsrTracer : public TracerImpl<SsrTracer> {
   TraceHit traceImpl(const Ray& ray, C& counters) const;
 
  private:
-  /// First interval of pixel (x, y) overlapping [zmin, zmax], or -1.
-  template <class C>
-  int overlap(int x, int y, float zmin, float zmax, C& c) const;
   const Camera& camera_;
   const LayerArrays& layers_;
   IntervalLayers depth_;  ///< what the march reads: the front layer (ssr) or all k (ssr-layers)

@@ -1,0 +1,225 @@
+// The independent image-space oracle (eval/image_oracle.h) and the strict classes
+// (eval/classify.h): HSSR answers exactly as the oracle; the cases the oracle exposed — rays
+// whose depth shrinks, rays nearly parallel to the image plane — are pinned down; and the
+// classes punish a thicker z-thickness instead of rewarding it.
+#include <random>
+
+#include <glm/geometric.hpp>
+
+#include "layertrace/eval/classify.h"
+#include "layertrace/eval/image_oracle.h"
+#include "layertrace/eval/oracle_observer.h"
+#include "layertrace/pipeline/tracer_factory.h"
+#include "layertrace/render/effects.h"
+#include "layertrace/scene/load.h"
+#include "test_util.h"
+
+namespace lt {
+namespace {
+
+/// Layer arrays of a W × H screen where every pixel holds the same intervals.
+LayerArrays uniformLayers(int W, int H, const std::vector<std::pair<float, float>>& intervals) {
+  LayerArrays L;
+  L.width = W, L.height = H, L.k = int(intervals.size());
+  const size_t pixels = size_t(W) * size_t(H);
+  L.slots.resize(pixels * size_t(L.k));
+  L.count.assign(pixels, uint8_t(L.k));
+  L.triangle.assign(pixels * size_t(L.k), 0);
+  for (size_t p = 0; p < pixels; ++p)
+    for (int i = 0; i < L.k; ++i) {
+      FragmentNode& f = L.slots[p * size_t(L.k) + size_t(i)];
+      f.depth = intervals[size_t(i)].first;
+      f.normal = encodeOctahedral({0, 0, 1});
+      f.albedoSpec = 0;
+      f.setThickness(intervals[size_t(i)].second - intervals[size_t(i)].first);
+      L.triangle[p * size_t(L.k) + size_t(i)] = uint32_t(i);
+    }
+  return L;
+}
+
+/// Every image-space tracer of the project on `layers`, answering `rays` as the oracle does.
+void expectAllAgreeWithOracle(const Camera& camera, const LayerArrays& layers, const std::vector<Ray>& rays,
+                              int* layerOneHits = nullptr) {
+  const ImageSpaceOracle oracle(camera, layers);
+  const IntervalPyramid pyramid = buildIntervalPyramid(layers, camera, PyramidConfig{5, 25.0f});
+  const IntervalPyramid one = buildIntervalPyramid(layers, camera, PyramidConfig{1, 25.0f});
+  const HssrTracer hssr(camera, layers, pyramid, HssrConfig{2, 5}), exhaustive(camera, layers, one, HssrConfig{1, 1});
+  SsrConfig sc;
+  sc.allLayers = true;
+  const SsrTracer ssr(camera, layers, sc);
+  size_t ambiguous = 0;
+  for (size_t i = 0; i < rays.size(); ++i) {
+    const OracleAnswer a = oracle.answer(rays[i]);
+    if (a.ambiguous) {
+      ++ambiguous;
+      continue;
+    }
+    if (layerOneHits && a.hit.hit && a.hit.layer == 1) ++*layerOneHits;
+    for (const Tracer* t : {static_cast<const Tracer*>(&hssr), static_cast<const Tracer*>(&exhaustive), static_cast<const Tracer*>(&ssr)}) {
+      RayCounters c;
+      const TraceHit h = t->trace(rays[i], c);
+      // SSR estimates a step's depth range from half steps: it may hit a neighbouring pixel, but
+      // it must pick the interval the ray meets first.
+      const bool samePixel = h.hit && a.hit.hit && h.x == a.hit.x && h.y == a.hit.y;
+      const bool ok = t == &ssr ? !samePixel || h.layer == a.hit.layer : sameFragment(h, a.hit);
+      EXPECT_TRUE(ok) << t->name() << " ray " << i << ": tracer " << h.hit << " (" << h.x << "," << h.y
+                                          << ") layer " << h.layer << ", oracle " << a.hit.hit << " (" << a.hit.x << ","
+                                          << a.hit.y << ") layer " << a.hit.layer;
+    }
+  }
+  EXPECT_LT(ambiguous, rays.size() / 20) << "most rays must be decidable";
+}
+
+// Issue 10 §3: a ray coming back towards the camera (after a mirror bounce) meets the deepest
+// of two overlapping intervals first; the tracers used to return the front-most.
+TEST(Oracle, RayWhoseDepthShrinksEntersTheDeeperOverlappingIntervalFirst) {
+  const Camera camera(test::originCamera(60.0f, 0.05f, 100.0f), 64, 36);
+  const LayerArrays layers = uniformLayers(64, 36, {{5.0f, 5.5f}, {5.3f, 6.0f}});
+  std::mt19937_64 rng(test::testSeed());
+  std::uniform_real_distribution<float> u(-1.0f, 1.0f);
+  std::vector<Ray> rays;
+  for (int i = 0; i < 400; ++i) {
+    // From depth 9 behind everything, steeply towards the camera: a pixel's depth range spans
+    // both intervals' entries.
+    const glm::vec3 o = camera.rayThrough({20.5f + 20.0f * u(rng), 18.5f + 10.0f * u(rng)}) * 9.0f;
+    rays.push_back(Ray{o, glm::normalize(glm::vec3(u(rng) * 0.3f, u(rng) * 0.3f, 1.0f)), 8.0f});
+  }
+  int deeperFirst = 0;
+  expectAllAgreeWithOracle(camera, layers, rays, &deeperFirst);
+  EXPECT_GT(deeperFirst, 100) << "the rays must exercise the case: the deeper interval met first";
+}
+
+// Issue 10 §3: the coarse entry divides by k1 − k0, ill-conditioned for rays nearly parallel to
+// the image plane (origin (−5, 0, −10), direction ≈ (1, 0, −2e-5), 1280×720, 60°: an error of
+// about 1.7 pixels); the back-off must cover it so the hierarchy never skips the pixel its own
+// level-0 scan hits. (Which pixel that is, float depth cannot resolve to better than a few
+// pixels here — the ray's depth changes by 3e-7 per pixel — so the oracle is asked only for
+// the neighbourhood.)
+TEST(Hssr, RayNearlyParallelToTheImagePlaneDoesNotSkipTheSurface) {
+  const Camera camera(test::originCamera(60.0f, 0.05f, 100.0f), 1280, 720);
+  std::vector<Ray> rays;
+  for (float dz : {-2e-5f, -1e-5f, -5e-6f, -4e-5f, 2e-5f, 1e-5f})
+    for (float y : {0.0f, 0.37f, -1.21f})
+      for (float ox : {-5.0f, -4.3f})
+        rays.push_back(Ray{{ox, y, -10.0f}, glm::normalize(glm::vec3(1.0f, 0.0f, dz)), 10.0f});
+  for (float offset : {1e-4f, 5e-5f, 1.5e-4f}) {
+    SCOPED_TRACE(offset);
+    // A thin surface between the ray's start and end depth, whichever way the depth goes.
+    for (float sign : {1.0f, -1.0f}) {
+      const float depth = 10.0f + sign * offset;
+      const LayerArrays layers = uniformLayers(1280, 720, {{depth, depth + 1e-6f}});
+      const ImageSpaceOracle oracle(camera, layers);
+      const IntervalPyramid pyramid = buildIntervalPyramid(layers, camera, PyramidConfig{5, 25.0f});
+      const IntervalPyramid one = buildIntervalPyramid(layers, camera, PyramidConfig{1, 25.0f});
+      const HssrTracer hssr(camera, layers, pyramid, HssrConfig{2, 5}), exhaustive(camera, layers, one, HssrConfig{1, 1});
+      int hits = 0;
+      for (size_t i = 0; i < rays.size(); ++i) {
+        if ((rays[i].dir.z < 0.0f) != (sign > 0.0f)) continue;  // the ray must reach the surface
+        RayCounters c;
+        const TraceHit h = hssr.trace(rays[i], c), e = exhaustive.trace(rays[i], c);
+        const OracleAnswer a = oracle.answer(rays[i]);
+        EXPECT_TRUE(sameFragment(h, e)) << "ray " << i << ": hssr (" << h.x << "," << h.y << "), exhaustive (" << e.x << "," << e.y << ")";
+        if (!a.hit.hit) continue;  // the ray ends before the surface's depth
+        EXPECT_TRUE(h.hit && std::abs(h.x - a.hit.x) <= 4 && h.y == a.hit.y)
+            << "ray " << i << ": hssr (" << h.x << "," << h.y << "), oracle (" << a.hit.x << "," << a.hit.y << ")";
+        hits += h.hit;
+      }
+      EXPECT_GT(hits, 0);
+    }
+  }
+}
+
+/// Rays and their second bounces: the sampled rays, then a mirror ray from every HSSR hit.
+std::vector<Ray> withSecondBounces(const Tracer& hssr, std::vector<Ray> rays) {
+  const size_t first = rays.size();
+  for (size_t i = 0; i < first; ++i) {
+    RayCounters c;
+    const TraceHit h = hssr.trace(rays[i], c);
+    if (!h.hit) continue;
+    const glm::vec3 n = glm::dot(h.normal, rays[i].dir) > 0.0f ? -h.normal : h.normal;
+    rays.push_back(Ray{h.point, glm::reflect(rays[i].dir, n), rays[i].maxDistance});
+  }
+  return rays;
+}
+
+/// HSSR (any τ, levels, n_up) = the independent oracle on every ray it can decide.
+void expectHssrMatchesOracle(const Frame& f, size_t count) {
+  const uint64_t seed = test::testSeed();
+  const ImageSpaceOracle oracle(f.camera, f.layers);
+  const BuiltTracer hssr = buildTracer("hssr", f, TracerOptions{});
+  const std::vector<Ray> rays = withSecondBounces(*hssr.tracer, test::sampleRays(f, count, seed, false));
+  std::vector<TraceHit> hits(rays.size());
+  hssr.tracer->traceBatch(rays, hits, {});
+  size_t mismatches = 0, ambiguous = 0, hitCount = 0;
+  for (size_t i = 0; i < rays.size(); ++i) {
+    const OracleAnswer a = oracle.answer(rays[i]);
+    hitCount += a.hit.hit;
+    if (sameFragment(a.hit, hits[i])) continue;
+    if (a.ambiguous) {
+      ++ambiguous;
+      continue;
+    }
+    if (++mismatches <= 5)
+      ADD_FAILURE() << "ray " << i << " (seed " << seed << "): hssr " << hits[i].hit << " (" << hits[i].x << "," << hits[i].y
+                    << ") layer " << hits[i].layer << ", oracle (" << a.hit.x << "," << a.hit.y << ") layer " << a.hit.layer;
+  }
+  EXPECT_EQ(mismatches, 0u) << "of " << rays.size() << " rays";
+  EXPECT_LT(double(ambiguous), 1e-3 * double(rays.size())) << "rays the oracle could not decide";
+  EXPECT_GT(hitCount, rays.size() / 3);
+  ::testing::Test::RecordProperty("oracle_ambiguous", std::to_string(ambiguous));
+}
+
+TEST(Oracle, HssrMatchesTheIndependentOracleOnTheDefaultScene) {
+  FrameOptions o;
+  o.scenePath = test::sourceDir() + "/scenes/default.json";
+  o.width = 400, o.height = 225;
+  expectHssrMatchesOracle(buildFrame(o), 20000);
+}
+
+// Issue 10 "done when": raising --thickness 8× lowers the correct share and raises the
+// thickness wrong hits (the classifier reads no thickness option).
+TEST(Classify, ThickerIntervalsLowerTheCorrectShareAndRaiseThicknessWrongHits) {
+  std::array<uint64_t, kRayClasses> counts[2];
+  uint64_t rays[2];
+  for (int i = 0; i < 2; ++i) {
+    FrameOptions o;
+    o.scenePath = test::sourceDir() + "/scenes/default.json";
+    o.width = 320, o.height = 180;
+    o.thickness = i == 0 ? 0.05f : 0.4f;
+    const Frame f = buildFrame(o);
+    const BuiltTracer hssr = buildTracer("hssr", f, TracerOptions{}), embree = buildTracer("embree", f, TracerOptions{});
+    ClassifyObserver classes(*embree.tracer, f.camera, f.layers);
+    const EffectResult r = renderEffect(f, *hssr.tracer, EffectConfig{}, &classes);
+    counts[i] = classes.counts();
+    rays[i] = r.rays;
+  }
+  auto share = [&](int i, RayClass c) { return double(counts[i][size_t(c)]) / double(rays[i]); };
+  EXPECT_LT(share(1, RayClass::CorrectHit), share(0, RayClass::CorrectHit) - 0.03);
+  EXPECT_GT(share(1, RayClass::WrongHitThickness), share(0, RayClass::WrongHitThickness) + 0.03);
+}
+
+}  // namespace
+}  // namespace lt
+
+namespace lt {
+namespace {
+
+// Issue 10 "done when": 0 oracle mismatches on every real scene, reflection and random rays
+// (and diagonal/axis-parallel screen lines) plus their second bounces, at 1280×720.
+class RealSceneOracle : public ::testing::TestWithParam<std::pair<const char*, const char*>> {};
+
+TEST_P(RealSceneOracle, HssrMatchesTheIndependentOracle) {
+  ASSERT_TRUE(test::haveFetchedScenes()) << "run scripts/fetch-scenes.sh";
+  FrameOptions o;
+  o.scenePath = test::sourceDir() + "/scenes/" + GetParam().first;
+  o.cameraName = GetParam().second;
+  expectHssrMatchesOracle(buildFrame(o), 60000);
+}
+
+INSTANTIATE_TEST_SUITE_P(Scenes, RealSceneOracle,
+                         ::testing::Values(std::make_pair("fzk-haus.json", "interior"), std::make_pair("am-thornish.json", "hall"),
+                                           std::make_pair("engine.json", "interior")),
+                         [](const auto& p) { return test::sceneCaseName(p.param.first); });
+
+}  // namespace
+}  // namespace lt
