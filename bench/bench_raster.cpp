@@ -31,7 +31,9 @@ void BM_RasterSort(benchmark::State& state) {
   uint64_t fragments = 0;
   for (auto _ : state) {
     lt::FragmentLists lists = lt::rasterize(f.scene, f.camera);
-    lt::LayerArrays layers = lt::sortAndTruncate(lists, lt::LayerConfig{4, f.thickness, 0.0f});
+    lt::LayerConfig lc{4, f.thickness};
+    lc.thicknessPerDepth = f.thicknessPerDepth;
+    lt::LayerArrays layers = lt::sortAndTruncate(lists, lc);
     benchmark::DoNotOptimize(layers.count.data());
     fragments = lists.generated;
   }

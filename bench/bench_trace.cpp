@@ -92,7 +92,7 @@ void BM_Hssr(benchmark::State& state) {
 
 void BM_Embree(benchmark::State& state) {
   Setup& s = setup(int(state.range(0)));
-  const lt::EmbreeScene embree(s.frame.scene);
+  const lt::EmbreeScene embree(s.frame.scene, lt::EmbreeScene::Mode::Fast);
   const lt::EmbreeTracer t("embree", s.frame.scene, s.frame.camera, embree);
   traceAll(state, t, s.rays);
 }

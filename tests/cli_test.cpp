@@ -185,7 +185,7 @@ namespace {
 TEST(CliCompare, WritesTheCompareSchemaImagesAndReport) {
   test::TempDir dir;
   ASSERT_NO_FATAL_FAILURE(expectRuns("compare " + kDefault + " --width 200 --height 112 --tracers ssr,hssr --quiet -o " + (dir / "c") +
-                             " --report " + (dir / "r") + " --stats " + (dir / "s.json")));
+                             " --report " + (dir / "r") + " --stats " + (dir / "s.json") + " --check-oracle"));
   const auto j = readJson(dir / "c/compare.json");
   EXPECT_EQ(readJson(dir / "s.json"), j);
   for (const char* t : {"ssr", "hssr"}) {

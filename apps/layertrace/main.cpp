@@ -46,6 +46,7 @@ struct RawFrameOptions {
   std::vector<std::string> lights;
   float fov = 0.0f;
   float thickness = 0.0f;
+  float thicknessPx = 0.0f;
 };
 
 void addFrameOptions(CLI::App* app, lt::RunOptions& run, RawFrameOptions& raw) {
@@ -59,7 +60,9 @@ void addFrameOptions(CLI::App* app, lt::RunOptions& run, RawFrameOptions& raw) {
   app->add_option("--width", f.width, "image width in pixels")->capture_default_str();
   app->add_option("--height", f.height, "image height in pixels")->capture_default_str();
   app->add_option("--layers", f.layers, "layers k kept per pixel, 1..16")->capture_default_str();
-  app->add_option("--thickness", raw.thickness, "fragment z-thickness in scene units (default: 0.5% of the scene diagonal)");
+  app->add_option("--thickness", raw.thickness, "fixed fragment z-thickness in scene units (default: --thickness-px)");
+  app->add_option("--thickness-px", raw.thicknessPx,
+                  lt::cat("fragment z-thickness in pixel footprints at the fragment's depth (default ", lt::kDefaultThicknessPx, ")"));
   app->add_option("--min-separation", f.minSeparation, "minimum depth separation of kept layers (0 = off)")->capture_default_str();
   app->add_flag("--adaptive-thickness", f.adaptiveThickness, "merge fragments that start inside the previous kept interval (seed 000 §4.2)");
   app->add_option("--pool", f.pool, "fragment pool capacity (0 = automatic, grows on overflow)")->capture_default_str();
@@ -111,6 +114,7 @@ void finishFrameOptions(lt::RunOptions& run, const RawFrameOptions& raw) {
   if (!raw.up.empty()) f.up = parseVec3("--up", raw.up);
   if (raw.fov != 0.0f) f.fov = raw.fov;
   if (raw.thickness != 0.0f) f.thickness = raw.thickness;
+  if (raw.thicknessPx != 0.0f) f.thicknessPx = raw.thicknessPx;
   for (const std::string& l : raw.lights) {
     const auto v = parseNumbers("--light", l, 3, 4);
     f.lights.push_back({v[0], v[1], v[2], v.size() == 4 ? v[3] : 1.0f});
@@ -152,6 +156,8 @@ int main(int argc, char** argv) {
   addEffectOptions(compareCmd, compare.effect, compareEffect);
   addTracerOptions(compareCmd, compare.options);
   compareCmd->add_option("--report", compare.report, "also write an HTML report (one self-contained page) to this folder");
+  compareCmd->add_flag("--check-oracle", compare.checkOracle,
+                       "also check every image-space ray against the independent oracle (slow; oracle_mismatch)");
 
   lt::BenchOptions bench;
   RawFrameOptions benchRaw;

@@ -141,7 +141,7 @@ int runBench(const BenchOptions& o) {
   const std::string& e = o.experiment;
   if (e == "stride") {
     rasterizeFrame(o.run.frame, frame);
-    const BuiltTracer ref = buildTracer("embree", frame, o.options);
+    const BuiltTracer ref = buildReference(frame);
     t.columns = {"tracer", "stride", "trace_ms", "iterations_mean", "false_miss", "correct_hit", "relative_trace"};
     Progress p(o.run.quiet, e, 9);
     const BuiltTracer hssr = buildTracer("hssr", frame, o.options);

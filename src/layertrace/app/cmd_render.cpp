@@ -19,6 +19,7 @@ nlohmann::json rayStats(const EffectResult& r, bool screen) {
                       {"iterations_p99", r.iterationsP99},
                       {"visited_pixels_mean", r.rays ? double(r.pixelSum) / double(r.rays) : 0.0},
                       {"give_ups", r.giveUps},
+                      {"bent", r.bentRays},
                       {"counters", kCountersCompiled}};
   // Per visited cell at any level (hssr-pitfalls §10: the same unit for every tracer).
   if (screen) j["intervals_per_visited_pixel"] = r.iterationSum ? double(r.intervalSum) / double(r.iterationSum) : 0.0;

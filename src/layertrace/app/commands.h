@@ -60,6 +60,7 @@ struct CompareOptions {
   EffectConfig effect;
   TracerOptions options;
   std::string report;  ///< --report DIR: one HTML page with images and the table
+  bool checkOracle = false;  ///< --check-oracle: every image-space ray against the independent oracle too
 };
 
 struct BenchOptions {

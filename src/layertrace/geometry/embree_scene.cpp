@@ -76,7 +76,7 @@ struct EmbreeScene::Impl {
   }
 };
 
-EmbreeScene::EmbreeScene(const Scene& scene) : impl_(std::make_unique<Impl>()) {
+EmbreeScene::EmbreeScene(const Scene& scene, Mode mode) : impl_(std::make_unique<Impl>()), mode_(mode) {
   const auto start = std::chrono::steady_clock::now();
   enableFlushDenormals();
   const int64_t before = gEmbreeBytes.load();
@@ -85,7 +85,7 @@ EmbreeScene::EmbreeScene(const Scene& scene) : impl_(std::make_unique<Impl>()) {
   rtcSetDeviceErrorFunction(impl_->device, errorCallback, nullptr);
   rtcSetDeviceMemoryMonitorFunction(impl_->device, memoryMonitor, nullptr);
   impl_->scene = rtcNewScene(impl_->device);
-  rtcSetSceneFlags(impl_->scene, RTC_SCENE_FLAG_CONTEXT_FILTER_FUNCTION | RTC_SCENE_FLAG_ROBUST);
+  if (mode == Mode::Robust) rtcSetSceneFlags(impl_->scene, RTC_SCENE_FLAG_CONTEXT_FILTER_FUNCTION | RTC_SCENE_FLAG_ROBUST);
   rtcSetSceneBuildQuality(impl_->scene, RTC_BUILD_QUALITY_HIGH);
   RTCGeometry geom = rtcNewGeometry(impl_->device, RTC_GEOMETRY_TYPE_TRIANGLE);
   auto* v = static_cast<float*>(rtcSetNewGeometryBuffer(geom, RTC_BUFFER_TYPE_VERTEX, 0, RTC_FORMAT_FLOAT3,
@@ -110,9 +110,9 @@ EmbreeScene::~EmbreeScene() = default;
 
 size_t EmbreeScene::memoryBytes() const { return size_t(std::max<int64_t>(impl_->bytes, 0)); }
 
-GeoHit EmbreeScene::intersect(glm::vec3 o, glm::vec3 d, float tnear, float tfar, uint32_t* steps) const {
+GeoHit EmbreeScene::intersect(glm::vec3 o, glm::vec3 d, float tnear, float tfar, TraversalCounts* counts) const {
   enableFlushDenormals();
-  if (steps) *steps = 1;
+  if (counts) ++counts->steps;
   RTCIntersectContext ctx;
   rtcInitIntersectContext(&ctx);
   RTCRayHit rh = makeRay(o, d, tnear, tfar);
@@ -126,9 +126,9 @@ GeoHit EmbreeScene::intersect(glm::vec3 o, glm::vec3 d, float tnear, float tfar,
   return h;
 }
 
-bool EmbreeScene::occluded(glm::vec3 o, glm::vec3 d, float tnear, float tfar, uint32_t* steps) const {
+bool EmbreeScene::occluded(glm::vec3 o, glm::vec3 d, float tnear, float tfar, TraversalCounts* counts) const {
   enableFlushDenormals();
-  if (steps) *steps = 1;
+  if (counts) ++counts->steps;
   RTCIntersectContext ctx;
   rtcInitIntersectContext(&ctx);
   RTCRay r = makeRay(o, d, tnear, tfar).ray;
@@ -136,7 +136,51 @@ bool EmbreeScene::occluded(glm::vec3 o, glm::vec3 d, float tnear, float tfar, ui
   return r.tfar < 0.0f;  // Embree sets tfar = -inf on occlusion
 }
 
+namespace {
+
+/// rtcIntersect4/8/16 on one packet of N rays.
+template <int N, class RayHitN>
+void intersectPacket(RTCScene scene, const glm::vec3* o, const glm::vec3* d, int n, float tnear, float tfar, GeoHit* out) {
+  alignas(64) int valid[N];
+  alignas(64) RayHitN rh{};
+  for (int i = 0; i < N; ++i) {
+    const int j = i < n ? i : 0;
+    valid[i] = i < n ? -1 : 0;
+    rh.ray.org_x[i] = o[j].x, rh.ray.org_y[i] = o[j].y, rh.ray.org_z[i] = o[j].z;
+    rh.ray.dir_x[i] = d[j].x, rh.ray.dir_y[i] = d[j].y, rh.ray.dir_z[i] = d[j].z;
+    rh.ray.tnear[i] = tnear, rh.ray.tfar[i] = tfar;
+    rh.ray.mask[i] = 0xFFFFFFFFu, rh.ray.flags[i] = 0;
+    rh.hit.geomID[i] = RTC_INVALID_GEOMETRY_ID;
+  }
+  RTCIntersectContext ctx;
+  rtcInitIntersectContext(&ctx);
+  if constexpr (N == 4) rtcIntersect4(valid, scene, &ctx, &rh);
+  else if constexpr (N == 8) rtcIntersect8(valid, scene, &ctx, &rh);
+  else rtcIntersect16(valid, scene, &ctx, &rh);
+  for (int i = 0; i < n; ++i) {
+    out[i] = GeoHit{};
+    if (rh.hit.geomID[i] == RTC_INVALID_GEOMETRY_ID) continue;
+    out[i].t = rh.ray.tfar[i];
+    out[i].triangle = rh.hit.primID[i];
+    out[i].ng = {rh.hit.Ng_x[i], rh.hit.Ng_y[i], rh.hit.Ng_z[i]};
+  }
+}
+
+}  // namespace
+
+void EmbreeScene::intersectPackets(const glm::vec3* o, const glm::vec3* d, size_t n, float tnear, float tfar, int width,
+                                   GeoHit* out) const {
+  enableFlushDenormals();
+  for (size_t b = 0; b < n; b += size_t(width)) {
+    const int m = int(std::min<size_t>(size_t(width), n - b));
+    if (width == 4) intersectPacket<4, RTCRayHit4>(impl_->scene, o + b, d + b, m, tnear, tfar, out + b);
+    else if (width == 8) intersectPacket<8, RTCRayHit8>(impl_->scene, o + b, d + b, m, tnear, tfar, out + b);
+    else intersectPacket<16, RTCRayHit16>(impl_->scene, o + b, d + b, m, tnear, tfar, out + b);
+  }
+}
+
 void EmbreeScene::allHits(glm::vec3 o, glm::vec3 d, float tnear, float tfar, std::vector<GeoHit>& out) const {
+  if (mode_ != Mode::Robust) throw InternalError("embree: allHits needs a scene built in robust mode");
   enableFlushDenormals();
   out.clear();
   CollectContext ctx;

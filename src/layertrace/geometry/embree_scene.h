@@ -21,19 +21,36 @@ struct GeoHit {
   bool hit() const { return triangle != 0xFFFFFFFFu; }
 };
 
+/// What one geometric query did (optional out-parameter of every query).
+struct TraversalCounts {
+  uint32_t steps = 0;    ///< cells visited (grid); 1 per query (Embree)
+  uint32_t tests = 0;    ///< ray–triangle tests (grid; Embree does not say)
+  uint32_t giveUps = 0;  ///< 1 when a step cap ended the traversal before the ray did
+};
+
 class EmbreeScene {
  public:
-  explicit EmbreeScene(const Scene& scene);
+  /// Fast: Embree's default scene flags (no robust mode, no filter function), HIGH build
+  /// quality — the baseline every speed claim is measured against. Robust:
+  /// RTC_SCENE_FLAG_ROBUST | RTC_SCENE_FLAG_CONTEXT_FILTER_FUNCTION — watertight, and able to
+  /// collect all hits (allHits): the ground truth of classification, capture checks and verify.
+  enum class Mode { Fast, Robust };
+  explicit EmbreeScene(const Scene& scene, Mode mode = Mode::Robust);
+  Mode mode() const { return mode_; }
   ~EmbreeScene();
   EmbreeScene(const EmbreeScene&) = delete;
   EmbreeScene& operator=(const EmbreeScene&) = delete;
 
-  /// Closest hit with t in [tnear, tfar]; `steps` (if given) is set to 1: one BVH query.
-  GeoHit intersect(glm::vec3 origin, glm::vec3 dir, float tnear, float tfar, uint32_t* steps = nullptr) const;
-  /// Any hit with t in [tnear, tfar]; `steps` as for intersect.
-  bool occluded(glm::vec3 origin, glm::vec3 dir, float tnear, float tfar, uint32_t* steps = nullptr) const;
+  /// Closest hit with t in [tnear, tfar]; `counts` (if given) gets one step: one BVH query.
+  GeoHit intersect(glm::vec3 origin, glm::vec3 dir, float tnear, float tfar, TraversalCounts* counts = nullptr) const;
+  /// Any hit with t in [tnear, tfar]; `counts` as for intersect.
+  bool occluded(glm::vec3 origin, glm::vec3 dir, float tnear, float tfar, TraversalCounts* counts = nullptr) const;
+  /// Closest hits of n rays with one tnear/tfar, traced `width` (4, 8 or 16) at a time with
+  /// rtcIntersect4/8/16 (the last packet masked) — the packet baseline of geobench.
+  void intersectPackets(const glm::vec3* origins, const glm::vec3* dirs, size_t n, float tnear, float tfar, int width,
+                        GeoHit* out) const;
   /// Every hit along the ray with t in [tnear, tfar], sorted by t, each triangle once (with
-  /// HIGH build quality Embree may report a triangle twice).
+  /// HIGH build quality Embree may report a triangle twice). Robust mode only.
   void allHits(glm::vec3 origin, glm::vec3 dir, float tnear, float tfar, std::vector<GeoHit>& out) const;
 
   double buildMs() const { return buildMs_; }
@@ -43,6 +60,7 @@ class EmbreeScene {
   struct Impl;
   std::unique_ptr<Impl> impl_;
   double buildMs_ = 0.0;
+  Mode mode_ = Mode::Robust;
 };
 
 /// Sets flush-to-zero and denormals-are-zero for the calling thread.

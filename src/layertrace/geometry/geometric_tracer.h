@@ -39,7 +39,7 @@ class GeometricHits {
 /// A geometric acceleration structure as a tracer: Accel is EmbreeScene ("embree": one
 /// rtcIntersect1 / rtcOccluded1 per ray, counted as one iteration) or IrregularGrid ("grid":
 /// iterations count visited cells). Both answer world-space queries
-///   intersect(origin, dir, tnear, tfar, steps*) and occluded(origin, dir, tnear, tfar, steps*).
+///   intersect(origin, dir, tnear, tfar, TraversalCounts*) and occluded(…, TraversalCounts*).
 template <class Accel>
 class GeometricTracer : public TracerImpl<GeometricTracer<Accel>> {
  public:
@@ -59,10 +59,11 @@ class GeometricTracer : public TracerImpl<GeometricTracer<Accel>> {
   template <class C, class Q>
   auto query(const Ray& ray, C& c, Q&& q) const {
     const Camera& cam = hits_.camera();
-    uint32_t steps = 0;
+    TraversalCounts n;
     const auto answer = q(cam.toWorld(ray.origin), cam.dirToWorld(ray.dir), GeometricHits::originOffset(ray), ray.maxDistance,
-                          C::kEnabled ? &steps : nullptr);
-    c.addIterations(std::max(steps, 1u));
+                          C::kEnabled ? &n : nullptr);
+    c.addIterations(std::max(n.steps, 1u));
+    if (n.giveUps) c.giveUp();
     return answer;
   }
   const char* name_;

@@ -63,9 +63,9 @@ class IrregularGrid {
   IrregularGrid(const Scene& scene, const GridConfig& config = {});
 
   /// Closest hit with t in [tnear, tfar]; `steps` counts visited cells.
-  GeoHit intersect(glm::vec3 origin, glm::vec3 dir, float tnear, float tfar, uint32_t* steps = nullptr) const;
+  GeoHit intersect(glm::vec3 origin, glm::vec3 dir, float tnear, float tfar, TraversalCounts* counts = nullptr) const;
   /// Any hit with t in [tnear, tfar].
-  bool occluded(glm::vec3 origin, glm::vec3 dir, float tnear, float tfar, uint32_t* steps = nullptr) const;
+  bool occluded(glm::vec3 origin, glm::vec3 dir, float tnear, float tfar, TraversalCounts* counts = nullptr) const;
 
   const GridStats& stats() const { return stats_; }
   size_t memoryBytes() const;
@@ -79,7 +79,7 @@ class IrregularGrid {
 
  private:
   template <bool AnyHit>
-  GeoHit traverse(glm::vec3 o, glm::vec3 d, float tnear, float tfar, uint32_t* steps) const;
+  GeoHit traverse(glm::vec3 o, glm::vec3 d, float tnear, float tfar, TraversalCounts* counts) const;
   friend struct GridBuilder;
 
   const Scene* scene_;

@@ -36,7 +36,7 @@ inline bool hitTriangle(glm::vec3 o, glm::vec3 d, glm::vec3 v0, glm::vec3 e1, gl
 }  // namespace
 
 template <bool AnyHit>
-GeoHit IrregularGrid::traverse(glm::vec3 o, glm::vec3 d, float tnear, float tfar, uint32_t* steps) const {
+GeoHit IrregularGrid::traverse(glm::vec3 o, glm::vec3 d, float tnear, float tfar, TraversalCounts* counts) const {
   GeoHit best;
   // Clip to the grid's box.
   float t0 = tnear, t1 = tfar;
@@ -56,9 +56,10 @@ GeoHit IrregularGrid::traverse(glm::vec3 o, glm::vec3 d, float tnear, float tfar
   for (int i = 0; i < 3; ++i) v[i] = std::clamp(int(std::floor(p[i])), 0, virt_[i] - 1);
   float bestT = tfar;
   const int maxSteps = 4 * (virt_[0] + virt_[1] + virt_[2]) + 16;
-  for (int step = 0; step < maxSteps; ++step) {
+  int step = 0;
+  for (; step < maxSteps; ++step) {
     const GridCell& c = cells_[cellAt(v)];
-    if (steps) ++*steps;
+    if (counts) ++counts->steps, counts->tests += c.refEnd - c.refBegin;
     for (uint32_t r = c.refBegin; r < c.refEnd; ++r) {
       const uint32_t tri = refs_[r];
       float t;
@@ -92,6 +93,7 @@ GeoHit IrregularGrid::traverse(glm::vec3 o, glm::vec3 d, float tnear, float tfar
     }
     if (v[axis] < 0 || v[axis] >= virt_[axis]) break;
   }
+  if (step == maxSteps && counts) ++counts->giveUps;  // never seen: the grid's steps are finite
   if (best.hit()) {
     const glm::uvec3 i = scene_->triangles[best.triangle];
     best.ng = glm::cross(scene_->positions[i.y] - scene_->positions[i.x], scene_->positions[i.z] - scene_->positions[i.x]);
@@ -99,12 +101,12 @@ GeoHit IrregularGrid::traverse(glm::vec3 o, glm::vec3 d, float tnear, float tfar
   return best;
 }
 
-GeoHit IrregularGrid::intersect(glm::vec3 origin, glm::vec3 dir, float tnear, float tfar, uint32_t* steps) const {
-  return traverse<false>(origin, dir, tnear, tfar, steps);
+GeoHit IrregularGrid::intersect(glm::vec3 origin, glm::vec3 dir, float tnear, float tfar, TraversalCounts* counts) const {
+  return traverse<false>(origin, dir, tnear, tfar, counts);
 }
 
-bool IrregularGrid::occluded(glm::vec3 origin, glm::vec3 dir, float tnear, float tfar, uint32_t* steps) const {
-  return traverse<true>(origin, dir, tnear, tfar, steps).hit();
+bool IrregularGrid::occluded(glm::vec3 origin, glm::vec3 dir, float tnear, float tfar, TraversalCounts* counts) const {
+  return traverse<true>(origin, dir, tnear, tfar, counts).hit();
 }
 
 }  // namespace lt

@@ -32,7 +32,10 @@ void validateFrameOptions(const FrameOptions& o) {
   if (o.height <= 0) inputError("--height ", o.height, ": must be positive");
   if (o.width > 32768 || o.height > 32768) inputError("--width/--height ", o.width, "x", o.height, ": at most 32768 per side");
   if (o.layers < 1 || o.layers > 16) inputError("--layers ", o.layers, ": must be between 1 and 16");
-  if (o.thickness && !(*o.thickness > 0.0f)) inputError("--thickness ", *o.thickness, ": must be positive");
+  if (o.thickness && !(*o.thickness > 0.0f && std::isfinite(*o.thickness))) inputError("--thickness ", *o.thickness, ": must be positive");
+  if (o.thicknessPx && !(*o.thicknessPx > 0.0f && *o.thicknessPx <= 1e6f))
+    inputError("--thickness-px ", *o.thicknessPx, ": must be positive (pixel footprints)");
+  if (o.thickness && o.thicknessPx) inputError("--thickness-px ", *o.thicknessPx, ": give either --thickness or --thickness-px");
   if (o.fov && !(*o.fov > 0.0f && *o.fov < 180.0f)) inputError("--fov ", *o.fov, ": must be in (0, 180) degrees");
   for (const glm::vec4& l : o.lights)
     if (!(l.w >= 0.0f) || !std::isfinite(l.x + l.y + l.z + l.w)) inputError("--light ", l.x, ",", l.y, ",", l.z, ",", l.w, ": invalid");
@@ -83,7 +86,8 @@ void loadFrameScene(const FrameOptions& o, Frame& frame) {
   frame.lights = frame.scene.lights;
   for (const glm::vec4& l : o.lights) frame.lights.push_back({glm::vec3(l), glm::vec3(l.w)});
   if (frame.lights.empty()) frame.lights.push_back(defaultLight(frame.camera));
-  frame.thickness = o.thickness ? *o.thickness : defaultThickness(frame.scene.bounds().diagonal());
+  frame.thickness = o.thickness ? *o.thickness : 0.0f;
+  frame.thicknessPerDepth = o.thickness ? 0.0f : o.thicknessPx.value_or(kDefaultThicknessPx) / frame.camera.focal();
 }
 
 void rasterizeFrame(const FrameOptions& o, Frame& frame) {
@@ -100,6 +104,7 @@ void rasterizeFrame(const FrameOptions& o, Frame& frame) {
   LayerConfig lc;
   lc.k = o.layers;
   lc.thickness = frame.thickness;
+  lc.thicknessPerDepth = frame.thicknessPerDepth;
   lc.minSeparation = o.minSeparation;
   lc.adaptiveThickness = o.adaptiveThickness;
   frame.layers = sortAndTruncate(frame.lists, lc);
@@ -120,7 +125,11 @@ nlohmann::json frameStats(const Frame& f) {
   j["height"] = f.camera.height();
   j["layers"] = f.layers.k;
   j["camera"] = f.camera.desc().name;
-  j["thickness"] = f.thickness;
+  // The thickness at the view's target depth, and how it is set.
+  const CameraDesc& view = f.camera.desc();
+  j["thickness"] = f.thickness + f.thicknessPerDepth * glm::length(view.target - view.eye);
+  if (f.thicknessPerDepth > 0.0f) j["thickness_px"] = f.thicknessPerDepth * f.camera.focal();
+  else j["thickness_fixed"] = f.thickness;
   j["triangles"] = f.scene.triangleCount();
   const Bounds b = f.scene.bounds();
   j["bounds"] = {{b.lo.x, b.lo.y, b.lo.z}, {b.hi.x, b.hi.y, b.hi.z}};

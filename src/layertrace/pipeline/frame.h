@@ -21,6 +21,12 @@
 
 namespace lt {
 
+/// The default z-thickness: this many pixel footprints at each fragment's own depth (chosen from
+/// the strict-class sweep in the README, "Choosing the z-thickness"). It follows the view, not
+/// the scene's bounding box: 0.5 % of the diagonal was 0.12 m in a house but 59 units in an
+/// OpenArena map whose skybox makes the bounds 8,000 units wide.
+inline constexpr float kDefaultThicknessPx = 6.0f;
+
 /// The common options of DESIGN.md's CLI contract.
 struct FrameOptions {
   std::string scenePath;
@@ -29,7 +35,8 @@ struct FrameOptions {
   std::optional<float> fov;            ///< --fov, vertical degrees
   int width = 1280, height = 720;      ///< --width --height
   int layers = 4;                      ///< --layers (k)
-  std::optional<float> thickness;      ///< --thickness; default: defaultThickness(scene diagonal)
+  std::optional<float> thickness;      ///< --thickness: fixed, in scene units
+  std::optional<float> thicknessPx;    ///< --thickness-px: pixel footprints at the fragment's depth (default kDefaultThicknessPx)
   float minSeparation = 0.0f;          ///< --min-separation
   bool adaptiveThickness = false;      ///< --adaptive-thickness (seed 000 §4.2)
   uint64_t pool = 0;                   ///< --pool fragments; 0 = automatic (grows on overflow)
@@ -42,7 +49,8 @@ struct Frame {
   std::vector<PointLight> lights;  ///< the lights in effect (scene's, --light, or the default)
   FragmentLists lists;
   LayerArrays layers;
-  float thickness = 0.0f;
+  float thickness = 0.0f;          ///< fixed part of the z-thickness (scene units)
+  float thicknessPerDepth = 0.0f;  ///< plus this per unit depth (--thickness-px / focal)
   double loadMs = 0.0, rasterMs = 0.0, sortMs = 0.0;
   RasterStats raster;
 };

@@ -33,7 +33,7 @@ BuiltTracer buildTracer(const std::string& name, const Frame& frame, const Trace
     sc.allLayers = name == "ssr-layers";
     b.tracer = std::make_unique<SsrTracer>(frame.camera, frame.layers, sc);
   } else if (name == "embree") {
-    b.embree = std::make_unique<EmbreeScene>(frame.scene);
+    b.embree = std::make_unique<EmbreeScene>(frame.scene, EmbreeScene::Mode::Fast);
     b.buildMs = b.embree->buildMs();
     b.memoryBytes = b.embree->memoryBytes();
     b.tracer = makeEmbreeTracer(frame.scene, frame.camera, *b.embree);
@@ -45,6 +45,15 @@ BuiltTracer buildTracer(const std::string& name, const Frame& frame, const Trace
   } else {
     inputError("--tracer ", name, ": unknown (use ssr, ssr-layers, hssr, embree, grid)");
   }
+  return b;
+}
+
+BuiltTracer buildReference(const Frame& frame) {
+  BuiltTracer b;
+  b.embree = std::make_unique<EmbreeScene>(frame.scene, EmbreeScene::Mode::Robust);
+  b.buildMs = b.embree->buildMs();
+  b.memoryBytes = b.embree->memoryBytes();
+  b.tracer = makeEmbreeTracer(frame.scene, frame.camera, *b.embree);
   return b;
 }
 

@@ -40,6 +40,11 @@ struct BuiltTracer {
 /// InputError for an unknown name.
 BuiltTracer buildTracer(const std::string& name, const Frame& frame, const TracerOptions& options);
 
+/// The geometric ground truth of classification: Embree in robust (watertight) mode. The
+/// "embree" tracer of buildTracer is the fast baseline (default scene flags) that speed claims
+/// are measured against.
+BuiltTracer buildReference(const Frame& frame);
+
 /// The exhaustive image-space oracle (hssr traversal with one level).
 BuiltTracer buildOracle(const Frame& frame);
 

@@ -11,7 +11,6 @@
 
 namespace lt {
 
-float defaultThickness(float sceneDiagonal) { return std::max(0.005f * sceneDiagonal, 1e-6f); }
 
 namespace {
 
@@ -59,17 +58,18 @@ int separatedK(const FragmentLists& lists, uint32_t head, int k, float sep, std:
 
 /// Adaptive thickness (seed 000 §4.2): sort the whole list; a fragment whose front lies within
 /// the previous kept interval extends that interval; otherwise it opens the next layer.
-int adaptiveK(const FragmentLists& lists, uint32_t head, int k, float thickness, std::vector<Entry>& all, Entry* out, float* backs) {
+int adaptiveK(const FragmentLists& lists, uint32_t head, int k, const LayerConfig& config, std::vector<Entry>& all, Entry* out,
+              float* backs) {
   collectSorted(lists, head, all);
   int n = 0;
   for (const Entry& e : all) {
     if (n > 0 && e.depth <= backs[n - 1]) {
-      backs[n - 1] = std::max(backs[n - 1], e.depth + thickness);
+      backs[n - 1] = std::max(backs[n - 1], e.depth + config.thicknessAt(e.depth));
       continue;
     }
     if (n == k) break;
     out[n] = e;
-    backs[n++] = e.depth + thickness;
+    backs[n++] = e.depth + config.thicknessAt(e.depth);
   }
   return n;
 }
@@ -78,8 +78,11 @@ int adaptiveK(const FragmentLists& lists, uint32_t head, int k, float thickness,
 
 LayerArrays sortAndTruncate(const FragmentLists& lists, const LayerConfig& config) {
   if (config.k < 1 || config.k > 16) inputError("--layers ", config.k, ": must be between 1 and 16");
-  if (!(config.thickness > 0.0f) || !std::isfinite(config.thickness))
+  if (!(config.thickness >= 0.0f) || !std::isfinite(config.thickness))
     inputError("--thickness ", config.thickness, ": must be a positive number");
+  if (!(config.thicknessPerDepth >= 0.0f) || !std::isfinite(config.thicknessPerDepth))
+    inputError("--thickness-px: the thickness per unit depth ", config.thicknessPerDepth, " must be >= 0");
+  if (!(config.thickness > 0.0f || config.thicknessPerDepth > 0.0f)) inputError("--thickness ", config.thickness, ": must be positive");
   if (!(config.minSeparation >= 0.0f)) inputError("--min-separation ", config.minSeparation, ": must be >= 0");
   LayerArrays out;
   out.width = lists.width;
@@ -95,14 +98,14 @@ LayerArrays sortAndTruncate(const FragmentLists& lists, const LayerConfig& confi
     float backs[16];
     std::vector<Entry>& all = scratch.local();
     for (size_t p = r.begin(); p != r.end(); ++p) {
-      const int n = config.adaptiveThickness   ? adaptiveK(lists, lists.head[p], config.k, config.thickness, all, kept, backs)
+      const int n = config.adaptiveThickness   ? adaptiveK(lists, lists.head[p], config.k, config, all, kept, backs)
                     : config.minSeparation > 0 ? separatedK(lists, lists.head[p], config.k, config.minSeparation, all, kept)
                                                : insertionSortK(lists, lists.head[p], config.k, kept);
       out.count[p] = uint8_t(n);
       FragmentNode* slot = &out.slots[p * size_t(config.k)];
       for (int i = 0; i < n; ++i) {
         slot[i] = lists.nodes[kept[i].node];
-        slot[i].setThickness(config.adaptiveThickness ? backs[i] - kept[i].depth : config.thickness);
+        slot[i].setThickness(config.adaptiveThickness ? backs[i] - kept[i].depth : config.thicknessAt(kept[i].depth));
         out.triangle[p * size_t(config.k) + size_t(i)] = lists.triangle[kept[i].node];
       }
       for (int i = n; i < config.k; ++i) slot[i] = FragmentNode{0.0f, 0u, 0u, 0u};

@@ -14,7 +14,7 @@ namespace lt {
 struct LayerConfig {
   int k = 4;                 ///< layers kept per pixel, 1..16 (seed 000 §4.2: "4 to 8")
   /// z-thickness of every fragment in scene units (seed 000 §4.2: "fixed, scene-dependent
-  /// [McGuire and Mara 2014] or adaptive"). Must be > 0; see defaultThickness().
+  /// [McGuire and Mara 2014] or adaptive"). thickness + thicknessPerDepth must be > 0.
   float thickness = 0.1f;
   /// Minimum separation between successive kept fragments (McGuire & Mara's deep G-buffer
   /// rule, seed 000 §4.2 optional); 0 disables it.
@@ -23,12 +23,13 @@ struct LayerConfig {
   /// interval is merged into it (the interval grows to cover it) instead of taking a layer, so
   /// the k slots reach deeper. The merged interval keeps the front fragment's attributes.
   bool adaptiveThickness = false;
+  /// Plus this much per unit of depth: N pixel footprints at the fragment's own depth is
+  /// thicknessPerDepth = N / focal (pipeline: --thickness-px, the default). A fixed thickness is
+  /// too thin far away and too thick near the camera; one that grows with the footprint keeps
+  /// the same screen-space meaning at every depth.
+  float thicknessPerDepth = 0.0f;
+  float thicknessAt(float depth) const { return thickness + thicknessPerDepth * depth; }
 };
-
-/// Our scene-dependent default thickness: 0.5 % of the scene's bounding-box diagonal. Thick
-/// enough that a ray crossing a surface between two pixel centres still overlaps it at grazing
-/// angles, thin enough that a ray passing behind a chair leg misses it.
-float defaultThickness(float sceneDiagonal);
 
 struct LayerArrays {
   int width = 0, height = 0, k = 0;

@@ -54,7 +54,7 @@ using Clock = std::chrono::steady_clock;
 double msSince(Clock::time_point t) { return std::chrono::duration<double, std::milli>(Clock::now() - t).count(); }
 
 struct Accum {
-  uint64_t rays = 0, hits = 0, it = 0, iv = 0, px = 0, giveUps = 0;
+  uint64_t rays = 0, hits = 0, it = 0, iv = 0, px = 0, giveUps = 0, bent = 0;
   uint64_t level[RayCounters::kLevels] = {};
   std::vector<uint64_t> histogram;
   double traceMs = 0.0, busyMs = 0.0;  ///< time inside tracer calls / processing bands
@@ -62,6 +62,7 @@ struct Accum {
 
 struct Surface {
   glm::vec3 p{0.0f}, n{0.0f};  ///< camera space; n faces the viewer of this surface
+  glm::vec3 ng{0.0f};          ///< camera-space geometric normal, on the viewer's side
   glm::vec3 albedo{0.0f};
   float specular = 0.0f;
   const Material* material = nullptr;
@@ -77,11 +78,13 @@ struct PathState {
   glm::vec3 colour{0.0f}, weight{1.0f};  ///< reflection: accumulated colour and path weight
   glm::vec3 dir{0.0f};     ///< the direction of the ray in flight, as computed (unnormalised)
   glm::vec3 result{0.0f};
+  glm::vec3 traced{0.0f};  ///< what the rays brought back, unweighted by materials (EffectResult::traced)
   // Refraction: the front surface's reflection and what is seen through it.
   float fresnel = 0.0f;
   glm::vec3 reflected{0.0f}, through{0.0f}, out{0.0f};
   Surface back;
   float it = 0.0f, iv = 0.0f;  ///< counters summed over the pixel's rays
+  uint32_t bent = 0;             ///< rays bent out of the geometric surface (keepOutside)
   uint32_t first = 0, count = 0;  ///< the pixel's rays in the current wave's dense arrays
 };
 
@@ -121,6 +124,7 @@ class Renderer {
     const int W = f_.camera.width(), H = f_.camera.height();
     EffectResult res;
     res.image = Image(W, H);
+    res.traced = Image(W, H);
     res.iterations = Image(W, H, 1);
     res.intervals = Image(W, H, 1);
     const std::vector<uint32_t> order = tileOrder(W, H);
@@ -141,7 +145,9 @@ class Renderer {
         for (int wave = 0; traceWave(wave, band, a); ++wave) {
         }
         for (const PathState& st : band.states) {
+          a.bent += st.bent;
           res.image.set(st.x, st.y, st.result);
+          res.traced.set(st.x, st.y, st.traced);
           res.iterations.at(st.x, st.y)[0] = st.it;
           res.intervals.at(st.x, st.y)[0] = st.iv;
         }
@@ -245,6 +251,7 @@ class Renderer {
     for (const Accum& a : accums_) {
       res.rays += a.rays, res.hits += a.hits, res.iterationSum += a.it, res.intervalSum += a.iv, res.pixelSum += a.px;
       res.giveUps += a.giveUps;
+      res.bentRays += a.bent;
       for (int l = 0; l < RayCounters::kLevels; ++l) res.levelIterations[l] += a.level[l];
       for (size_t i = 0; i < a.histogram.size(); ++i) histogram[i] += a.histogram[i];
     }
@@ -262,6 +269,14 @@ class Renderer {
     Surface s;
     s.p = h.point;
     s.n = glm::dot(h.normal, incoming) > 0.0f ? -h.normal : h.normal;
+    s.ng = s.n;
+    if (h.triangle < f_.scene.triangles.size()) {
+      const glm::uvec3 t = f_.scene.triangles[h.triangle];
+      const glm::vec3 a = f_.scene.positions[t.x];
+      const glm::vec3 g = glm::cross(f_.scene.positions[t.y] - a, f_.scene.positions[t.z] - a);
+      if (glm::dot(g, g) > 0.0f) s.ng = glm::normalize(f_.camera.dirToCamera(g));
+      if (glm::dot(s.ng, incoming) > 0.0f) s.ng = -s.ng;
+    }
     s.albedo = unpackAlbedo(h.albedoSpec);
     s.specular = unpackSpecular(h.albedoSpec);
     s.material = &f_.scene.materials[h.triangle < f_.scene.triMaterial.size() ? f_.scene.triMaterial[h.triangle] : 0];
@@ -289,12 +304,27 @@ class Renderer {
 
   static Ray ray(glm::vec3 o, glm::vec3 d, float maxDist) { return Ray{o, glm::normalize(d), maxDist}; }
 
+  /// A secondary ray leaving surface s must leave on the outside of its geometric surface.
+  /// Interpolated (shading) normals can send a reflection or an AO sample into or along the
+  /// triangle it starts on — a flat wall with smooth vertex normals reflects half its rays into
+  /// itself; a geometric tracer then passes through the wall, an image-space tracer hits the
+  /// wall it started from. As production ray tracers do, bend such a direction up to
+  /// kMinElevation above the geometric tangent plane, and count it (`rays.bent`).
+  static constexpr float kMinElevation = 0.01f;  ///< sine of the smallest angle above the plane (0.57°)
+  static glm::vec3 keepOutside(glm::vec3 dir, const Surface& s, uint32_t& bent) {
+    const glm::vec3 d = glm::normalize(dir);
+    const float e = glm::dot(d, s.ng);
+    if (e >= kMinElevation) return dir;
+    ++bent;
+    return d + s.ng * (kMinElevation - e);
+  }
+
   /// The pixel's front surface; pixels without fragments show the environment and trace nothing.
   void begin(PathState& st, int x, int y) const {
     st.x = x, st.y = y;
     const LayerArrays& L = f_.layers;
     if (L.countAt(x, y) == 0) {
-      st.result = f_.scene.environment;
+      st.result = st.traced = f_.scene.environment;
       st.done = true;
       return;
     }
@@ -309,8 +339,8 @@ class Renderer {
     st.s = surfaceOf(front, st.v);
     st.incoming = st.v;
     st.done = false;
-    if (config_.effect == Effect::Shade) st.result = local(st.s, st.v), st.done = true;
-    if (config_.effect == Effect::Refraction && st.s.material->transmission <= 0.0f) st.result = local(st.s, st.v), st.done = true;
+    if (config_.effect == Effect::Shade || (config_.effect == Effect::Refraction && st.s.material->transmission <= 0.0f))
+      st.result = st.traced = local(st.s, st.v), st.done = true;
   }
 
   /// Reflection, one bounce's start: blend in the surface's own light, continue the mirror path.
@@ -318,7 +348,7 @@ class Renderer {
     const float m = st.s.material->mirror;
     st.colour += st.weight * (1.0f - m) * local(st.s, st.incoming);
     st.weight *= m;
-    st.dir = glm::reflect(st.incoming, st.s.n);
+    st.dir = keepOutside(glm::reflect(st.incoming, st.s.n), st.s, st.bent);
     return ray(st.s.p, st.dir, maxDist_);
   }
 
@@ -354,7 +384,7 @@ class Renderer {
         for (int k = 0; k < config_.aoSamples; ++k) {
           const float r1 = u(), r2 = u(), r = std::sqrt(r1), phi = 2.0f * glm::pi<float>() * r2;
           const glm::vec3 d = t * (r * std::cos(phi)) + bt * (r * std::sin(phi)) + n * std::sqrt(std::max(0.0f, 1.0f - r1));
-          out[k].ray = ray(st.s.p, d, aoRadius_);
+          out[k].ray = ray(st.s.p, keepOutside(d, st.s, st.bent), aoRadius_);
         }
         return uint32_t(config_.aoSamples);
       }
@@ -387,26 +417,31 @@ class Renderer {
       case Effect::Reflection: {
         if (!h[0].hit) {
           st.result = st.colour + st.weight * f_.scene.environment;
+          st.traced = f_.scene.environment;
           st.done = true;
           return;
         }
         st.s = surfaceOf(h[0], st.dir);
         st.incoming = st.dir;
-        if (wave + 1 == config_.bounces) st.result = st.colour + st.weight * local(st.s, st.incoming), st.done = true;
+        if (wave + 1 == config_.bounces) {
+          st.traced = local(st.s, st.incoming);
+          st.result = st.colour + st.weight * st.traced;
+          st.done = true;
+        }
         return;
       }
       case Effect::Shadow: {
         glm::vec3 c = 0.05f * st.s.albedo;
         for (uint32_t j = 0; j < st.count; ++j)
           if (!h[j].hit) c += light(st.s, st.v, samples[j]);
-        st.result = c;
+        st.result = st.traced = c;
         st.done = true;
         return;
       }
       case Effect::AO: {
         int open = 0;
         for (uint32_t j = 0; j < st.count; ++j) open += !h[j].hit;
-        st.result = glm::vec3(float(open) / float(std::max(1, config_.aoSamples)));
+        st.result = st.traced = glm::vec3(float(open) / float(std::max(1, config_.aoSamples)));
         st.done = true;
         return;
       }
@@ -433,6 +468,7 @@ class Renderer {
         }
         const float tr = st.s.material->transmission;
         st.result = (1.0f - tr) * local(st.s, st.v) + tr * ((1.0f - st.fresnel) * st.s.albedo * st.through + st.fresnel * st.reflected);
+        st.traced = st.through;
         st.done = true;
         return;
       }

@@ -48,10 +48,17 @@ struct EffectConfig {
 
 struct EffectResult {
   Image image;
+  /// What the rays brought back, unweighted by materials: reflection — the local shading at the
+  /// path's last hit (as if every surface before it were a perfect mirror), the environment
+  /// where the path left the scene; refraction — the colour seen through the surface;
+  /// AO and shadow — the image itself; shade — the local shading. Comparing it with Embree's
+  /// scores what was traced even in scenes without mirrors.
+  Image traced;
   Image iterations;  ///< per pixel: traversal iterations summed over the pixel's rays (countRays)
   Image intervals;   ///< per pixel: intervals tested summed over the pixel's rays (countRays)
   uint64_t rays = 0, hits = 0;
   uint64_t iterationSum = 0, intervalSum = 0, pixelSum = 0, giveUps = 0;
+  uint64_t bentRays = 0;  ///< secondary rays bent out of their geometric surface (effects.cpp keepOutside)
   uint64_t iterationsP99 = 0;
   uint64_t levelIterations[RayCounters::kLevels] = {};  ///< HSSR: visited cells per level, summed
   double traceMs = 0.0;  ///< wall time inside the tracer's batch calls
