@@ -142,11 +142,12 @@ std::vector<Ray> withSecondBounces(const Tracer& hssr, std::vector<Ray> rays) {
   return rays;
 }
 
-/// HSSR (any τ, levels, n_up) = the independent oracle on every ray it can decide.
-void expectHssrMatchesOracle(const Frame& f, size_t count) {
+/// The hierarchical tracers (hssr, hiz) = the independent oracle on every ray it can decide.
+void expectMatchesOracle(const Frame& f, size_t count, const char* tracer = "hssr") {
+  SCOPED_TRACE(tracer);
   const uint64_t seed = test::testSeed();
   const ImageSpaceOracle oracle(f.camera, f.layers);
-  const BuiltTracer hssr = buildTracer("hssr", f, TracerOptions{});
+  const BuiltTracer hssr = buildTracer(tracer, f, TracerOptions{});
   const std::vector<Ray> rays = withSecondBounces(*hssr.tracer, test::sampleRays(f, count, seed, false));
   std::vector<TraceHit> hits(rays.size());
   hssr.tracer->traceBatch(rays, hits, {});
@@ -160,7 +161,7 @@ void expectHssrMatchesOracle(const Frame& f, size_t count) {
       continue;
     }
     if (++mismatches <= 5)
-      ADD_FAILURE() << "ray " << i << " (seed " << seed << "): hssr " << hits[i].hit << " (" << hits[i].x << "," << hits[i].y
+      ADD_FAILURE() << "ray " << i << " (seed " << seed << "): " << tracer << " " << hits[i].hit << " (" << hits[i].x << "," << hits[i].y
                     << ") layer " << hits[i].layer << ", oracle (" << a.hit.x << "," << a.hit.y << ") layer " << a.hit.layer;
   }
   EXPECT_EQ(mismatches, 0u) << "of " << rays.size() << " rays";
@@ -169,11 +170,13 @@ void expectHssrMatchesOracle(const Frame& f, size_t count) {
   ::testing::Test::RecordProperty("oracle_ambiguous", std::to_string(ambiguous));
 }
 
-TEST(Oracle, HssrMatchesTheIndependentOracleOnTheDefaultScene) {
+TEST(Oracle, HssrAndHizMatchTheIndependentOracleOnTheDefaultScene) {
   FrameOptions o;
   o.scenePath = test::sourceDir() + "/scenes/default.json";
   o.width = 400, o.height = 225;
-  expectHssrMatchesOracle(buildFrame(o), 20000);
+  const Frame f = buildFrame(o);
+  expectMatchesOracle(f, 20000, "hssr");
+  expectMatchesOracle(f, 20000, "hiz");
 }
 
 // Issue 10 "done when": raising --thickness 8× lowers the correct share and raises the
@@ -208,12 +211,14 @@ namespace {
 // (and diagonal/axis-parallel screen lines) plus their second bounces, at 1280×720.
 class RealSceneOracle : public ::testing::TestWithParam<std::pair<const char*, const char*>> {};
 
-TEST_P(RealSceneOracle, HssrMatchesTheIndependentOracle) {
+TEST_P(RealSceneOracle, HssrAndHizMatchTheIndependentOracle) {
   ASSERT_TRUE(test::haveFetchedScenes()) << "run scripts/fetch-scenes.sh";
   FrameOptions o;
   o.scenePath = test::sourceDir() + "/scenes/" + GetParam().first;
   o.cameraName = GetParam().second;
-  expectHssrMatchesOracle(buildFrame(o), 60000);
+  const Frame f = buildFrame(o);
+  expectMatchesOracle(f, 60000, "hssr");
+  expectMatchesOracle(f, 30000, "hiz");
 }
 
 INSTANTIATE_TEST_SUITE_P(Scenes, RealSceneOracle,

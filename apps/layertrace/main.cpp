@@ -140,7 +140,7 @@ int main(int argc, char** argv) {
   std::string effectName = "reflection";
   CLI::App* renderCmd = app.add_subcommand("render", "image of one effect traced with one tracer");
   addFrameOptions(renderCmd, render.run, renderRaw);
-  renderCmd->add_option("--tracer", render.tracer, "ssr | ssr-layers | hssr | embree | grid")->capture_default_str();
+  renderCmd->add_option("--tracer", render.tracer, "ssr | ssr-layers | hiz | hssr | embree | grid")->capture_default_str();
   addEffectOptions(renderCmd, render.effect, effectName);
   addTracerOptions(renderCmd, render.tracers);
   renderCmd->add_flag("--check-exhaustive", render.checkExhaustive, "trace every ray with the exhaustive oracle too; count differences");
@@ -152,7 +152,7 @@ int main(int argc, char** argv) {
   std::string compareEffect = "reflection", compareTracers = "ssr,ssr-layers,hssr";
   CLI::App* compareCmd = app.add_subcommand("compare", "same rays through several tracers + Embree: accuracy and cost table");
   addFrameOptions(compareCmd, compare.run, compareRaw);
-  compareCmd->add_option("--tracers", compareTracers, "comma list of ssr, ssr-layers, hssr, embree, grid")->capture_default_str();
+  compareCmd->add_option("--tracers", compareTracers, "comma list of ssr, ssr-layers, hiz, hssr, embree, grid")->capture_default_str();
   addEffectOptions(compareCmd, compare.effect, compareEffect);
   addTracerOptions(compareCmd, compare.options);
   compareCmd->add_option("--report", compare.report, "also write an HTML report (one self-contained page) to this folder");

@@ -1,5 +1,5 @@
 // `layertrace bench --experiment NAME`: seed 000 §6's measurements on the user's scene.
-//   stride      SSR trace time and false-miss rate at strides 1–8 against HSSR (Figures 10–12)
+//   stride      SSR trace time and false-miss rate at strides 1–8 against HSSR and Hi-Z (Figures 10–12)
 //   layers      construction time by stage for k = 1…8 (Figure 8)
 //   memory      bytes by stage at 720p and 1080p (Figure 9)
 //   tau         hierarchy build and trace time for τ from 1 to 128 (Figure 14)
@@ -143,7 +143,7 @@ int runBench(const BenchOptions& o) {
     rasterizeFrame(o.run.frame, frame);
     const BuiltTracer ref = buildReference(frame);
     t.columns = {"tracer", "stride", "trace_ms", "iterations_mean", "false_miss", "correct_hit", "relative_trace"};
-    Progress p(o.run.quiet, e, 9);
+    Progress p(o.run.quiet, e, 10);
     const BuiltTracer hssr = buildTracer("hssr", frame, o.options);
     p.step("hssr");
     const Classified h = measure(frame, *hssr.tracer, ec, o.repeat, ref.tracer.get());
@@ -159,6 +159,10 @@ int runBench(const BenchOptions& o) {
       rows.push_back({"ssr-layers", s, c.traceMs, c.iterations, c.falseMiss, c.correctHit, 0.0});
     }
     rows.push_back({"hssr", 1, h.traceMs, h.iterations, h.falseMiss, h.correctHit, 0.0});
+    p.step("hiz");
+    const BuiltTracer hiz = buildTracer("hiz", frame, o.options);
+    const Classified z = measure(frame, *hiz.tracer, ec, o.repeat, ref.tracer.get());
+    rows.push_back({"hiz", 1, z.traceMs, z.iterations, z.falseMiss, z.correctHit, 0.0});
     for (auto& r : rows) r[6] = r[2].get<double>() / stride1;  // normalised to SSR stride 1 (Figure 12)
     t.rows = rows;
   } else if (e == "layers") {

@@ -52,7 +52,7 @@ int runCompare(const CompareOptions& o) {
   const std::string outDir = o.run.output.empty() ? "out/compare" : o.run.output;
   if (o.tracers.empty()) inputError("--tracers: empty list");
   for (const std::string& t : o.tracers)
-    if (!isKnownTracer(t)) inputError("--tracers ", t, ": unknown (use ssr, ssr-layers, hssr, embree, grid)");
+    if (!isKnownTracer(t)) inputError("--tracers ", t, ": unknown (use ", kTracerNames, ")");
   validateTracerOptions(o.options);
   validateEffectConfig(o.effect);
   Frame frame = buildFrame(o.run.frame);

@@ -42,7 +42,7 @@ int runRender(const RenderOptions& o) {
   const std::string out = o.run.output.empty() ? "out/render.png" : o.run.output;
   const std::string ext = fs::path(out).extension().string();
   if (ext != ".png" && ext != ".exr") inputError("-o ", out, ": render writes .png or .exr");
-  if (!isKnownTracer(o.tracer)) inputError("--tracer ", o.tracer, ": unknown (use ssr, ssr-layers, hssr, embree, grid)");
+  if (!isKnownTracer(o.tracer)) inputError("--tracer ", o.tracer, ": unknown (use ", kTracerNames, ")");
   const bool screen = isScreenTracer(o.tracer);
   if (o.checkExhaustive && !screen) inputError("--check-exhaustive: needs an image-space tracer, not ", o.tracer);
   if (o.checkOracle && !screen) inputError("--check-oracle: needs an image-space tracer, not ", o.tracer);

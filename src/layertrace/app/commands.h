@@ -44,7 +44,7 @@ namespace lt {
 
 struct RenderOptions {
   RunOptions run;
-  std::string tracer = "hssr";  ///< ssr | ssr-layers | hssr | embree
+  std::string tracer = "hssr";  ///< one of kTracerNames
   EffectConfig effect;
   TracerOptions tracers;
   bool checkExhaustive = false;  ///< trace every ray with the exhaustive oracle too

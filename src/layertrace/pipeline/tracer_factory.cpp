@@ -16,7 +16,7 @@ void validateTracerOptions(const TracerOptions& o) {
   if (!(o.pyramid.tau > 0.0f)) inputError("--tau ", o.pyramid.tau, ": must be positive");
 }
 
-bool isScreenTracer(const std::string& n) { return n == "ssr" || n == "ssr-layers" || n == "hssr"; }
+bool isScreenTracer(const std::string& n) { return n == "ssr" || n == "ssr-layers" || n == "hiz" || n == "hssr"; }
 bool isKnownTracer(const std::string& n) { return isScreenTracer(n) || n == "embree" || n == "grid"; }
 
 BuiltTracer buildTracer(const std::string& name, const Frame& frame, const TracerOptions& o) {
@@ -28,6 +28,11 @@ BuiltTracer buildTracer(const std::string& name, const Frame& frame, const Trace
     HssrConfig hc = o.hssr;
     hc.maxLevels = o.pyramid.levels;
     b.tracer = std::make_unique<HssrTracer>(frame.camera, frame.layers, *b.pyramid, hc);
+  } else if (name == "hiz") {
+    b.pyramid = std::make_unique<IntervalPyramid>(buildHizPyramid(frame.layers, frame.camera, o.pyramid.levels));
+    b.buildMs = b.pyramid->buildMs;
+    b.memoryBytes = b.pyramid->memoryBytes();
+    b.tracer = std::make_unique<HssrTracer>(frame.camera, frame.layers, *b.pyramid, hizConfig(o.pyramid.levels));
   } else if (name == "ssr" || name == "ssr-layers") {
     SsrConfig sc = o.ssr;
     sc.allLayers = name == "ssr-layers";
@@ -43,7 +48,7 @@ BuiltTracer buildTracer(const std::string& name, const Frame& frame, const Trace
     b.memoryBytes = b.grid->memoryBytes();
     b.tracer = makeGridTracer(frame.scene, frame.camera, *b.grid);
   } else {
-    inputError("--tracer ", name, ": unknown (use ssr, ssr-layers, hssr, embree, grid)");
+    inputError("--tracer ", name, ": unknown (use ", kTracerNames, ")");
   }
   return b;
 }

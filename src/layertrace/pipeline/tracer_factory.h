@@ -7,6 +7,7 @@
 #include "layertrace/pipeline/frame.h"
 #include "layertrace/geometry/embree_scene.h"
 #include "layertrace/geometry/irregular_grid.h"
+#include "layertrace/screen/hiz_pyramid.h"
 #include "layertrace/screen/hssr_tracer.h"
 #include "layertrace/screen/interval_pyramid.h"
 #include "layertrace/screen/ssr_tracer.h"
@@ -24,13 +25,14 @@ struct TracerOptions {
 /// Throws InputError naming the option for any invalid value, whichever tracer will run.
 void validateTracerOptions(const TracerOptions& options);
 
-/// Known tracer names: ssr, ssr-layers, hssr (screen space); embree, grid (geometric).
+/// Known tracer names: ssr, ssr-layers, hiz, hssr (screen space); embree, grid (geometric).
+inline constexpr const char* kTracerNames = "ssr, ssr-layers, hiz, hssr, embree, grid";
 bool isScreenTracer(const std::string& name);
 bool isKnownTracer(const std::string& name);
 
 struct BuiltTracer {
   std::unique_ptr<Tracer> tracer;
-  std::unique_ptr<IntervalPyramid> pyramid;  ///< hssr
+  std::unique_ptr<IntervalPyramid> pyramid;  ///< hssr, hiz
   std::unique_ptr<EmbreeScene> embree;       ///< embree
   std::unique_ptr<IrregularGrid> grid;       ///< grid
   double buildMs = 0.0;                      ///< hierarchy / BVH construction

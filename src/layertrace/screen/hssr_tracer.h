@@ -16,12 +16,13 @@ namespace lt {
 struct HssrConfig {
   int nUp = 2;  ///< seed 000 §5.2: cells traversed without an overlap before ascending a level
   int maxLevels = 16;  ///< use at most this many pyramid levels (1 = the exhaustive oracle)
+  const char* name = "hssr";  ///< "hssr", or "hiz" over a min/max pyramid (hiz_pyramid.h)
 };
 
 class HssrTracer : public TracerImpl<HssrTracer> {
  public:
   HssrTracer(const Camera& camera, const LayerArrays& layers, const IntervalPyramid& pyramid, const HssrConfig& config = {});
-  const char* name() const override { return levels_ == 1 ? "exhaustive" : "hssr"; }
+  const char* name() const override { return levels_ == 1 ? "exhaustive" : config_.name; }
   /// seed 000 §5, written once against the counter calls (trace/tracer.h).
   template <class C>
   TraceHit traceImpl(const Ray& ray, C& counters) const;

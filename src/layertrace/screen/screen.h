@@ -1,5 +1,5 @@
 // Layer: screen/ holds the image-space structures, each with its tracer: SSR (seed 001), the
-// interval pyramid and HSSR (seed 000). Every tracer implements trace/'s interface over the
+// interval pyramid and HSSR (seed 000), the Hi-Z min/max pyramid and march. Every tracer implements trace/'s interface over the
 // k-layer arrays of raster/. It includes trace/, raster/, scene/ and util/ — never geometry/
 // (screen space answers from stored fragments only) and nothing above.
 //
@@ -7,6 +7,7 @@
 #pragma once
 
 #include "layertrace/screen/fragment_hit.h"
+#include "layertrace/screen/hiz_pyramid.h"
 #include "layertrace/screen/hssr_tracer.h"
 #include "layertrace/screen/interval_layers.h"
 #include "layertrace/screen/interval_pyramid.h"
