@@ -9,9 +9,7 @@ packages=(
   libopenexr-dev libgtest-dev libbenchmark-dev libstb-dev
   python3 python3-matplotlib unzip zip
 )
-# npm (for the small npm bunny) only when no npm is on the machine: some machines carry a
-# non-Debian Node.js that bundles npm and conflicts with Debian's package.
-command -v npm >/dev/null 2>&1 || packages+=(npm)
+# No npm: the default scene's small bunny is committed as an OBJ (scenes/default/bunny.obj).
 
 missing=()
 for p in "${packages[@]}"; do
