@@ -270,3 +270,26 @@ TEST(CliErrors, ImporterCrashIsReportedAsMalformedModel) {
 
 }  // namespace
 }  // namespace lt
+
+namespace lt {
+namespace {
+
+// Issue 10 §5: on a scene without mirror materials the final images of all tracers are the same
+// (nothing reflects), but the traced radiance differs: psnr_traced_db is finite and tells the
+// tracers apart.
+TEST(CliCompare, TracedPsnrIsFiniteAndDiffersWithoutMirrorMaterials) {
+  ASSERT_TRUE(test::haveFetchedScenes()) << "run scripts/fetch-scenes.sh";
+  test::TempDir dir;
+  ASSERT_NO_FATAL_FAILURE(expectRuns("compare " + test::sourceDir() + "/scenes/cornell-box.json --camera interior --width 160 --height 90"
+                                     " --tracers ssr,hssr --quiet -o " + (dir / "c")));
+  const auto j = readJson(dir / "c/compare.json");
+  const double ssr = j["compare"]["ssr"]["psnr_traced_db"].get<double>(), hssr = j["compare"]["hssr"]["psnr_traced_db"].get<double>();
+  EXPECT_LT(ssr, 60.0);
+  EXPECT_LT(hssr, 60.0);
+  EXPECT_GT(ssr, 0.0);
+  EXPECT_NE(ssr, hssr);
+  EXPECT_TRUE(std::filesystem::exists(dir / "c/hssr_traced.png"));
+}
+
+}  // namespace
+}  // namespace lt
