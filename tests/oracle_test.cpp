@@ -2,6 +2,8 @@
 // (eval/classify.h): HSSR answers exactly as the oracle; the cases the oracle exposed — rays
 // whose depth shrinks, rays nearly parallel to the image plane — are pinned down; and the
 // classes punish a thicker z-thickness instead of rewarding it.
+#include <algorithm>
+#include <mutex>
 #include <random>
 
 #include <glm/geometric.hpp>
@@ -274,6 +276,101 @@ TEST(Effects, RaysBelowTheirGeometricSurfaceAreBentOutAndNeverHitTheirOwnWall) {
         wallHits += h.hit && h.triangle <= 1;
       }
     EXPECT_EQ(wallHits, 0);
+  }
+}
+
+}  // namespace
+}  // namespace lt
+
+namespace lt {
+namespace {
+
+Frame defaultSceneFrame(int k, int w = 240, int h = 135) {
+  FrameOptions o;
+  o.scenePath = test::sourceDir() + "/scenes/default.json";
+  o.width = w, o.height = h, o.layers = k;
+  return buildFrame(o);
+}
+
+/// A second eye offset sideways by `fraction` of the eye–target distance.
+EffectConfig warpBy(const Frame& f, float fraction) {
+  EffectConfig ec;
+  ec.effect = Effect::Warp;
+  const CameraDesc& d = f.camera.desc();
+  const glm::vec3 right = glm::normalize(f.camera.dirToWorld({1, 0, 0}));
+  ec.warpEye = d.eye + right * (fraction * glm::length(d.target - d.eye));
+  ec.warpTarget = d.target;
+  return ec;
+}
+
+// Issue 11 §4: the warp with the second camera equal to the first reproduces the rasterized image.
+TEST(Warp, SameCameraReproducesTheRasterizedImage) {
+  const Frame f = defaultSceneFrame(4);
+  EffectConfig shade;
+  shade.effect = Effect::Shade;
+  for (const char* name : {"ssr", "ssr-layers", "hiz", "hssr", "embree"}) {
+    SCOPED_TRACE(name);
+    const BuiltTracer t = buildTracer(name, f, TracerOptions{});
+    const EffectResult direct = renderEffect(f, *t.tracer, shade);
+    const EffectResult warp = renderEffect(f, *t.tracer, warpBy(f, 0.0f));
+    double diff = 0.0;
+    for (size_t i = 0; i < warp.image.data.size(); ++i) diff += std::abs(double(warp.image.data[i]) - double(direct.image.data[i]));
+    EXPECT_LE(diff / double(warp.image.data.size()), 1.0 / 255.0);
+    size_t holes = 0;
+    for (int y = 0; y < f.layers.height; ++y)
+      for (int x = 0; x < f.layers.width; ++x) holes += f.layers.countAt(x, y) > 0 && warp.holes[f.layers.pixelIndex(x, y)];
+    EXPECT_EQ(holes, 0u);
+  }
+}
+
+// seed 002 Fig. 1: more layers fill what one leaves as holes; a hit with k layers is still a hit
+// with more (the front intervals stay), so holes never grow with k.
+TEST(Warp, MoreLayersNeverAddHoles) {
+  size_t holes[3];
+  int i = 0;
+  for (int k : {1, 2, 4}) {
+    const Frame f = defaultSceneFrame(k);
+    const BuiltTracer t = buildTracer("hssr", f, TracerOptions{});
+    const EffectResult warp = renderEffect(f, *t.tracer, warpBy(f, 0.1f));
+    holes[i++] = size_t(std::count(warp.holes.begin(), warp.holes.end(), 1));
+  }
+  EXPECT_LT(holes[1], holes[0]) << "two layers must fill some of one layer's holes";
+  EXPECT_LE(holes[2], holes[1]);
+  EXPECT_GT(holes[0], 0u);
+}
+
+// Rays that start outside the view (at the second eye) are clipped to where they enter it and
+// test their first pixel; HSSR and Hi-Z still answer exactly as the independent oracle.
+TEST(Warp, RaysFromAnotherEyeMatchTheOracle) {
+  const Frame f = defaultSceneFrame(4);
+  const ImageSpaceOracle oracle(f.camera, f.layers);
+  for (const char* name : {"hssr", "hiz"}) {
+    SCOPED_TRACE(name);
+    const BuiltTracer t = buildTracer(name, f, TracerOptions{});
+    for (float fraction : {0.05f, 0.2f, -0.3f}) {
+      std::mutex m;
+      size_t mismatches = 0, rays = 0, hits = 0;
+      class Check : public RayObserver {
+       public:
+        Check(const ImageSpaceOracle& o, size_t& mm, size_t& n, size_t& h) : o_(o), mm_(mm), n_(n), h_(h) {}
+        void observe(std::span<const RayEvent> events) override {
+          for (const RayEvent& e : events) {
+            const OracleAnswer a = o_.answer(*e.ray);
+            std::lock_guard<std::mutex> lock(m_);
+            ++n_, h_ += a.hit.hit;
+            mm_ += !a.ambiguous && !sameFragment(a.hit, *e.hit);
+          }
+        }
+
+       private:
+        const ImageSpaceOracle& o_;
+        size_t &mm_, &n_, &h_;
+        std::mutex m_;
+      } check(oracle, mismatches, rays, hits);
+      renderEffect(f, *t.tracer, warpBy(f, fraction), &check);
+      EXPECT_EQ(mismatches, 0u) << "offset " << fraction;
+      EXPECT_GT(hits, rays / 2);
+    }
   }
 }
 

@@ -47,6 +47,7 @@ struct RawFrameOptions {
   float fov = 0.0f;
   float thickness = 0.0f;
   float thicknessPx = 0.0f;
+  std::string warpEye, warpTarget;  ///< --warp-eye / --warp-target (effect options)
 };
 
 void addFrameOptions(CLI::App* app, lt::RunOptions& run, RawFrameOptions& raw) {
@@ -91,8 +92,10 @@ void addTracerOptions(CLI::App* app, lt::TracerOptions& t) {
   addGridOptions(app, t.grid);
 }
 
-void addEffectOptions(CLI::App* app, lt::EffectConfig& e, std::string& effectName) {
-  app->add_option("--effect", effectName, "shade | reflection | refraction | ao | shadow")->capture_default_str();
+void addEffectOptions(CLI::App* app, lt::EffectConfig& e, std::string& effectName, RawFrameOptions& raw) {
+  app->add_option("--effect", effectName, "shade | reflection | refraction | ao | shadow | warp")->capture_default_str();
+  app->add_option("--warp-eye", raw.warpEye, "warp: the second camera's eye x,y,z (world space)");
+  app->add_option("--warp-target", raw.warpTarget, "warp: the second camera's target x,y,z (default: the first camera's)");
   app->add_option("--bounces", e.bounces, "reflection bounces")->capture_default_str();
   app->add_option("--ao-samples", e.aoSamples, "AO rays per pixel")->capture_default_str();
   app->add_option("--ao-radius", e.aoRadius, "AO ray length (0 = 5% of the scene diagonal)")->capture_default_str();
@@ -105,6 +108,12 @@ std::vector<std::string> splitList(const std::string& s) {
   std::string item;
   while (std::getline(ss, item, ',')) out.push_back(item);
   return out;
+}
+
+void finishEffectOptions(lt::EffectConfig& e, const std::string& effectName, const RawFrameOptions& raw) {
+  e.effect = lt::parseEffect(effectName);
+  if (!raw.warpEye.empty()) e.warpEye = parseVec3("--warp-eye", raw.warpEye);
+  if (!raw.warpTarget.empty()) e.warpTarget = parseVec3("--warp-target", raw.warpTarget);
 }
 
 void finishFrameOptions(lt::RunOptions& run, const RawFrameOptions& raw) {
@@ -141,7 +150,7 @@ int main(int argc, char** argv) {
   CLI::App* renderCmd = app.add_subcommand("render", "image of one effect traced with one tracer");
   addFrameOptions(renderCmd, render.run, renderRaw);
   renderCmd->add_option("--tracer", render.tracer, "ssr | ssr-layers | hiz | hssr | embree | grid")->capture_default_str();
-  addEffectOptions(renderCmd, render.effect, effectName);
+  addEffectOptions(renderCmd, render.effect, effectName, renderRaw);
   addTracerOptions(renderCmd, render.tracers);
   renderCmd->add_flag("--check-exhaustive", render.checkExhaustive, "trace every ray with the exhaustive oracle too; count differences");
   renderCmd->add_flag("--check-oracle", render.checkOracle,
@@ -153,7 +162,7 @@ int main(int argc, char** argv) {
   CLI::App* compareCmd = app.add_subcommand("compare", "same rays through several tracers + Embree: accuracy and cost table");
   addFrameOptions(compareCmd, compare.run, compareRaw);
   compareCmd->add_option("--tracers", compareTracers, "comma list of ssr, ssr-layers, hiz, hssr, embree, grid")->capture_default_str();
-  addEffectOptions(compareCmd, compare.effect, compareEffect);
+  addEffectOptions(compareCmd, compare.effect, compareEffect, compareRaw);
   addTracerOptions(compareCmd, compare.options);
   compareCmd->add_option("--report", compare.report, "also write an HTML report (one self-contained page) to this folder");
   compareCmd->add_flag("--check-oracle", compare.checkOracle,
@@ -221,13 +230,13 @@ int main(int argc, char** argv) {
     }
     if (compareCmd->parsed()) {
       prepare(compare.run, compareRaw);
-      compare.effect.effect = lt::parseEffect(compareEffect);
+      finishEffectOptions(compare.effect, compareEffect, compareRaw);
       compare.tracers = splitList(compareTracers);
       return lt::runCompare(compare);
     }
     if (renderCmd->parsed()) {
       prepare(render.run, renderRaw);
-      render.effect.effect = lt::parseEffect(effectName);
+      finishEffectOptions(render.effect, effectName, renderRaw);
       return lt::runRender(render);
     }
   } catch (const lt::InputError& e) {

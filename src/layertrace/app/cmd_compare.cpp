@@ -8,6 +8,7 @@
 #include "layertrace/app/commands.h"
 #include "layertrace/app/report.h"
 #include "layertrace/eval/classify.h"
+#include "layertrace/eval/image_metrics.h"
 #include "layertrace/eval/image_oracle.h"
 #include "layertrace/eval/oracle_observer.h"
 #include "layertrace/util/error.h"
@@ -16,18 +17,6 @@ namespace lt {
 namespace fs = std::filesystem;
 
 namespace {
-
-/// RMSE and PSNR of `a` against `b` on linear RGB clamped to [0, 1] (the displayable range;
-/// PSNR = 10 log10(1 / MSE)).
-std::pair<double, double> rmsePsnr(const Image& a, const Image& b) {
-  double sum = 0.0;
-  for (size_t i = 0; i < a.data.size(); ++i) {
-    const double d = std::clamp(a.data[i], 0.0f, 1.0f) - std::clamp(b.data[i], 0.0f, 1.0f);
-    sum += d * d;
-  }
-  const double mse = sum / double(std::max<size_t>(a.data.size(), 1));
-  return {std::sqrt(mse), mse > 0.0 ? 10.0 * std::log10(1.0 / mse) : 99.0};
-}
 
 /// Images side by side at half resolution (nearest of each 2×2 block's average).
 Image sideBySide(const std::vector<const Image*>& images) {

@@ -4,6 +4,7 @@
 #include <iostream>
 
 #include "layertrace/app/commands.h"
+#include "layertrace/eval/image_metrics.h"
 #include "layertrace/eval/image_oracle.h"
 #include "layertrace/eval/oracle_observer.h"
 #include "layertrace/util/error.h"
@@ -98,9 +99,40 @@ int runRender(const RenderOptions& o) {
     stats["hssr"]["iterations_per_ray_by_level"] = itLevel;
   }
 
+  std::optional<Image> direct;
+  if (ec.effect == Effect::Warp) {
+    // The truth of view synthesis: the second camera's own rasterization, shaded with the same
+    // lights. Holes are counted where that view sees a surface and the warp found none.
+    const Camera second = warpCamera(frame.camera, ec);
+    FrameOptions fo = o.run.frame;
+    fo.cameraName.clear();
+    fo.eye = second.desc().eye, fo.target = second.desc().target, fo.up = second.desc().up, fo.fov = second.desc().fovY;
+    Frame other = buildFrame(fo);
+    other.lights = frame.lights;
+    EffectConfig shade = ec;
+    shade.effect = Effect::Shade;
+    shade.progress = false;
+    direct = renderEffect(other, *built.tracer, shade).image;  // shade traces no ray
+    uint64_t covered = 0, holes = 0, allHoles = 0;
+    for (int y = 0; y < other.layers.height; ++y)
+      for (int x = 0; x < other.layers.width; ++x) {
+        const bool hole = r.holes[other.layers.pixelIndex(x, y)] != 0;
+        allHoles += hole;
+        if (other.layers.countAt(x, y) == 0) continue;
+        ++covered, holes += hole;
+      }
+    const auto [rmse, psnr] = rmsePsnr(r.image, *direct);
+    const glm::vec3 e = second.desc().eye, t = second.desc().target;
+    stats["warp"] = {{"eye", {e.x, e.y, e.z}},      {"target", {t.x, t.y, t.z}},
+                     {"covered_pixels", covered},  {"holes", holes},
+                     {"hole_fraction", covered ? double(holes) / double(covered) : 0.0},
+                     {"holes_total", allHoles},    {"psnr_db", psnr},
+                     {"rmse", rmse}};
+  }
   if (!o.run.pixelStats.empty()) writePixelStats(o.run.pixelStats, r);
   if (fs::path(out).has_parent_path()) ensureDirectory(fs::path(out).parent_path().string(), "-o");
   writeImage(out, r.image);
+  if (direct) writeImage((fs::path(out).parent_path() / (fs::path(out).stem().string() + "_direct" + ext)).string(), *direct);
   writeStats(o.run.statsPath, stats.dump(2));
   if (!o.run.quiet) {
     std::cout << "render: " << frame.scene.name << " " << frame.camera.width() << "x" << frame.camera.height() << " "
@@ -110,6 +142,9 @@ int runRender(const RenderOptions& o) {
               << r.shadeMs << " ms";
     if (exhaustive) std::cout << "; exhaustive mismatches " << exhaustive->mismatches();
     if (o.checkOracle) std::cout << "; oracle mismatches " << oracleCheck.mismatches() << " (ambiguous " << oracleCheck.ambiguous() << ")";
+    if (direct)
+      std::cout << "; warp holes " << stats["warp"]["holes"].get<uint64_t>() << " of " << stats["warp"]["covered_pixels"].get<uint64_t>()
+                << " covered pixels, PSNR " << stats["warp"]["psnr_db"].get<double>() << " dB against the direct view";
     std::cout << "\n  wrote " << out << "\n";
   }
   return 0;

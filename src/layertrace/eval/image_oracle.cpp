@@ -32,14 +32,18 @@ OracleAnswer ImageSpaceOracle::answer(const Ray& ray) const {
   auto depth = [&](double t) { return -(oz + t * dz); };
   auto px = [&](double t) { return 0.5 * W + f * (ox + t * dx) / depth(t); };
   auto py = [&](double t) { return 0.5 * H - f * (oy + t * dy) / depth(t); };
-  if (depth(0.0) < nearZ) return out;  // the origin is behind the near plane: nothing is known
-  // 1. The segment, clipped to the near plane.
-  double tEnd = ray.maxDistance;
+  // 1. The segment, clipped to the near plane. A ray starting behind it (at another camera's
+  // eye) starts where it crosses it; one starting there or off-screen has no origin pixel.
+  double tStart = 0.0, tEnd = ray.maxDistance;
+  if (depth(0.0) < nearZ) {
+    if (!(dz < 0.0)) return out;
+    tStart = (-nearZ - oz) / dz;
+  }
   if (depth(tEnd) < nearZ) tEnd = (-nearZ - oz) / dz;
-  if (!(tEnd > 0.0)) return out;
-  const double x0 = px(0.0), y0 = py(0.0), x1 = px(tEnd), y1 = py(tEnd);
-  if (!(x0 >= 0.0 && x0 < W && y0 >= 0.0 && y0 < H)) return out;  // origin off-screen: no origin pixel
-  const int ox0 = int(std::floor(x0)), oy0 = int(std::floor(y0));
+  if (!(tEnd > tStart)) return out;
+  const double x0 = px(tStart), y0 = py(tStart), x1 = px(tEnd), y1 = py(tEnd);
+  const bool clipped = tStart > 0.0 || !(x0 >= 0.0 && x0 < W && y0 >= 0.0 && y0 < H);
+  const int ox0 = clipped ? -1 : int(std::floor(x0)), oy0 = clipped ? -1 : int(std::floor(y0));
 
   // 2. Every crossing of a column plane x_px = X or a row plane y_px = Y, in ray order. The
   // plane x_px = X holds the eye: f·x + (X − W/2)·z = 0; likewise f·y − (Y − H/2)·z = 0.
@@ -49,14 +53,14 @@ OracleAnswer ImageSpaceOracle::answer(const Ray& ray) const {
     const double den = f * dx + (X - 0.5 * W) * dz;
     if (den == 0.0) continue;
     const double t = -(f * ox + (X - 0.5 * W) * oz) / den;
-    if (t > 0.0 && t < tEnd) cs.push_back({t, true});
+    if (t > tStart && t < tEnd) cs.push_back({t, true});
   }
   const double yLo = std::max(0.0, std::min(y0, y1)), yHi = std::min(H, std::max(y0, y1));
   for (double Y = std::ceil(yLo); Y <= yHi; Y += 1.0) {
     const double den = f * dy - (Y - 0.5 * H) * dz;
     if (den == 0.0) continue;
     const double t = ((Y - 0.5 * H) * oz - f * oy) / den;
-    if (t > 0.0 && t < tEnd) cs.push_back({t, false});
+    if (t > tStart && t < tEnd) cs.push_back({t, false});
   }
   std::sort(cs.begin(), cs.end(), [](const Crossing& a, const Crossing& b) { return a.t < b.t; });
   cs.push_back({tEnd, true});
@@ -74,14 +78,19 @@ OracleAnswer ImageSpaceOracle::answer(const Ray& ray) const {
   const double ux = (x1 - x0) / lineLength, uy = (y1 - y0) / lineLength;  // the 2D line's direction
 
   // 3. Walk the pixels between consecutive crossings.
-  double tPrev = 0.0;
+  double tPrev = tStart;
+  bool entered = false;
   for (size_t c = 0; c < cs.size(); ++c) {
     const double ta = tPrev, tb = cs[c].t;
     tPrev = tb;
     if (tb <= ta) continue;
     const double tm = 0.5 * (ta + tb);
     const double mx = px(tm), my = py(tm);
-    if (!(mx >= 0.0 && mx < W && my >= 0.0 && my < H)) break;  // 4. left the viewport
+    if (!(mx >= 0.0 && mx < W && my >= 0.0 && my < H)) {
+      if (entered) break;  // 4. left the viewport
+      continue;            // not yet in it (a start off-screen)
+    }
+    entered = true;
     const int x = int(std::floor(mx)), y = int(std::floor(my));
     const double za = depth(ta), zb = depth(tb);
     const double zmin = std::min(za, zb), zmax = std::max(za, zb);

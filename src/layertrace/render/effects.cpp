@@ -22,7 +22,8 @@ Effect parseEffect(const std::string& name) {
   if (name == "refraction") return Effect::Refraction;
   if (name == "ao") return Effect::AO;
   if (name == "shadow") return Effect::Shadow;
-  inputError("--effect ", name, ": unknown (use shade, reflection, refraction, ao, shadow)");
+  if (name == "warp") return Effect::Warp;
+  inputError("--effect ", name, ": unknown (use shade, reflection, refraction, ao, shadow, warp)");
 }
 
 const char* effectName(Effect e) {
@@ -32,6 +33,7 @@ const char* effectName(Effect e) {
     case Effect::Refraction: return "refraction";
     case Effect::AO: return "ao";
     case Effect::Shadow: return "shadow";
+    case Effect::Warp: return "warp";
   }
   return "?";
 }
@@ -41,6 +43,19 @@ void validateEffectConfig(const EffectConfig& config) {
   if (config.aoSamples < 1 || config.aoSamples > 4096) inputError("--ao-samples ", config.aoSamples, ": must be between 1 and 4096");
   if (!(config.aoRadius >= 0.0f)) inputError("--ao-radius ", config.aoRadius, ": must be >= 0");
   if (!(config.maxDistance >= 0.0f)) inputError("--max-distance ", config.maxDistance, ": must be >= 0");
+  if (config.effect == Effect::Warp && !config.warpEye) inputError("--effect warp: needs --warp-eye x,y,z");
+  for (const auto& v : {config.warpEye, config.warpTarget})
+    if (v && !std::isfinite(v->x + v->y + v->z)) inputError("--warp-eye/--warp-target ", v->x, ",", v->y, ",", v->z, ": not finite");
+}
+
+Camera warpCamera(const Camera& first, const EffectConfig& config) {
+  CameraDesc d = first.desc();
+  d.name = "warp";
+  if (config.warpEye) d.eye = *config.warpEye;
+  if (config.warpTarget) d.target = *config.warpTarget;
+  if (!(glm::length(d.target - d.eye) > 0.0f)) inputError("--warp-eye ", d.eye.x, ",", d.eye.y, ",", d.eye.z, ": equals the target");
+  d.near = first.near(), d.far = first.far();
+  return Camera(d, first.width(), first.height());
 }
 
 namespace {
@@ -85,6 +100,7 @@ struct PathState {
   Surface back;
   float it = 0.0f, iv = 0.0f;  ///< counters summed over the pixel's rays
   uint32_t bent = 0;             ///< rays bent out of the geometric surface (keepOutside)
+  bool hole = false;             ///< warp: the ray found nothing
   uint32_t first = 0, count = 0;  ///< the pixel's rays in the current wave's dense arrays
 };
 
@@ -115,6 +131,11 @@ class Renderer {
     aoRadius_ = c.aoRadius > 0.0f ? c.aoRadius : 0.05f * diag;
     eps_ = 1e-4f * diag;
     query_ = c.effect == Effect::AO || c.effect == Effect::Shadow ? Query::Any : Query::Closest;
+    if (c.effect == Effect::Warp) {
+      warp_ = warpCamera(f.camera, c);
+      warpOrigin_ = f.camera.toCamera(warp_.desc().eye);
+      warpMax_ = 2.0f * diag + glm::length(warp_.desc().eye - f.scene.bounds().center());
+    }
   }
 
   /// Bands of up to one 8×8 tile (fewer pixels when each pixel has many rays) are processed
@@ -125,6 +146,7 @@ class Renderer {
     EffectResult res;
     res.image = Image(W, H);
     res.traced = Image(W, H);
+    if (config_.effect == Effect::Warp) res.holes.assign(size_t(W) * size_t(H), 0);
     res.iterations = Image(W, H, 1);
     res.intervals = Image(W, H, 1);
     const std::vector<uint32_t> order = tileOrder(W, H);
@@ -148,6 +170,7 @@ class Renderer {
           a.bent += st.bent;
           res.image.set(st.x, st.y, st.result);
           res.traced.set(st.x, st.y, st.traced);
+          if (!res.holes.empty()) res.holes[size_t(st.y) * size_t(W) + size_t(st.x)] = st.hole;
           res.iterations.at(st.x, st.y)[0] = st.it;
           res.intervals.at(st.x, st.y)[0] = st.iv;
         }
@@ -322,6 +345,10 @@ class Renderer {
   /// The pixel's front surface; pixels without fragments show the environment and trace nothing.
   void begin(PathState& st, int x, int y) const {
     st.x = x, st.y = y;
+    if (config_.effect == Effect::Warp) {  // pixels of the second camera: no surface to start from
+      st.done = false;
+      return;
+    }
     const LayerArrays& L = f_.layers;
     if (L.countAt(x, y) == 0) {
       st.result = st.traced = f_.scene.environment;
@@ -357,6 +384,12 @@ class Renderer {
     switch (config_.effect) {
       case Effect::Shade: return 0;
       case Effect::Reflection: out[0].ray = reflectFrom(st); return 1;
+      case Effect::Warp: {
+        // The second camera's primary ray through this pixel, in the first camera's space.
+        st.dir = glm::normalize(f_.camera.dirToCamera(warp_.dirToWorld(warp_.rayThrough({float(st.x) + 0.5f, float(st.y) + 0.5f}))));
+        out[0].ray = ray(warpOrigin_, st.dir, warpMax_);
+        return 1;
+      }
       case Effect::Shadow: {
         uint32_t n = 0;
         for (int i = 0; i < int(lights_.size()); ++i) {
@@ -414,6 +447,11 @@ class Renderer {
   void consume(int wave, PathState& st, const TraceHit* h, const uint16_t* samples) const {
     switch (config_.effect) {
       case Effect::Shade: break;
+      case Effect::Warp:
+        st.hole = !h[0].hit;
+        st.result = st.traced = h[0].hit ? local(surfaceOf(h[0], st.dir), st.dir) : f_.scene.environment;
+        st.done = true;
+        return;
       case Effect::Reflection: {
         if (!h[0].hit) {
           st.result = st.colour + st.weight * f_.scene.environment;
@@ -482,6 +520,9 @@ class Renderer {
   Query query_ = Query::Closest;
   std::vector<std::pair<glm::vec3, glm::vec3>> lights_;  ///< camera-space position, intensity
   float maxDist_ = 1.0f, aoRadius_ = 1.0f, eps_ = 1e-4f;
+  Camera warp_;                   ///< Effect::Warp: the second camera
+  glm::vec3 warpOrigin_{0.0f};    ///< its eye in the first camera's space
+  float warpMax_ = 1.0f;          ///< its rays' length
   tbb::enumerable_thread_specific<Accum> accums_;
 };
 

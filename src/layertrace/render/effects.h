@@ -18,7 +18,11 @@
 #pragma once
 
 #include <cstdint>
+#include <optional>
 #include <string>
+#include <vector>
+
+#include <glm/vec3.hpp>
 
 #include "layertrace/pipeline/frame.h"
 #include "layertrace/render/ray_observer.h"
@@ -27,9 +31,12 @@
 
 namespace lt {
 
-enum class Effect { Shade, Reflection, Refraction, AO, Shadow };
+/// Warp: view synthesis (seed 002's application) — the image of a second camera (warpEye,
+/// warpTarget; the first camera's up, field of view and clip planes) made by tracing its primary
+/// rays through the first camera's k layers. A ray that finds nothing is a hole.
+enum class Effect { Shade, Reflection, Refraction, AO, Shadow, Warp };
 
-/// Parses "shade|reflection|refraction|ao|shadow"; InputError naming --effect otherwise.
+/// Parses "shade|reflection|refraction|ao|shadow|warp"; InputError naming --effect otherwise.
 Effect parseEffect(const std::string& name);
 const char* effectName(Effect e);
 
@@ -44,7 +51,12 @@ struct EffectConfig {
   /// Count traversal work per ray (iterations, intervals, per-pixel counter images). Off for
   /// timing runs: tracers then run their counter-free instantiation (trace/tracer.h).
   bool countRays = true;
+  std::optional<glm::vec3> warpEye;     ///< --warp-eye: the second camera's eye (world space), Effect::Warp
+  std::optional<glm::vec3> warpTarget;  ///< --warp-target: its target; default the first camera's target
 };
+
+/// The second camera of Effect::Warp (InputError naming --warp-eye if the view is degenerate).
+Camera warpCamera(const Camera& first, const EffectConfig& config);
 
 struct EffectResult {
   Image image;
@@ -58,7 +70,8 @@ struct EffectResult {
   Image intervals;   ///< per pixel: intervals tested summed over the pixel's rays (countRays)
   uint64_t rays = 0, hits = 0;
   uint64_t iterationSum = 0, intervalSum = 0, pixelSum = 0, giveUps = 0;
-  uint64_t bentRays = 0;  ///< secondary rays bent out of their geometric surface (effects.cpp keepOutside)
+  uint64_t bentRays = 0;
+  std::vector<uint8_t> holes;  ///< Effect::Warp: per pixel 1 where the second camera's ray found nothing  ///< secondary rays bent out of their geometric surface (effects.cpp keepOutside)
   uint64_t iterationsP99 = 0;
   uint64_t levelIterations[RayCounters::kLevels] = {};  ///< HSSR: visited cells per level, summed
   double traceMs = 0.0;  ///< wall time inside the tracer's batch calls

@@ -58,10 +58,19 @@ TraceHit HssrTracer::traceImpl(const Ray& ray, C& c) const {
   const ScreenSegment seg = makeScreenSegment(camera_, ray);
   if (!seg.valid) return {};
   const Line line(seg);
-  if (line.stepX == 0 && line.stepY == 0) return {};
   const int W = camera_.width(), H = camera_.height();
-  const int ox = std::clamp(int(std::floor(seg.p0.x)), 0, W - 1), oy = std::clamp(int(std::floor(seg.p0.y)), 0, H - 1);
+  int ox = std::clamp(int(std::floor(seg.p0.x)), 0, W - 1), oy = std::clamp(int(std::floor(seg.p0.y)), 0, H - 1);
   const bool increasing = seg.k1 <= seg.k0;  // depth grows along the ray (hssr-pitfalls §6)
+  if (line.stepX == 0 && line.stepY == 0) {
+    // The ray runs along one pixel's line of sight: only a ray entering from outside the view
+    // can meet something there (a ray from a surface skips its own pixel).
+    if (!seg.clippedStart) return {};
+    c.iteration(0);
+    c.pixel();
+    const float za = seg.depthAt(0.0f), zb = seg.depthAt(1.0f);
+    const int i = firstMet(pyramid_.base.pixel(ox, oy), pyramid_.base.countAt(ox, oy), std::min(za, zb), std::max(za, zb), increasing, c);
+    return i >= 0 ? fragmentHit(camera_, layers_, ox, oy, i) : TraceHit{};
+  }
   // Back-off for the coarse entry: paramAtDepth divides by k1 − k0, so its rounding error
   // grows as the ray turns parallel to the image plane (|k1 − k0| ≪ k0). Step back at least
   // 1/64 pixel, and at least 4× the error bound of the division (in units of s):
@@ -74,13 +83,16 @@ TraceHit HssrTracer::traceImpl(const Ray& ray, C& c) const {
     return std::max(pixelBackoff, 4.0f * u * (std::max(kScale, 1.0f / (z * std::abs(seg.k1 - seg.k0))) + std::abs(e)));
   };
 
-  // seed 000 §5.1: skip the first pixel (no self-intersection with the origin's surface).
+  // seed 000 §5.1: skip the first pixel (no self-intersection with the origin's surface). A ray
+  // entering from outside the view starts no surface: its first pixel is tested, and no pixel
+  // is the origin pixel of the ascend rule.
   float sIn, sOut;
   bool exitX;
   line.cellParams(ox, oy, 1, sIn, sOut, exitX);
-  const float sStart = sOut;
+  const float sStart = seg.clippedStart ? 0.0f : sOut;
   float s = sStart;
   int L = 0, cx = ox + (exitX ? line.stepX : 0), cy = oy + (exitX ? 0 : line.stepY);
+  if (seg.clippedStart) cx = ox, cy = oy, ox = oy = -(1 << 29);
   int misses = 0;
   // Parameter of the last zero-length (corner) cell the DDA stepped out of: a descent at that
   // same parameter must not go back into it (the oracle visits it once).

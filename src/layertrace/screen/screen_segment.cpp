@@ -8,16 +8,46 @@ namespace lt {
 ScreenSegment makeScreenSegment(const Camera& camera, const Ray& ray) {
   ScreenSegment seg;
   const float nearZ = -camera.near();
-  if (ray.origin.z > nearZ) return seg;  // origin behind the near plane
+  glm::vec3 origin = ray.origin;
+  float maxDistance = ray.maxDistance;
+  if (origin.z > nearZ) {
+    // Behind the near plane: start where the ray crosses it, if it ever does.
+    if (!(ray.dir.z < 0.0f)) return seg;
+    const float t = (nearZ - origin.z) / ray.dir.z;
+    if (!(t < maxDistance)) return seg;
+    origin += ray.dir * t;
+    origin.z = nearZ;
+    maxDistance -= t;
+    seg.clippedStart = true;
+  }
   // seed 001: clip to the near plane.
-  const float len = (ray.origin.z + ray.dir.z * ray.maxDistance > nearZ) ? (nearZ - ray.origin.z) / ray.dir.z : ray.maxDistance;
-  const glm::vec3 end = ray.origin + ray.dir * std::max(len, 0.0f);
-  seg.k0 = 1.0f / -ray.origin.z;
+  const float len = (origin.z + ray.dir.z * maxDistance > nearZ) ? (nearZ - origin.z) / ray.dir.z : maxDistance;
+  const glm::vec3 end = origin + ray.dir * std::max(len, 0.0f);
+  seg.k0 = 1.0f / -origin.z;
   seg.k1 = 1.0f / -end.z;
-  seg.p0 = camera.project(ray.origin);
+  seg.p0 = camera.project(origin);
   seg.p1 = camera.project(end);
-  // Clip the end to the viewport (the G3D version does, the published listing does not).
   const float W = float(camera.width()), H = float(camera.height());
+  if (!(seg.p0.x >= 0.0f && seg.p0.y >= 0.0f && seg.p0.x <= W && seg.p0.y <= H)) {
+    // Off-screen start: move it to where the 2D segment enters the viewport (Liang–Barsky).
+    float tA = 0.0f, tB = 1.0f;
+    const glm::vec2 d = seg.p1 - seg.p0;
+    for (int a = 0; a < 2; ++a) {
+      const float hi = a == 0 ? W : H;
+      if (d[a] == 0.0f) {
+        if (seg.p0[a] < 0.0f || seg.p0[a] > hi) return seg;
+        continue;
+      }
+      const float t0 = (0.0f - seg.p0[a]) / d[a], t1 = (hi - seg.p0[a]) / d[a];
+      tA = std::max(tA, std::min(t0, t1));
+      tB = std::min(tB, std::max(t0, t1));
+    }
+    if (!(tA <= tB)) return seg;
+    seg.p0 = glm::clamp(seg.p0 + d * tA, glm::vec2(0.0f), glm::vec2(W, H));
+    seg.k0 = seg.k0 + (seg.k1 - seg.k0) * tA;
+    seg.clippedStart = true;
+  }
+  // Clip the end to the viewport (the G3D version does, the published listing does not).
   float tEnd = 1.0f;
   const glm::vec2 d = seg.p1 - seg.p0;
   auto limit = [&](float p, float dp, float lo, float hi) {

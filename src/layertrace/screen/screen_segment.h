@@ -3,7 +3,8 @@
 // s ∈ [0, 1] from P0 to P1, so depth(s) = 1 / (k0 + s (k1 - k0)). (Seed 001 also interpolates
 // Q = point/depth to return the hit point; our tracers return the hit fragment's own point, so
 // Q is not kept.)
-// The 3D segment is clipped to the near plane and its end to the viewport (hssr-pitfalls §9).
+// The 3D segment is clipped to the near plane and its end to the viewport (hssr-pitfalls §9); a
+// ray that starts outside the view is clipped to where it enters it (clippedStart).
 #pragma once
 
 #include <glm/vec2.hpp>
@@ -18,6 +19,10 @@ struct ScreenSegment {
   glm::vec2 p0{0.0f}, p1{0.0f};  ///< pixel coordinates
   float k0 = 1.0f, k1 = 1.0f;    ///< 1 / depth at the ends
   bool valid = false;            ///< false when nothing of the ray is in front of the near plane
+  /// The ray started outside the view (behind the near plane or off-screen, e.g. at another
+  /// camera's eye) and p0 is where it enters: its first pixel holds no surface it starts on, so
+  /// tracers test it instead of skipping it.
+  bool clippedStart = false;
 
   float depthAt(float s) const { return 1.0f / (k0 + s * (k1 - k0)); }
   glm::vec2 pointAt(float s) const { return p0 + s * (p1 - p0); }

@@ -55,7 +55,9 @@ TraceHit SsrTracer::traceImpl(const Ray& ray, C& c) const {
   const float dk = (seg.k1 - seg.k0) * dsStep;
   const glm::vec2 dP = (P1 - P0) * dsStep;
   const float kLo = std::min(seg.k0, seg.k1), kHi = std::max(seg.k0, seg.k1);
-  float s = dsStep * (1.0f + config_.jitter);
+  // A ray entering from outside the view (clippedStart) starts no surface: sample its first
+  // pixel too (a hair inside, so the viewport edge it enters through is not the sample).
+  float s = dsStep * ((seg.clippedStart ? 1e-3f : 1.0f) + config_.jitter);
   glm::vec2 P = P0 + (P1 - P0) * s;
   float kHalf = seg.k0 + (seg.k1 - seg.k0) * std::max(s - 0.5f * dsStep, 0.0f);
   float prevDepth = 1.0f / kHalf;
