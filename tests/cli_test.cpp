@@ -1,6 +1,8 @@
 // The CLI contract of DESIGN.md: outputs and stats keys, and bad input → one line, status 2,
 // no output left behind.
 #include <filesystem>
+#include <map>
+#include <tuple>
 #include <fstream>
 #include <random>
 
@@ -289,6 +291,36 @@ TEST(CliCompare, TracedPsnrIsFiniteAndDiffersWithoutMirrorMaterials) {
   EXPECT_GT(ssr, 0.0);
   EXPECT_NE(ssr, hssr);
   EXPECT_TRUE(std::filesystem::exists(dir / "c/hssr_traced.png"));
+}
+
+}  // namespace
+}  // namespace lt
+
+namespace lt {
+namespace {
+
+// Issue 11 §3: bench --experiment warp sweeps offsets × k × screen tracers; holes grow with the
+// offset, never with k for the multi-layer tracers, and are zero without an offset.
+TEST(CliBench, WarpSweepsOffsetsLayersAndTracers) {
+  test::TempDir dir;
+  ASSERT_NO_FATAL_FAILURE(expectRuns("bench " + kDefault + " --experiment warp --width 160 --height 90 --repeat 1 --quiet -o " + (dir / "b")));
+  const auto j = readJson(dir / "b/warp.json");
+  ASSERT_EQ(j["rows"].size(), 5u * 3u * 4u);
+  std::map<std::tuple<std::string, int, double>, double> holes;
+  for (const auto& r : j["rows"]) holes[{r["tracer"].get<std::string>(), r["k"].get<int>(), r["offset"].get<double>()}] = r["hole_fraction"].get<double>();
+  for (const auto& [key, h] : holes) {
+    const auto& [tracer, k, offset] = key;
+    if (offset == 0.0) {
+      EXPECT_EQ(h, 0.0) << tracer << " k " << k;
+    }
+    if (tracer == "hssr" && k > 1) {
+      const double fewer = holes[std::make_tuple(tracer, k / 2, offset)];
+      EXPECT_LE(h, fewer) << "k " << k << " offset " << offset;
+    }
+  }
+  const double far = holes[std::make_tuple(std::string("hssr"), 1, double(0.2f))];
+  const double near = holes[std::make_tuple(std::string("hssr"), 1, double(0.025f))];
+  EXPECT_GT(far, near);
 }
 
 }  // namespace

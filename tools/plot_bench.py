@@ -59,6 +59,15 @@ def main():
             ax.plot(th, [r[key] for r in rows], "o-", label=lab)
         ax.set_xlabel("threads")
         ax.set_ylabel("time [ms]")
+    elif exp == "warp":
+        for i, k in enumerate(sorted({r["k"] for r in rows})):
+            for j, tracer in enumerate(["ssr", "hssr"]):
+                sel = [r for r in rows if r["k"] == k and r["tracer"] == tracer]
+                ax.plot([100 * r["offset"] for r in sel], [100 * r["hole_fraction"] for r in sel], ["o-", "s--"][j],
+                        color=f"C{i}", label=f"{tracer}, k={k}")
+        ax.set_xlabel("second camera offset [% of the eye-target distance]")
+        ax.set_ylabel("holes [% of covered pixels]")
+        title = f"warp (view synthesis): {data['scene']} ({data['width']}x{data['height']})"
     ax.set_title(title, fontsize=10)
     ax.legend(loc="upper left", fontsize=8)
     fig.text(0.01, 0.01, f"{data['machine']} · {data['build_type']} · {data['date']} · median of {data['repeat']}", fontsize=6)

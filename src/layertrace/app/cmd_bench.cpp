@@ -5,6 +5,8 @@
 //   tau         hierarchy build and trace time for τ from 1 to 128 (Figure 14)
 //   resolution  cost from 640×360 to 3840×2160
 //   threads     scaling from 1 thread to all cores
+//   warp        view synthesis (seed 002): holes and PSNR against the second camera's own view for
+//               offsets of 0–20 % of the eye–target distance × k ∈ {1, 2, 4} × every screen tracer
 // Every time is the median of --repeat runs on the same rays; results carry the machine, the
 // build type and the date, and go to DIR/NAME.csv, DIR/NAME.json and DIR/NAME.png.
 #include <algorithm>
@@ -21,6 +23,7 @@
 #include "layertrace/app/commands.h"
 #include "layertrace/app/report.h"
 #include "layertrace/eval/classify.h"
+#include "layertrace/eval/image_metrics.h"
 #include "layertrace/util/error.h"
 #include "layertrace/util/timing.h"
 
@@ -123,11 +126,11 @@ Classified measure(const Frame& frame, const Tracer& tracer, const EffectConfig&
 }  // namespace
 
 int runBench(const BenchOptions& o) {
-  static const char* kExperiments[] = {"stride", "layers", "tau", "memory", "resolution", "threads"};
+  static const char* kExperiments[] = {"stride", "layers", "tau", "memory", "resolution", "threads", "warp"};
   if (std::find_if(std::begin(kExperiments), std::end(kExperiments), [&](const char* e) { return o.experiment == e; }) ==
       std::end(kExperiments))
     inputError("--experiment ", o.experiment.empty() ? "(none)" : o.experiment,
-               ": unknown (use stride, layers, tau, memory, resolution, threads)");
+               ": unknown (use stride, layers, tau, memory, resolution, threads, warp)");
   if (o.repeat < 1 || o.repeat > 100) inputError("--repeat ", o.repeat, ": must be between 1 and 100");
   validateTracerOptions(o.options);
   validateEffectConfig(o.effect);
@@ -246,6 +249,48 @@ int runBench(const BenchOptions& o) {
       const Classified a = measure(frame, *hs.tracer, ec, o.repeat, nullptr);
       if (n == 1) one = a.traceMs;
       t.rows.push_back({n, median(rs), median(ss), hier, a.traceMs, one / a.traceMs});
+    }
+  }
+
+  if (e == "warp") {
+    t.columns = {"tracer", "k", "offset", "hole_fraction", "holes", "covered_pixels", "psnr_db", "trace_ms"};
+    const float offsets[] = {0.0f, 0.025f, 0.05f, 0.1f, 0.2f};
+    const char* tracers[] = {"ssr", "ssr-layers", "hiz", "hssr"};
+    const int ks[] = {1, 2, 4};
+    Progress p(o.run.quiet, e, 3 * 5);
+    std::vector<WarpReference> refs;
+    std::vector<EffectConfig> warps;
+    for (float offset : offsets) {
+      // The second eye moves sideways (the first camera's right) by `offset` of the eye–target distance.
+      EffectConfig w = ec;
+      w.effect = Effect::Warp;
+      const CameraDesc& d = frame.camera.desc();
+      w.warpEye = d.eye + glm::normalize(frame.camera.dirToWorld({1, 0, 0})) * (offset * glm::length(d.target - d.eye));
+      w.warpTarget = d.target;
+      refs.push_back(warpReference(frame, o.run.frame, w));
+      warps.push_back(w);
+    }
+    for (int k : ks) {
+      FrameOptions fo = o.run.frame;
+      fo.layers = k;
+      Frame f;
+      loadFrameScene(fo, f);
+      rasterizeFrame(fo, f);
+      for (size_t i = 0; i < warps.size(); ++i) {
+        p.step(cat("k = ", k, ", offset ", offsets[i]));
+        for (const char* name : tracers) {
+          const BuiltTracer b = buildTracer(name, f, o.options);
+          EffectConfig w = warps[i];
+          w.countRays = false;
+          EffectResult r = renderEffect(f, *b.tracer, w);  // warm-up, discarded
+          std::vector<double> times;
+          for (int rep = 0; rep < o.repeat; ++rep) r = renderEffect(f, *b.tracer, w), times.push_back(r.traceMs);
+          uint64_t covered = 0, holes = 0;
+          for (size_t q = 0; q < r.holes.size(); ++q) covered += refs[i].covered[q], holes += refs[i].covered[q] && r.holes[q];
+          t.rows.push_back({name, k, offsets[i], covered ? double(holes) / double(covered) : 0.0, holes, covered,
+                            rmsePsnr(r.image, refs[i].image).second, median(times)});
+        }
+      }
     }
   }
 

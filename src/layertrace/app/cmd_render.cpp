@@ -39,6 +39,28 @@ void writePixelStats(const std::string& dir, const EffectResult& r) {
   writeImage((fs::path(dir) / "iterations.png").string(), heat);
 }
 
+WarpReference warpReference(const Frame& frame, const FrameOptions& options, const EffectConfig& warp) {
+  const Camera second = warpCamera(frame.camera, warp);
+  FrameOptions fo = options;
+  fo.cameraName.clear();
+  fo.eye = second.desc().eye, fo.target = second.desc().target, fo.up = second.desc().up, fo.fov = second.desc().fovY;
+  Frame other = buildFrame(fo);
+  other.lights = frame.lights;
+  EffectConfig shade = warp;
+  shade.effect = Effect::Shade;
+  shade.progress = false;
+  WarpReference ref;
+  // Shading traces no ray: any tracer object will do; this one never sees a query.
+  struct NoTracer : Tracer {
+    const char* name() const override { return "none"; }
+    TraceHit trace(const Ray&, RayCounters&) const override { return {}; }
+  } none;
+  ref.image = renderEffect(other, none, shade).image;
+  ref.covered.resize(other.layers.count.size());
+  for (size_t p = 0; p < ref.covered.size(); ++p) ref.covered[p] = other.layers.count[p] > 0;
+  return ref;
+}
+
 int runRender(const RenderOptions& o) {
   const std::string out = o.run.output.empty() ? "out/render.png" : o.run.output;
   const std::string ext = fs::path(out).extension().string();
@@ -104,23 +126,13 @@ int runRender(const RenderOptions& o) {
     // The truth of view synthesis: the second camera's own rasterization, shaded with the same
     // lights. Holes are counted where that view sees a surface and the warp found none.
     const Camera second = warpCamera(frame.camera, ec);
-    FrameOptions fo = o.run.frame;
-    fo.cameraName.clear();
-    fo.eye = second.desc().eye, fo.target = second.desc().target, fo.up = second.desc().up, fo.fov = second.desc().fovY;
-    Frame other = buildFrame(fo);
-    other.lights = frame.lights;
-    EffectConfig shade = ec;
-    shade.effect = Effect::Shade;
-    shade.progress = false;
-    direct = renderEffect(other, *built.tracer, shade).image;  // shade traces no ray
+    WarpReference ref = warpReference(frame, o.run.frame, ec);
+    direct = std::move(ref.image);
     uint64_t covered = 0, holes = 0, allHoles = 0;
-    for (int y = 0; y < other.layers.height; ++y)
-      for (int x = 0; x < other.layers.width; ++x) {
-        const bool hole = r.holes[other.layers.pixelIndex(x, y)] != 0;
-        allHoles += hole;
-        if (other.layers.countAt(x, y) == 0) continue;
-        ++covered, holes += hole;
-      }
+    for (size_t p = 0; p < r.holes.size(); ++p) {
+      allHoles += r.holes[p];
+      covered += ref.covered[p], holes += ref.covered[p] && r.holes[p];
+    }
     const auto [rmse, psnr] = rmsePsnr(r.image, *direct);
     const glm::vec3 e = second.desc().eye, t = second.desc().target;
     stats["warp"] = {{"eye", {e.x, e.y, e.z}},      {"target", {t.x, t.y, t.z}},

@@ -90,6 +90,14 @@ nlohmann::json rayStats(const EffectResult& r, bool screenTracer);
 /// Writes iterations.exr/.png and intervals.exr to `dir` (--pixelstats).
 void writePixelStats(const std::string& dir, const EffectResult& r);
 
+/// The truth of view synthesis (Effect::Warp): the second camera's own rasterization of the
+/// scene, shaded with `frame`'s lights, and per pixel whether it sees a surface.
+struct WarpReference {
+  Image image;
+  std::vector<uint8_t> covered;
+};
+WarpReference warpReference(const Frame& frame, const FrameOptions& options, const EffectConfig& warp);
+
 /// `layertrace compare`: the same rays through several tracers and Embree → accuracy and cost.
 int runCompare(const CompareOptions& options);
 
