@@ -13,7 +13,11 @@ def main():
     data = json.load(open(sys.argv[1]))
     rows, exp = data["rows"], data["experiment"]
     fig, ax = plt.subplots(figsize=(7, 4.2))
-    title = f"{exp}: {data['scene']} ({data['width']}x{data['height']}, k={data['layers']})"
+    # The title names what the experiment sweeps, not the run's default of it.
+    swept = {"stride": "SSR stride 1-8 vs HSSR", "layers": "construction time vs layers k", "memory": "memory at 720p and 1080p",
+             "tau": "HSSR vs tau", "resolution": "cost vs resolution", "threads": "cost vs threads"}
+    fixed = f"{data['width']}x{data['height']}" if exp in ("layers", "threads", "stride", "tau") else f"k={data['layers']}"
+    title = f"{exp}: {swept.get(exp, exp)} — {data['scene']} ({fixed})"
     if exp == "stride":
         ssr = [r for r in rows if r["tracer"] == "ssr-layers"]
         hssr = [r for r in rows if r["tracer"] == "hssr"][0]
@@ -67,7 +71,7 @@ def main():
                         color=f"C{i}", label=f"{tracer}, k={k}")
         ax.set_xlabel("second camera offset [% of the eye-target distance]")
         ax.set_ylabel("holes [% of covered pixels]")
-        title = f"warp (view synthesis): {data['scene']} ({data['width']}x{data['height']})"
+        title = f"warp: holes vs second-camera offset and k — {data['scene']} ({data['width']}x{data['height']})"
     ax.set_title(title, fontsize=10)
     ax.legend(loc="upper left", fontsize=8)
     fig.text(0.01, 0.01, f"{data['machine']} · {data['build_type']} · {data['date']} · median of {data['repeat']}", fontsize=6)

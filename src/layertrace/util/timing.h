@@ -12,9 +12,11 @@ inline double median(std::vector<double> v) {
   return v.empty() ? 0.0 : v.size() % 2 ? v[v.size() / 2] : 0.5 * (v[v.size() / 2 - 1] + v[v.size() / 2]);
 }
 
-/// Median wall time of `repeat` calls of f, in milliseconds.
+/// Median wall time of `repeat` calls of f, in milliseconds, after one discarded warm-up call
+/// (the first run pays for cold memory: page faults on fresh buffers, cold caches).
 template <typename F>
 double medianMs(int repeat, F&& f) {
+  f();
   std::vector<double> t;
   for (int i = 0; i < repeat; ++i) {
     const auto s = std::chrono::steady_clock::now();
