@@ -292,13 +292,13 @@ Frame defaultSceneFrame(int k, int w = 240, int h = 135) {
   return buildFrame(o);
 }
 
-/// A second eye offset sideways by `fraction` of the eye–target distance.
-EffectConfig warpBy(const Frame& f, float fraction) {
+/// A second eye offset sideways (and forwards) by a fraction of the eye–target distance.
+EffectConfig warpBy(const Frame& f, float fraction, float forward = 0.0f) {
   EffectConfig ec;
   ec.effect = Effect::Warp;
   const CameraDesc& d = f.camera.desc();
   const glm::vec3 right = glm::normalize(f.camera.dirToWorld({1, 0, 0}));
-  ec.warpEye = d.eye + right * (fraction * glm::length(d.target - d.eye));
+  ec.warpEye = d.eye + right * (fraction * glm::length(d.target - d.eye)) + (d.target - d.eye) * forward;
   ec.warpTarget = d.target;
   return ec;
 }
@@ -321,6 +321,19 @@ TEST(Warp, SameCameraReproducesTheRasterizedImage) {
       for (int x = 0; x < f.layers.width; ++x) holes += f.layers.countAt(x, y) > 0 && warp.holes[f.layers.pixelIndex(x, y)];
     EXPECT_EQ(holes, 0u);
   }
+}
+
+// An eye moved straight forward: the central rays run along single pixels' lines of sight from
+// free space; they must find the surface there (no hole at the centre), as Embree does.
+TEST(Warp, EyeMovedForwardHasNoHolesWhereTheFirstViewSawEverything) {
+  const Frame f = defaultSceneFrame(4);
+  const BuiltTracer hssr = buildTracer("hssr", f, TracerOptions{}), embree = buildTracer("embree", f, TracerOptions{});
+  const EffectResult a = renderEffect(f, *hssr.tracer, warpBy(f, 0.0f, 0.2f)), b = renderEffect(f, *embree.tracer, warpBy(f, 0.0f, 0.2f));
+  const size_t centre = f.layers.pixelIndex(f.camera.width() / 2, f.camera.height() / 2);
+  EXPECT_EQ(a.holes[centre], 0);
+  EXPECT_EQ(b.holes[centre], 0);
+  // Moving forward only narrows the view: everything it sees was seen (up to silhouettes).
+  EXPECT_LT(std::count(a.holes.begin(), a.holes.end(), 1), long(a.holes.size() / 100));
 }
 
 // seed 002 Fig. 1: more layers fill what one leaves as holes; a hit with k layers is still a hit
@@ -347,7 +360,10 @@ TEST(Warp, RaysFromAnotherEyeMatchTheOracle) {
   for (const char* name : {"hssr", "hiz"}) {
     SCOPED_TRACE(name);
     const BuiltTracer t = buildTracer(name, f, TracerOptions{});
-    for (float fraction : {0.05f, 0.2f, -0.3f}) {
+    // Sideways, and forwards: an eye in front of the first camera's near plane and on its
+    // screen, whose rays start in free space inside the view.
+    for (const auto& [fraction, forward] : {std::pair{0.05f, 0.0f}, std::pair{0.2f, 0.0f}, std::pair{-0.3f, 0.0f}, std::pair{0.0f, 0.3f},
+                                           std::pair{0.02f, 0.2f}}) {
       std::mutex m;
       size_t mismatches = 0, rays = 0, hits = 0;
       class Check : public RayObserver {
@@ -367,8 +383,8 @@ TEST(Warp, RaysFromAnotherEyeMatchTheOracle) {
         size_t &mm_, &n_, &h_;
         std::mutex m_;
       } check(oracle, mismatches, rays, hits);
-      renderEffect(f, *t.tracer, warpBy(f, fraction), &check);
-      EXPECT_EQ(mismatches, 0u) << "offset " << fraction;
+      renderEffect(f, *t.tracer, warpBy(f, fraction, forward), &check);
+      EXPECT_EQ(mismatches, 0u) << "offset " << fraction << " forward " << forward;
       EXPECT_GT(hits, rays / 2);
     }
   }

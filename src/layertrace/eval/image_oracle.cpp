@@ -42,7 +42,7 @@ OracleAnswer ImageSpaceOracle::answer(const Ray& ray) const {
   if (depth(tEnd) < nearZ) tEnd = (-nearZ - oz) / dz;
   if (!(tEnd > tStart)) return out;
   const double x0 = px(tStart), y0 = py(tStart), x1 = px(tEnd), y1 = py(tEnd);
-  const bool clipped = tStart > 0.0 || !(x0 >= 0.0 && x0 < W && y0 >= 0.0 && y0 < H);
+  const bool clipped = !ray.startsOnSurface || tStart > 0.0 || !(x0 >= 0.0 && x0 < W && y0 >= 0.0 && y0 < H);
   const int ox0 = clipped ? -1 : int(std::floor(x0)), oy0 = clipped ? -1 : int(std::floor(y0));
 
   // 2. Every crossing of a column plane x_px = X or a row plane y_px = Y, in ray order. The

@@ -388,6 +388,7 @@ class Renderer {
         // The second camera's primary ray through this pixel, in the first camera's space.
         st.dir = glm::normalize(f_.camera.dirToCamera(warp_.dirToWorld(warp_.rayThrough({float(st.x) + 0.5f, float(st.y) + 0.5f}))));
         out[0].ray = ray(warpOrigin_, st.dir, warpMax_);
+        out[0].ray.startsOnSurface = false;  // an eye, not a surface: its first pixel counts
         return 1;
       }
       case Effect::Shadow: {

@@ -7,6 +7,7 @@ namespace lt {
 
 ScreenSegment makeScreenSegment(const Camera& camera, const Ray& ray) {
   ScreenSegment seg;
+  seg.clippedStart = !ray.startsOnSurface;
   const float nearZ = -camera.near();
   glm::vec3 origin = ray.origin;
   float maxDistance = ray.maxDistance;

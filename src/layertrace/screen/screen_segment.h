@@ -19,8 +19,9 @@ struct ScreenSegment {
   glm::vec2 p0{0.0f}, p1{0.0f};  ///< pixel coordinates
   float k0 = 1.0f, k1 = 1.0f;    ///< 1 / depth at the ends
   bool valid = false;            ///< false when nothing of the ray is in front of the near plane
-  /// The ray started outside the view (behind the near plane or off-screen, e.g. at another
-  /// camera's eye) and p0 is where it enters: its first pixel holds no surface it starts on, so
+  /// The ray does not start on a surface: it started outside the view (behind the near plane
+  /// or off-screen, e.g. at another camera's eye) and p0 is where it enters, or it starts in
+  /// free space (Ray::startsOnSurface false). Its first pixel holds no surface of its own, so
   /// tracers test it instead of skipping it.
   bool clippedStart = false;
 

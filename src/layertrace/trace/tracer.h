@@ -23,6 +23,10 @@ struct Ray {
   glm::vec3 origin{0.0f};            ///< camera space, on a visible surface
   glm::vec3 dir{0.0f, 0.0f, -1.0f};  ///< camera space, unit length
   float maxDistance = 1e30f;         ///< the ray ends here (scene units)
+  /// The origin lies on a stored surface (a secondary ray): image-space tracers skip its own
+  /// pixel (seed 000 §5.1). False for rays from free space (a camera's eye, view synthesis):
+  /// their first pixel is tested like any other.
+  bool startsOnSurface = true;
 };
 
 /// The surface hit: enough to shade it and to start the next bounce.
