@@ -230,7 +230,7 @@ TEST(CliBench, WritesCsvJsonWithMachineBuildAndDate) {
     }
   }
   test::TempDir clean;
-  expectRejected({"bench " + kDefault + " --experiment warp", "--experiment warp"}, clean);
+  expectRejected({"bench " + kDefault + " --experiment glow", "--experiment glow"}, clean);
 }
 
 }  // namespace
