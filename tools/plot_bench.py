@@ -67,10 +67,10 @@ def main():
         for i, k in enumerate(sorted({r["k"] for r in rows})):
             for j, tracer in enumerate(["ssr", "hssr"]):
                 sel = [r for r in rows if r["k"] == k and r["tracer"] == tracer]
-                ax.plot([100 * r["offset"] for r in sel], [100 * r["hole_fraction"] for r in sel], ["o-", "s--"][j],
+                ax.plot([100 * r["offset"] for r in sel], [100 * r["disocclusion_fraction"] for r in sel], ["o-", "s--"][j],
                         color=f"C{i}", label=f"{tracer}, k={k}")
         ax.set_xlabel("second camera offset [% of the eye-target distance]")
-        ax.set_ylabel("holes [% of covered pixels]")
+        ax.set_ylabel("disocclusion holes [% of pixels inside the first view]")
         title = f"warp: holes vs second-camera offset and k — {data['scene']} ({data['width']}x{data['height']})"
     ax.set_title(title, fontsize=10)
     ax.legend(loc="upper left", fontsize=8)

@@ -257,7 +257,8 @@ int runBench(const BenchOptions& o) {
   }
 
   if (e == "warp") {
-    t.columns = {"tracer", "k", "offset", "hole_fraction", "holes", "covered_pixels", "psnr_db", "trace_ms"};
+    t.columns = {"tracer", "k", "offset", "hole_fraction", "holes", "covered_pixels", "disocclusion_fraction", "holes_disoccluded",
+                 "holes_outside_first_view", "psnr_db", "trace_ms"};
     const float offsets[] = {0.0f, 0.025f, 0.05f, 0.1f, 0.2f};
     const char* tracers[] = {"ssr", "ssr-layers", "hiz", "hssr"};
     const int ks[] = {1, 2, 4};
@@ -289,9 +290,9 @@ int runBench(const BenchOptions& o) {
           EffectResult r = renderEffect(f, *b.tracer, w);  // warm-up, discarded
           std::vector<double> times;
           for (int rep = 0; rep < o.repeat; ++rep) r = renderEffect(f, *b.tracer, w), times.push_back(r.traceMs);
-          uint64_t covered = 0, holes = 0;
-          for (size_t q = 0; q < r.holes.size(); ++q) covered += refs[i].covered[q], holes += refs[i].covered[q] && r.holes[q];
-          t.rows.push_back({name, k, offsets[i], covered ? double(holes) / double(covered) : 0.0, holes, covered,
+          const WarpHoles h = countWarpHoles(refs[i], r.holes);
+          t.rows.push_back({name, k, offsets[i], h.covered ? double(h.holes) / double(h.covered) : 0.0, h.holes, h.covered,
+                            h.coveredInside ? double(h.disoccluded) / double(h.coveredInside) : 0.0, h.disoccluded, h.outside,
                             rmsePsnr(r.image, refs[i].image).second, median(times)});
         }
       }

@@ -1,3 +1,4 @@
+#include <algorithm>
 #include <chrono>
 #include <optional>
 #include <filesystem>
@@ -57,8 +58,33 @@ WarpReference warpReference(const Frame& frame, const FrameOptions& options, con
   } none;
   ref.image = renderEffect(other, none, shade).image;
   ref.covered.resize(other.layers.count.size());
-  for (size_t p = 0; p < ref.covered.size(); ++p) ref.covered[p] = other.layers.count[p] > 0;
+  ref.outsideFirst.assign(other.layers.count.size(), 0);
+  const Camera& first = frame.camera;
+  for (int y = 0; y < other.layers.height; ++y)
+    for (int x = 0; x < other.layers.width; ++x) {
+      const size_t p = other.layers.pixelIndex(x, y);
+      ref.covered[p] = other.layers.count[p] > 0;
+      if (!ref.covered[p]) continue;
+      const glm::vec3 world = other.camera.toWorld(other.camera.rayThrough({x + 0.5f, y + 0.5f}) * other.layers.pixel(x, y)[0].depth);
+      const glm::vec3 c = first.toCamera(world);
+      const glm::vec2 q = first.project(c);
+      ref.outsideFirst[p] = !(-c.z >= first.near() && q.x >= 0.0f && q.y >= 0.0f && q.x < float(first.width()) && q.y < float(first.height()));
+    }
   return ref;
+}
+
+WarpHoles countWarpHoles(const WarpReference& ref, const std::vector<uint8_t>& holes) {
+  WarpHoles h;
+  for (size_t p = 0; p < holes.size(); ++p) {
+    if (!ref.covered[p]) continue;
+    ++h.covered;
+    h.coveredInside += !ref.outsideFirst[p];
+    if (!holes[p]) continue;
+    ++h.holes;
+    if (ref.outsideFirst[p]) ++h.outside;
+    else ++h.disoccluded;
+  }
+  return h;
 }
 
 int runRender(const RenderOptions& o) {
@@ -128,18 +154,18 @@ int runRender(const RenderOptions& o) {
     const Camera second = warpCamera(frame.camera, ec);
     WarpReference ref = warpReference(frame, o.run.frame, ec);
     direct = std::move(ref.image);
-    uint64_t covered = 0, holes = 0, allHoles = 0;
-    for (size_t p = 0; p < r.holes.size(); ++p) {
-      allHoles += r.holes[p];
-      covered += ref.covered[p], holes += ref.covered[p] && r.holes[p];
-    }
+    const WarpHoles h = countWarpHoles(ref, r.holes);
+    const uint64_t covered = h.covered, holes = h.holes, allHoles = uint64_t(std::count(r.holes.begin(), r.holes.end(), 1));
     const auto [rmse, psnr] = rmsePsnr(r.image, *direct);
     const glm::vec3 e = second.desc().eye, t = second.desc().target;
     stats["warp"] = {{"eye", {e.x, e.y, e.z}},      {"target", {t.x, t.y, t.z}},
                      {"covered_pixels", covered},  {"holes", holes},
                      {"hole_fraction", covered ? double(holes) / double(covered) : 0.0},
                      {"holes_total", allHoles},    {"psnr_db", psnr},
-                     {"rmse", rmse}};
+                     {"rmse", rmse},
+                     {"holes_outside_first_view", h.outside},
+                     {"holes_disoccluded", h.disoccluded},
+                     {"disocclusion_fraction", h.coveredInside ? double(h.disoccluded) / double(h.coveredInside) : 0.0}};
   }
   if (!o.run.pixelStats.empty()) writePixelStats(o.run.pixelStats, r);
   if (fs::path(out).has_parent_path()) ensureDirectory(fs::path(out).parent_path().string(), "-o");

@@ -94,8 +94,18 @@ void writePixelStats(const std::string& dir, const EffectResult& r);
 /// scene, shaded with `frame`'s lights, and per pixel whether it sees a surface.
 struct WarpReference {
   Image image;
-  std::vector<uint8_t> covered;
+  std::vector<uint8_t> covered;  ///< the second camera sees a surface here
+  /// ... and that surface lies outside the first camera's view (off its screen, or in front of
+  /// its near plane): no layer can hold it, whatever k. Holes elsewhere are disocclusions.
+  std::vector<uint8_t> outsideFirst;
 };
+
+/// Holes of a warp against its reference: all holes on covered pixels, and those split into
+/// outside-the-first-view and disoccluded.
+struct WarpHoles {
+  uint64_t covered = 0, holes = 0, outside = 0, disoccluded = 0, coveredInside = 0;
+};
+WarpHoles countWarpHoles(const WarpReference& ref, const std::vector<uint8_t>& holes);
 WarpReference warpReference(const Frame& frame, const FrameOptions& options, const EffectConfig& warp);
 
 /// `layertrace compare`: the same rays through several tracers and Embree → accuracy and cost.
