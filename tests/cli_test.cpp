@@ -325,3 +325,23 @@ TEST(CliBench, WarpSweepsOffsetsLayersAndTracers) {
 
 }  // namespace
 }  // namespace lt
+
+namespace lt {
+namespace {
+
+// Issue 13 §5: bench --experiment capture times raster, sort and pyramid per thread count beside
+// Embree's all-hit capture of the same pixel-centre rays, which must find the same fragments.
+TEST(CliBench, CaptureAgainstEmbreeAllHitsOfTheSameRays) {
+  test::TempDir dir;
+  ASSERT_NO_FATAL_FAILURE(expectRuns("bench " + kDefault + " --experiment capture --width 200 --height 120 --repeat 1 --quiet -o " + (dir / "b")));
+  const auto j = readJson(dir / "b/capture.json");
+  ASSERT_FALSE(j["rows"].empty());
+  for (const auto& r : j["rows"]) {
+    for (const char* k : {"raster_ms", "sort_ms", "pyramid_ms", "embree_allhit_ms", "mfragments_per_s"}) EXPECT_GT(r[k].get<double>(), 0.0) << k;
+    const double fragments = r["fragments"].get<double>(), hits = r["embree_hits"].get<double>();
+    EXPECT_NEAR(hits, fragments, 1e-3 * fragments) << "Embree and the rasterizer capture the same surfaces";
+  }
+}
+
+}  // namespace
+}  // namespace lt

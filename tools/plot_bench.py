@@ -15,8 +15,9 @@ def main():
     fig, ax = plt.subplots(figsize=(7, 4.2))
     # The title names what the experiment sweeps, not the run's default of it.
     swept = {"stride": "SSR stride 1-8 vs HSSR", "layers": "construction time vs layers k", "memory": "memory at 720p and 1080p",
-             "tau": "HSSR vs tau", "resolution": "cost vs resolution", "threads": "cost vs threads"}
-    fixed = f"{data['width']}x{data['height']}" if exp in ("layers", "threads", "stride", "tau") else f"k={data['layers']}"
+             "tau": "HSSR vs tau", "resolution": "cost vs resolution", "threads": "cost vs threads",
+             "capture": "capture vs Embree all-hit, by threads"}
+    fixed = f"{data['width']}x{data['height']}" if exp in ("layers", "threads", "stride", "tau", "capture") else f"k={data['layers']}"
     title = f"{exp}: {swept.get(exp, exp)} — {data['scene']} ({fixed})"
     if exp == "stride":
         ssr = [r for r in rows if r["tracer"] == "ssr-layers"]
@@ -60,6 +61,13 @@ def main():
     elif exp == "threads":
         th = [r["threads"] for r in rows]
         for key, lab in [("raster_ms", "raster"), ("sort_ms", "sort"), ("hierarchy_ms", "hierarchy"), ("trace_hssr_ms", "trace hssr")]:
+            ax.plot(th, [r[key] for r in rows], "o-", label=lab)
+        ax.set_xlabel("threads")
+        ax.set_ylabel("time [ms]")
+    elif exp == "capture":
+        th = [r["threads"] for r in rows]
+        for key, lab in [("raster_ms", "raster"), ("sort_ms", "sort"), ("pyramid_ms", "pyramid"), ("capture_ms", "raster + sort"),
+                         ("embree_allhit_ms", "Embree all-hit capture")]:
             ax.plot(th, [r[key] for r in rows], "o-", label=lab)
         ax.set_xlabel("threads")
         ax.set_ylabel("time [ms]")

@@ -5,6 +5,8 @@
 //   tau         hierarchy build and trace time for τ from 1 to 128 (Figure 14)
 //   resolution  cost from 640×360 to 3840×2160
 //   threads     scaling from 1 thread to all cores
+//   capture     raster, sort, pyramid per thread count against Embree all-hit capture of the same
+//               pixel-centre rays (Embree with plain scene flags and a geometry filter)
 //   warp        view synthesis (seed 002): holes and PSNR against the second camera's own view for
 //               offsets of 0–20 % of the eye–target distance × k ∈ {1, 2, 4} × every screen tracer
 // Every time is the median of --repeat runs on the same rays; results carry the machine, the
@@ -24,6 +26,7 @@
 #include "layertrace/app/report.h"
 #include "layertrace/eval/classify.h"
 #include "layertrace/eval/image_metrics.h"
+#include "layertrace/eval/verify_layers.h"
 #include "layertrace/util/error.h"
 #include "layertrace/util/timing.h"
 
@@ -127,11 +130,11 @@ Classified measure(const Frame& frame, const Tracer& tracer, const EffectConfig&
 }  // namespace
 
 int runBench(const BenchOptions& o) {
-  static const char* kExperiments[] = {"stride", "layers", "tau", "memory", "resolution", "threads", "warp"};
+  static const char* kExperiments[] = {"stride", "layers", "tau", "memory", "resolution", "threads", "warp", "capture"};
   if (std::find_if(std::begin(kExperiments), std::end(kExperiments), [&](const char* e) { return o.experiment == e; }) ==
       std::end(kExperiments))
     inputError("--experiment ", o.experiment.empty() ? "(none)" : o.experiment,
-               ": unknown (use stride, layers, tau, memory, resolution, threads, warp)");
+               ": unknown (use stride, layers, tau, memory, resolution, threads, warp, capture)");
   if (o.repeat < 1 || o.repeat > 100) inputError("--repeat ", o.repeat, ": must be between 1 and 100");
   validateTracerOptions(o.options);
   validateEffectConfig(o.effect);
@@ -256,6 +259,30 @@ int runBench(const BenchOptions& o) {
     }
   }
 
+  if (e == "capture") {
+    t.columns = {"threads",    "raster_ms",          "sort_ms",         "capture_ms",       "pyramid_ms",       "fragments",
+                 "mfragments_per_s", "embree_allhit_ms", "embree_hits", "capture_speedup_vs_embree", "lists_bytes",
+                 "arrays_bytes",     "pyramid_bytes"};
+    const EmbreeScene embree(frame.scene, EmbreeScene::Mode::Capture);
+    std::vector<int> counts{1};
+    if (std::thread::hardware_concurrency() > 1) counts.push_back(int(std::thread::hardware_concurrency()));
+    Progress p(o.run.quiet, e, int(counts.size()));
+    for (int n : counts) {
+      p.step(cat(n, " threads"));
+      tbb::global_control gc(tbb::global_control::max_allowed_parallelism, size_t(n));
+      std::vector<double> rs, ss;
+      rasterizeFrame(o.run.frame, frame);  // warm-up, discarded
+      for (int i = 0; i < o.repeat; ++i) rasterizeFrame(o.run.frame, frame), rs.push_back(frame.rasterMs), ss.push_back(frame.sortMs);
+      IntervalPyramid pyr;
+      const double pyramid = medianMs(o.repeat, [&] { pyr = buildIntervalPyramid(frame.layers, frame.camera, o.options.pyramid); });
+      uint64_t hits = 0;
+      const double allHit = medianMs(o.repeat, [&] { hits = embreeCapture(frame.camera, embree); });
+      const double capture = median(rs) + median(ss);
+      t.rows.push_back({n, median(rs), median(ss), capture, pyramid, frame.lists.generated,
+                        double(frame.lists.generated) / capture * 1e-3, allHit, hits, allHit / capture, frame.lists.memoryBytes(),
+                        frame.layers.memoryBytes(), pyr.memoryBytes()});
+    }
+  }
   if (e == "warp") {
     t.columns = {"tracer", "k", "offset", "hole_fraction", "holes", "covered_pixels", "disocclusion_fraction", "holes_disoccluded",
                  "holes_outside_first_view", "psnr_db", "trace_ms"};

@@ -47,4 +47,20 @@ VerifyResult verifyLayers(const FragmentLists& lists, const Camera& camera, cons
   return res;
 }
 
+uint64_t embreeCapture(const Camera& camera, const EmbreeScene& embree) {
+  std::atomic<uint64_t> total{0};
+  const glm::vec3 eye = camera.desc().eye;
+  tbb::parallel_for(tbb::blocked_range<int>(0, camera.height(), 4), [&](const tbb::blocked_range<int>& r) {
+    std::vector<GeoHit> hits;
+    uint64_t n = 0;
+    for (int y = r.begin(); y != r.end(); ++y)
+      for (int x = 0; x < camera.width(); ++x) {
+        embree.allHits(eye, camera.dirToWorld(camera.rayThrough({float(x) + 0.5f, float(y) + 0.5f})), camera.near(), camera.far(), hits);
+        n += hits.size();
+      }
+    total += n;
+  });
+  return total;
+}
+
 }  // namespace lt

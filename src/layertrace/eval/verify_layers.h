@@ -26,4 +26,9 @@ inline constexpr float kVerifyRelativeTolerance = 1e-4f;
 /// collects all hits (deduplicated by triangle) and compares them with the pixel's list.
 VerifyResult verifyLayers(const FragmentLists& lists, const Camera& camera, const EmbreeScene& embree);
 
+/// Embree's answer to capture: every hit of every pixel-centre ray between the near and far
+/// planes, collected (and deduplicated) as verifyLayers does, without the comparison — the
+/// geometric ray tracer's cost of the fragments the rasterizer produces. Returns the hit count.
+uint64_t embreeCapture(const Camera& camera, const EmbreeScene& embree);
+
 }  // namespace lt

@@ -97,6 +97,9 @@ EmbreeScene::EmbreeScene(const Scene& scene, Mode mode) : impl_(std::make_unique
     v[3 * i] = scene.positions[i].x, v[3 * i + 1] = scene.positions[i].y, v[3 * i + 2] = scene.positions[i].z;
   for (size_t i = 0; i < scene.triangles.size(); ++i)
     idx[3 * i] = scene.triangles[i].x, idx[3 * i + 1] = scene.triangles[i].y, idx[3 * i + 2] = scene.triangles[i].z;
+  // Capture mode: the all-hit filter on the geometry (no scene flag needed); allHits passes the
+  // collecting context, other queries never run on this scene.
+  if (mode == Mode::Capture) rtcSetGeometryIntersectFilterFunction(geom, collectFilter);
   rtcCommitGeometry(geom);
   rtcAttachGeometry(impl_->scene, geom);
   rtcReleaseGeometry(geom);
@@ -180,12 +183,12 @@ void EmbreeScene::intersectPackets(const glm::vec3* o, const glm::vec3* d, size_
 }
 
 void EmbreeScene::allHits(glm::vec3 o, glm::vec3 d, float tnear, float tfar, std::vector<GeoHit>& out) const {
-  if (mode_ != Mode::Robust) throw InternalError("embree: allHits needs a scene built in robust mode");
+  if (mode_ == Mode::Fast) throw InternalError("embree: allHits needs a scene built in robust or capture mode");
   enableFlushDenormals();
   out.clear();
   CollectContext ctx;
   rtcInitIntersectContext(&ctx.base);
-  ctx.base.filter = collectFilter;
+  if (mode_ == Mode::Robust) ctx.base.filter = collectFilter;
   ctx.out = &out;
   RTCRayHit rh = makeRay(o, d, tnear, tfar);
   rtcIntersect1(impl_->scene, &ctx.base, &rh);

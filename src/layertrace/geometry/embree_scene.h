@@ -34,7 +34,9 @@ class EmbreeScene {
   /// quality — the baseline every speed claim is measured against. Robust:
   /// RTC_SCENE_FLAG_ROBUST | RTC_SCENE_FLAG_CONTEXT_FILTER_FUNCTION — watertight, and able to
   /// collect all hits (allHits): the ground truth of classification, capture checks and verify.
-  enum class Mode { Fast, Robust };
+  /// Capture: default scene flags with a geometry-level filter that collects every hit — the
+  /// plain baseline of all-hit capture (allHits), no robust mode, no scene filter flag.
+  enum class Mode { Fast, Robust, Capture };
   explicit EmbreeScene(const Scene& scene, Mode mode = Mode::Robust);
   Mode mode() const { return mode_; }
   ~EmbreeScene();
@@ -50,7 +52,7 @@ class EmbreeScene {
   void intersectPackets(const glm::vec3* origins, const glm::vec3* dirs, size_t n, float tnear, float tfar, int width,
                         GeoHit* out) const;
   /// Every hit along the ray with t in [tnear, tfar], sorted by t, each triangle once (with
-  /// HIGH build quality Embree may report a triangle twice). Robust mode only.
+  /// HIGH build quality Embree may report a triangle twice). Robust and Capture modes.
   void allHits(glm::vec3 origin, glm::vec3 dir, float tnear, float tfar, std::vector<GeoHit>& out) const;
 
   double buildMs() const { return buildMs_; }
