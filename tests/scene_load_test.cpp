@@ -113,3 +113,25 @@ TEST(SceneLoad, TransformsApplyToNormalsAndCameras) {
 
 }  // namespace
 }  // namespace lt
+
+namespace lt {
+namespace {
+
+// A scene whose coordinates overflow float arithmetic is refused with one line naming the
+// input and the magnitude, not a derived symptom (an infinite camera far plane).
+TEST(SceneLoad, CoordinatesThatOverflowFloatArithmeticAreRefusedByName) {
+  test::TempDir dir;
+  const std::string path = dir / "huge.obj";
+  std::ofstream(path) << "v -1e20 -1e20 -5e20\nv 1e20 -1e20 -5e20\nv 0 1e20 -5e20\nf 1 2 3\n";
+  try {
+    loadScene(path);
+    FAIL() << "accepted";
+  } catch (const InputError& e) {
+    const std::string msg = e.what();
+    EXPECT_NE(msg.find("huge.obj"), std::string::npos) << msg;
+    EXPECT_NE(msg.find("overflow"), std::string::npos) << msg;
+  }
+}
+
+}  // namespace
+}  // namespace lt

@@ -1,5 +1,6 @@
 #include "layertrace/scene/scene.h"
 
+#include <algorithm>
 #include <cmath>
 
 #include <glm/geometric.hpp>
@@ -63,7 +64,13 @@ void Scene::finalize(const std::string& source) {
       normals[v] /= len;
     }
   }
-  if (bounds().diagonal() <= 0.0f) inputError("scene ", source, ": all vertices coincide");
+  const float diagonal = bounds().diagonal();
+  if (!std::isfinite(diagonal)) {
+    float largest = 0.0f;
+    for (const glm::vec3& p : positions) largest = std::max({largest, std::abs(p.x), std::abs(p.y), std::abs(p.z)});
+    inputError("scene ", source, ": coordinates up to ", largest, " overflow float arithmetic (the bounding-box diagonal is not finite)");
+  }
+  if (diagonal <= 0.0f) inputError("scene ", source, ": all vertices coincide");
 }
 
 }  // namespace lt
