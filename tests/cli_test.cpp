@@ -299,12 +299,19 @@ TEST(CliCompare, TracedPsnrIsFiniteAndDiffersWithoutMirrorMaterials) {
 namespace lt {
 namespace {
 
+/// Runs `bench --experiment NAME` on the default scene at W × H (one repeat); its JSON.
+nlohmann::json benchOnDefaultScene(const std::string& experiment, int w, int h) {
+  test::TempDir dir;
+  expectRuns("bench " + kDefault + " --experiment " + experiment + " --width " + std::to_string(w) + " --height " + std::to_string(h) +
+             " --repeat 1 --quiet -o " + (dir / "b"));
+  return readJson(dir / ("b/" + experiment + ".json"));
+}
+
 // Issue 11 §3: bench --experiment warp sweeps offsets × k × screen tracers; holes grow with the
 // offset, never with k for the multi-layer tracers, and are zero without an offset.
 TEST(CliBench, WarpSweepsOffsetsLayersAndTracers) {
-  test::TempDir dir;
-  ASSERT_NO_FATAL_FAILURE(expectRuns("bench " + kDefault + " --experiment warp --width 160 --height 90 --repeat 1 --quiet -o " + (dir / "b")));
-  const auto j = readJson(dir / "b/warp.json");
+  nlohmann::json j;
+  ASSERT_NO_FATAL_FAILURE(j = benchOnDefaultScene("warp", 160, 90));
   ASSERT_EQ(j["rows"].size(), 5u * 3u * 4u);
   std::map<std::tuple<std::string, int, double>, double> holes;
   for (const auto& r : j["rows"]) holes[{r["tracer"].get<std::string>(), r["k"].get<int>(), r["offset"].get<double>()}] = r["hole_fraction"].get<double>();
@@ -332,9 +339,8 @@ namespace {
 // Issue 13 §5: bench --experiment capture times raster, sort and pyramid per thread count beside
 // Embree's all-hit capture of the same pixel-centre rays, which must find the same fragments.
 TEST(CliBench, CaptureAgainstEmbreeAllHitsOfTheSameRays) {
-  test::TempDir dir;
-  ASSERT_NO_FATAL_FAILURE(expectRuns("bench " + kDefault + " --experiment capture --width 200 --height 120 --repeat 1 --quiet -o " + (dir / "b")));
-  const auto j = readJson(dir / "b/capture.json");
+  nlohmann::json j;
+  ASSERT_NO_FATAL_FAILURE(j = benchOnDefaultScene("capture", 200, 120));
   ASSERT_FALSE(j["rows"].empty());
   for (const auto& r : j["rows"]) {
     for (const char* k : {"raster_ms", "sort_ms", "pyramid_ms", "embree_allhit_ms", "mfragments_per_s"}) EXPECT_GT(r[k].get<double>(), 0.0) << k;
