@@ -121,8 +121,7 @@ TEST(TraceInterface, ObserverSeesEveryRayAndChangesNothing) {
       if (effect == Effect::AO) {
         EXPECT_EQ(rec.maxSample, 2);
       }
-      EXPECT_GE(watched.traceMs, 0.0);
-      EXPECT_GE(watched.shadeMs, 0.0);
+      EXPECT_GT(watched.traceMs, 0.0) << "the time inside the tracer calls was not measured";
     }
   }
 }

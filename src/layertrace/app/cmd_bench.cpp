@@ -289,7 +289,7 @@ int runBench(const BenchOptions& o) {
     const float offsets[] = {0.0f, 0.025f, 0.05f, 0.1f, 0.2f};
     const char* tracers[] = {"ssr", "ssr-layers", "hiz", "hssr"};
     const int ks[] = {1, 2, 4};
-    Progress p(o.run.quiet, e, 3 * 5);
+    Progress p(o.run.quiet, e, 3 * 4);
     std::vector<WarpReference> refs;
     std::vector<EffectConfig> warps;
     for (float offset : offsets) {
@@ -308,10 +308,10 @@ int runBench(const BenchOptions& o) {
       Frame f;
       loadFrameScene(fo, f);
       rasterizeFrame(fo, f);
-      for (size_t i = 0; i < warps.size(); ++i) {
-        p.step(cat("k = ", k, ", offset ", offsets[i]));
-        for (const char* name : tracers) {
-          const BuiltTracer b = buildTracer(name, f, o.options);
+      for (const char* name : tracers) {
+        p.step(cat("k = ", k, ", ", name));
+        const BuiltTracer b = buildTracer(name, f, o.options);  // the structure depends on k, not on the offset
+        for (size_t i = 0; i < warps.size(); ++i) {
           EffectConfig w = warps[i];
           w.countRays = false;
           EffectResult r = renderEffect(f, *b.tracer, w);  // warm-up, discarded

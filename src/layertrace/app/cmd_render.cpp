@@ -66,9 +66,8 @@ WarpReference warpReference(const Frame& frame, const FrameOptions& options, con
       ref.covered[p] = other.layers.count[p] > 0;
       if (!ref.covered[p]) continue;
       const glm::vec3 world = other.camera.toWorld(other.camera.rayThrough({x + 0.5f, y + 0.5f}) * other.layers.pixel(x, y)[0].depth);
-      const glm::vec3 c = first.toCamera(world);
-      const glm::vec2 q = first.project(c);
-      ref.outsideFirst[p] = !(-c.z >= first.near() && q.x >= 0.0f && q.y >= 0.0f && q.x < float(first.width()) && q.y < float(first.height()));
+      int fx, fy;
+      ref.outsideFirst[p] = !first.pixelOf(first.toCamera(world), fx, fy);
     }
   return ref;
 }

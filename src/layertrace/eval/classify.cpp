@@ -35,23 +35,6 @@ glm::vec3 rayClassColor(RayClass c) {
   return glm::vec3(0.0f);
 }
 
-namespace {
-
-bool inViewport(const Camera& camera, glm::vec2 p) {
-  return p.x >= 0.0f && p.y >= 0.0f && p.x < float(camera.width()) && p.y < float(camera.height());
-}
-
-/// Pixel of a camera-space point in front of the near plane, or false.
-bool pixelOf(const Camera& camera, glm::vec3 p, int& x, int& y) {
-  if (-p.z < camera.near()) return false;
-  const glm::vec2 s = camera.project(p);
-  if (!inViewport(camera, s)) return false;
-  x = int(s.x), y = int(s.y);
-  return true;
-}
-
-}  // namespace
-
 float depthTolerance(const Camera& camera, glm::vec3 p, glm::vec3 dir, glm::vec3 n) {
   const float z = -p.z;
   const float footprint = camera.pixelFootprint(z);
@@ -68,10 +51,19 @@ float depthTolerance(const Camera& camera, glm::vec3 p, glm::vec3 dir, glm::vec3
   return 1.5f * (rayPerPixel + surfacePerPixel);
 }
 
+namespace {
+
+/// Does the true hit's depth lie in fragment f's interval widened by δ (the rules in the header)?
+bool inWidenedInterval(const FragmentNode& f, const TraceHit& truth, glm::vec3 dir, const Camera& camera) {
+  const float delta = depthTolerance(camera, truth.point, dir, decodeOctahedral(f.normal)), z = -truth.point.z;
+  return f.depth - delta <= z && z <= f.back() + delta;
+}
+
+}  // namespace
+
 bool storedInLayers(const TraceHit& truth, glm::vec3 dir, const Camera& camera, const LayerArrays& layers) {
   int x, y;
-  if (!truth.hit || !pixelOf(camera, truth.point, x, y)) return false;
-  const float depth = -truth.point.z;
+  if (!truth.hit || !camera.pixelOf(truth.point, x, y)) return false;
   for (int ny = std::max(y - 1, 0); ny <= std::min(y + 1, layers.height - 1); ++ny)
     for (int nx = std::max(x - 1, 0); nx <= std::min(x + 1, layers.width - 1); ++nx) {
       const size_t base = layers.pixelIndex(nx, ny) * size_t(layers.k);
@@ -80,17 +72,15 @@ bool storedInLayers(const TraceHit& truth, glm::vec3 dir, const Camera& camera, 
     }
   const FragmentNode* f = layers.pixel(x, y);
   for (int i = 0; i < layers.countAt(x, y); ++i)
-    if (const float delta = depthTolerance(camera, truth.point, dir, decodeOctahedral(f[i].normal));
-        f[i].depth - delta <= depth && depth <= f[i].back() + delta)
-      return true;
+    if (inWidenedInterval(f[i], truth, dir, camera)) return true;
   return false;
 }
 
 RayClass classifyRay(const Ray& ray, const TraceHit& tracer, const TraceHit& truth, Query query, const Camera& camera,
                      const LayerArrays& layers) {
   int ox = -1, oy = -1, tx = -1, ty = -1;
-  pixelOf(camera, ray.origin, ox, oy);
-  const bool truthOnScreen = truth.hit && pixelOf(camera, truth.point, tx, ty);
+  camera.pixelOf(ray.origin, ox, oy);
+  const bool truthOnScreen = truth.hit && camera.pixelOf(truth.point, tx, ty);
   const bool inOriginPixel = truthOnScreen && tx == ox && ty == oy;
   if (tracer.hit) {
     if (query == Query::Any) return truth.hit ? RayClass::CorrectHit : RayClass::WrongHitThickness;
@@ -101,9 +91,7 @@ RayClass classifyRay(const Ray& ray, const TraceHit& tracer, const TraceHit& tru
     }
     if (tracer.layer >= 0 && truthOnScreen && std::abs(tx - tracer.x) <= 1 && std::abs(ty - tracer.y) <= 1) {
       if (truth.triangle == tracer.triangle) return RayClass::CorrectHit;
-      const FragmentNode& f = layers.pixel(tracer.x, tracer.y)[tracer.layer];
-      const float delta = depthTolerance(camera, truth.point, ray.dir, decodeOctahedral(f.normal)), z = -truth.point.z;
-      if (f.depth - delta <= z && z <= f.back() + delta) return RayClass::CorrectHit;
+      if (inWidenedInterval(layers.pixel(tracer.x, tracer.y)[tracer.layer], truth, ray.dir, camera)) return RayClass::CorrectHit;
     }
     const float tReported = glm::dot(tracer.point - ray.origin, ray.dir);
     const float tTrue = truth.hit ? glm::dot(truth.point - ray.origin, ray.dir) : std::numeric_limits<float>::infinity();

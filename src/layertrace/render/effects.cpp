@@ -11,6 +11,7 @@
 #include <tbb/enumerable_thread_specific.h>
 #include <tbb/parallel_for.h>
 
+#include "layertrace/screen/fragment_hit.h"
 #include "layertrace/util/error.h"
 #include "layertrace/util/progress.h"
 
@@ -96,7 +97,8 @@ struct PathState {
   glm::vec3 traced{0.0f};  ///< what the rays brought back, unweighted by materials (EffectResult::traced)
   // Refraction: the front surface's reflection and what is seen through it.
   float fresnel = 0.0f;
-  glm::vec3 reflected{0.0f}, through{0.0f}, out{0.0f};
+  glm::vec3 reflected{0.0f};  ///< the colour the reflection ray brought back
+  glm::vec3 through{0.0f}, out{0.0f};
   Surface back;
   float it = 0.0f, iv = 0.0f;  ///< counters summed over the pixel's rays
   uint32_t bent = 0;             ///< rays bent out of the geometric surface (keepOutside)
@@ -104,18 +106,11 @@ struct PathState {
   uint32_t first = 0, count = 0;  ///< the pixel's rays in the current wave's dense arrays
 };
 
-/// One ray slot of a wave: which pixel of the band issued it and its sample index.
-struct Slot {
-  Ray ray;
-  uint16_t sample = 0;
-};
-
 /// A thread's buffers for one band of pixels, reused across bands and waves.
 struct Band {
   std::vector<PathState> states;
-  std::vector<Slot> slots;  ///< R fixed slots per pixel, as emitted
-  std::vector<Ray> rays;    ///< the wave's rays, dense, in tile order
-  std::vector<uint16_t> samples;
+  std::vector<Ray> rays;          ///< the wave's rays, dense, in tile order
+  std::vector<uint16_t> samples;  ///< each ray's index among its pixel's rays of the wave
   std::vector<TraceHit> hits;
   std::vector<RayCounters> counters;
   std::vector<RayEvent> events;
@@ -213,29 +208,23 @@ class Renderer {
   bool traceWave(int wave, Band& band, Accum& a) const {
     const size_t n = band.states.size();
     const size_t R = size_t(maxRaysPerPixel());
-    band.slots.resize(n * R);
+    // Each pixel emits at most R rays, written straight after the previous pixel's.
+    band.rays.resize(n * R);
+    band.samples.resize(n * R);
     size_t total = 0;
     for (size_t i = 0; i < n; ++i) {
       PathState& st = band.states[i];
       st.first = uint32_t(total);
       st.count = 0;
       if (st.done) continue;
-      Slot* slot = &band.slots[i * R];
-      for (size_t j = 0; j < R; ++j) slot[j].sample = uint16_t(j);
-      st.count = emit(wave, st, slot);
+      for (size_t j = 0; j < R; ++j) band.samples[total + j] = uint16_t(j);
+      st.count = emit(wave, st, &band.rays[total], &band.samples[total]);
       total += st.count;
       if (st.count == 0) consume(wave, st, nullptr, nullptr);  // e.g. shadows with every light behind the surface
     }
     if (total == 0) return false;
-    band.rays.resize(total);
-    band.samples.resize(total);
     band.hits.resize(total);
     band.counters.assign(config_.countRays ? total : 0, RayCounters{});
-    for (size_t i = 0; i < n; ++i)
-      for (uint32_t j = 0; j < band.states[i].count; ++j) {
-        band.rays[band.states[i].first + j] = band.slots[i * R + j].ray;
-        band.samples[band.states[i].first + j] = band.slots[i * R + j].sample;
-      }
     // Trace: the only part timed as tracing.
     const auto t0 = Clock::now();
     for (size_t b = 0; b < total; b += kBatchRays) {
@@ -355,13 +344,7 @@ class Renderer {
       st.done = true;
       return;
     }
-    TraceHit front;
-    const FragmentNode& fr = L.pixel(x, y)[0];
-    front.hit = true;
-    front.point = f_.camera.rayThrough({float(x) + 0.5f, float(y) + 0.5f}) * fr.depth;
-    front.normal = decodeOctahedral(fr.normal);
-    front.albedoSpec = fr.albedoSpec;
-    front.triangle = L.triangle[L.pixelIndex(x, y) * size_t(L.k)];
+    const TraceHit front = fragmentHit(f_.camera, L, x, y, 0);
     st.v = glm::normalize(front.point);
     st.s = surfaceOf(front, st.v);
     st.incoming = st.v;
@@ -379,16 +362,17 @@ class Renderer {
     return ray(st.s.p, st.dir, maxDist_);
   }
 
-  /// Writes the pixel's rays of `wave` to `out`; returns how many.
-  uint32_t emit(int wave, PathState& st, Slot* out) const {
+  /// Writes the pixel's rays of `wave` to `out` (at most maxRaysPerPixel; `samples` holds each
+  /// slot's index and may be overwritten with another sample id); returns how many.
+  uint32_t emit(int wave, PathState& st, Ray* out, uint16_t* samples) const {
     switch (config_.effect) {
       case Effect::Shade: return 0;
-      case Effect::Reflection: out[0].ray = reflectFrom(st); return 1;
+      case Effect::Reflection: out[0] = reflectFrom(st); return 1;
       case Effect::Warp: {
         // The second camera's primary ray through this pixel, in the first camera's space.
         st.dir = glm::normalize(f_.camera.dirToCamera(warp_.dirToWorld(warp_.rayThrough({float(st.x) + 0.5f, float(st.y) + 0.5f}))));
-        out[0].ray = ray(warpOrigin_, st.dir, warpMax_);
-        out[0].ray.startsOnSurface = false;  // an eye, not a surface: its first pixel counts
+        out[0] = ray(warpOrigin_, st.dir, warpMax_);
+        out[0].startsOnSurface = false;  // an eye, not a surface: its first pixel counts
         return 1;
       }
       case Effect::Shadow: {
@@ -397,8 +381,8 @@ class Renderer {
           const glm::vec3 toL = lights_[size_t(i)].first - st.s.p;
           const float d = glm::length(toL);
           if (glm::dot(toL, st.s.n) <= 0.0f) continue;  // facing away: dark without a ray
-          out[n].ray = ray(st.s.p, toL, std::max(d - eps_, 0.0f));
-          out[n++].sample = uint16_t(i);
+          samples[n] = uint16_t(i);  // the light's index
+          out[n++] = ray(st.s.p, toL, std::max(d - eps_, 0.0f));
         }
         return n;
       }
@@ -418,7 +402,7 @@ class Renderer {
         for (int k = 0; k < config_.aoSamples; ++k) {
           const float r1 = u(), r2 = u(), r = std::sqrt(r1), phi = 2.0f * glm::pi<float>() * r2;
           const glm::vec3 d = t * (r * std::cos(phi)) + bt * (r * std::sin(phi)) + n * std::sqrt(std::max(0.0f, 1.0f - r1));
-          out[k].ray = ray(st.s.p, keepOutside(d, st.s, st.bent), aoRadius_);
+          out[k] = ray(st.s.p, keepOutside(d, st.s, st.bent), aoRadius_);
         }
         return uint32_t(config_.aoSamples);
       }
@@ -429,15 +413,14 @@ class Renderer {
           const float cosi = -glm::dot(st.v, st.s.n);
           const float f0 = std::pow((1.0f - m.ior) / (1.0f + m.ior), 2.0f);
           st.fresnel = f0 + (1.0f - f0) * std::pow(1.0f - std::clamp(cosi, 0.0f, 1.0f), 5.0f);
-          out[0].ray = reflectFrom(st);
-          st.reflected = st.dir;  // the reflection's direction until its answer arrives
+          out[0] = reflectFrom(st);  // st.dir keeps its direction for consume
           st.out = glm::refract(st.v, st.s.n, 1.0f / m.ior);
           st.through = f_.scene.environment;
           if (glm::dot(st.out, st.out) == 0.0f) return 1;
-          out[1].ray = ray(st.s.p, st.out, maxDist_);
+          out[1] = ray(st.s.p, st.out, maxDist_);
           return 2;
         }
-        out[0].ray = ray(st.back.p, st.out, maxDist_);  // wave 1: leaving the transmissive back surface
+        out[0] = ray(st.back.p, st.out, maxDist_);  // wave 1: leaving the transmissive back surface
         return 1;
       }
     }
@@ -486,8 +469,7 @@ class Renderer {
       }
       case Effect::Refraction: {
         if (wave == 0) {
-          const glm::vec3 rdir = st.reflected;
-          st.reflected = h[0].hit ? st.colour + st.weight * local(surfaceOf(h[0], rdir), rdir)
+          st.reflected = h[0].hit ? st.colour + st.weight * local(surfaceOf(h[0], st.dir), st.dir)
                                   : st.colour + st.weight * f_.scene.environment;
           if (st.count == 2 && h[1].hit) {
             const glm::vec3 dir = st.out;

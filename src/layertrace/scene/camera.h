@@ -41,6 +41,16 @@ class Camera {
   /// Camera-space point → pixel coordinates (continuous).
   glm::vec2 project(glm::vec3 cam) const;
 
+  /// The pixel of a camera-space point: false when it lies in front of the near plane or off
+  /// the screen.
+  bool pixelOf(glm::vec3 cam, int& x, int& y) const {
+    if (-cam.z < near_) return false;
+    const glm::vec2 s = project(cam);
+    if (!(s.x >= 0.0f && s.y >= 0.0f && s.x < float(width_) && s.y < float(height_))) return false;
+    x = int(s.x), y = int(s.y);
+    return true;
+  }
+
   /// Camera-space direction through the screen point `pixel` whose depth component is 1
   /// (so a point at parameter t along it has depth t).
   glm::vec3 rayThrough(glm::vec2 pixel) const;
