@@ -173,9 +173,7 @@ class RealSceneGrid : public ::testing::TestWithParam<std::pair<const char*, con
 // Issue 6 §4: primary, diffuse-bounce and AO rays agree with Embree for ≥ 99.99 % of rays.
 TEST_P(RealSceneGrid, AgreesWithEmbree) {
   ASSERT_TRUE(test::haveFetchedScenes()) << "run scripts/fetch-scenes.sh";
-  FrameOptions o;
-  o.scenePath = test::sourceDir() + "/scenes/" + GetParam().first;
-  o.cameraName = GetParam().second;
+  const FrameOptions o = test::realSceneOptions(GetParam().first, GetParam().second);
   Frame f;
   loadFrameScene(o, f);
   for (bool partial : {false, true}) {

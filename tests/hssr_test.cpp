@@ -78,9 +78,7 @@ class RealSceneHssr : public ::testing::TestWithParam<std::pair<const char*, con
 
 TEST_P(RealSceneHssr, MatchesExhaustiveOracle) {
   ASSERT_TRUE(test::haveFetchedScenes()) << "run scripts/fetch-scenes.sh";
-  FrameOptions o;
-  o.scenePath = test::sourceDir() + "/scenes/" + GetParam().first;
-  o.cameraName = GetParam().second;
+  const FrameOptions o = test::realSceneOptions(GetParam().first, GetParam().second);
   expectExact(buildFrame(o), 100000);
 }
 
@@ -141,9 +139,7 @@ TEST(Hssr, PyramidCoversEveryChildInterval) {
 
 TEST_P(RealSceneHssr, PyramidCoversEveryChildInterval) {
   ASSERT_TRUE(test::haveFetchedScenes()) << "run scripts/fetch-scenes.sh";
-  FrameOptions o;
-  o.scenePath = test::sourceDir() + "/scenes/" + GetParam().first;
-  o.cameraName = GetParam().second;
+  const FrameOptions o = test::realSceneOptions(GetParam().first, GetParam().second);
   expectCovered(buildFrame(o));
 }
 

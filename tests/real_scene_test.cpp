@@ -22,9 +22,7 @@ class RealSceneVerify : public ::testing::TestWithParam<VerifyCase> {};
 // near-grazing triangles whose coverage flips within float precision.
 TEST_P(RealSceneVerify, FragmentListsMatchEmbreeAllHits) {
   ASSERT_TRUE(test::haveFetchedScenes()) << "run scripts/fetch-scenes.sh";
-  FrameOptions o;
-  o.scenePath = test::sourceDir() + "/scenes/" + GetParam().scene;
-  o.cameraName = GetParam().camera;
+  const FrameOptions o = test::realSceneOptions(GetParam().scene, GetParam().camera);
   const Frame frame = buildFrame(o);
   EXPECT_EQ(frame.lists.lost(), 0u);
   const EmbreeScene embree(frame.scene);

@@ -41,6 +41,13 @@ int runCli(const std::string& args, std::string* err, std::string* out) {
   return WIFEXITED(status) ? WEXITSTATUS(status) : 128 + WTERMSIG(status);
 }
 
+FrameOptions realSceneOptions(const std::string& sceneFile, const std::string& camera) {
+  FrameOptions o;
+  o.scenePath = sourceDir() + "/scenes/" + sceneFile;
+  o.cameraName = camera;
+  return o;
+}
+
 bool haveFetchedScenes() { return fs::exists(sourceDir() + "/data/models/AC14-FZK-Haus.ifc"); }
 
 CameraDesc originCamera(float fovY, float near, float far) {

@@ -29,6 +29,9 @@ int runCli(const std::string& args, std::string* err = nullptr, std::string* out
 /// The repository's source directory (for scenes/).
 inline std::string sourceDir() { return LAYERTRACE_SOURCE_DIR; }
 
+/// Frame options for a scene file of scenes/ (a fetched real scene) with one of its cameras.
+FrameOptions realSceneOptions(const std::string& sceneFile, const std::string& camera);
+
 /// True when the fetched scenes are present (scripts/fetch-scenes.sh).
 bool haveFetchedScenes();
 
