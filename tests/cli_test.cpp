@@ -164,7 +164,7 @@ namespace {
 
 TEST(CliRender, EveryEffectAndTracerGivesTheSameBytesForOneAndTwoThreads) {
   test::TempDir dir;
-  for (const char* tracer : {"ssr", "ssr-layers", "hiz", "hssr", "embree", "grid"})
+  for (const char* tracer : {"ssr", "ssr-layers", "hiz", "hssr", "quadtree", "embree", "grid"})
     for (const char* effect : {"reflection", "refraction", "ao", "shadow", "shade"}) {
       std::string bytes[2];
       for (int threads : {1, 2}) {

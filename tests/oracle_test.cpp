@@ -307,7 +307,7 @@ TEST(Warp, SameCameraReproducesTheRasterizedImage) {
   const Frame f = defaultSceneFrame(4);
   EffectConfig shade;
   shade.effect = Effect::Shade;
-  for (const char* name : {"ssr", "ssr-layers", "hiz", "hssr", "embree"}) {
+  for (const char* name : {"ssr", "ssr-layers", "hiz", "hssr", "quadtree", "embree"}) {
     SCOPED_TRACE(name);
     const BuiltTracer t = buildTracer(name, f, TracerOptions{});
     const EffectResult direct = renderEffect(f, *t.tracer, shade);

@@ -33,7 +33,7 @@ Frame defaultFrame(int w = 160, int h = 90) {
   return ::testing::AssertionSuccess();
 }
 
-const char* const kTracers[] = {"ssr", "ssr-layers", "hiz", "hssr", "embree", "grid"};
+const char* const kTracers[] = {"ssr", "ssr-layers", "hiz", "hssr", "quadtree", "embree", "grid"};
 
 TEST(TraceInterface, BatchPathsAnswerAsTheOneRayPathBitForBit) {
   const Frame f = defaultFrame();

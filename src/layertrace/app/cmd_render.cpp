@@ -28,6 +28,25 @@ nlohmann::json rayStats(const EffectResult& r, bool screen) {
   return j;
 }
 
+nlohmann::json quadtreeStats(const Quadtree& t, const QuadtreeConfig& c, const EffectResult& r) {
+  const double rays = r.rays ? double(r.rays) : 1.0;
+  nlohmann::json perLevel = nlohmann::json::array(), itLevel = nlohmann::json::array();
+  for (const auto& n : t.kindCounts) perLevel.push_back({{"empty", n[QuadNode::Empty]}, {"plane", n[QuadNode::Plane]}, {"box", n[QuadNode::Box]}});
+  for (int l = 0; l < std::min(t.levelCount(), int(RayCounters::kLevels)); ++l) itLevel.push_back(double(r.levelIterations[l]) / rays);
+  return {{"lambda_h", c.lambdaH},
+          {"lambda_d", c.lambdaD},
+          {"gamma_norm", c.gammaNorm},
+          {"gamma_dist", c.gammaDist},
+          {"depth_scale", t.depthScale},
+          {"levels", t.levelCount()},
+          {"nodes_per_level", perLevel},  // summed over the k layers
+          {"iterations_per_ray_by_level", itLevel},  // the last entry holds all higher levels
+          {"plane_nodes_visited_mean", double(r.planeNodeSum) / rays},
+          {"box_nodes_visited_mean", double(r.boxNodeSum) / rays},
+          {"empty_nodes_visited_mean", double(r.iterationSum - r.planeNodeSum - r.boxNodeSum) / rays},
+          {"occlusion_hits_mean", double(r.occlusionSum) / rays}};
+}
+
 void writePixelStats(const std::string& dir, const EffectResult& r) {
   ensureDirectory(dir, "--pixelstats");
   writeImage((fs::path(dir) / "iterations.exr").string(), r.iterations);
@@ -145,6 +164,8 @@ int runRender(const RenderOptions& o) {
       itLevel.push_back(r.rays ? double(r.levelIterations[l]) / double(r.rays) : 0.0);
     stats["hssr"]["iterations_per_ray_by_level"] = itLevel;
   }
+
+  if (built.quadtree) stats["quadtree"] = quadtreeStats(*built.quadtree, o.tracers.quadtree, r);
 
   std::optional<Image> direct;
   if (ec.effect == Effect::Warp) {

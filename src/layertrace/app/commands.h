@@ -89,6 +89,8 @@ int runGeobench(const GeobenchOptions& options);
 nlohmann::json rayStats(const EffectResult& r, bool screenTracer);
 /// Writes iterations.exr/.png and intervals.exr to `dir` (--pixelstats).
 void writePixelStats(const std::string& dir, const EffectResult& r);
+/// The `quadtree` stats block: thresholds, nodes per level and kind, visits per kind.
+nlohmann::json quadtreeStats(const Quadtree& tree, const QuadtreeConfig& config, const EffectResult& r);
 
 /// The truth of view synthesis (Effect::Warp): the second camera's own rasterization of the
 /// scene, shaded with `frame`'s lights, and per pixel whether it sees a surface.

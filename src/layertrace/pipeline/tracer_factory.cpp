@@ -14,9 +14,12 @@ void validateTracerOptions(const TracerOptions& o) {
   if (!(o.grid.lambda2 > 0.0f)) inputError("--lambda2 ", o.grid.lambda2, ": must be positive");
   if (o.pyramid.levels < 1 || o.pyramid.levels > 16) inputError("--levels ", o.pyramid.levels, ": must be between 1 and 16");
   if (!(o.pyramid.tau > 0.0f)) inputError("--tau ", o.pyramid.tau, ": must be positive");
+  validateQuadtreeConfig(o.quadtree);
 }
 
-bool isScreenTracer(const std::string& n) { return n == "ssr" || n == "ssr-layers" || n == "hiz" || n == "hssr"; }
+bool isScreenTracer(const std::string& n) {
+  return n == "ssr" || n == "ssr-layers" || n == "hiz" || n == "hssr" || n == "quadtree";
+}
 bool isKnownTracer(const std::string& n) { return isScreenTracer(n) || n == "embree" || n == "grid"; }
 
 BuiltTracer buildTracer(const std::string& name, const Frame& frame, const TracerOptions& o) {
@@ -33,6 +36,11 @@ BuiltTracer buildTracer(const std::string& name, const Frame& frame, const Trace
     b.buildMs = b.pyramid->buildMs;
     b.memoryBytes = b.pyramid->memoryBytes();
     b.tracer = std::make_unique<HssrTracer>(frame.camera, frame.layers, *b.pyramid, hizConfig(o.pyramid.levels));
+  } else if (name == "quadtree") {
+    b.quadtree = std::make_unique<Quadtree>(buildQuadtree(frame.layers, frame.camera, o.quadtree));
+    b.buildMs = b.quadtree->buildMs;
+    b.memoryBytes = b.quadtree->memoryBytes();
+    b.tracer = std::make_unique<QuadtreeTracer>(frame.camera, frame.layers, *b.quadtree);
   } else if (name == "ssr" || name == "ssr-layers") {
     SsrConfig sc = o.ssr;
     sc.allLayers = name == "ssr-layers";

@@ -10,6 +10,7 @@
 #include "layertrace/screen/hiz_pyramid.h"
 #include "layertrace/screen/hssr_tracer.h"
 #include "layertrace/screen/interval_pyramid.h"
+#include "layertrace/screen/quadtree.h"
 #include "layertrace/screen/ssr_tracer.h"
 
 namespace lt {
@@ -20,19 +21,21 @@ struct TracerOptions {
   PyramidConfig pyramid;
   HssrConfig hssr;
   GridConfig grid;
+  QuadtreeConfig quadtree;
 };
 
 /// Throws InputError naming the option for any invalid value, whichever tracer will run.
 void validateTracerOptions(const TracerOptions& options);
 
-/// Known tracer names: ssr, ssr-layers, hiz, hssr (screen space); embree, grid (geometric).
-inline constexpr const char* kTracerNames = "ssr, ssr-layers, hiz, hssr, embree, grid";
+/// Known tracer names: ssr, ssr-layers, hiz, hssr, quadtree (screen space); embree, grid (geometric).
+inline constexpr const char* kTracerNames = "ssr, ssr-layers, hiz, hssr, quadtree, embree, grid";
 bool isScreenTracer(const std::string& name);
 bool isKnownTracer(const std::string& name);
 
 struct BuiltTracer {
   std::unique_ptr<Tracer> tracer;
   std::unique_ptr<IntervalPyramid> pyramid;  ///< hssr, hiz
+  std::unique_ptr<Quadtree> quadtree;        ///< quadtree
   std::unique_ptr<EmbreeScene> embree;       ///< embree
   std::unique_ptr<IrregularGrid> grid;       ///< grid
   double buildMs = 0.0;                      ///< hierarchy / BVH construction

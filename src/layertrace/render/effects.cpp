@@ -71,6 +71,7 @@ double msSince(Clock::time_point t) { return std::chrono::duration<double, std::
 
 struct Accum {
   uint64_t rays = 0, hits = 0, it = 0, iv = 0, px = 0, giveUps = 0, bent = 0;
+  uint64_t planes = 0, boxes = 0, occlusions = 0;
   uint64_t level[RayCounters::kLevels] = {};
   std::vector<uint64_t> histogram;
   double traceMs = 0.0, busyMs = 0.0;  ///< time inside tracer calls / processing bands
@@ -253,6 +254,7 @@ class Renderer {
     a.hits += h.hit;
     if (!c) return;
     a.it += c->iterations, a.iv += c->intervals, a.px += c->pixels, a.giveUps += c->giveUps;
+    a.planes += c->planeNodes, a.boxes += c->boxNodes, a.occlusions += c->occlusions;
     for (int l = 0; l < RayCounters::kLevels; ++l) a.level[l] += c->levelIterations[l];
     ++a.histogram[std::min<uint32_t>(c->iterations, kHistogramMax)];
     st.it += float(c->iterations), st.iv += float(c->intervals);
@@ -263,6 +265,7 @@ class Renderer {
     for (const Accum& a : accums_) {
       res.rays += a.rays, res.hits += a.hits, res.iterationSum += a.it, res.intervalSum += a.iv, res.pixelSum += a.px;
       res.giveUps += a.giveUps;
+      res.planeNodeSum += a.planes, res.boxNodeSum += a.boxes, res.occlusionSum += a.occlusions;
       res.bentRays += a.bent;
       for (int l = 0; l < RayCounters::kLevels; ++l) res.levelIterations[l] += a.level[l];
       for (size_t i = 0; i < a.histogram.size(); ++i) histogram[i] += a.histogram[i];

@@ -1,5 +1,5 @@
 // Layer: screen/ holds the image-space structures, each with its tracer: SSR (seed 001), the
-// interval pyramid and HSSR (seed 000), the Hi-Z min/max pyramid and march. Every tracer implements trace/'s interface over the
+// interval pyramid and HSSR (seed 000), the Hi-Z min/max pyramid and march, Widmer's plane/box quad-tree (seed 002). Every tracer implements trace/'s interface over the
 // k-layer arrays of raster/. It includes trace/, raster/, scene/ and util/ — never geometry/
 // (screen space answers from stored fragments only) and nothing above.
 //
@@ -11,5 +11,6 @@
 #include "layertrace/screen/hssr_tracer.h"
 #include "layertrace/screen/interval_layers.h"
 #include "layertrace/screen/interval_pyramid.h"
+#include "layertrace/screen/quadtree.h"
 #include "layertrace/screen/screen_segment.h"
 #include "layertrace/screen/ssr_tracer.h"

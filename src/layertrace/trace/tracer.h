@@ -59,6 +59,9 @@ struct RayCounters {
   uint32_t pixels = 0;  ///< visited level-0 pixels (screen tracers)
   uint32_t giveUps = 0;  ///< traversals stopped by a step cap (an answer not backed by the data)
   uint32_t levelIterations[kLevels] = {};  ///< HSSR: visited cells per pyramid level
+  uint32_t planeNodes = 0;   ///< quadtree: visited plane nodes (the other visits are AABB or empty nodes)
+  uint32_t boxNodes = 0;     ///< quadtree: visited AABB nodes
+  uint32_t occlusions = 0;   ///< quadtree: occlusion hits (the ray went behind a stored surface)
 
   void iteration(int level = 0) {
     ++iterations;
@@ -68,6 +71,9 @@ struct RayCounters {
   void interval() { ++intervals; }
   void pixel() { ++pixels; }
   void giveUp() { ++giveUps; }
+  void planeNode() { ++planeNodes; }
+  void boxNode() { ++boxNodes; }
+  void occlusion() { ++occlusions; }
 };
 
 /// The counter type of timing runs: the same calls, no code.
@@ -78,6 +84,9 @@ struct NoCounters {
   void interval() {}
   void pixel() {}
   void giveUp() {}
+  void planeNode() {}
+  void boxNode() {}
+  void occlusion() {}
 };
 
 /// What a query asks: the closest hit (shading, reflection) or any hit before maxDistance
