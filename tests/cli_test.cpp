@@ -312,7 +312,7 @@ nlohmann::json benchOnDefaultScene(const std::string& experiment, int w, int h) 
 TEST(CliBench, WarpSweepsOffsetsLayersAndTracers) {
   nlohmann::json j;
   ASSERT_NO_FATAL_FAILURE(j = benchOnDefaultScene("warp", 160, 90));
-  ASSERT_EQ(j["rows"].size(), 5u * 3u * 4u);
+  ASSERT_EQ(j["rows"].size(), 5u * 3u * 5u);
   std::map<std::tuple<std::string, int, double>, double> holes;
   for (const auto& r : j["rows"]) holes[{r["tracer"].get<std::string>(), r["k"].get<int>(), r["offset"].get<double>()}] = r["hole_fraction"].get<double>();
   for (const auto& [key, h] : holes) {
@@ -320,7 +320,7 @@ TEST(CliBench, WarpSweepsOffsetsLayersAndTracers) {
     if (offset == 0.0) {
       EXPECT_EQ(h, 0.0) << tracer << " k " << k;
     }
-    if (tracer == "hssr" && k > 1) {
+    if ((tracer == "hssr" || tracer == "quadtree") && k > 1) {
       const double fewer = holes[std::make_tuple(tracer, k / 2, offset)];
       EXPECT_LE(h, fewer) << "k " << k << " offset " << offset;
     }
@@ -328,6 +328,22 @@ TEST(CliBench, WarpSweepsOffsetsLayersAndTracers) {
   const double far = holes[std::make_tuple(std::string("hssr"), 1, double(0.2f))];
   const double near = holes[std::make_tuple(std::string("hssr"), 1, double(0.025f))];
   EXPECT_GT(far, near);
+}
+
+// Issue 11 (seed 002 gives no γ): bench --experiment gamma sweeps the quad-tree's merge
+// thresholds. γ = 0 merges nothing, so it answers exactly as the unmerged tree; looser γ merges
+// plane nodes above level 0.
+TEST(CliBench, GammaSweepsTheQuadtreeMergeThresholds) {
+  nlohmann::json j;
+  ASSERT_NO_FATAL_FAILURE(j = benchOnDefaultScene("gamma", 160, 90));
+  const auto& rows = j["rows"];
+  ASSERT_EQ(rows.size(), 17u);
+  EXPECT_EQ(rows[0]["gamma_dist"].get<double>(), 0.0);
+  EXPECT_EQ(rows[0]["plane_nodes_above_level0"].get<uint64_t>(), 0u);
+  EXPECT_EQ(rows[0]["changed_vs_unmerged"].get<double>(), 0.0);
+  const auto& loosest = rows[rows.size() - 1];
+  EXPECT_GT(loosest["plane_nodes_above_level0"].get<uint64_t>(), 0u);
+  for (const auto& r : rows) EXPECT_GT(r["correct_hit"].get<double>(), 0.3);
 }
 
 }  // namespace

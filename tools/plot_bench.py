@@ -16,8 +16,8 @@ def main():
     # The title names what the experiment sweeps, not the run's default of it.
     swept = {"stride": "SSR stride 1-8 vs HSSR", "layers": "construction time vs layers k", "memory": "memory at 720p and 1080p",
              "tau": "HSSR vs tau", "resolution": "cost vs resolution", "threads": "cost vs threads",
-             "capture": "capture vs Embree all-hit, by threads"}
-    fixed = f"{data['width']}x{data['height']}" if exp in ("layers", "threads", "stride", "tau", "capture") else f"k={data['layers']}"
+             "capture": "capture vs Embree all-hit, by threads", "gamma": "quadtree merge thresholds"}
+    fixed = f"{data['width']}x{data['height']}" if exp in ("layers", "threads", "stride", "tau", "capture", "gamma") else f"k={data['layers']}"
     title = f"{exp}: {swept.get(exp, exp)} — {data['scene']} ({fixed})"
     if exp == "stride":
         ssr = [r for r in rows if r["tracer"] == "ssr-layers"]
@@ -71,11 +71,25 @@ def main():
             ax.plot(th, [r[key] for r in rows], "o-", label=lab)
         ax.set_xlabel("threads")
         ax.set_ylabel("time [ms]")
+    elif exp == "gamma":
+        sweep = [r for r in rows if r["gamma_dist"] > 0]
+        for i, norm in enumerate(sorted({r["gamma_norm"] for r in sweep})):
+            sel = [r for r in sweep if r["gamma_norm"] == norm]
+            ax.semilogx([r["gamma_dist"] for r in sel], [r["trace_ms"] for r in sel], "o-", color=f"C{i}",
+                        label=f"trace ms, gamma_norm={norm:g}")
+        ax.axhline([r for r in rows if r["gamma_dist"] == 0][0]["trace_ms"], color="k", ls=":", label="no merging")
+        ax.set_xlabel("gamma_dist (relative depth)")
+        ax.set_ylabel("trace time [ms]")
+        ax2 = ax.twinx()
+        for i, norm in enumerate(sorted({r["gamma_norm"] for r in sweep})):
+            sel = [r for r in sweep if r["gamma_norm"] == norm]
+            ax2.semilogx([r["gamma_dist"] for r in sel], [100 * r["changed_vs_unmerged"] for r in sel], "s--", color=f"C{i}")
+        ax2.set_ylabel("answers changed vs no merging [% of rays] (dashed)")
     elif exp == "warp":
         for i, k in enumerate(sorted({r["k"] for r in rows})):
-            for j, tracer in enumerate(["ssr", "hssr"]):
+            for j, tracer in enumerate(["ssr", "hssr", "quadtree"]):
                 sel = [r for r in rows if r["k"] == k and r["tracer"] == tracer]
-                ax.plot([100 * r["offset"] for r in sel], [100 * r["disocclusion_fraction"] for r in sel], ["o-", "s--"][j],
+                ax.plot([100 * r["offset"] for r in sel], [100 * r["disocclusion_fraction"] for r in sel], ["o-", "s--", "^:"][j],
                         color=f"C{i}", label=f"{tracer}, k={k}")
         ax.set_xlabel("second camera offset [% of the eye-target distance]")
         ax.set_ylabel("disocclusion holes [% of pixels inside the first view]")

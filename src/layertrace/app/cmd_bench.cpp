@@ -9,6 +9,8 @@
 //               pixel-centre rays (Embree with plain scene flags and a geometry filter)
 //   warp        view synthesis (seed 002): holes and PSNR against the second camera's own view for
 //               offsets of 0–20 % of the eye–target distance × k ∈ {1, 2, 4} × every screen tracer
+//   gamma       the quad-tree's merge thresholds γ_norm × γ_dist (seed 002 gives none): plane
+//               nodes, trace time, strict classes and answers changed against no merging
 // Every time is the median of --repeat runs on the same rays; results carry the machine, the
 // build type and the date, and go to DIR/NAME.csv, DIR/NAME.json and DIR/NAME.png.
 #include <algorithm>
@@ -26,6 +28,7 @@
 #include "layertrace/app/report.h"
 #include "layertrace/eval/classify.h"
 #include "layertrace/eval/image_metrics.h"
+#include "layertrace/eval/oracle_observer.h"
 #include "layertrace/eval/verify_layers.h"
 #include "layertrace/util/error.h"
 #include "layertrace/util/timing.h"
@@ -130,11 +133,11 @@ Classified measure(const Frame& frame, const Tracer& tracer, const EffectConfig&
 }  // namespace
 
 int runBench(const BenchOptions& o) {
-  static const char* kExperiments[] = {"stride", "layers", "tau", "memory", "resolution", "threads", "warp", "capture"};
+  static const char* kExperiments[] = {"stride", "layers", "tau", "memory", "resolution", "threads", "warp", "capture", "gamma"};
   if (std::find_if(std::begin(kExperiments), std::end(kExperiments), [&](const char* e) { return o.experiment == e; }) ==
       std::end(kExperiments))
     inputError("--experiment ", o.experiment.empty() ? "(none)" : o.experiment,
-               ": unknown (use stride, layers, tau, memory, resolution, threads, warp, capture)");
+               ": unknown (use stride, layers, tau, memory, resolution, threads, warp, capture, gamma)");
   if (o.repeat < 1 || o.repeat > 100) inputError("--repeat ", o.repeat, ": must be between 1 and 100");
   validateTracerOptions(o.options);
   validateEffectConfig(o.effect);
@@ -150,7 +153,7 @@ int runBench(const BenchOptions& o) {
     rasterizeFrame(o.run.frame, frame);
     const BuiltTracer ref = buildReference(frame);
     t.columns = {"tracer", "stride", "trace_ms", "iterations_mean", "false_miss", "correct_hit", "relative_trace"};
-    Progress p(o.run.quiet, e, 10);
+    Progress p(o.run.quiet, e, 11);
     const BuiltTracer hssr = buildTracer("hssr", frame, o.options);
     p.step("hssr");
     const Classified h = measure(frame, *hssr.tracer, ec, o.repeat, ref.tracer.get());
@@ -170,6 +173,10 @@ int runBench(const BenchOptions& o) {
     const BuiltTracer hiz = buildTracer("hiz", frame, o.options);
     const Classified z = measure(frame, *hiz.tracer, ec, o.repeat, ref.tracer.get());
     rows.push_back({"hiz", 1, z.traceMs, z.iterations, z.falseMiss, z.correctHit, 0.0});
+    p.step("quadtree");
+    const BuiltTracer quad = buildTracer("quadtree", frame, o.options);
+    const Classified q = measure(frame, *quad.tracer, ec, o.repeat, ref.tracer.get());
+    rows.push_back({"quadtree", 1, q.traceMs, q.iterations, q.falseMiss, q.correctHit, 0.0});
     for (auto& r : rows) r[6] = r[2].get<double>() / stride1;  // normalised to SSR stride 1 (Figure 12)
     t.rows = rows;
   } else if (e == "layers") {
@@ -283,13 +290,39 @@ int runBench(const BenchOptions& o) {
                         frame.layers.memoryBytes(), pyr.memoryBytes()});
     }
   }
+  if (e == "gamma") {
+    rasterizeFrame(o.run.frame, frame);
+    const BuiltTracer ref = buildReference(frame);
+    TracerOptions none = o.options;
+    none.quadtree.gammaNorm = 0.0f, none.quadtree.gammaDist = 0.0f;  // strict "<": nothing merges
+    const BuiltTracer unmerged = buildTracer("quadtree", frame, none);
+    t.columns = {"gamma_norm", "gamma_dist", "plane_nodes_above_level0", "trace_ms", "iterations_mean", "correct_hit", "false_miss",
+                 "changed_vs_unmerged"};
+    std::vector<std::pair<float, float>> settings{{0.0f, 0.0f}};
+    for (float norm : {1e-5f, 1e-4f, 1e-3f, 1e-2f})
+      for (float dist : {1e-6f, 1e-5f, 1e-4f, 1e-3f}) settings.push_back({norm, dist});
+    Progress p(o.run.quiet, e, int(settings.size()));
+    for (auto [norm, dist] : settings) {
+      p.step(cat("gamma_norm ", norm, ", gamma_dist ", dist));
+      TracerOptions to = o.options;
+      to.quadtree.gammaNorm = norm, to.quadtree.gammaDist = dist;
+      const BuiltTracer b = buildTracer("quadtree", frame, to);
+      uint64_t planes = 0;
+      for (size_t l = 1; l < b.quadtree->kindCounts.size(); ++l) planes += b.quadtree->kindCounts[l][QuadNode::Plane];
+      const Classified c = measure(frame, *b.tracer, ec, o.repeat, ref.tracer.get());
+      MismatchObserver changed(*unmerged.tracer);
+      const EffectResult r = renderEffect(frame, *b.tracer, ec, &changed);
+      t.rows.push_back({norm, dist, planes, c.traceMs, c.iterations, c.correctHit, c.falseMiss,
+                        double(changed.mismatches()) / double(std::max<uint64_t>(r.rays, 1))});
+    }
+  }
   if (e == "warp") {
     t.columns = {"tracer", "k", "offset", "hole_fraction", "holes", "covered_pixels", "disocclusion_fraction", "holes_disoccluded",
                  "holes_outside_first_view", "psnr_db", "trace_ms"};
     const float offsets[] = {0.0f, 0.025f, 0.05f, 0.1f, 0.2f};
-    const char* tracers[] = {"ssr", "ssr-layers", "hiz", "hssr"};
+    const char* tracers[] = {"ssr", "ssr-layers", "hiz", "hssr", "quadtree"};
     const int ks[] = {1, 2, 4};
-    Progress p(o.run.quiet, e, 3 * 4);
+    Progress p(o.run.quiet, e, 3 * 5);
     std::vector<WarpReference> refs;
     std::vector<EffectConfig> warps;
     for (float offset : offsets) {
