@@ -56,13 +56,9 @@ void nodeRange(const QuadNode& n, float size, float& lo, float& hi) {
 /// Algorithm 1 for pixel (x, y) of `layer`: a plane through the pixel's own w with, per axis,
 /// the one-sided derivative of smaller magnitude (line 8), zeroed above λ_h (line 10), and the
 /// Laplacian discontinuity hint (line 3).
-QuadNode leafNode(const LayerArrays& layers, int layer, float scale, const QuadtreeConfig& cfg, int x, int y) {
-  const int W = layers.width, H = layers.height;
-  // w of a neighbour, or NaN where the layer holds nothing there.
-  auto wAt = [&](int px, int py) {
-    if (layers.countAt(px, py) <= layer) return std::nanf("");
-    return scale / layers.pixel(px, py)[layer].depth;
-  };
+/// `w` holds the layer's w per pixel, NaN where the layer holds nothing.
+QuadNode leafNode(const float* w0, int W, int H, const QuadtreeConfig& cfg, int x, int y) {
+  auto wAt = [&](int px, int py) { return w0[size_t(py) * size_t(W) + size_t(px)]; };
   QuadNode n;
   const float w = wAt(x, y);
   if (std::isnan(w)) return n;
@@ -176,11 +172,17 @@ Quadtree buildQuadtree(const LayerArrays& layers, const Camera& camera, const Qu
   const float rootSize = float(1 << (t.levelCount() - 1));
   t.nodes.resize(t.nodesPerLayer * size_t(t.k));
   t.kindCounts.assign(t.levels.size(), {0, 0, 0});
+  std::vector<float> w(size_t(t.width) * size_t(t.height));
   for (int layer = 0; layer < t.k; ++layer) {
     QuadNode* base = &t.nodes[size_t(layer) * t.nodesPerLayer];
+    // One division per pixel: the layer's w, read nine times by Algorithm 1.
+    tbb::parallel_for(tbb::blocked_range<size_t>(0, w.size(), 4096), [&](const tbb::blocked_range<size_t>& r) {
+      for (size_t p = r.begin(); p != r.end(); ++p)
+        w[p] = layers.count[p] > layer ? t.depthScale / layers.slots[p * size_t(layers.k) + size_t(layer)].depth : std::nanf("");
+    });
     tbb::parallel_for(tbb::blocked_range<int>(0, t.height, 8), [&](const tbb::blocked_range<int>& r) {
       for (int y = r.begin(); y != r.end(); ++y)
-        for (int x = 0; x < t.width; ++x) base[size_t(y) * size_t(t.width) + size_t(x)] = leafNode(layers, layer, t.depthScale, config, x, y);
+        for (int x = 0; x < t.width; ++x) base[size_t(y) * size_t(t.width) + size_t(x)] = leafNode(w.data(), t.width, t.height, config, x, y);
     });
     for (int l = 1; l < t.levelCount(); ++l) {
       const QuadtreeLevel& cl = t.levels[size_t(l - 1)];
