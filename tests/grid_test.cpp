@@ -192,3 +192,27 @@ INSTANTIATE_TEST_SUITE_P(Scenes, RealSceneGrid,
 
 }  // namespace
 }  // namespace lt
+
+namespace lt {
+namespace {
+
+// Embree wants flush-to-zero and denormals-are-zero while it runs; the calling thread must get
+// its own mode back, or the caller's arithmetic on tiny values (a scene scaled to 1e-20) flushes.
+TEST(Embree, RestoresTheCallersFloatingPointMode) {
+  Scene s = makeBox({-1, -1, -3}, {1, 1, -2});
+  s.finalize("box");
+  volatile float tiny = 1e-38f;
+  ASSERT_NE(tiny * 1e-3f, 0.0f) << "denormals must work before the test";
+  for (EmbreeScene::Mode mode : {EmbreeScene::Mode::Fast, EmbreeScene::Mode::Robust, EmbreeScene::Mode::Capture}) {
+    const EmbreeScene e(s, mode);
+    EXPECT_NE(tiny * 1e-3f, 0.0f) << "after the build";
+    if (mode != EmbreeScene::Mode::Capture) {
+      EXPECT_GT(e.intersect({0, 0, 0}, {0, 0, -1}, 0.0f, 100.0f).t, 0.0f);
+      EXPECT_FALSE(e.occluded({0, 0, 0}, {0, 0, 1}, 0.0f, 100.0f));
+    }
+    EXPECT_NE(tiny * 1e-3f, 0.0f) << "after queries";
+  }
+}
+
+}  // namespace
+}  // namespace lt

@@ -13,12 +13,23 @@
 
 namespace lt {
 
-void enableFlushDenormals() {
-  _MM_SET_FLUSH_ZERO_MODE(_MM_FLUSH_ZERO_ON);
-  _MM_SET_DENORMALS_ZERO_MODE(_MM_DENORMALS_ZERO_ON);
-}
-
 namespace {
+
+/// Flush-to-zero and denormals-are-zero while Embree runs (its documentation asks for both, for
+/// speed), restored on exit: the calling thread — often the main thread, which TBB also lends to
+/// parallel loops — must not keep them, or the caller's own arithmetic on tiny values (a scene
+/// scaled to 1e-20, say) silently flushes to zero. One MXCSR read and two writes, as the two
+/// _MM_SET_* macros cost before.
+class FlushDenormalsScope {
+ public:
+  FlushDenormalsScope() : saved_(_mm_getcsr()) { _mm_setcsr(saved_ | _MM_FLUSH_ZERO_ON | _MM_DENORMALS_ZERO_ON); }
+  ~FlushDenormalsScope() { _mm_setcsr(saved_); }
+  FlushDenormalsScope(const FlushDenormalsScope&) = delete;
+  FlushDenormalsScope& operator=(const FlushDenormalsScope&) = delete;
+
+ private:
+  unsigned saved_;
+};
 
 std::atomic<int64_t> gEmbreeBytes{0};
 
@@ -78,7 +89,7 @@ struct EmbreeScene::Impl {
 
 EmbreeScene::EmbreeScene(const Scene& scene, Mode mode) : impl_(std::make_unique<Impl>()), mode_(mode) {
   const auto start = std::chrono::steady_clock::now();
-  enableFlushDenormals();
+  const FlushDenormalsScope denormals;
   const int64_t before = gEmbreeBytes.load();
   impl_->device = rtcNewDevice("threads=0");
   if (!impl_->device) throw InternalError("embree: cannot create device");
@@ -114,7 +125,7 @@ EmbreeScene::~EmbreeScene() = default;
 size_t EmbreeScene::memoryBytes() const { return size_t(std::max<int64_t>(impl_->bytes, 0)); }
 
 GeoHit EmbreeScene::intersect(glm::vec3 o, glm::vec3 d, float tnear, float tfar, TraversalCounts* counts) const {
-  enableFlushDenormals();
+  const FlushDenormalsScope denormals;
   if (counts) ++counts->steps;
   RTCIntersectContext ctx;
   rtcInitIntersectContext(&ctx);
@@ -130,7 +141,7 @@ GeoHit EmbreeScene::intersect(glm::vec3 o, glm::vec3 d, float tnear, float tfar,
 }
 
 bool EmbreeScene::occluded(glm::vec3 o, glm::vec3 d, float tnear, float tfar, TraversalCounts* counts) const {
-  enableFlushDenormals();
+  const FlushDenormalsScope denormals;
   if (counts) ++counts->steps;
   RTCIntersectContext ctx;
   rtcInitIntersectContext(&ctx);
@@ -173,7 +184,7 @@ void intersectPacket(RTCScene scene, const glm::vec3* o, const glm::vec3* d, int
 
 void EmbreeScene::intersectPackets(const glm::vec3* o, const glm::vec3* d, size_t n, float tnear, float tfar, int width,
                                    GeoHit* out) const {
-  enableFlushDenormals();
+  const FlushDenormalsScope denormals;
   for (size_t b = 0; b < n; b += size_t(width)) {
     const int m = int(std::min<size_t>(size_t(width), n - b));
     if (width == 4) intersectPacket<4, RTCRayHit4>(impl_->scene, o + b, d + b, m, tnear, tfar, out + b);
@@ -184,7 +195,7 @@ void EmbreeScene::intersectPackets(const glm::vec3* o, const glm::vec3* d, size_
 
 void EmbreeScene::allHits(glm::vec3 o, glm::vec3 d, float tnear, float tfar, std::vector<GeoHit>& out) const {
   if (mode_ == Mode::Fast) throw InternalError("embree: allHits needs a scene built in robust or capture mode");
-  enableFlushDenormals();
+  const FlushDenormalsScope denormals;
   out.clear();
   CollectContext ctx;
   rtcInitIntersectContext(&ctx.base);

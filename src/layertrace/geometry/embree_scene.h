@@ -65,7 +65,4 @@ class EmbreeScene {
   Mode mode_ = Mode::Robust;
 };
 
-/// Sets flush-to-zero and denormals-are-zero for the calling thread.
-void enableFlushDenormals();
-
 }  // namespace lt
