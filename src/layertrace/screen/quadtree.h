@@ -27,6 +27,7 @@
 #include "layertrace/raster/layer_arrays.h"
 #include "layertrace/scene/camera.h"
 #include "layertrace/trace/tracer.h"
+#include "layertrace/util/default_init.h"
 
 namespace lt {
 
@@ -49,11 +50,13 @@ struct QuadtreeConfig {
 
 /// One node: 16 bytes. Plane: w(x, y) = a + b (x − cx) + c (y − cy) about the node's centre
 /// (cx, cy), in pixels. Box: w in [a, b]. Empty: no surface of this layer under the node.
+/// Trivial (no member initialisers): the node arrays are allocated uninitialised and written
+/// once by the parallel build; `QuadNode{}` is an empty node.
 struct QuadNode {
   enum Kind : uint32_t { Empty = 0, Plane = 1, Box = 2 };
   static constexpr uint32_t kKindMask = 3, kDiscontinuity = 4;
-  float a = 0.0f, b = 0.0f, c = 0.0f;
-  uint32_t flags = Empty;
+  float a, b, c;
+  uint32_t flags;
   Kind kind() const { return Kind(flags & kKindMask); }
   bool discontinuity() const { return (flags & kDiscontinuity) != 0; }
 };
@@ -70,7 +73,7 @@ struct Quadtree {
   float depthScale = 1.0f;
   std::vector<QuadtreeLevel> levels;
   size_t nodesPerLayer = 0;
-  std::vector<QuadNode> nodes;  ///< layer-major: [layer][level offset + y · level width + x]
+  PoolVector<QuadNode> nodes;         ///< layer-major: [layer][level offset + y · level width + x]
   /// Per level, nodes of each kind summed over the layers (Empty, Plane, Box).
   std::vector<std::array<uint64_t, 3>> kindCounts;
   double buildMs = 0.0;

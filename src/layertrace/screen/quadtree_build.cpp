@@ -59,7 +59,7 @@ void nodeRange(const QuadNode& n, float size, float& lo, float& hi) {
 /// `w` holds the layer's w per pixel, NaN where the layer holds nothing.
 QuadNode leafNode(const float* w0, int W, int H, const QuadtreeConfig& cfg, int x, int y) {
   auto wAt = [&](int px, int py) { return w0[size_t(py) * size_t(W) + size_t(px)]; };
-  QuadNode n;
+  QuadNode n{};
   const float w = wAt(x, y);
   if (std::isnan(w)) return n;
   bool discontinuity = false;
@@ -103,7 +103,7 @@ QuadNode parentNode(const QuadNode (&ch)[4], float childSize, float rootSize, co
     allPlanes = allPlanes && q.kind() == QuadNode::Plane;
     any = any || q.kind() != QuadNode::Empty;
   }
-  QuadNode out;
+  QuadNode out{};
   if (!any) return out;
   if (allPlanes) {
     // Line 6: the proxy normal is the normalised mean of the children's normals, taken in
@@ -191,7 +191,7 @@ Quadtree buildQuadtree(const LayerArrays& layers, const Camera& camera, const Qu
       tbb::parallel_for(tbb::blocked_range<int>(0, pl.height, 8), [&](const tbb::blocked_range<int>& r) {
         for (int y = r.begin(); y != r.end(); ++y)
           for (int x = 0; x < pl.width; ++x) {
-            QuadNode ch[4];
+            QuadNode ch[4] = {};
             for (int i = 0; i < 4; ++i) {
               const int cx = 2 * x + (i & 1), cy = 2 * y + (i >> 1);
               if (cx < cl.width && cy < cl.height) ch[i] = base[cl.offset + size_t(cy) * size_t(cl.width) + size_t(cx)];
