@@ -14,6 +14,7 @@
 #include "layertrace/pipeline/tracer_factory.h"
 #include "layertrace/render/effects.h"
 #include "layertrace/scene/load.h"
+#include "layertrace/util/error.h"
 #include "test_util.h"
 
 namespace lt {
@@ -284,10 +285,11 @@ TEST(Effects, RaysBelowTheirGeometricSurfaceAreBentOutAndNeverHitTheirOwnWall) {
 namespace lt {
 namespace {
 
-Frame defaultSceneFrame(int k, int w = 240, int h = 135) {
+Frame defaultSceneFrame(int k, int w = 240, int h = 135, bool frontFacesOnly = false) {
   FrameOptions o;
   o.scenePath = test::sourceDir() + "/scenes/default.json";
   o.width = w, o.height = h, o.layers = k;
+  o.frontFacesOnly = frontFacesOnly;
   return buildFrame(o);
 }
 
@@ -349,6 +351,23 @@ TEST(Warp, MoreLayersNeverAddHoles) {
   EXPECT_LT(holes[1], holes[0]) << "two layers must fill some of one layer's holes";
   EXPECT_LE(holes[2], holes[1]);
   EXPECT_GT(holes[0], 0u);
+}
+
+// README "View synthesis": with all faces the second fragment of a closed object is its own back
+// face; with --front-faces-only it is the surface the object hides, so two layers fill more of
+// one layer's holes.
+TEST(Warp, FrontFacesOnlyLetTheSecondLayerFillMoreHoles) {
+  auto holes = [](int k, bool front) {
+    const Frame f = defaultSceneFrame(k, 240, 135, front);
+    const BuiltTracer t = buildTracer("hssr", f, TracerOptions{});
+    const EffectResult warp = renderEffect(f, *t.tracer, warpBy(f, 0.1f));
+    return double(std::count(warp.holes.begin(), warp.holes.end(), 1));
+  };
+  const double all1 = holes(1, false), all2 = holes(2, false), front1 = holes(1, true), front2 = holes(2, true);
+  ::testing::Test::RecordProperty("holes", cat(all1, " ", all2, " ", front1, " ", front2));
+  EXPECT_LT(front2, all2);
+  EXPECT_LT(all1 - all2, front1 - front2) << "holes filled by the second layer: all faces " << all1 - all2 << ", front faces "
+                                          << front1 - front2;
 }
 
 // Rays that start outside the view (at the second eye) are clipped to where they enter it and

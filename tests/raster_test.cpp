@@ -9,6 +9,7 @@
 #include "layertrace/raster/fragment.h"
 #include "layertrace/raster/layer_arrays.h"
 #include "layertrace/raster/rasterizer.h"
+#include "layertrace/scene/load.h"
 #include "layertrace/util/error.h"
 #include <glm/trigonometric.hpp>
 #include "test_util.h"
@@ -151,6 +152,29 @@ TEST(Rasterizer, NearPlaneClippingKeepsOnlyFragmentsInFront) {
   ASSERT_GT(lists.generated, 100u);
   for (uint32_t h : lists.head)
     for (uint32_t i = h; i != kNullIndex; i = lists.nodes[i].next) ASSERT_GE(lists.nodes[i].depth, cam.near());
+}
+
+// --front-faces-only: a closed box (outward, counter-clockwise faces) shows one front face per
+// covered pixel and loses only its back faces.
+TEST(Rasterizer, FrontFacesOnlyKeepsTheFacesTowardTheCamera) {
+  Scene scene = makeBox({-1, -1, -5}, {1, 1, -3});
+  scene.finalize("box");
+  const Camera cam(originCamera(), 64, 48);
+  RasterConfig front;
+  front.frontFacesOnly = true;
+  const FragmentLists all = rasterize(scene, cam), culled = rasterize(scene, cam, front);
+  uint64_t covered = 0;
+  for (size_t p = 0; p < all.complexity.size(); ++p) {
+    ASSERT_EQ(all.complexity[p], 2 * culled.complexity[p]) << "pixel " << p;
+    ASSERT_LE(culled.complexity[p], 1u);
+    covered += culled.complexity[p];
+    if (culled.complexity[p] == 0) continue;
+    // The kept fragment is the nearer of the two.
+    float nearest = INFINITY;
+    for (uint32_t i = all.head[p]; i != kNullIndex; i = all.nodes[i].next) nearest = std::min(nearest, all.nodes[i].depth);
+    ASSERT_EQ(culled.nodes[culled.head[p]].depth, nearest) << "pixel " << p;
+  }
+  EXPECT_GT(covered, 100u);
 }
 
 TEST(Rasterizer, ResultIndependentOfThreadCount) {

@@ -66,6 +66,7 @@ void addFrameOptions(CLI::App* app, lt::RunOptions& run, RawFrameOptions& raw) {
                   lt::cat("fragment z-thickness in pixel footprints at the fragment's depth (default ", lt::kDefaultThicknessPx, ")"));
   app->add_option("--min-separation", f.minSeparation, "minimum depth separation of kept layers (0 = off)")->capture_default_str();
   app->add_flag("--adaptive-thickness", f.adaptiveThickness, "merge fragments that start inside the previous kept interval (seed 000 §4.2)");
+  app->add_flag("--front-faces-only", f.frontFacesOnly, "capture only triangles facing the camera (layers = nearest front surfaces)");
   app->add_option("--pool", f.pool, "fragment pool capacity (0 = automatic, grows on overflow)")->capture_default_str();
   app->add_option("--light", raw.lights, "add a point light x,y,z[,intensity] (repeatable; default light: above the eye)");
   app->add_option("--threads", run.threads, "worker threads (0 = all cores)")->capture_default_str();

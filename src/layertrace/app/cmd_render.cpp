@@ -63,6 +63,7 @@ WarpReference warpReference(const Frame& frame, const FrameOptions& options, con
   const Camera second = warpCamera(frame.camera, warp);
   FrameOptions fo = options;
   fo.cameraName.clear();
+  fo.frontFacesOnly = false;  // the truth is what the second camera sees, back faces included
   fo.eye = second.desc().eye, fo.target = second.desc().target, fo.up = second.desc().up, fo.fov = second.desc().fovY;
   Frame other = buildFrame(fo);
   other.lights = frame.lights;

@@ -94,6 +94,7 @@ void rasterizeFrame(const FrameOptions& o, Frame& frame) {
   RasterConfig rc;
   rc.poolCapacity = o.pool;
   rc.growOnOverflow = o.pool == 0;
+  rc.frontFacesOnly = frame.frontFacesOnly = o.frontFacesOnly;
   frame.lists = rasterize(frame.scene, frame.camera, rc, &frame.raster);
   frame.rasterMs = frame.raster.ms;
   if (frame.lists.lost() > 0)
@@ -128,6 +129,7 @@ nlohmann::json frameStats(const Frame& f) {
   // The thickness at the view's target depth, and how it is set.
   const CameraDesc& view = f.camera.desc();
   j["thickness"] = f.thickness + f.thicknessPerDepth * glm::length(view.target - view.eye);
+  j["front_faces_only"] = f.frontFacesOnly;
   if (f.thicknessPerDepth > 0.0f) j["thickness_px"] = f.thicknessPerDepth * f.camera.focal();
   else j["thickness_fixed"] = f.thickness;
   j["triangles"] = f.scene.triangleCount();

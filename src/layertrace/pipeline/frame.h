@@ -39,6 +39,7 @@ struct FrameOptions {
   std::optional<float> thicknessPx;    ///< --thickness-px: pixel footprints at the fragment's depth (default kDefaultThicknessPx)
   float minSeparation = 0.0f;          ///< --min-separation
   bool adaptiveThickness = false;      ///< --adaptive-thickness (seed 000 §4.2)
+  bool frontFacesOnly = false;         ///< --front-faces-only: cull back faces at capture
   uint64_t pool = 0;                   ///< --pool fragments; 0 = automatic (grows on overflow)
   std::vector<glm::vec4> lights;       ///< --light x,y,z[,intensity] (repeatable)
 };
@@ -51,6 +52,7 @@ struct Frame {
   LayerArrays layers;
   float thickness = 0.0f;          ///< fixed part of the z-thickness (scene units)
   float thicknessPerDepth = 0.0f;  ///< plus this per unit depth (--thickness-px / focal)
+  bool frontFacesOnly = false;     ///< captured with --front-faces-only
   double loadMs = 0.0, rasterMs = 0.0, sortMs = 0.0;
   RasterStats raster;
 };

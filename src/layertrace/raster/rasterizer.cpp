@@ -260,6 +260,13 @@ FragmentLists rasterize(const Scene& scene, const Camera& camera, const RasterCo
   std::vector<TriangleSetup> setups(numTris);
   tbb::parallel_for(size_t(0), numChunks, [&](size_t c) {
     for (size_t t = c * chunkSize; t < std::min(numTris, (c + 1) * chunkSize); ++t) {
+      if (config.frontFacesOnly) {
+        // Counter-clockwise seen from the eye is the front (OpenGL, glTF, OBJ): the camera-space
+        // normal of the winding points back toward the eye at the origin.
+        const glm::uvec3 i = scene.triangles[t];
+        const glm::vec3 a = camPos[i.x], n = glm::cross(camPos[i.y] - a, camPos[i.z] - a);
+        if (!(glm::dot(n, a) < 0.0f)) continue;
+      }
       const size_t before = chunkSubs[c].size();
       setupTriangle(scene, camera, clip, uint32_t(t), chunkSubs[c]);
       if (chunkSubs[c].size() == before) continue;

@@ -1,4 +1,5 @@
-// The software rasterizer: every fragment of every triangle, no depth test, no culling.
+// The software rasterizer: every fragment of every triangle, no depth test, no culling (unless
+// RasterConfig::frontFacesOnly).
 //
 // One sample at each pixel centre, top-left fill rule on 8-bit sub-pixel fixed-point edge
 // functions (watertight: a pixel centre on an edge shared by two triangles belongs to exactly
@@ -26,6 +27,10 @@ struct RasterConfig {
   /// When false, an overflow is reported in FragmentLists::lost() and left to the caller.
   bool growOnOverflow = true;
   int tileSize = 32;  ///< screen tile edge in pixels (the unit of parallel work)
+  /// Keep only triangles whose winding faces the camera (back-face culling). The k layers then
+  /// hold the k nearest *front* surfaces: for view synthesis the second layer is the surface a
+  /// closed object hides, not the object's own back (README "View synthesis").
+  bool frontFacesOnly = false;
 };
 
 struct RasterStats {
