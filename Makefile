@@ -2,10 +2,13 @@
 JOBS   ?= $(shell nproc)
 BUILD  ?= build
 ASAN   ?= build-asan
+FUZZ   ?= build-fuzz
+TSAN   ?= build-tsan
+FUZZ_SECONDS ?= 60
 OUT    ?= out
 SCENE  ?= scenes/default.json
 
-.PHONY: deps build build-asan run test fetch bench clean
+.PHONY: deps build build-asan build-fuzz build-tsan run test fuzz fetch bench clean
 
 deps:
 	scripts/install-deps.sh
@@ -17,6 +20,21 @@ build: deps
 build-asan: deps
 	cmake -S . -B $(ASAN) -DCMAKE_BUILD_TYPE=Debug -DLAYERTRACE_SANITIZE=ON -DLAYERTRACE_COUNTERS=OFF -DLAYERTRACE_BENCH=OFF >/dev/null
 	cmake --build $(ASAN) -j $(JOBS) --target layertrace_tests
+
+# libFuzzer needs clang; the fuzz build is separate from the GCC builds (fuzz/README.md).
+build-fuzz: deps
+	cmake -S . -B $(FUZZ) -DCMAKE_CXX_COMPILER=clang++-16 -DCMAKE_BUILD_TYPE=Debug -DLAYERTRACE_SANITIZE=ON -DLAYERTRACE_FUZZ=ON \
+	    -DLAYERTRACE_COUNTERS=OFF -DLAYERTRACE_BENCH=OFF -DBUILD_TESTING=OFF >/dev/null
+	cmake --build $(FUZZ) -j $(JOBS) --target fuzz_targets
+
+# ThreadSanitizer build of the tests that run threads.
+build-tsan: deps
+	cmake -S . -B $(TSAN) -DCMAKE_BUILD_TYPE=Debug -DLAYERTRACE_TSAN=ON -DLAYERTRACE_COUNTERS=OFF -DLAYERTRACE_BENCH=OFF >/dev/null
+	cmake --build $(TSAN) -j $(JOBS) --target layertrace_tests
+
+# Every fuzz target for FUZZ_SECONDS seconds; fails on any crash, leak or timeout.
+fuzz: build-fuzz
+	scripts/run-fuzz.sh $(FUZZ) $(FUZZ_SECONDS)
 
 fetch: deps
 	scripts/fetch-scenes.sh

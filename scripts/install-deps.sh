@@ -8,6 +8,7 @@ packages=(
   libembree-dev libassimp-dev libtbb-dev libglm-dev libcli11-dev nlohmann-json3-dev
   libopenexr-dev libgtest-dev libbenchmark-dev libstb-dev
   python3 python3-matplotlib unzip zip
+  clang-16 libclang-rt-16-dev
 )
 # No npm: the default scene's small bunny is committed as an OBJ (scenes/default/bunny.obj).
 

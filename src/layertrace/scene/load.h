@@ -3,6 +3,7 @@
 // fix-up described in load_model.cpp. Every failure is an InputError naming the file.
 #pragma once
 
+#include <cstddef>
 #include <string>
 
 #include <glm/mat4x4.hpp>
@@ -16,6 +17,10 @@ Scene loadScene(const std::string& path);
 
 /// Loads one model file through assimp, transformed by `transform`.
 Scene loadModel(const std::string& path, const glm::mat4& transform = glm::mat4(1.0f));
+
+/// Loads a model from memory through assimp; `formatHint` is the file extension without the dot
+/// ("obj", "glb", …), `source` names the input in error messages.
+Scene loadModelFromMemory(const void* data, size_t size, const std::string& formatHint, const std::string& source);
 
 /// Loads a JSON scene file composing models, shapes, materials, lights and cameras.
 Scene loadJsonScene(const std::string& path);

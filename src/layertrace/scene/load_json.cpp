@@ -120,8 +120,9 @@ Scene parseJsonScene(const std::string& text, const std::string& baseDir, const 
   json root;
   try {
     root = json::parse(text);
-  } catch (const json::parse_error& e) {
-    // nlohmann's message carries "at line L, column C".
+  } catch (const json::exception& e) {
+    // parse_error carries "at line L, column C"; out_of_range is a number beyond double (1e999,
+    // found by fuzz/fuzz_json_scene.cpp); both are bad input.
     std::string what = e.what();
     const auto pos = what.find("parse error");
     inputError("scene ", source, ": malformed JSON: ", pos == std::string::npos ? what : what.substr(pos));

@@ -4,6 +4,7 @@
 #include <filesystem>
 #include <functional>
 
+#include <csetjmp>
 #include <csignal>
 #include <cstdio>
 #include <cstring>
@@ -86,6 +87,13 @@ bool isQuake3(const std::string& ext) { return ext == ".pk3" || ext == ".bsp"; }
 char gImportPath[1024];
 int gStderr = 2;  // the real stderr while the importer's own stderr chatter is silenced
 
+#ifdef LAYERTRACE_FUZZING
+// Under the fuzzer the process must survive an importer crash to go on searching our own code:
+// jump back to the import and report the file as malformed. (The aborted importer's memory is
+// lost; the model fuzz target runs without leak detection for that reason — fuzz/README.md.)
+sigjmp_buf gImportJump;
+extern "C" void importCrashed(int) { siglongjmp(gImportJump, 1); }
+#else
 extern "C" void importCrashed(int) {
   static const char head[] = "layertrace: scene ";
   static const char tail[] = ": the model importer crashed on this file (malformed model)\n";
@@ -95,6 +103,7 @@ extern "C" void importCrashed(int) {
   (void)ignored;
   ::_exit(2);
 }
+#endif
 
 class ImportGuard {
  public:
@@ -132,6 +141,41 @@ class ImportGuard {
   int saved_ = -1;
 };
 
+/// The importer settings of every model: post-processing for meshes, raw reads for Quake 3
+/// (assimp 5.2.5's Q3BSP importer never fills face indices, and post-processing trips over that;
+/// read raw and rebuild the triangles in convertScene).
+unsigned configureImporter(Assimp::Importer& importer, bool q3) {
+  importer.SetPropertyFloat(AI_CONFIG_PP_GSN_MAX_SMOOTHING_ANGLE, 60.0f);
+  importer.SetPropertyInteger(AI_CONFIG_PP_SBP_REMOVE, aiPrimitiveType_POINT | aiPrimitiveType_LINE);
+  return q3 ? 0u
+            : aiProcess_Triangulate | aiProcess_JoinIdenticalVertices | aiProcess_GenSmoothNormals |
+                  aiProcess_SortByPType;  // our reader checks indices itself; assimp's validation rejects files with an empty mesh
+}
+
+/// Runs `read` under the import guard; InputError naming `source` when it fails or crashes.
+template <class Read>
+const aiScene* guardedImport(Assimp::Importer& importer, const std::string& source, Read&& read) {
+  const aiScene* as = nullptr;
+  {
+    const ImportGuard guard(source);
+#ifdef LAYERTRACE_FUZZING
+    if (sigsetjmp(gImportJump, 1) != 0) {
+      as = nullptr;
+      importer.GetOrphanedScene();  // nothing safe to free after a crash
+    } else
+#endif
+      as = read();
+  }
+  if (!as || !as->mRootNode) {
+    std::string why = importer.GetErrorString();
+    std::replace(why.begin(), why.end(), '\n', ' ');
+    inputError("scene ", source, ": cannot load model (", why.empty() ? "unknown format" : why, ")");
+  }
+  return as;
+}
+
+Scene convertScene(const aiScene* as, const std::string& path, const std::string& name, bool q3, const glm::mat4& transform);
+
 }  // namespace
 
 Scene loadModel(const std::string& path, const glm::mat4& transform) {
@@ -141,28 +185,27 @@ Scene loadModel(const std::string& path, const glm::mat4& transform) {
   std::string ext = fs::path(path).extension().string();
   std::transform(ext.begin(), ext.end(), ext.begin(), [](unsigned char ch) { return std::tolower(ch); });
   const bool q3 = isQuake3(ext);
-
   Assimp::Importer importer;
-  importer.SetPropertyFloat(AI_CONFIG_PP_GSN_MAX_SMOOTHING_ANGLE, 60.0f);
-  importer.SetPropertyInteger(AI_CONFIG_PP_SBP_REMOVE, aiPrimitiveType_POINT | aiPrimitiveType_LINE);
-  // Quake 3: assimp 5.2.5's Q3BSP importer never fills face indices, and post-processing trips
-  // over that; read raw (flags 0) and rebuild the triangles below.
-  const unsigned flags = q3 ? 0u
-                            : aiProcess_Triangulate | aiProcess_JoinIdenticalVertices | aiProcess_GenSmoothNormals |
-                                  aiProcess_SortByPType;  // our reader checks indices itself; assimp's validation rejects files with an empty mesh
-  const aiScene* as = nullptr;
-  {
-    const ImportGuard guard(path);
-    as = importer.ReadFile(path, flags);
-  }
-  if (!as || !as->mRootNode) {
-    std::string why = importer.GetErrorString();
-    std::replace(why.begin(), why.end(), '\n', ' ');
-    inputError("scene ", path, ": cannot load model (", why.empty() ? "unknown format" : why, ")");
-  }
+  const unsigned flags = configureImporter(importer, q3);
+  const aiScene* as = guardedImport(importer, path, [&] { return importer.ReadFile(path, flags); });
+  return convertScene(as, path, fs::path(path).stem().string(), q3, transform);
+}
 
+Scene loadModelFromMemory(const void* data, size_t size, const std::string& formatHint, const std::string& source) {
+  std::string hint = formatHint;
+  std::transform(hint.begin(), hint.end(), hint.begin(), [](unsigned char ch) { return std::tolower(ch); });
+  const bool q3 = isQuake3("." + hint);
+  Assimp::Importer importer;
+  const unsigned flags = configureImporter(importer, q3);
+  const aiScene* as = guardedImport(importer, source, [&] { return importer.ReadFileFromMemory(data, size, flags, hint.c_str()); });
+  return convertScene(as, source, source, q3, glm::mat4(1.0f));
+}
+
+namespace {
+
+Scene convertScene(const aiScene* as, const std::string& path, const std::string& name, bool q3, const glm::mat4& transform) {
   Scene scene;
-  scene.name = fs::path(path).stem().string();
+  scene.name = name;
   for (unsigned i = 0; i < as->mNumMaterials; ++i) {
     Material m = convertMaterial(as->mMaterials[i]);
     // Quake 3 surfaces are textured shaders without colours: colour them by shader name.
@@ -239,5 +282,7 @@ Scene loadModel(const std::string& path, const glm::mat4& transform) {
   scene.finalize(path);
   return scene;
 }
+
+}  // namespace
 
 }  // namespace lt

@@ -45,8 +45,8 @@ template <typename... Args>
 #define LT_CHECK(cond, ...)                                                                   \
   do {                                                                                        \
     if (!(cond))                                                                              \
-      throw ::lt::InternalError(::lt::cat(__FILE__, ":", __LINE__, ": check failed: " #cond " ", \
-                                          ##__VA_ARGS__));                                    \
+      throw ::lt::InternalError(::lt::cat(__FILE__, ":", __LINE__, ": check failed: " #cond " " \
+                                          __VA_OPT__(, ) __VA_ARGS__));                       \
   } while (0)
 
 #ifndef NDEBUG
