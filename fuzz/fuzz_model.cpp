@@ -14,6 +14,11 @@ const char* const kFormats[] = {"obj", "ply", "stl", "off", "gltf", "glb", "dae"
                                 "x",   "ac",  "ase", "ms3d", "lwo", "smd", "nff", "md2", "md3", "bsp"};
 }  // namespace
 
+extern "C" int LLVMFuzzerInitialize(int*, char***) {
+  lt::setModelImportTimeout(5);  // below libFuzzer's -timeout: a stuck importer is an input error
+  return 0;
+}
+
 extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
   if (size < 1) return 0;
   const char* format = kFormats[data[0] % std::size(kFormats)];

@@ -11,6 +11,11 @@
 #include "layertrace/scene/load.h"
 #include "layertrace/util/error.h"
 
+extern "C" int LLVMFuzzerInitialize(int*, char***) {
+  lt::setModelImportTimeout(5);  // below libFuzzer's -timeout: a stuck importer is an input error
+  return 0;
+}
+
 extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
   static const std::string path = "/tmp/layertrace-fuzz-" + std::to_string(::getpid()) + ".pk3";
   FILE* f = std::fopen(path.c_str(), "wb");

@@ -18,6 +18,12 @@ Scene loadScene(const std::string& path);
 /// Loads one model file through assimp, transformed by `transform`.
 Scene loadModel(const std::string& path, const glm::mat4& transform = glm::mat4(1.0f));
 
+/// An import that runs longer than this is stopped and reported as a malformed model (one line,
+/// status 2); 0 = no limit. Large models import in seconds; an importer stuck in a loop never
+/// returns (assimp 5.2.5's PLY reader on some malformed headers).
+inline constexpr unsigned kDefaultImportTimeoutSeconds = 300;
+void setModelImportTimeout(unsigned seconds);
+
 /// Loads a model from memory through assimp; `formatHint` is the file extension without the dot
 /// ("obj", "glb", …), `source` names the input in error messages.
 Scene loadModelFromMemory(const void* data, size_t size, const std::string& formatHint, const std::string& source);

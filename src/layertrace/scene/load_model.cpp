@@ -84,8 +84,12 @@ bool isQuake3(const std::string& ext) { return ext == ".pk3" || ext == ".bsp"; }
 // fatal signal means "this model file is malformed": report it like any bad input (one line,
 // status 2 — nothing has been written yet) instead of dying. Outside the import the default
 // handlers stay, so our own bugs are never masked.
+// The same holds for an importer that never finishes (assimp 5.2.5's PLY reader loops forever
+// on some malformed headers — found by fuzz/fuzz_model.cpp): an alarm stops the import after
+// gImportTimeout seconds.
 char gImportPath[1024];
 int gStderr = 2;  // the real stderr while the importer's own stderr chatter is silenced
+unsigned gImportTimeout = kDefaultImportTimeoutSeconds;
 
 #ifdef LAYERTRACE_FUZZING
 // Under the fuzzer the process must survive an importer crash to go on searching our own code:
@@ -94,12 +98,14 @@ int gStderr = 2;  // the real stderr while the importer's own stderr chatter is 
 sigjmp_buf gImportJump;
 extern "C" void importCrashed(int) { siglongjmp(gImportJump, 1); }
 #else
-extern "C" void importCrashed(int) {
+extern "C" void importCrashed(int signal) {
   static const char head[] = "layertrace: scene ";
-  static const char tail[] = ": the model importer crashed on this file (malformed model)\n";
+  static const char crashed[] = ": the model importer crashed on this file (malformed model)\n";
+  static const char hung[] = ": the model importer did not finish in time (malformed model?)\n";
+  const char* tail = signal == SIGALRM ? hung : crashed;
   ssize_t ignored = ::write(gStderr, head, sizeof head - 1);
   ignored = ::write(gStderr, gImportPath, std::strlen(gImportPath));
-  ignored = ::write(gStderr, tail, sizeof tail - 1);
+  ignored = ::write(gStderr, tail, std::strlen(tail));
   (void)ignored;
   ::_exit(2);
 }
@@ -112,7 +118,8 @@ class ImportGuard {
     struct sigaction sa {};
     sa.sa_handler = importCrashed;
     sigemptyset(&sa.sa_mask);
-    for (int i = 0; i < 4; ++i) sigaction(kSignals[i], &sa, &old_[i]);
+    for (int i = 0; i < kCount; ++i) sigaction(kSignals[i], &sa, &old_[i]);
+    ::alarm(gImportTimeout);
     // assimp prints assertion text to stderr before aborting: keep our error to one line.
     std::fflush(stderr);
     saved_ = ::dup(2);
@@ -130,14 +137,16 @@ class ImportGuard {
       ::close(saved_);
     }
     gStderr = 2;
-    for (int i = 0; i < 4; ++i) sigaction(kSignals[i], &old_[i], nullptr);
+    ::alarm(0);
+    for (int i = 0; i < kCount; ++i) sigaction(kSignals[i], &old_[i], nullptr);
   }
   ImportGuard(const ImportGuard&) = delete;
   ImportGuard& operator=(const ImportGuard&) = delete;
 
  private:
-  static constexpr int kSignals[4] = {SIGABRT, SIGSEGV, SIGBUS, SIGFPE};
-  struct sigaction old_[4];
+  static constexpr int kCount = 5;
+  static constexpr int kSignals[kCount] = {SIGABRT, SIGSEGV, SIGBUS, SIGFPE, SIGALRM};
+  struct sigaction old_[kCount];
   int saved_ = -1;
 };
 
@@ -177,6 +186,8 @@ const aiScene* guardedImport(Assimp::Importer& importer, const std::string& sour
 Scene convertScene(const aiScene* as, const std::string& path, const std::string& name, bool q3, const glm::mat4& transform);
 
 }  // namespace
+
+void setModelImportTimeout(unsigned seconds) { gImportTimeout = seconds; }
 
 Scene loadModel(const std::string& path, const glm::mat4& transform) {
   std::error_code ec;
