@@ -50,13 +50,18 @@ run: build
 # The whole suite: Release tests (with the fetched scenes) and the unit tests under ASan+UBSan.
 # The sanitizer build also compiles the per-ray counters out (LAYERTRACE_COUNTERS=OFF), so
 # both configurations of the tracers are built and tested.
-test: build build-asan fetch
+# Then the unit tests under ThreadSanitizer, and the fuzz targets of our own parsers for 20 s each
+# (the assimp targets find assimp's bugs: `make fuzz`, README "Reliability").
+test: build build-asan build-tsan build-fuzz fetch
 	cd $(BUILD) && ctest --output-on-failure -j $(JOBS)
 	cd $(ASAN) && ASAN_OPTIONS=detect_leaks=1 UBSAN_OPTIONS=halt_on_error=1:print_stacktrace=1 \
 	    LAYERTRACE_SANITIZED=1 ctest --output-on-failure -j $(JOBS) -L unit
+	cd $(TSAN) && TSAN_OPTIONS="halt_on_error=1 suppressions=$(CURDIR)/scripts/tsan.supp" \
+	    LAYERTRACE_SANITIZED=1 ctest --output-on-failure -j $(JOBS) -L unit
+	scripts/run-fuzz.sh $(FUZZ) 20 json_scene cli
 
 bench: build fetch
 	$(BUILD)/bench_raster
 
 clean:
-	rm -rf $(BUILD) $(ASAN) $(OUT)
+	rm -rf $(BUILD) $(ASAN) $(TSAN) $(FUZZ) $(OUT)

@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # Runs every libFuzzer target of fuzz/ for SECONDS each; fails on any crash, leak or timeout.
-# Usage: scripts/run-fuzz.sh BUILD_DIR SECONDS. The committed seed corpus (fuzz/corpus/NAME) is
+# Usage: scripts/run-fuzz.sh BUILD_DIR SECONDS [TARGET...] (default: every target). The committed seed corpus (fuzz/corpus/NAME) is
 # copied to a scratch corpus, so runs never modify the repository; crash inputs are written to
 # out/fuzz/NAME-crash-* (add them to tests/fuzz_regression_test.cpp once fixed).
 set -euo pipefail
@@ -9,7 +9,9 @@ seconds=${2:-60}
 root=$(cd "$(dirname "$0")/.." && pwd)
 mkdir -p "$root/out/fuzz"
 status=0
-for target in json_scene model pk3 cli; do
+targets=("${@:3}")
+[ ${#targets[@]} -gt 0 ] || targets=(json_scene model pk3 cli)
+for target in "${targets[@]}"; do
   bin="$build/fuzz_$target"
   [ -x "$bin" ] || { echo "run-fuzz: $bin missing" >&2; exit 1; }
   scratch=$(mktemp -d)

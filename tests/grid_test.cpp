@@ -10,6 +10,7 @@
 #include "layertrace/geometry/embree_scene.h"
 #include "layertrace/geometry/irregular_grid.h"
 #include "layertrace/scene/load.h"
+#include "layertrace/util/parallel.h"
 #include "test_util.h"
 
 namespace lt {
@@ -32,7 +33,7 @@ Agreement compareWithEmbree(const Scene& scene, const CameraDesc& cd, const Irre
   const Camera cam(withClipPlanes(cd, scene), W, H);
   const float diag = scene.bounds().diagonal();
   std::vector<uint8_t> ok(size_t(W) * size_t(H) * 3, 1);
-  tbb::parallel_for(0, H, [&](int y) {
+  parallelFor(0, H, [&](int y) {
     std::mt19937_64 rng(seed + uint64_t(y));
     std::normal_distribution<float> g;
     for (int x = 0; x < W; ++x) {

@@ -11,6 +11,7 @@
 #include "layertrace/pipeline/frame.h"
 #include "layertrace/screen/hssr_tracer.h"
 #include "layertrace/screen/interval_pyramid.h"
+#include "layertrace/util/parallel.h"
 #include "test_util.h"
 
 namespace lt {
@@ -23,7 +24,7 @@ void expectExact(const Frame& f, size_t count) {
   const HssrTracer oracle(f.camera, f.layers, one, HssrConfig{1, 1});
   auto traceAll = [&](const std::vector<Ray>& rs) {
     std::vector<TraceHit> out(rs.size());
-    tbb::parallel_for(size_t(0), rs.size(), [&](size_t i) {
+    parallelFor(size_t(0), rs.size(), [&](size_t i) {
       RayCounters c;
       out[i] = oracle.trace(rs[i], c);
     });
@@ -49,7 +50,7 @@ void expectExact(const Frame& f, size_t count) {
       for (int nUp : {1, 2, 4}) {
         const HssrTracer hssr(f.camera, f.layers, p, HssrConfig{nUp, levels});
         std::atomic<size_t> mismatches{0}, firstBad{rays.size()};
-        tbb::parallel_for(size_t(0), rays.size(), [&](size_t i) {
+        parallelFor(size_t(0), rays.size(), [&](size_t i) {
           RayCounters c;
           const TraceHit h = hssr.trace(rays[i], c);
           const bool same = h.hit == truth[i].hit && (!h.hit || (h.x == truth[i].x && h.y == truth[i].y && h.layer == truth[i].layer));

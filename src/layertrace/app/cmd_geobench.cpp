@@ -16,6 +16,7 @@
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>
 
+#include "layertrace/util/parallel.h"
 #include "layertrace/app/commands.h"
 #include "layertrace/util/error.h"
 #include "layertrace/util/timing.h"
@@ -35,7 +36,7 @@ struct RaySet {
 template <typename Q>
 std::vector<float> traceAll(const RaySet& rays, Q&& query) {
   std::vector<float> out(rays.o.size());
-  tbb::parallel_for(tbb::blocked_range<size_t>(0, rays.o.size(), 1024), [&](const tbb::blocked_range<size_t>& r) {
+  parallelFor(tbb::blocked_range<size_t>(0, rays.o.size(), 1024), [&](const tbb::blocked_range<size_t>& r) {
     for (size_t i = r.begin(); i != r.end(); ++i) out[i] = query(rays.o[i], rays.d[i], rays.tnear, rays.tfar);
   });
   return out;
@@ -143,7 +144,7 @@ int runGeobench(const GeobenchOptions& o) {
     for (int width : {8, 16}) {
       std::vector<GeoHit> hits(primary.o.size());
       const double t = medianMs(o.repeat, [&] {
-        tbb::parallel_for(tbb::blocked_range<size_t>(0, primary.o.size(), 1024), [&](const tbb::blocked_range<size_t>& r) {
+        parallelFor(tbb::blocked_range<size_t>(0, primary.o.size(), 1024), [&](const tbb::blocked_range<size_t>& r) {
           embree.intersectPackets(&primary.o[r.begin()], &primary.d[r.begin()], r.end() - r.begin(), primary.tnear, primary.tfar,
                                   width, &hits[r.begin()]);
         });

@@ -1,4 +1,5 @@
 #include "layertrace/eval/verify_layers.h"
+#include "layertrace/util/parallel.h"
 
 #include <algorithm>
 #include <atomic>
@@ -12,7 +13,7 @@ namespace lt {
 VerifyResult verifyLayers(const FragmentLists& lists, const Camera& camera, const EmbreeScene& embree) {
   std::atomic<uint64_t> matching{0}, fewer{0}, more{0}, depth{0};
   const glm::vec3 eye = camera.desc().eye;
-  tbb::parallel_for(tbb::blocked_range<int>(0, lists.height, 4), [&](const tbb::blocked_range<int>& r) {
+  parallelFor(tbb::blocked_range<int>(0, lists.height, 4), [&](const tbb::blocked_range<int>& r) {
     std::vector<GeoHit> hits;
     std::vector<float> frags;
     uint64_t m = 0, f = 0, mo = 0, d = 0;
@@ -50,7 +51,7 @@ VerifyResult verifyLayers(const FragmentLists& lists, const Camera& camera, cons
 uint64_t embreeCapture(const Camera& camera, const EmbreeScene& embree) {
   std::atomic<uint64_t> total{0};
   const glm::vec3 eye = camera.desc().eye;
-  tbb::parallel_for(tbb::blocked_range<int>(0, camera.height(), 4), [&](const tbb::blocked_range<int>& r) {
+  parallelFor(tbb::blocked_range<int>(0, camera.height(), 4), [&](const tbb::blocked_range<int>& r) {
     std::vector<GeoHit> hits;
     uint64_t n = 0;
     for (int y = r.begin(); y != r.end(); ++y)

@@ -7,6 +7,7 @@
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>
 
+#include "layertrace/util/parallel.h"
 #include "layertrace/geometry/irregular_grid.h"
 #include "layertrace/util/error.h"
 
@@ -74,7 +75,7 @@ struct GridBuilder {
     // parallel, then gathered in chunk order, so each cell's list stays sorted by triangle.
     const size_t numTris = scene.triangleCount(), chunk = 4096;
     std::vector<std::vector<std::pair<uint32_t, uint32_t>>> pairs((numTris + chunk - 1) / chunk);
-    tbb::parallel_for(size_t(0), pairs.size(), [&](size_t k) {
+    parallelFor(size_t(0), pairs.size(), [&](size_t k) {
       for (uint32_t t = uint32_t(k * chunk); t < std::min(numTris, (k + 1) * chunk); ++t) {
         const glm::vec3 a = scene.positions[scene.triangles[t].x], bb = scene.positions[scene.triangles[t].y],
                         c = scene.positions[scene.triangles[t].z];
@@ -118,7 +119,7 @@ struct GridBuilder {
     g.leaf_.resize(total);
     g.cells_.resize(total);
     cellRefs.resize(total);
-    tbb::parallel_for(size_t(0), numTop, [&](size_t c) {
+    parallelFor(size_t(0), numTop, [&](size_t c) {
       const int tx = int(c % size_t(g.top_[0])), ty = int(c / size_t(g.top_[0]) % size_t(g.top_[1])),
                 tz = int(c / (size_t(g.top_[0]) * size_t(g.top_[1])));
       const int depth = g.topDepth_[c], n = 1 << depth, span = 1 << (g.depth_ - depth);
@@ -245,7 +246,7 @@ struct GridBuilder {
     // references, which expansion never changes: the cells expand in parallel, and the result
     // does not depend on the order.
     std::atomic<size_t> grown{0};
-    tbb::parallel_for(tbb::blocked_range<uint32_t>(0, uint32_t(g.cells_.size()), 256), [&](const tbb::blocked_range<uint32_t>& r) {
+    parallelFor(tbb::blocked_range<uint32_t>(0, uint32_t(g.cells_.size()), 256), [&](const tbb::blocked_range<uint32_t>& r) {
       std::vector<uint32_t> neighbours;
       size_t local = 0;
       for (uint32_t a = r.begin(); a != r.end(); ++a)

@@ -8,6 +8,7 @@
 #include <tbb/parallel_for.h>
 
 #include "layertrace/util/error.h"
+#include "layertrace/util/parallel.h"
 
 namespace lt {
 
@@ -93,7 +94,7 @@ LayerArrays sortAndTruncate(const FragmentLists& lists, const LayerConfig& confi
   out.count.assign(pixels, 0);
   out.triangle.assign(pixels * size_t(config.k), kNullIndex);
   tbb::enumerable_thread_specific<std::vector<Entry>> scratch;
-  tbb::parallel_for(tbb::blocked_range<size_t>(0, pixels, 1024), [&](const tbb::blocked_range<size_t>& r) {
+  parallelFor(tbb::blocked_range<size_t>(0, pixels, 1024), [&](const tbb::blocked_range<size_t>& r) {
     Entry kept[16];
     float backs[16];
     std::vector<Entry>& all = scratch.local();

@@ -11,6 +11,7 @@
 #include <tbb/parallel_for.h>
 
 #include "layertrace/util/error.h"
+#include "layertrace/util/parallel.h"
 
 namespace lt {
 namespace {
@@ -151,7 +152,7 @@ struct RasterPass {
     std::atomic<uint64_t> cursor{0}, generated{0}, stored{0};
     const uint64_t capacity = lists.nodes.size();
     const size_t numTiles = tileStart.size() - 1;
-    tbb::parallel_for(tbb::blocked_range<size_t>(0, numTiles, 1), [&](const tbb::blocked_range<size_t>& r) {
+    parallelFor(tbb::blocked_range<size_t>(0, numTiles, 1), [&](const tbb::blocked_range<size_t>& r) {
       TileAllocator alloc;
       uint64_t gen = 0, sto = 0;
       for (size_t tile = r.begin(); tile != r.end(); ++tile) {
@@ -242,7 +243,7 @@ FragmentLists rasterize(const Scene& scene, const Camera& camera, const RasterCo
   const glm::mat3 normalToCam(camera.view());
   std::vector<glm::vec4> clip(scene.positions.size());
   std::vector<glm::vec3> camPos(scene.positions.size()), camNormals(scene.positions.size());
-  tbb::parallel_for(tbb::blocked_range<size_t>(0, scene.positions.size(), 4096), [&](const tbb::blocked_range<size_t>& r) {
+  parallelFor(tbb::blocked_range<size_t>(0, scene.positions.size(), 4096), [&](const tbb::blocked_range<size_t>& r) {
     for (size_t v = r.begin(); v != r.end(); ++v) {
       clip[v] = toClip * glm::vec4(scene.positions[v], 1.0f);
       camPos[v] = camera.toCamera(scene.positions[v]);
@@ -258,7 +259,7 @@ FragmentLists rasterize(const Scene& scene, const Camera& camera, const RasterCo
   const size_t numChunks = (numTris + chunkSize - 1) / chunkSize;
   std::vector<std::vector<SubTriangle>> chunkSubs(numChunks);
   std::vector<TriangleSetup> setups(numTris);
-  tbb::parallel_for(size_t(0), numChunks, [&](size_t c) {
+  parallelFor(size_t(0), numChunks, [&](size_t c) {
     for (size_t t = c * chunkSize; t < std::min(numTris, (c + 1) * chunkSize); ++t) {
       if (config.frontFacesOnly) {
         // Counter-clockwise seen from the eye is the front (OpenGL, glTF, OBJ): the camera-space
@@ -285,7 +286,7 @@ FragmentLists rasterize(const Scene& scene, const Camera& camera, const RasterCo
   std::vector<uint32_t> chunkBase(numChunks + 1, 0);
   for (size_t c = 0; c < numChunks; ++c) chunkBase[c + 1] = chunkBase[c] + uint32_t(chunkSubs[c].size());
   std::vector<SubTriangle> subs(chunkBase[numChunks]);
-  tbb::parallel_for(size_t(0), numChunks, [&](size_t c) { std::copy(chunkSubs[c].begin(), chunkSubs[c].end(), subs.begin() + chunkBase[c]); });
+  parallelFor(size_t(0), numChunks, [&](size_t c) { std::copy(chunkSubs[c].begin(), chunkSubs[c].end(), subs.begin() + chunkBase[c]); });
   chunkSubs.clear();
 
   // Bin sub-triangles to tiles: count, prefix sum (tile-major, chunk-minor), fill.
@@ -297,7 +298,7 @@ FragmentLists rasterize(const Scene& scene, const Camera& camera, const RasterCo
     for (int ty = s.py0 / ts; ty <= s.py1 / ts; ++ty)
       for (int tx = s.px0 / ts; tx <= s.px1 / ts; ++tx) f(size_t(ty) * size_t(tilesX) + size_t(tx));
   };
-  tbb::parallel_for(size_t(0), numChunks, [&](size_t c) {
+  parallelFor(size_t(0), numChunks, [&](size_t c) {
     for (uint32_t i = chunkBase[c]; i < chunkBase[c + 1]; ++i) forTiles(subs[i], [&](size_t tile) { ++counts[c * numTiles + tile]; });
   });
   std::vector<uint32_t> tileStart(numTiles + 1, 0);
@@ -313,7 +314,7 @@ FragmentLists rasterize(const Scene& scene, const Camera& camera, const RasterCo
   if (running > 0xFFFFFFF0ull) inputError("scene ", scene.name, ": ", running, " triangle-tile pairs exceed the binning limit");
   tileStart[numTiles] = uint32_t(running);
   std::vector<uint32_t> tileList(running);
-  tbb::parallel_for(size_t(0), numChunks, [&](size_t c) {
+  parallelFor(size_t(0), numChunks, [&](size_t c) {
     for (uint32_t i = chunkBase[c]; i < chunkBase[c + 1]; ++i)
       forTiles(subs[i], [&](size_t tile) { tileList[offsets[c * numTiles + tile]++] = i; });
   });

@@ -14,6 +14,7 @@
 #include "layertrace/screen/fragment_hit.h"
 #include "layertrace/util/error.h"
 #include "layertrace/util/progress.h"
+#include "layertrace/util/parallel.h"
 
 namespace lt {
 
@@ -151,7 +152,7 @@ class Renderer {
     Progress progress(cat(tracer_.name(), " ", effectName(config_.effect)), order.size(), config_.progress);
     tbb::enumerable_thread_specific<Band> bandBuffers;
     const auto start = Clock::now();
-    tbb::parallel_for(tbb::blocked_range<size_t>(0, bands, 1), [&](const tbb::blocked_range<size_t>& r) {
+    parallelFor(tbb::blocked_range<size_t>(0, bands, 1), [&](const tbb::blocked_range<size_t>& r) {
       Band& band = bandBuffers.local();
       Accum& a = accums_.local();
       if (a.histogram.empty() && config_.countRays) a.histogram.assign(kHistogramMax + 1, 0);

@@ -1,4 +1,5 @@
 #include "layertrace/screen/interval_layers.h"
+#include "layertrace/util/parallel.h"
 
 #include <algorithm>
 
@@ -15,7 +16,7 @@ IntervalLayers makeIntervalLayers(const LayerArrays& layers, int maxLayers) {
   const size_t pixels = size_t(layers.width) * size_t(layers.height);
   out.slots.resize(pixels * size_t(out.k));
   out.count.resize(pixels);
-  tbb::parallel_for(tbb::blocked_range<size_t>(0, pixels, 4096), [&](const tbb::blocked_range<size_t>& r) {
+  parallelFor(tbb::blocked_range<size_t>(0, pixels, 4096), [&](const tbb::blocked_range<size_t>& r) {
     for (size_t p = r.begin(); p != r.end(); ++p) {
       const int n = std::min<int>(layers.count[p], out.k);
       out.count[p] = uint8_t(n);

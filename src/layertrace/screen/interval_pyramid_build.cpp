@@ -4,6 +4,7 @@
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>
 
+#include "layertrace/util/parallel.h"
 #include "layertrace/screen/interval_pyramid.h"
 #include "layertrace/util/error.h"
 
@@ -55,7 +56,7 @@ IntervalPyramid buildIntervalPyramid(const LayerArrays& layers, const Camera& ca
     const float tauPerDepth = config.tau * camera.pixelFootprint(1.0f) * float(1 << L);
     std::vector<std::vector<Interval>> rows(size_t(lvl.height));
     std::vector<std::vector<uint32_t>> rowCounts(size_t(lvl.height));
-    tbb::parallel_for(tbb::blocked_range<int>(0, lvl.height, 4), [&](const tbb::blocked_range<int>& r) {
+    parallelFor(tbb::blocked_range<int>(0, lvl.height, 4), [&](const tbb::blocked_range<int>& r) {
       std::vector<Interval> children;
       for (int y = r.begin(); y != r.end(); ++y) {
         std::vector<Interval>& row = rows[size_t(y)];
@@ -87,7 +88,7 @@ IntervalPyramid buildIntervalPyramid(const LayerArrays& layers, const Camera& ca
       }
     lvl.offset.back() = total;
     lvl.intervals.resize(total);
-    tbb::parallel_for(0, lvl.height, [&](int y) {
+    parallelFor(0, lvl.height, [&](int y) {
       std::copy(rows[size_t(y)].begin(), rows[size_t(y)].end(), lvl.intervals.begin() + lvl.offset[lvl.cellIndex(0, y)]);
     });
   }

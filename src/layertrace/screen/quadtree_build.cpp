@@ -9,6 +9,7 @@
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>
 
+#include "layertrace/util/parallel.h"
 #include "layertrace/screen/quadtree.h"
 #include "layertrace/util/error.h"
 
@@ -176,11 +177,11 @@ Quadtree buildQuadtree(const LayerArrays& layers, const Camera& camera, const Qu
   for (int layer = 0; layer < t.k; ++layer) {
     QuadNode* base = &t.nodes[size_t(layer) * t.nodesPerLayer];
     // One division per pixel: the layer's w, read nine times by Algorithm 1.
-    tbb::parallel_for(tbb::blocked_range<size_t>(0, w.size(), 4096), [&](const tbb::blocked_range<size_t>& r) {
+    parallelFor(tbb::blocked_range<size_t>(0, w.size(), 4096), [&](const tbb::blocked_range<size_t>& r) {
       for (size_t p = r.begin(); p != r.end(); ++p)
         w[p] = layers.count[p] > layer ? t.depthScale / layers.slots[p * size_t(layers.k) + size_t(layer)].depth : std::nanf("");
     });
-    tbb::parallel_for(tbb::blocked_range<int>(0, t.height, 8), [&](const tbb::blocked_range<int>& r) {
+    parallelFor(tbb::blocked_range<int>(0, t.height, 8), [&](const tbb::blocked_range<int>& r) {
       for (int y = r.begin(); y != r.end(); ++y)
         for (int x = 0; x < t.width; ++x) base[size_t(y) * size_t(t.width) + size_t(x)] = leafNode(w.data(), t.width, t.height, config, x, y);
     });
@@ -188,7 +189,7 @@ Quadtree buildQuadtree(const LayerArrays& layers, const Camera& camera, const Qu
       const QuadtreeLevel& cl = t.levels[size_t(l - 1)];
       const QuadtreeLevel& pl = t.levels[size_t(l)];
       const float childSize = float(1 << (l - 1));
-      tbb::parallel_for(tbb::blocked_range<int>(0, pl.height, 8), [&](const tbb::blocked_range<int>& r) {
+      parallelFor(tbb::blocked_range<int>(0, pl.height, 8), [&](const tbb::blocked_range<int>& r) {
         for (int y = r.begin(); y != r.end(); ++y)
           for (int x = 0; x < pl.width; ++x) {
             QuadNode ch[4] = {};
