@@ -121,14 +121,18 @@ TEST(Quadtree, DepthStepFlagsTheEdgeAndTheNextLayerFindsTheHiddenSurface) {
   const TraceHit h = q.tracer->trace(ray, c);
   ASSERT_TRUE(h.hit);
   EXPECT_EQ(h.layer, 1);
-  if (kCountersCompiled) EXPECT_GE(c.occlusions, 1u);  // counters exist unless compiled out
+  if (kCountersCompiled) {  // counters exist unless compiled out
+    EXPECT_GE(c.occlusions, 1u);
+  }
   EXPECT_LE(glm::length(h.point - truth.point), 1e-4f * glm::length(truth.point - ray.origin));
   // With one layer the hidden wall is not stored: an information miss, the occlusion still seen.
   const Frame one = depthStepFrame(1);
   const BuiltTracer q1 = buildTracer("quadtree", one, TracerOptions{});
   RayCounters c1;
   EXPECT_FALSE(q1.tracer->trace(ray, c1).hit);
-  if (kCountersCompiled) EXPECT_GE(c1.occlusions, 1u);
+  if (kCountersCompiled) {
+    EXPECT_GE(c1.occlusions, 1u);
+  }
 }
 
 // Issue 11 §4: where the independent oracle hits the true surface (Embree's triangle) and that
