@@ -20,9 +20,10 @@ for target in "${targets[@]}"; do
   [ "$target" = json_scene ] && opts+=(-dict="$root/fuzz/json.dict")
   # An importer that crashes is jumped out of (fuzz/README.md); what it held is lost, not leaked
   # by our code, so the two assimp targets run without leak detection.
-  case $target in model|pk3) opts+=(-detect_leaks=0) ;; esac
+  leaks=1
+  case $target in model|pk3) opts+=(-detect_leaks=0); leaks=0 ;; esac
   echo "run-fuzz: $target for ${seconds}s"
-  if ! ASAN_OPTIONS=abort_on_error=1:detect_leaks=1 UBSAN_OPTIONS=halt_on_error=1:print_stacktrace=1 \
+  if ! ASAN_OPTIONS=abort_on_error=1:detect_leaks=$leaks UBSAN_OPTIONS=halt_on_error=1:print_stacktrace=1 \
       "$bin" "${opts[@]}" "$scratch" "$root/fuzz/corpus/$target" > "$root/out/fuzz/$target.log" 2>&1; then
     echo "run-fuzz: $target FAILED (see out/fuzz/$target.log)" >&2
     tail -40 "$root/out/fuzz/$target.log" >&2

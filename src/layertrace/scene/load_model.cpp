@@ -3,6 +3,7 @@
 #include <cctype>
 #include <filesystem>
 #include <functional>
+#include <memory>
 
 #include <csetjmp>
 #include <csignal>
@@ -162,21 +163,23 @@ unsigned configureImporter(Assimp::Importer& importer, bool q3) {
 }
 
 /// Runs `read` under the import guard; InputError naming `source` when it fails or crashes.
+/// `importer` is owned by the caller; under the fuzzer a crashed import leaves it leaked (its
+/// state is not safe to destroy).
 template <class Read>
-const aiScene* guardedImport(Assimp::Importer& importer, const std::string& source, Read&& read) {
+const aiScene* guardedImport(std::unique_ptr<Assimp::Importer>& importer, const std::string& source, Read&& read) {
   const aiScene* as = nullptr;
   {
     const ImportGuard guard(source);
 #ifdef LAYERTRACE_FUZZING
     if (sigsetjmp(gImportJump, 1) != 0) {
-      as = nullptr;
-      importer.GetOrphanedScene();  // nothing safe to free after a crash
-    } else
+      importer.release();  // NOLINT: deliberately leaked, see above
+      inputError("scene ", source, ": the model importer crashed on this file (malformed model)");
+    }
 #endif
-      as = read();
+    as = read();
   }
   if (!as || !as->mRootNode) {
-    std::string why = importer.GetErrorString();
+    std::string why = importer->GetErrorString();
     std::replace(why.begin(), why.end(), '\n', ' ');
     inputError("scene ", source, ": cannot load model (", why.empty() ? "unknown format" : why, ")");
   }
@@ -196,9 +199,9 @@ Scene loadModel(const std::string& path, const glm::mat4& transform) {
   std::string ext = fs::path(path).extension().string();
   std::transform(ext.begin(), ext.end(), ext.begin(), [](unsigned char ch) { return std::tolower(ch); });
   const bool q3 = isQuake3(ext);
-  Assimp::Importer importer;
-  const unsigned flags = configureImporter(importer, q3);
-  const aiScene* as = guardedImport(importer, path, [&] { return importer.ReadFile(path, flags); });
+  auto importer = std::make_unique<Assimp::Importer>();
+  const unsigned flags = configureImporter(*importer, q3);
+  const aiScene* as = guardedImport(importer, path, [&] { return importer->ReadFile(path, flags); });
   return convertScene(as, path, fs::path(path).stem().string(), q3, transform);
 }
 
@@ -206,9 +209,10 @@ Scene loadModelFromMemory(const void* data, size_t size, const std::string& form
   std::string hint = formatHint;
   std::transform(hint.begin(), hint.end(), hint.begin(), [](unsigned char ch) { return std::tolower(ch); });
   const bool q3 = isQuake3("." + hint);
-  Assimp::Importer importer;
-  const unsigned flags = configureImporter(importer, q3);
-  const aiScene* as = guardedImport(importer, source, [&] { return importer.ReadFileFromMemory(data, size, flags, hint.c_str()); });
+  auto importer = std::make_unique<Assimp::Importer>();
+  const unsigned flags = configureImporter(*importer, q3);
+  const aiScene* as =
+      guardedImport(importer, source, [&] { return importer->ReadFileFromMemory(data, size, flags, hint.c_str()); });
   return convertScene(as, source, source, q3, glm::mat4(1.0f));
 }
 
