@@ -54,5 +54,43 @@ TEST(FuzzRegressionDeathTest, AnImporterThatNeverFinishesIsStopped) {
       ::testing::ExitedWithCode(2), "scene loop.ply: the model importer did not finish in time");
 }
 
+/// A zip archive with one stored entry "maps/x.bsp" holding `data`, whose central directory
+/// declares `declared` bytes uncompressed.
+std::string zipWithDeclaredSize(const std::string& data, uint32_t declared) {
+  auto u16 = [](std::string& s, uint16_t v) { s += char(v & 0xFF), s += char(v >> 8); };
+  auto u32 = [&](std::string& s, uint32_t v) { u16(s, uint16_t(v & 0xFFFF)), u16(s, uint16_t(v >> 16)); };
+  const std::string name = "maps/x.bsp";
+  std::string z;
+  u32(z, 0x04034b50), u16(z, 20), u16(z, 0), u16(z, 0), u16(z, 0), u16(z, 0), u32(z, 0);
+  u32(z, uint32_t(data.size())), u32(z, declared), u16(z, uint16_t(name.size())), u16(z, 0);
+  z += name + data;
+  const uint32_t cd = uint32_t(z.size());
+  u32(z, 0x02014b50), u16(z, 20), u16(z, 20), u16(z, 0), u16(z, 0), u16(z, 0), u16(z, 0), u32(z, 0);
+  u32(z, uint32_t(data.size())), u32(z, declared), u16(z, uint16_t(name.size())), u16(z, 0), u16(z, 0);
+  u16(z, 0), u16(z, 0), u32(z, 0), u32(z, 0);
+  z += name;
+  const uint32_t cdSize = uint32_t(z.size()) - cd;
+  u32(z, 0x06054b50), u16(z, 0), u16(z, 0), u16(z, 1), u16(z, 1), u32(z, cdSize), u32(z, cd), u16(z, 0);
+  return z;
+}
+
+// Issue 16: an archive that declares huge sizes (a zip bomb as .pk3) is refused before assimp
+// inflates it; the limits are checked on the central directory alone.
+TEST(FuzzRegression, ZipBombPk3IsRefusedBeforeImport) {
+  test::TempDir dir;
+  const std::string bomb = dir / "bomb.pk3", small = dir / "small.pk3";
+  std::ofstream(bomb, std::ios::binary) << zipWithDeclaredSize(std::string(16, 'x'), 3u << 30);
+  std::ofstream(small, std::ios::binary) << zipWithDeclaredSize(std::string(200, 'x'), 200);
+  try {
+    loadModel(bomb);
+    FAIL() << "no error";
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("zip bomb"), std::string::npos) << e.what();
+    EXPECT_NE(std::string(e.what()).find("bomb.pk3"), std::string::npos) << e.what();
+  }
+  EXPECT_NO_THROW(checkArchiveSizes(small, 200));
+  EXPECT_THROW(checkArchiveSizes(small, 199), InputError);  // the total limit, exactly
+}
+
 }  // namespace
 }  // namespace lt

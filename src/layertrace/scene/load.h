@@ -4,6 +4,7 @@
 #pragma once
 
 #include <cstddef>
+#include <cstdint>
 #include <string>
 
 #include <glm/mat4x4.hpp>
@@ -23,6 +24,12 @@ Scene loadModel(const std::string& path, const glm::mat4& transform = glm::mat4(
 /// returns (assimp 5.2.5's PLY reader on some malformed headers).
 inline constexpr unsigned kDefaultImportTimeoutSeconds = 300;
 void setModelImportTimeout(unsigned seconds);
+
+/// A zip archive (.pk3) whose entries declare more than this in total, or an entry over 64 MiB
+/// that expands more than 1000-fold, is refused before assimp inflates it (zip bombs).
+inline constexpr uint64_t kMaxArchiveBytes = uint64_t(4) << 30;
+/// InputError naming `path` when its central directory breaks the limits above or is malformed.
+void checkArchiveSizes(const std::string& path, uint64_t maxTotalBytes);
 
 /// Loads a model from memory through assimp; `formatHint` is the file extension without the dot
 /// ("obj", "glb", …), `source` names the input in error messages.

@@ -4,6 +4,7 @@
 #include <filesystem>
 #include <functional>
 #include <memory>
+#include <vector>
 
 #include <csetjmp>
 #include <csignal>
@@ -188,7 +189,61 @@ const aiScene* guardedImport(std::unique_ptr<Assimp::Importer>& importer, const 
 
 Scene convertScene(const aiScene* as, const std::string& path, const std::string& name, bool q3, const glm::mat4& transform);
 
+uint32_t le32(const unsigned char* p) { return uint32_t(p[0]) | uint32_t(p[1]) << 8 | uint32_t(p[2]) << 16 | uint32_t(p[3]) << 24; }
+uint16_t le16(const unsigned char* p) { return uint16_t(p[0] | p[1] << 8); }
+
 }  // namespace
+
+void checkArchiveSizes(const std::string& path, uint64_t maxTotalBytes) {
+  std::FILE* f = std::fopen(path.c_str(), "rb");
+  if (!f) inputError("scene ", path, ": cannot open");
+  std::vector<unsigned char> bytes;
+  {
+    std::fseek(f, 0, SEEK_END);
+    const long size = std::ftell(f);
+    std::fseek(f, 0, SEEK_SET);
+    // The end-of-central-directory record lies in the last 64 KiB + 22 bytes.
+    const long tail = std::min<long>(size, 65557);
+    std::fseek(f, size - tail, SEEK_SET);
+    bytes.resize(size_t(std::max<long>(tail, 0)));
+    if (std::fread(bytes.data(), 1, bytes.size(), f) != bytes.size()) bytes.clear();
+    long eocd = -1;
+    for (long i = long(bytes.size()) - 22; i >= 0; --i)
+      if (le32(&bytes[size_t(i)]) == 0x06054b50u) {
+        eocd = i;
+        break;
+      }
+    if (eocd < 0) {
+      std::fclose(f);
+      inputError("scene ", path, ": not a zip archive (no end of central directory)");
+    }
+    const unsigned char* e = &bytes[size_t(eocd)];
+    const uint64_t entries = le16(e + 10), cdSize = le32(e + 12), cdOffset = le32(e + 16);
+    if (cdOffset + cdSize > uint64_t(size)) {
+      std::fclose(f);
+      inputError("scene ", path, ": zip central directory lies beyond the end of the file");
+    }
+    bytes.resize(size_t(cdSize));
+    std::fseek(f, long(cdOffset), SEEK_SET);
+    const bool ok = std::fread(bytes.data(), 1, bytes.size(), f) == bytes.size();
+    std::fclose(f);
+    if (!ok) inputError("scene ", path, ": cannot read the zip central directory");
+    uint64_t total = 0;
+    size_t at = 0;
+    for (uint64_t n = 0; n < entries; ++n) {
+      if (at + 46 > bytes.size() || le32(&bytes[at]) != 0x02014b50u) inputError("scene ", path, ": malformed zip central directory");
+      const unsigned char* h = &bytes[at];
+      // ZIP64 markers (0xFFFFFFFF) count as the largest size they stand for.
+      const uint64_t packed = le32(h + 20), unpacked = le32(h + 24);
+      total += unpacked == 0xFFFFFFFFu ? uint64_t(1) << 32 : unpacked;
+      if (unpacked > (uint64_t(64) << 20) && unpacked / std::max<uint64_t>(packed, 1) > 1000)
+        inputError("scene ", path, ": zip entry ", n, " expands ", unpacked, " bytes from ", packed, " (a zip bomb?)");
+      at += 46 + size_t(le16(h + 28)) + le16(h + 30) + le16(h + 32);
+    }
+    if (total > maxTotalBytes)
+      inputError("scene ", path, ": archive declares ", total, " bytes uncompressed, more than the limit of ", maxTotalBytes);
+  }
+}
 
 void setModelImportTimeout(unsigned seconds) { gImportTimeout = seconds; }
 
@@ -199,6 +254,8 @@ Scene loadModel(const std::string& path, const glm::mat4& transform) {
   std::string ext = fs::path(path).extension().string();
   std::transform(ext.begin(), ext.end(), ext.begin(), [](unsigned char ch) { return std::tolower(ch); });
   const bool q3 = isQuake3(ext);
+  // assimp inflates archive entries into memory: refuse what declares more than it could hold.
+  if (ext == ".pk3") checkArchiveSizes(path, kMaxArchiveBytes);
   auto importer = std::make_unique<Assimp::Importer>();
   const unsigned flags = configureImporter(*importer, q3);
   const aiScene* as = guardedImport(importer, path, [&] { return importer->ReadFile(path, flags); });
