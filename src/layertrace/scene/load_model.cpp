@@ -2,6 +2,7 @@
 #include <algorithm>
 #include <cctype>
 #include <filesystem>
+#include <fstream>
 #include <functional>
 #include <memory>
 #include <vector>
@@ -195,54 +196,40 @@ uint16_t le16(const unsigned char* p) { return uint16_t(p[0] | p[1] << 8); }
 }  // namespace
 
 void checkArchiveSizes(const std::string& path, uint64_t maxTotalBytes) {
-  std::FILE* f = std::fopen(path.c_str(), "rb");
-  if (!f) inputError("scene ", path, ": cannot open");
-  std::vector<unsigned char> bytes;
-  {
-    std::fseek(f, 0, SEEK_END);
-    const long size = std::ftell(f);
-    std::fseek(f, 0, SEEK_SET);
-    // The end-of-central-directory record lies in the last 64 KiB + 22 bytes.
-    const long tail = std::min<long>(size, 65557);
-    std::fseek(f, size - tail, SEEK_SET);
-    bytes.resize(size_t(std::max<long>(tail, 0)));
-    if (std::fread(bytes.data(), 1, bytes.size(), f) != bytes.size()) bytes.clear();
-    long eocd = -1;
-    for (long i = long(bytes.size()) - 22; i >= 0; --i)
-      if (le32(&bytes[size_t(i)]) == 0x06054b50u) {
-        eocd = i;
-        break;
-      }
-    if (eocd < 0) {
-      std::fclose(f);
-      inputError("scene ", path, ": not a zip archive (no end of central directory)");
-    }
-    const unsigned char* e = &bytes[size_t(eocd)];
-    const uint64_t entries = le16(e + 10), cdSize = le32(e + 12), cdOffset = le32(e + 16);
-    if (cdOffset + cdSize > uint64_t(size)) {
-      std::fclose(f);
-      inputError("scene ", path, ": zip central directory lies beyond the end of the file");
-    }
-    bytes.resize(size_t(cdSize));
-    std::fseek(f, long(cdOffset), SEEK_SET);
-    const bool ok = std::fread(bytes.data(), 1, bytes.size(), f) == bytes.size();
-    std::fclose(f);
-    if (!ok) inputError("scene ", path, ": cannot read the zip central directory");
-    uint64_t total = 0;
-    size_t at = 0;
-    for (uint64_t n = 0; n < entries; ++n) {
-      if (at + 46 > bytes.size() || le32(&bytes[at]) != 0x02014b50u) inputError("scene ", path, ": malformed zip central directory");
-      const unsigned char* h = &bytes[at];
-      // ZIP64 markers (0xFFFFFFFF) count as the largest size they stand for.
-      const uint64_t packed = le32(h + 20), unpacked = le32(h + 24);
-      total += unpacked == 0xFFFFFFFFu ? uint64_t(1) << 32 : unpacked;
-      if (unpacked > (uint64_t(64) << 20) && unpacked / std::max<uint64_t>(packed, 1) > 1000)
-        inputError("scene ", path, ": zip entry ", n, " expands ", unpacked, " bytes from ", packed, " (a zip bomb?)");
-      at += 46 + size_t(le16(h + 28)) + le16(h + 30) + le16(h + 32);
-    }
-    if (total > maxTotalBytes)
-      inputError("scene ", path, ": archive declares ", total, " bytes uncompressed, more than the limit of ", maxTotalBytes);
+  std::ifstream in(path, std::ios::binary | std::ios::ate);
+  if (!in) inputError("scene ", path, ": cannot open");
+  const auto size = uint64_t(in.tellg());
+  // Reads `n` bytes at `offset`, or fails naming what was being read.
+  auto read = [&](uint64_t offset, uint64_t n, const char* what) {
+    std::vector<unsigned char> bytes(n);
+    in.seekg(std::streamoff(offset));
+    if (!in.read(reinterpret_cast<char*>(bytes.data()), std::streamsize(n))) inputError("scene ", path, ": cannot read the zip ", what);
+    return bytes;
+  };
+  // The end-of-central-directory record lies in the last 64 KiB + 22 bytes.
+  const uint64_t tailSize = std::min<uint64_t>(size, 65557);
+  const std::vector<unsigned char> tail = read(size - tailSize, tailSize, "end record");
+  const unsigned char* e = nullptr;
+  for (size_t i = tail.size() >= 22 ? tail.size() - 22 + 1 : 0; i-- > 0 && !e;)
+    if (le32(&tail[i]) == 0x06054b50u) e = &tail[i];
+  if (!e) inputError("scene ", path, ": not a zip archive (no end of central directory)");
+  const uint64_t entries = le16(e + 10), cdSize = le32(e + 12), cdOffset = le32(e + 16);
+  if (cdOffset + cdSize > size) inputError("scene ", path, ": zip central directory lies beyond the end of the file");
+  const std::vector<unsigned char> cd = read(cdOffset, cdSize, "central directory");
+  uint64_t total = 0;
+  size_t at = 0;
+  for (uint64_t n = 0; n < entries; ++n) {
+    if (at + 46 > cd.size() || le32(&cd[at]) != 0x02014b50u) inputError("scene ", path, ": malformed zip central directory");
+    const unsigned char* h = &cd[at];
+    // ZIP64 markers (0xFFFFFFFF) count as the largest size they stand for.
+    const uint64_t packed = le32(h + 20), unpacked = le32(h + 24);
+    total += unpacked == 0xFFFFFFFFu ? uint64_t(1) << 32 : unpacked;
+    if (unpacked > (uint64_t(64) << 20) && unpacked / std::max<uint64_t>(packed, 1) > 1000)
+      inputError("scene ", path, ": zip entry ", n, " expands ", unpacked, " bytes from ", packed, " (a zip bomb?)");
+    at += 46 + size_t(le16(h + 28)) + le16(h + 30) + le16(h + 32);
   }
+  if (total > maxTotalBytes)
+    inputError("scene ", path, ": archive declares ", total, " bytes uncompressed, more than the limit of ", maxTotalBytes);
 }
 
 void setModelImportTimeout(unsigned seconds) { gImportTimeout = seconds; }
