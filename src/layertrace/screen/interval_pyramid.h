@@ -40,5 +40,7 @@ struct IntervalPyramid {
 
 /// Builds levels 1..levels-1 (parallel over rows of cells).
 IntervalPyramid buildIntervalPyramid(const LayerArrays& layers, const Camera& camera, const PyramidConfig& config);
+/// The same over level-0 intervals that need not come from fragments (known_space.h).
+IntervalPyramid buildIntervalPyramid(IntervalLayers base, const Camera& camera, const PyramidConfig& config);
 
 }  // namespace lt

@@ -1,5 +1,6 @@
 #include <algorithm>
 #include <chrono>
+#include <utility>
 
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>
@@ -39,14 +40,21 @@ void mergeChildren(std::vector<Interval>& children, float tauPerDepth, std::vect
 }  // namespace
 
 IntervalPyramid buildIntervalPyramid(const LayerArrays& layers, const Camera& camera, const PyramidConfig& config) {
+  const auto start = std::chrono::steady_clock::now();
+  IntervalPyramid p = buildIntervalPyramid(makeIntervalLayers(layers, layers.k), camera, config);
+  p.buildMs = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
+  return p;
+}
+
+IntervalPyramid buildIntervalPyramid(IntervalLayers base, const Camera& camera, const PyramidConfig& config) {
   if (config.levels < 1 || config.levels > 16) inputError("--levels ", config.levels, ": must be between 1 and 16");
   if (!(config.tau > 0.0f)) inputError("--tau ", config.tau, ": must be positive");
   const auto start = std::chrono::steady_clock::now();
   IntervalPyramid p;
-  p.base = makeIntervalLayers(layers, layers.k);
+  p.base = std::move(base);
   p.levels.resize(size_t(config.levels));
-  p.levels[0].width = layers.width;
-  p.levels[0].height = layers.height;
+  p.levels[0].width = p.base.width;
+  p.levels[0].height = p.base.height;
   for (int L = 1; L < config.levels; ++L) {
     const PyramidLevel& child = p.levels[size_t(L - 1)];
     PyramidLevel& lvl = p.levels[size_t(L)];
