@@ -154,6 +154,24 @@ TEST(CliRender, BadTracerAndEffectAreRejected) {
   expectRejected({"render " + kDefault + " --stride 0", "--stride 0"}, dir);
   expectRejected({"render " + kDefault + " --n-up 0", "--n-up 0"}, dir);
   expectRejected({"render " + kDefault + " --bounces 0", "--bounces 0"}, dir);
+  expectRejected({"render " + kDefault + " --tracer hybrid --hybrid-screen ssr", "--hybrid-screen ssr"}, dir);
+  expectRejected({"render " + kDefault + " --tracer hybrid --hybrid-geo optix", "--hybrid-geo optix"}, dir);
+}
+
+// Issue 15 §3: the hybrid's stats block (DESIGN.md keys) adds up.
+TEST(CliRender, HybridStatsSayWhoAnsweredTheRays) {
+  test::TempDir dir;
+  ASSERT_NO_FATAL_FAILURE(expectRuns("render " + kDefault + " --width 160 --height 90 --quiet --tracer hybrid --effect reflection -o " +
+                                     (dir / "h.png") + " --stats " + (dir / "h.json")));
+  const auto j = readJson(dir / "h.json");
+  const auto& h = j["hybrid"];
+  for (const char* k : {"screen_fraction", "geo_fraction", "geo_length_mean", "screen_ms", "geo_ms"}) ASSERT_TRUE(h.contains(k)) << k;
+  EXPECT_EQ(h["rays"], j["rays"]["count"]);
+  EXPECT_NEAR(h["screen_fraction"].get<double>() + h["geo_fraction"].get<double>(), 1.0, 1e-9);
+  EXPECT_GT(h["screen_fraction"].get<double>(), 0.1);
+  EXPECT_GT(h["geo_fraction"].get<double>(), 0.01);
+  EXPECT_GT(h["geo_length_mean"].get<double>(), 0.0);
+  EXPECT_LE(h["geo_length_mean"].get<double>(), 1.0);
 }
 
 }  // namespace
@@ -164,7 +182,7 @@ namespace {
 
 TEST(CliRender, EveryEffectAndTracerGivesTheSameBytesForOneAndTwoThreads) {
   test::TempDir dir;
-  for (const char* tracer : {"ssr", "ssr-layers", "hiz", "hssr", "quadtree", "embree", "grid"})
+  for (const char* tracer : {"ssr", "ssr-layers", "hiz", "hssr", "quadtree", "hybrid", "embree", "grid"})
     for (const char* effect : {"reflection", "refraction", "ao", "shadow", "shade"}) {
       std::string bytes[2];
       for (int threads : {1, 2}) {

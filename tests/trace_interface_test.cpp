@@ -33,7 +33,7 @@ Frame defaultFrame(int w = 160, int h = 90) {
   return ::testing::AssertionSuccess();
 }
 
-const char* const kTracers[] = {"ssr", "ssr-layers", "hiz", "hssr", "quadtree", "embree", "grid"};
+const char* const kTracers[] = {"ssr", "ssr-layers", "hiz", "hssr", "quadtree", "hybrid", "embree", "grid"};
 
 TEST(TraceInterface, BatchPathsAnswerAsTheOneRayPathBitForBit) {
   const Frame f = defaultFrame();
@@ -129,8 +129,8 @@ TEST(TraceInterface, ObserverSeesEveryRayAndChangesNothing) {
 // DESIGN.md "Layout": a layer includes only layers below it; screen/ and geometry/ never
 // include each other.
 TEST(TraceInterface, SourceTreeKeepsTheLayering) {
-  const std::map<std::string, int> rank = {{"util", 0},     {"scene", 1},    {"raster", 2}, {"trace", 3}, {"screen", 4},
-                                           {"geometry", 4}, {"pipeline", 5}, {"render", 6}, {"eval", 7},  {"app", 8}};
+  const std::map<std::string, int> rank = {{"util", 0},     {"scene", 1},  {"raster", 2},   {"trace", 3},  {"screen", 4}, {"geometry", 4},
+                                           {"hybrid", 5},   {"pipeline", 6}, {"render", 7}, {"eval", 8},   {"app", 9}};
   const std::regex include(R"re(#include\s+"layertrace/([a-z_]+)/)re");
   const std::filesystem::path root = std::filesystem::path(test::sourceDir()) / "src/layertrace";
   size_t files = 0;

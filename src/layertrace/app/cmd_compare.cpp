@@ -80,6 +80,7 @@ int runCompare(const CompareOptions& o) {
     timing.countRays = false;
     timing.progress = false;
     const EffectResult timed = renderEffect(frame, *built.tracer, timing);
+    const nlohmann::json hybrid = hybridStats(built, o.options);  // of the timed pass alone
     MismatchObserver exhaustive(*oracle.tracer);
     ClassifyObserver classes(*truth.tracer, frame.camera, frame.layers);
     ObserverList observers;
@@ -117,6 +118,7 @@ int runCompare(const CompareOptions& o) {
     t["memory_bytes"] = built.memoryBytes;
     t["iterations_mean"] = r.rays ? double(r.iterationSum) / double(r.rays) : 0.0;
     t["rays"] = rayStats(r, screen);
+    if (!hybrid.is_null()) t["hybrid"] = hybrid;
     stats["compare"][name] = t;
     images.emplace_back(name + ".png", r.image);
     images.emplace_back(name + "_traced.png", r.traced);

@@ -47,6 +47,26 @@ nlohmann::json quadtreeStats(const Quadtree& t, const QuadtreeConfig& c, const E
           {"occlusion_hits_mean", double(r.occlusionSum) / rays}};
 }
 
+nlohmann::json hybridStats(const BuiltTracer& built, const TracerOptions& o) {
+  const auto* hybrid = dynamic_cast<const HybridTracer*>(built.tracer.get());
+  if (!hybrid) return nullptr;
+  const HybridStats h = hybrid->stats();
+  const double rays = h.rays ? double(h.rays) : 1.0;
+  return {{"screen", o.hybridScreen},
+          {"geo", o.hybridGeo},
+          {"rays", h.rays},
+          {"screen_fraction", h.screenFraction()},
+          {"geo_fraction", h.geoFraction()},
+          {"geo_length_mean", h.geoLengthMean()},  // of the ray's length inside the scene's bounds
+          {"screen_hit_fraction", double(h.screenHits) / rays},
+          {"certain_miss_fraction", double(h.certainMisses) / rays},
+          {"rejected_hit_fraction", double(h.rejectedHits) / rays},  // thickness false hits caught by the exact check
+          {"screen_ms", h.screenMs},  // summed over threads: the split, not wall time
+          {"geo_ms", h.geoMs},
+          {"known_space_build_ms", built.known->buildMs()},
+          {"known_space_bytes", built.known->memoryBytes()}};
+}
+
 void writePixelStats(const std::string& dir, const EffectResult& r) {
   ensureDirectory(dir, "--pixelstats");
   writeImage((fs::path(dir) / "iterations.exr").string(), r.iterations);
@@ -167,6 +187,7 @@ int runRender(const RenderOptions& o) {
   }
 
   if (built.quadtree) stats["quadtree"] = quadtreeStats(*built.quadtree, o.tracers.quadtree, r);
+  if (built.known) stats["hybrid"] = hybridStats(built, o.tracers);
 
   std::optional<Image> direct;
   if (ec.effect == Effect::Warp) {

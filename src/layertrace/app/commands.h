@@ -92,6 +92,10 @@ void writePixelStats(const std::string& dir, const EffectResult& r);
 /// The `quadtree` stats block: thresholds, nodes per level and kind, visits per kind.
 nlohmann::json quadtreeStats(const Quadtree& tree, const QuadtreeConfig& config, const EffectResult& r);
 
+/// The `hybrid` stats block (DESIGN.md: screen_fraction, geo_fraction, geo_length_mean) of the
+/// tracer's runs since its last reset; null for any other tracer.
+nlohmann::json hybridStats(const BuiltTracer& built, const TracerOptions& options);
+
 /// The truth of view synthesis (Effect::Warp): the second camera's own rasterization of the
 /// scene, shaded with `frame`'s lights, and per pixel whether it sees a surface.
 struct WarpReference {

@@ -1,6 +1,9 @@
 #include "layertrace/pipeline/tracer_factory.h"
 
 #include "layertrace/geometry/geometric_tracer.h"
+#include <chrono>
+#include <limits>
+
 #include "layertrace/util/error.h"
 
 namespace lt {
@@ -15,12 +18,15 @@ void validateTracerOptions(const TracerOptions& o) {
   if (o.pyramid.levels < 1 || o.pyramid.levels > 16) inputError("--levels ", o.pyramid.levels, ": must be between 1 and 16");
   if (!(o.pyramid.tau > 0.0f)) inputError("--tau ", o.pyramid.tau, ": must be positive");
   validateQuadtreeConfig(o.quadtree);
+  if (o.hybridScreen != "hssr" && o.hybridScreen != "hiz" && o.hybridScreen != "quadtree")
+    inputError("--hybrid-screen ", o.hybridScreen, ": unknown (use hssr, hiz or quadtree)");
+  if (o.hybridGeo != "embree" && o.hybridGeo != "grid") inputError("--hybrid-geo ", o.hybridGeo, ": unknown (use embree or grid)");
 }
 
 bool isScreenTracer(const std::string& n) {
   return n == "ssr" || n == "ssr-layers" || n == "hiz" || n == "hssr" || n == "quadtree";
 }
-bool isKnownTracer(const std::string& n) { return isScreenTracer(n) || n == "embree" || n == "grid"; }
+bool isKnownTracer(const std::string& n) { return isScreenTracer(n) || n == "hybrid" || n == "embree" || n == "grid"; }
 
 BuiltTracer buildTracer(const std::string& name, const Frame& frame, const TracerOptions& o) {
   BuiltTracer b;
@@ -55,6 +61,32 @@ BuiltTracer buildTracer(const std::string& name, const Frame& frame, const Trace
     b.buildMs = b.grid->stats().buildMs;
     b.memoryBytes = b.grid->memoryBytes();
     b.tracer = makeGridTracer(frame.scene, frame.camera, *b.grid);
+  } else if (name == "hybrid") {
+    validateTracerOptions(o);
+    const CaptureCoverage coverage{frame.layers, frame.lists.complexity, frame.frontFacesOnly};
+    const bool pyramidScreen = o.hybridScreen == "hssr" || o.hybridScreen == "hiz";
+    if (pyramidScreen) {
+      // HSSR or Hi-Z over the solid intervals: one march answers rule 3 and the surfaces.
+      BuiltTracer screen;
+      const auto start = std::chrono::steady_clock::now();
+      IntervalLayers solid = solidIntervals(frame.camera, coverage, kHybridLastThicknessPx);
+      const bool hiz = o.hybridScreen == "hiz";
+      const PyramidConfig pc = hiz ? PyramidConfig{o.pyramid.levels, std::numeric_limits<float>::infinity()} : o.pyramid;
+      screen.pyramid = std::make_unique<IntervalPyramid>(buildIntervalPyramid(std::move(solid), frame.camera, pc));
+      screen.buildMs = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
+      screen.memoryBytes = screen.pyramid->memoryBytes();
+      HssrConfig hc = hiz ? hizConfig(o.pyramid.levels) : o.hssr;
+      hc.maxLevels = o.pyramid.levels;
+      screen.tracer = std::make_unique<HssrTracer>(frame.camera, frame.layers, *screen.pyramid, hc);
+      b.parts.push_back(std::move(screen));
+    } else {
+      b.parts.push_back(buildTracer(o.hybridScreen, frame, o));
+    }
+    b.parts.push_back(buildTracer(o.hybridGeo, frame, o));
+    b.known = std::make_unique<KnownSpace>(frame.camera, coverage, frame.scene.bounds(), pyramidScreen);
+    b.buildMs = b.parts[0].buildMs + b.parts[1].buildMs + b.known->buildMs();
+    b.memoryBytes = b.parts[0].memoryBytes + b.parts[1].memoryBytes + b.known->memoryBytes();
+    b.tracer = std::make_unique<HybridTracer>(frame.scene, frame.camera, frame.layers, *b.known, *b.parts[0].tracer, *b.parts[1].tracer);
   } else {
     inputError("--tracer ", name, ": unknown (use ", kTracerNames, ")");
   }

@@ -3,10 +3,12 @@
 
 #include <memory>
 #include <string>
+#include <vector>
 
 #include "layertrace/pipeline/frame.h"
 #include "layertrace/geometry/embree_scene.h"
 #include "layertrace/geometry/irregular_grid.h"
+#include "layertrace/hybrid/hybrid_tracer.h"
 #include "layertrace/screen/hiz_pyramid.h"
 #include "layertrace/screen/hssr_tracer.h"
 #include "layertrace/screen/interval_pyramid.h"
@@ -15,6 +17,10 @@
 
 namespace lt {
 
+/// The hybrid's HSSR / Hi-Z intervals (known_space.h solidIntervals): the last stored surface of
+/// a complete pixel is this many pixel footprints deep.
+inline constexpr float kHybridLastThicknessPx = 20.0f;
+
 /// Options of every tracer (DESIGN.md names): ssr's stride etc., hssr's τ, levels, n_up.
 struct TracerOptions {
   SsrConfig ssr;
@@ -22,13 +28,17 @@ struct TracerOptions {
   HssrConfig hssr;
   GridConfig grid;
   QuadtreeConfig quadtree;
+  std::string hybridScreen = "hssr";  ///< --hybrid-screen: hssr, hiz or quadtree
+  std::string hybridGeo = "embree";   ///< --hybrid-geo: embree or grid
 };
 
 /// Throws InputError naming the option for any invalid value, whichever tracer will run.
 void validateTracerOptions(const TracerOptions& options);
 
-/// Known tracer names: ssr, ssr-layers, hiz, hssr, quadtree (screen space); embree, grid (geometric).
-inline constexpr const char* kTracerNames = "ssr, ssr-layers, hiz, hssr, quadtree, embree, grid";
+/// Known tracer names: ssr, ssr-layers, hiz, hssr, quadtree (screen space); embree, grid
+/// (geometric); hybrid (a screen tracer, then a geometric one where the layers do not know).
+inline constexpr const char* kTracerNames = "ssr, ssr-layers, hiz, hssr, quadtree, hybrid, embree, grid";
+/// A tracer that answers from the layers alone (the exhaustive oracle applies to it).
 bool isScreenTracer(const std::string& name);
 bool isKnownTracer(const std::string& name);
 
@@ -38,6 +48,8 @@ struct BuiltTracer {
   std::unique_ptr<Quadtree> quadtree;        ///< quadtree
   std::unique_ptr<EmbreeScene> embree;       ///< embree
   std::unique_ptr<IrregularGrid> grid;       ///< grid
+  std::unique_ptr<KnownSpace> known;         ///< hybrid: where the layers' knowledge ends
+  std::vector<BuiltTracer> parts;            ///< hybrid: its screen and geometric tracers
   double buildMs = 0.0;                      ///< hierarchy / BVH construction
   size_t memoryBytes = 0;                    ///< the structure's bytes
 };

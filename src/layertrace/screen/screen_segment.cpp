@@ -3,6 +3,8 @@
 #include <algorithm>
 #include <cmath>
 
+#include <glm/geometric.hpp>
+
 namespace lt {
 
 ScreenSegment makeScreenSegment(const Camera& camera, const Ray& ray) {
@@ -19,10 +21,11 @@ ScreenSegment makeScreenSegment(const Camera& camera, const Ray& ray) {
     origin += ray.dir * t;
     origin.z = nearZ;
     maxDistance -= t;
-    seg.clippedStart = true;
+    seg.clippedStart = seg.startOutside = true;
   }
   // seed 001: clip to the near plane.
   const float len = (origin.z + ray.dir.z * maxDistance > nearZ) ? (nearZ - origin.z) / ray.dir.z : maxDistance;
+  seg.clippedEnd = len < maxDistance;
   const glm::vec3 end = origin + ray.dir * std::max(len, 0.0f);
   seg.k0 = 1.0f / -origin.z;
   seg.k1 = 1.0f / -end.z;
@@ -46,7 +49,7 @@ ScreenSegment makeScreenSegment(const Camera& camera, const Ray& ray) {
     if (!(tA <= tB)) return seg;
     seg.p0 = glm::clamp(seg.p0 + d * tA, glm::vec2(0.0f), glm::vec2(W, H));
     seg.k0 = seg.k0 + (seg.k1 - seg.k0) * tA;
-    seg.clippedStart = true;
+    seg.clippedStart = seg.startOutside = true;
   }
   // Clip the end to the viewport (the G3D version does, the published listing does not).
   float tEnd = 1.0f;
@@ -59,11 +62,35 @@ ScreenSegment makeScreenSegment(const Camera& camera, const Ray& ray) {
   limit(seg.p0.y, d.y, 0.0f, H);
   tEnd = std::max(tEnd, 0.0f);
   if (tEnd < 1.0f) {
+    seg.clippedEnd = true;
     seg.p1 = seg.p0 + d * tEnd;
     seg.k1 = seg.k0 + (seg.k1 - seg.k0) * tEnd;
   }
   seg.valid = std::isfinite(seg.p1.x) && std::isfinite(seg.p1.y) && seg.k1 > 0.0f;
   return seg;
+}
+
+float rayParamAt(const Camera& camera, const Ray& ray, const ScreenSegment& seg, float s) {
+  const glm::vec3 p = camera.rayThrough(seg.pointAt(s)) * seg.depthAt(s);
+  return std::clamp(glm::dot(p - ray.origin, ray.dir), 0.0f, ray.maxDistance);
+}
+
+ParamSpan rayParamsAroundPixel(const Camera& camera, const Ray& ray, int x, int y, float margin) {
+  const ScreenSegment seg = makeScreenSegment(camera, ray);
+  if (!seg.valid) return {0.0f, ray.maxDistance};
+  // Liang–Barsky: where the 2D segment enters and leaves the pixel's square.
+  const glm::vec2 d = seg.p1 - seg.p0;
+  float sIn = 0.0f, sOut = 1.0f;
+  for (int a = 0; a < 2; ++a) {
+    const float lo = float(a == 0 ? x : y), hi = lo + 1.0f;
+    if (d[a] == 0.0f) continue;
+    const float s0 = (lo - seg.p0[a]) / d[a], s1 = (hi - seg.p0[a]) / d[a];
+    sIn = std::max(sIn, std::min(s0, s1));
+    sOut = std::min(sOut, std::max(s0, s1));
+  }
+  const float m = margin / std::max({std::abs(d.x), std::abs(d.y), 1e-6f});
+  const float after = !seg.clippedEnd && sOut + m >= 1.0f ? ray.maxDistance : rayParamAt(camera, ray, seg, std::clamp(sOut + m, 0.0f, 1.0f));
+  return {rayParamAt(camera, ray, seg, std::clamp(sIn - m, 0.0f, 1.0f)), after};
 }
 
 }  // namespace lt

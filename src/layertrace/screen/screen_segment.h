@@ -24,6 +24,12 @@ struct ScreenSegment {
   /// free space (Ray::startsOnSurface false). Its first pixel holds no surface of its own, so
   /// tracers test it instead of skipping it.
   bool clippedStart = false;
+  /// The ray's origin lies outside the view (behind the near plane or off-screen): p0 is where
+  /// it enters. Nothing the layers store describes the way in.
+  bool startOutside = false;
+  /// The segment ends before the ray does: it leaves the view through the near plane or the
+  /// viewport's border at p1.
+  bool clippedEnd = false;
 
   float depthAt(float s) const { return 1.0f / (k0 + s * (k1 - k0)); }
   glm::vec2 pointAt(float s) const { return p0 + s * (p1 - p0); }
@@ -32,5 +38,18 @@ struct ScreenSegment {
 };
 
 ScreenSegment makeScreenSegment(const Camera& camera, const Ray& ray);
+
+/// The parameter t along `ray` of the segment's point at screen parameter s (its depth on the
+/// line of sight through that screen point), clamped to [0, ray.maxDistance].
+float rayParamAt(const Camera& camera, const Ray& ray, const ScreenSegment& seg, float s);
+
+/// The ray parameters `margin` pixels of screen motion before the ray's projection enters
+/// pixel (x, y) and after it leaves it (clamped to [0, ray.maxDistance]; {0, maxDistance} when
+/// nothing of the ray is on screen). Screen tracers answer at pixel resolution: the surface that
+/// decided a pixel may lie a pixel or two before or after it along the ray.
+struct ParamSpan {
+  float before = 0.0f, after = 0.0f;
+};
+ParamSpan rayParamsAroundPixel(const Camera& camera, const Ray& ray, int x, int y, float margin);
 
 }  // namespace lt

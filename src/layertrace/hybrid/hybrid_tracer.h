@@ -1,0 +1,110 @@
+// Hybrid tracing (issue 15): screen space where the layers know the answer, geometry only where
+// they do not.
+//
+// Layer: hybrid/ composes a screen-space tracer and a geometric one through the Tracer
+// interface. It includes screen/ (the certainty rules, known_space.h), geometry/ (the exact
+// local checks) and the layers below them; nothing above.
+//
+// Per ray (README "Exact reflections at screen-space cost"):
+//  1. KnownSpace gives knownUntil, where the ray leaves the space the layers describe (its
+//     rules are in known_space.h; with HSSR or Hi-Z the march itself meets rule 3).
+//  2. The screen tracer traces the ray cut at knownUntil. With HSSR / Hi-Z it marches the
+//     solid intervals of known_space.h: a ray cannot pass behind a stored surface between two
+//     pixel samples unnoticed, it "hits" that surface's interval.
+//  3. Every screen hit is checked exactly: the ray is intersected with the triangle the hit
+//     fragment came from, anywhere up to two pixels past the hit pixel (a grazing ray meets the
+//     surface a few pixels before its samples say so). A crossing is the answer, with its exact
+//     point, normal and material. No crossing means the ray passed behind the stored surface
+//     (or met a neighbour of the sampled triangle): geometry takes over from two pixels before
+//     the hit pixel — the guard against thickness false hits costs one ray–triangle test.
+//  4. A miss over a ray that stayed in known space is certain: the answer is a miss.
+//  5. Otherwise the geometric tracer continues from KnownSpace's geoFrom (one pixel before the
+//     knowledge ended) to the ray's end — not from the origin: the known part was answered.
+//  6. Screen tracers never test the ray's own pixel (seed 000 §5.1); the triangles stored in it
+//     are intersected exactly as in 3, so a surface the ray meets there is not lost.
+// Every hit the hybrid returns is an exact triangle intersection (layer = -1, like a geometric
+// tracer's), so it shades exactly as the reference does. What it can still get wrong: a surface
+// no pixel sample saw (thinner than a pixel) in known space, and a stored surface between two
+// samples of the last layer of a complete pixel, deeper than its 20-footprint interval.
+#pragma once
+
+#include <atomic>
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include <tbb/enumerable_thread_specific.h>
+
+#include "layertrace/geometry/geometric_tracer.h"
+#include "layertrace/raster/layer_arrays.h"
+#include "layertrace/scene/camera.h"
+#include "layertrace/scene/scene.h"
+#include "layertrace/screen/known_space.h"
+#include "layertrace/trace/tracer.h"
+
+namespace lt {
+
+/// Who answered the rays of a run (sums since the last reset).
+struct HybridStats {
+  uint64_t rays = 0;
+  uint64_t screenHits = 0;       ///< answered by a checked screen hit (or the origin pixel check)
+  uint64_t certainMisses = 0;    ///< answered by a miss in known space
+  uint64_t geoRays = 0;          ///< handed to the geometric tracer
+  uint64_t rejectedHits = 0;     ///< of those: screen hits the exact check rejected
+  double geoLengthSum = 0.0;     ///< geometric segment length / the ray's length in the scene
+  double screenMs = 0.0, geoMs = 0.0;  ///< wall time summed over the threads' batches
+  double screenFraction() const { return rays ? double(screenHits + certainMisses) / double(rays) : 0.0; }
+  double geoFraction() const { return rays ? double(geoRays) / double(rays) : 0.0; }
+  double geoLengthMean() const { return geoRays ? geoLengthSum / double(geoRays) : 0.0; }
+};
+
+class HybridTracer : public Tracer {
+ public:
+  /// `screen` traces camera-space rays through `layers`; `geo` answers the rest. All are
+  /// borrowed and must outlive the tracer.
+  HybridTracer(const Scene& scene, const Camera& camera, const LayerArrays& layers, const KnownSpace& known, const Tracer& screen,
+               const Tracer& geo);
+  const char* name() const override { return "hybrid"; }
+  TraceHit trace(const Ray& ray, RayCounters& counters) const override;
+  void traceBatch(std::span<const Ray> rays, std::span<TraceHit> hits, std::span<RayCounters> counters) const override;
+  void occludedBatch(std::span<const Ray> rays, std::span<TraceHit> hits, std::span<RayCounters> counters) const override;
+
+  HybridStats stats() const;
+  void resetStats();
+
+ private:
+  void run(Query q, std::span<const Ray> rays, std::span<TraceHit> hits, std::span<RayCounters> counters) const;
+  /// Ray (world space) against one scene triangle, t in [tmin, tmax].
+  bool hitsTriangle(glm::vec3 o, glm::vec3 d, uint32_t triangle, float tmin, float tmax, float& t) const;
+  /// Step 6: the nearest intersection with the triangles stored in the ray's own pixel, up to
+  /// where the ray is two pixels past it; a miss if none.
+  GeoHit originHit(const Ray& ray, glm::vec3 worldOrigin, glm::vec3 worldDir, float tmin) const;
+  /// The ray's length inside the scene's bounds (the denominator of geo_length_mean).
+  float lengthInScene(glm::vec3 worldOrigin, glm::vec3 worldDir, float maxDistance) const;
+
+  const Scene& scene_;
+  const Camera& camera_;
+  const LayerArrays& layers_;
+  const KnownSpace& known_;
+  const Tracer& screen_;
+  const Tracer& geo_;
+  GeometricHits hits_;
+  Bounds bounds_;
+
+  struct Scratch {
+    std::vector<Ray> screenRays, geoRays;
+    std::vector<TraceHit> screenHits, geoHits;
+    std::vector<float> geoStart;
+    std::vector<uint32_t> geoIndex;
+    std::vector<GeoHit> best;
+    std::vector<RayCounters> geoCounters;
+  };
+  mutable tbb::enumerable_thread_specific<Scratch> scratch_;
+  struct Sums {
+    uint64_t rays = 0, screenHits = 0, certainMisses = 0, geoRays = 0, rejectedHits = 0;
+    double geoLengthSum = 0.0, screenMs = 0.0, geoMs = 0.0;
+  };
+  mutable tbb::enumerable_thread_specific<Sums> sums_;
+};
+
+}  // namespace lt

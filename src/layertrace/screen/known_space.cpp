@@ -1,0 +1,126 @@
+#include "layertrace/screen/known_space.h"
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <limits>
+
+#include <glm/geometric.hpp>
+
+#include "layertrace/screen/hssr_march.h"
+#include "layertrace/screen/screen_segment.h"
+#include "layertrace/util/error.h"
+#include "layertrace/util/parallel.h"
+
+namespace lt {
+
+namespace {
+constexpr float kInf = std::numeric_limits<float>::infinity();
+}
+
+float CaptureCoverage::unknownDepth(size_t p) const {
+  const int n = layers.count[p];
+  const FragmentNode* f = &layers.slots[p * size_t(layers.k)];
+  if (frontFacesOnly) return n > 0 ? f[0].back() : 0.0f;
+  const bool truncated = complexity.empty() ? n == layers.k : complexity[p] > uint32_t(n);
+  return !truncated ? kInf : n > 0 ? f[n - 1].back() : 0.0f;
+}
+
+namespace {
+
+void checkCoverage(const CaptureCoverage& c) {
+  const size_t pixels = size_t(c.layers.width) * size_t(c.layers.height);
+  LT_CHECK(c.complexity.empty() || c.complexity.size() == pixels, "fragment counts of ", c.complexity.size(), " pixels for ", pixels);
+}
+
+}  // namespace
+
+IntervalLayers solidIntervals(const Camera& camera, const CaptureCoverage& c, float lastThicknessPx) {
+  checkCoverage(c);
+  const LayerArrays& L = c.layers;
+  IntervalLayers out;
+  out.width = L.width;
+  out.height = L.height;
+  out.k = L.k;
+  const size_t pixels = size_t(L.width) * size_t(L.height);
+  out.slots.resize(pixels * size_t(L.k));
+  out.count.resize(pixels);
+  parallelFor(size_t(0), pixels, [&](size_t p) {
+    const FragmentNode* f = &L.slots[p * size_t(L.k)];
+    Interval* iv = &out.slots[p * size_t(L.k)];
+    const float u = c.unknownDepth(p);
+    int n = L.count[p];
+    if (c.frontFacesOnly) n = std::min(n, 1);
+    for (int i = 0; i < n; ++i) {
+      const float next = i + 1 < n ? f[i + 1].depth : u < kInf ? kInf : f[i].depth + lastThicknessPx * camera.pixelFootprint(f[i].depth);
+      iv[i] = {f[i].depth, std::max(f[i].back(), next)};
+    }
+    // An uncovered pixel where anything may be (front faces only): unknown from the near plane.
+    if (n == 0 && u < kInf) iv[0] = {u, kInf}, n = 1;
+    for (int i = n; i < L.k; ++i) iv[i] = {0.0f, 0.0f};
+    out.count[p] = uint8_t(n);
+  });
+  return out;
+}
+
+KnownSpace::KnownSpace(const Camera& camera, const CaptureCoverage& coverage, const Bounds& sceneBounds, bool frustumOnly, int levels)
+    : camera_(camera), farLimit_(kInf) {
+  const auto start = std::chrono::steady_clock::now();
+  checkCoverage(coverage);
+  if (!frustumOnly) {
+    // Level 0: one interval [u, ∞) on every pixel whose unknown depth is finite (rule 3).
+    const LayerArrays& layers = coverage.layers;
+    const size_t pixels = size_t(layers.width) * size_t(layers.height);
+    IntervalLayers base;
+    base.width = layers.width;
+    base.height = layers.height;
+    base.k = 1;
+    base.slots.resize(pixels);
+    base.count.resize(pixels);
+    parallelFor(size_t(0), pixels, [&](size_t p) {
+      const float u = coverage.unknownDepth(p);
+      base.slots[p] = {u, kInf};
+      base.count[p] = u < kInf ? 1 : 0;
+    });
+    // τ = ∞: every coarse cell keeps one interval [min u, ∞).
+    pyramid_ = buildIntervalPyramid(std::move(base), camera, PyramidConfig{std::clamp(levels, 1, 16), kInf});
+  }
+  // Rule 2: the rasterizer clipped everything beyond the far plane.
+  if (!sceneBounds.empty()) {
+    float farthest = 0.0f;
+    const glm::vec3 eye = camera.desc().eye;
+    for (int i = 0; i < 8; ++i) {
+      const glm::vec3 c((i & 1) ? sceneBounds.hi.x : sceneBounds.lo.x, (i & 2) ? sceneBounds.hi.y : sceneBounds.lo.y,
+                        (i & 4) ? sceneBounds.hi.z : sceneBounds.lo.z);
+      farthest = std::max(farthest, glm::length(c - eye));
+    }
+    if (camera.far() < farthest) farLimit_ = camera.far();
+  }
+  buildMs_ = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
+}
+
+template <class C>
+KnownSpace::Boundary KnownSpace::boundary(const Ray& ray, C& c) const {
+  const ScreenSegment seg = makeScreenSegment(camera_, ray);
+  if (!seg.valid || seg.startOutside) return {};  // rule 1
+  float s = 1.0f;
+  bool leaves = seg.clippedEnd;  // rule 2: the near plane or the viewport's border
+  if (pyramid_.levelCount() > 0) {  // rule 3
+    const MarchHit m = hssrMarch(pyramid_, pyramid_.levelCount(), 1, seg, camera_.width(), camera_.height(), c);
+    if (m.hit()) s = m.s, leaves = true;
+  }
+  if (farLimit_ < kInf) {  // rule 2: beyond the far plane
+    const float sFar = seg.paramAtDepth(farLimit_);
+    if (std::max(seg.depthAt(0.0f), seg.depthAt(s)) > farLimit_ && sFar >= 0.0f && sFar < s) s = sFar, leaves = true;
+  }
+  if (!leaves) return {ray.maxDistance, ray.maxDistance};
+  const glm::vec2 d = seg.p1 - seg.p0;
+  const float onePixel = 1.0f / std::max({std::abs(d.x), std::abs(d.y), 1e-6f});
+  const float known = rayParamAt(camera_, ray, seg, s);
+  return {known, std::min(known, rayParamAt(camera_, ray, seg, std::max(0.0f, s - onePixel)))};
+}
+
+template KnownSpace::Boundary KnownSpace::boundary(const Ray&, RayCounters&) const;
+template KnownSpace::Boundary KnownSpace::boundary(const Ray&, NoCounters&) const;
+
+}  // namespace lt

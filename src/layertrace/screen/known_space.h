@@ -1,0 +1,80 @@
+// What the k layers know, and where a ray leaves that knowledge: the certainty rules of the
+// hybrid tracer (issue 15; README "Exact reflections at screen-space cost").
+//
+// A screen-space answer is backed by stored data while the ray
+//   1. starts inside the view (in front of the near plane, inside the viewport),
+//   2. stays inside it: it has not crossed the near plane or the viewport's border, nor gone
+//      beyond the far plane where that plane cuts the scene's bounds, and
+//   3. at every pixel it crosses stays in front of the pixel's *unknown depth* u(p): the back of
+//      the pixel's last stored interval when the capture kept fewer fragments than the pixel's
+//      list held (more than k, or merged by adaptive thickness — conservative), +∞ when every
+//      fragment of the pixel is stored. With --front-faces-only no back face was captured, so
+//      u(p) is the back of the first interval (0 on an uncovered pixel: anything may be there).
+// Over [0, knownUntil) a miss is certain, up to the pixel sampling every screen tracer shares;
+// from knownUntil on nobody saw what the ray meets.
+//
+// knownUntil comes from seed 000's march (hssr_march.h) over a pyramid of the intervals [u, ∞):
+// exact at level 0 by the same argument as HSSR, with one interval per coarse cell (min u) and
+// n_up = 1 — the Hi-Z rule, which fits a single interval per cell. A screen tracer that marches
+// solidIntervals() below meets rule 3 itself (the last interval of a truncated pixel reaches to
+// ∞); KnownSpace then checks rules 1–2 only, without a march.
+#pragma once
+
+#include <cstdint>
+#include <span>
+
+#include "layertrace/raster/layer_arrays.h"
+#include "layertrace/scene/camera.h"
+#include "layertrace/screen/interval_pyramid.h"
+#include "layertrace/trace/tracer.h"
+
+namespace lt {
+
+/// What a capture stored per pixel, for the rules above.
+struct CaptureCoverage {
+  const LayerArrays& layers;
+  std::span<const uint32_t> complexity;  ///< fragments per pixel (FragmentLists::complexity); empty = unknown
+  bool frontFacesOnly = false;
+  /// u(p) of rule 3 for pixel index p (+∞ when the pixel is complete).
+  float unknownDepth(size_t p) const;
+};
+
+/// The intervals a hybrid's screen march uses (seed 000 §4.2's thickness, chosen for an exact
+/// check): every stored surface is solid up to the next stored one, so a ray cannot pass behind
+/// it between two pixel samples without meeting its interval (no tunnelling — the exact
+/// triangle check rejects what is not a crossing); the last stored surface is solid to +∞ where
+/// the pixel is truncated (rule 3) and `lastThicknessPx` pixel footprints deep where the pixel
+/// is complete (behind it the pixel is known to be empty).
+IntervalLayers solidIntervals(const Camera& camera, const CaptureCoverage& coverage, float lastThicknessPx);
+
+class KnownSpace {
+ public:
+  /// Rules 1–2, and rule 3 unless `frustumOnly` (the screen tracer marches solidIntervals()).
+  /// `sceneBounds` decides whether the far plane cuts the scene (rule 2).
+  KnownSpace(const Camera& camera, const CaptureCoverage& coverage, const Bounds& sceneBounds, bool frustumOnly = false,
+             int levels = 8);
+
+  struct Boundary {
+    /// Ray parameter where the ray enters the first pixel it crosses behind u(p) or leaves the
+    /// view; ≥ ray.maxDistance when the whole ray stays in known space. 0 when it starts outside.
+    float knownUntil = 0.0f;
+    /// One pixel of screen motion earlier (≥ 0): where a geometric tracer should take over, so
+    /// that a surface the pixel sampling left between two pixels is not skipped.
+    float geoFrom = 0.0f;
+    bool certain(const Ray& ray) const { return knownUntil >= ray.maxDistance; }
+  };
+  /// Counted like a tracer (one iteration per visited cell).
+  template <class C>
+  Boundary boundary(const Ray& ray, C& counters) const;
+
+  size_t memoryBytes() const { return pyramid_.memoryBytes(); }
+  double buildMs() const { return buildMs_; }
+
+ private:
+  const Camera& camera_;
+  IntervalPyramid pyramid_;  ///< over [u, ∞); empty when frustumOnly
+  float farLimit_;  ///< depth beyond which nothing was captured (+∞ when the far plane covers the scene)
+  double buildMs_ = 0.0;
+};
+
+}  // namespace lt
