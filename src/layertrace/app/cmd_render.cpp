@@ -62,6 +62,7 @@ nlohmann::json hybridStats(const BuiltTracer& built, const TracerOptions& o) {
           {"certain_miss_fraction", double(h.certainMisses) / rays},
           {"rejected_hit_fraction", double(h.rejectedHits) / rays},  // thickness false hits caught by the exact check
           {"screen_ms", h.screenMs},  // summed over threads: the split, not wall time
+          {"window_ms", h.windowMs},  // geometric windows certifying screen answers
           {"geo_ms", h.geoMs},
           {"known_space_build_ms", built.known->buildMs()},
           {"known_space_bytes", built.known->memoryBytes()}};

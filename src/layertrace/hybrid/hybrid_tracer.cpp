@@ -56,13 +56,10 @@ bool HybridTracer::hitsTriangle(glm::vec3 o, glm::vec3 d, uint32_t tri, float tm
   return hitTriangle(o, d, a, scene_.positions[v.y] - a, scene_.positions[v.z] - a, tmin, tmax, t);
 }
 
-GeoHit HybridTracer::originHit(const Ray& ray, glm::vec3 o, glm::vec3 d, float tmin) const {
+GeoHit HybridTracer::pixelHit(glm::vec3 o, glm::vec3 d, int x, int y, int layers, float tmin, float tmax) const {
   GeoHit best;
-  int x, y;
-  if (!ray.startsOnSurface || !camera_.pixelOf(ray.origin, x, y)) return best;
-  const float tmax = rayParamsAroundPixel(camera_, ray, x, y, kPixelMargin).after;
   const uint32_t* tris = &layers_.triangle[layers_.pixelIndex(x, y) * size_t(layers_.k)];
-  for (int i = 0; i < layers_.countAt(x, y); ++i) {
+  for (int i = 0; i < std::min(layers, layers_.countAt(x, y)); ++i) {
     float t;
     if (hitsTriangle(o, d, tris[i], tmin, best.hit() ? best.t : tmax, t)) best.t = t, best.triangle = tris[i];
   }
@@ -79,86 +76,132 @@ float HybridTracer::lengthInScene(glm::vec3 o, glm::vec3 d, float maxDistance) c
   return tExit > 0.0f ? tExit : maxDistance;
 }
 
+/// A segment [from, from + length] of ray `ray` as a ray from free space (its hits' points are
+/// camera-space points of the original ray).
+Ray HybridTracer::segment(const Ray& ray, float from, float to) {
+  Ray g = ray;
+  g.origin = ray.origin + ray.dir * from;
+  g.maxDistance = std::max(to - from, 0.0f);
+  g.startsOnSurface = ray.startsOnSurface && from == 0.0f;
+  return g;
+}
+
+void HybridTracer::geoQuery(Query q, Scratch& s, std::span<RayCounters> counters) const {
+  s.geoHits.resize(s.geoRays.size());
+  if (counters.empty()) {
+    geo_.query(q, s.geoRays, s.geoHits, {});
+    return;
+  }
+  std::vector<RayCounters>& gc = s.geoCounters;
+  gc.assign(s.geoRays.size(), RayCounters{});
+  geo_.query(q, s.geoRays, s.geoHits, gc);
+  for (size_t j = 0; j < gc.size(); ++j) {
+    RayCounters& c = counters[s.geoIndex[j]];
+    c.addIterations(gc[j].iterations);
+    c.giveUps += gc[j].giveUps;
+  }
+}
+
 void HybridTracer::run(Query q, std::span<const Ray> rays, std::span<TraceHit> hits, std::span<RayCounters> counters) const {
-  const auto t0 = std::chrono::steady_clock::now();
+  using Clock = std::chrono::steady_clock;
+  const auto t0 = Clock::now();
   Scratch& s = scratch_.local();
   Sums& sum = sums_.local();
   const size_t n = rays.size();
-  const bool counted = kCountersCompiled && !counters.empty();
+  if (!kCountersCompiled) counters = {};
   // 1–2: where knowledge ends, and the screen tracer inside it.
   s.screenRays.assign(rays.begin(), rays.end());
   s.screenHits.resize(n);
-  s.geoStart.resize(n);
+  s.from.resize(n);
+  s.best.assign(n, GeoHit{});
   NoCounters none;
   for (size_t i = 0; i < n; ++i) {
-    const KnownSpace::Boundary b = counted ? known_.boundary(rays[i], counters[i]) : known_.boundary(rays[i], none);
+    const KnownSpace::Boundary b = counters.empty() ? known_.boundary(rays[i], none) : known_.boundary(rays[i], counters[i]);
     s.screenRays[i].maxDistance = std::min(rays[i].maxDistance, b.knownUntil);
-    s.geoStart[i] = b.certain(rays[i]) ? kInf : b.geoFrom;
+    s.from[i] = b.certain(rays[i]) ? kInf : b.geoFrom;
   }
   screen_.query(q, s.screenRays, s.screenHits, counters);
-  // 3–6: check screen hits exactly; collect what geometry must answer.
+  // 3 and 6: the exact checks, and the windows geometry certifies. A window query is short —
+  // a few pixels of the ray — and costs a fraction of a whole geometric ray.
   s.geoRays.clear();
   s.geoIndex.clear();
-  s.best.assign(n, GeoHit{});
-  uint64_t screenHits = 0, certainMisses = 0, rejected = 0;
+  uint64_t rejected = 0;
+  for (size_t i = 0; i < n; ++i) {
+    const Ray& r = rays[i];
+    int x, y;
+    if (r.startsOnSurface && camera_.pixelOf(r.origin, x, y)) {
+      // 6: the ray's own pixel, which screen tracers skip, up to two pixels past it.
+      s.geoRays.push_back(segment(r, 0.0f, rayParamsAroundPixel(camera_, r, x, y, kPixelMargin).after));
+      s.geoIndex.push_back(uint32_t(i));
+    }
+    const TraceHit& sh = s.screenHits[i];
+    if (!sh.hit) continue;
+    // 3: the ray against the triangles of the hit pixel's layers up to the hit one, anywhere
+    // up to two pixels past the hit pixel (a grazing ray meets the surface a few pixels before
+    // its samples say so).
+    const ParamSpan span = rayParamsAroundPixel(camera_, r, sh.x, sh.y, kPixelMargin);
+    const GeoHit v = pixelHit(camera_.toWorld(r.origin), camera_.dirToWorld(r.dir), sh.x, sh.y, sh.layer + 1,
+                              GeometricHits::originOffset(r), span.after);
+    if (!v.hit()) {
+      // The ray passed behind the stored surface (a thickness false hit) or met a neighbour of
+      // the sampled triangle: geometry takes over two pixels before the hit pixel.
+      ++rejected;
+      s.from[i] = span.before;
+      continue;
+    }
+    s.best[i] = v;
+    s.from[i] = kInf;
+    if (q == Query::Any) continue;  // a crossing before maxDistance: occluded
+    // The window from two pixels before the hit pixel (or the crossing, if earlier) to the
+    // crossing: a neighbour triangle the pixel samples missed may be met first.
+    s.geoRays.push_back(segment(r, std::min(v.t, span.before), v.t * (1.0f + 1e-5f)));
+    s.geoIndex.push_back(uint32_t(i));
+  }
+  const auto t1 = Clock::now();
+  geoQuery(q == Query::Any ? Query::Any : Query::Closest, s, counters);
+  const auto t2 = Clock::now();
+  // A window's hit is the answer: the origin window precedes everything else on the ray, a hit
+  // window ends at the checked crossing.
+  for (size_t j = 0; j < s.geoRays.size(); ++j) {
+    const TraceHit& g = s.geoHits[j];
+    if (!g.hit) continue;
+    const uint32_t i = s.geoIndex[j];
+    GeoHit& b = s.best[i];
+    s.from[i] = kInf;
+    if (q == Query::Any) {  // occluded: any-hit answers name no blocker (trace/tracer.h)
+      b.t = 0.0f, b.triangle = 0;
+      continue;
+    }
+    const float t = glm::dot(g.point - rays[i].origin, rays[i].dir);
+    if (!b.hit() || t <= b.t) b.t = t, b.triangle = g.triangle;
+  }
+  // 4–5: certain misses are answered; the rest goes to geometry from where knowledge ended.
+  s.geoRays.clear();
+  s.geoIndex.clear();
+  uint64_t screenHits = 0, certainMisses = 0;
   double geoLength = 0.0;
   for (size_t i = 0; i < n; ++i) {
     const Ray& r = rays[i];
-    const glm::vec3 o = camera_.toWorld(r.origin), d = camera_.dirToWorld(r.dir);
-    const float tmin = GeometricHits::originOffset(r);
-    GeoHit& best = s.best[i];
-    best = originHit(r, o, d, tmin);
-    float from = s.geoStart[i];
-    const TraceHit& sh = s.screenHits[i];
-    if (sh.hit) {
-      // 3: the ray against the triangle the screen tracer reported, anywhere up to the pixel
-      // after the hit pixel (a grazing ray may meet it a few pixels before its samples say so).
-      const ParamSpan span = rayParamsAroundPixel(camera_, r, sh.x, sh.y, kPixelMargin);
-      float t;
-      if (hitsTriangle(o, d, sh.triangle, tmin, span.after, t)) {
-        if (!best.hit() || t < best.t) best.t = t, best.triangle = sh.triangle;
-        from = kInf;
-      } else {
-        // The ray passed behind the stored surface (a thickness false hit) or met a neighbour
-        // of the sampled triangle: geometry takes over shortly before the hit pixel.
-        ++rejected;
-        from = span.before;
-      }
-    }
-    const float end = best.hit() ? best.t : r.maxDistance;
-    if ((q == Query::Any && best.hit()) || !(from < end)) {
-      if (best.hit()) ++screenHits;
+    const GeoHit& b = s.best[i];
+    const float end = b.hit() ? b.t : r.maxDistance;
+    if ((q == Query::Any && b.hit()) || !(s.from[i] < end)) {
+      if (b.hit()) ++screenHits;
       else ++certainMisses;
       continue;
     }
-    Ray g = r;
-    g.origin = r.origin + r.dir * from;
-    g.maxDistance = end - from;
-    g.startsOnSurface = false;
-    s.geoRays.push_back(g);
+    s.geoRays.push_back(segment(r, s.from[i], end));
     s.geoIndex.push_back(uint32_t(i));
-    const float inScene = lengthInScene(o, d, r.maxDistance);
-    geoLength += inScene > from ? double(std::min(end, inScene) - from) / double(inScene) : 0.0;
+    const float inScene = lengthInScene(camera_.toWorld(r.origin), camera_.dirToWorld(r.dir), r.maxDistance);
+    geoLength += inScene > s.from[i] ? double(std::min(end, inScene) - s.from[i]) / double(inScene) : 0.0;
   }
-  const auto t1 = std::chrono::steady_clock::now();
-  // 5: the geometric tracer on the unknown remainders.
-  s.geoHits.resize(s.geoRays.size());
-  if (counted) {
-    std::vector<RayCounters>& gc = s.geoCounters;
-    gc.assign(s.geoRays.size(), RayCounters{});
-    geo_.query(q, s.geoRays, s.geoHits, gc);
-    for (size_t j = 0; j < gc.size(); ++j) {
-      RayCounters& c = counters[s.geoIndex[j]];
-      c.addIterations(gc[j].iterations);
-      c.giveUps += gc[j].giveUps;
-    }
-  } else {
-    geo_.query(q, s.geoRays, s.geoHits, {});
-  }
-  const auto t2 = std::chrono::steady_clock::now();
+  const auto t3 = Clock::now();
+  geoQuery(q, s, counters);
+  const auto t4 = Clock::now();
   for (size_t i = 0; i < n; ++i) {
     const GeoHit& b = s.best[i];
-    hits[i] = !b.hit() ? TraceHit{} : q == Query::Any ? GeometricHits::occludedHit(true) : hits_.makeHit(rays[i], b);
+    if (!b.hit()) hits[i] = TraceHit{};
+    else if (q == Query::Any) hits[i] = GeometricHits::occludedHit(true);
+    else hits[i] = hits_.makeHit(rays[i], b);
   }
   for (size_t j = 0; j < s.geoRays.size(); ++j)
     if (s.geoHits[j].hit) hits[s.geoIndex[j]] = s.geoHits[j];
@@ -168,8 +211,9 @@ void HybridTracer::run(Query q, std::span<const Ray> rays, std::span<TraceHit> h
   sum.geoRays += s.geoRays.size();
   sum.rejectedHits += rejected;
   sum.geoLengthSum += geoLength;
-  sum.screenMs += msBetween(t0, t1);
-  sum.geoMs += msBetween(t1, t2);
+  sum.screenMs += msBetween(t0, t1) + msBetween(t2, t3);
+  sum.windowMs += msBetween(t1, t2);
+  sum.geoMs += msBetween(t3, t4);
 }
 
 HybridStats HybridTracer::stats() const {
@@ -182,6 +226,7 @@ HybridStats HybridTracer::stats() const {
     h.rejectedHits += s.rejectedHits;
     h.geoLengthSum += s.geoLengthSum;
     h.screenMs += s.screenMs;
+    h.windowMs += s.windowMs;
     h.geoMs += s.geoMs;
   }
   return h;
