@@ -2,7 +2,8 @@
 // FZK-Haus and am_thornish interiors (1280×720, k = 4), the same rays through every tracer:
 // ssr at strides 1, 2, 4, 8; ssr-layers at strides 1, 2, 3, 4, 8; hssr (τ 25, 5 levels, n_up 2).
 // Counters: MRays/s, mean DDA iterations per ray, hit fraction; Embree (the project's scene) on
-// the same rays as the baseline. Hierarchy build time is
+// the same rays as the baseline; the hybrid (issue 15: hssr + embree, certified answers) with
+// the share of rays each half answered. Hierarchy build time is
 // measured beside raster and sort.
 #include <algorithm>
 #include <span>
@@ -14,6 +15,7 @@
 
 #include "layertrace/geometry/geometric_tracer.h"
 #include "layertrace/pipeline/frame.h"
+#include "layertrace/pipeline/tracer_factory.h"
 #include "layertrace/screen/hssr_tracer.h"
 #include "layertrace/screen/ssr_tracer.h"
 
@@ -97,6 +99,16 @@ void BM_Embree(benchmark::State& state) {
   traceAll(state, t, s.rays);
 }
 
+void BM_Hybrid(benchmark::State& state) {
+  Setup& s = setup(int(state.range(0)));
+  const lt::BuiltTracer b = lt::buildTracer("hybrid", s.frame, lt::TracerOptions{});
+  const auto& hybrid = dynamic_cast<const lt::HybridTracer&>(*b.tracer);
+  traceAll(state, hybrid, s.rays);
+  const lt::HybridStats h = hybrid.stats();
+  state.counters["screen%"] = 100.0 * h.screenFraction();
+  state.counters["geo%"] = 100.0 * h.geoFraction();
+}
+
 void BM_HierarchyBuild(benchmark::State& state) {
   Setup& s = setup(int(state.range(0)));
   for (auto _ : state) {
@@ -110,6 +122,7 @@ void BM_HierarchyBuild(benchmark::State& state) {
 // Args: scene (0 = FZK-Haus, 1 = am_thornish), stride, all layers.
 BENCHMARK(BM_Hssr)->Arg(0)->Arg(1)->Unit(benchmark::kMillisecond)->UseRealTime();
 BENCHMARK(BM_Embree)->Arg(0)->Arg(1)->Unit(benchmark::kMillisecond)->UseRealTime();
+BENCHMARK(BM_Hybrid)->Arg(0)->Arg(1)->Unit(benchmark::kMillisecond)->UseRealTime();
 BENCHMARK(BM_Ssr)
     ->ArgsProduct({{0, 1}, {1, 2, 3, 4, 8}, {1}})
     ->Unit(benchmark::kMillisecond)

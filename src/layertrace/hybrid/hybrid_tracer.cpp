@@ -144,9 +144,12 @@ void HybridTracer::run(Query q, std::span<const Ray> rays, std::span<TraceHit> h
                               GeometricHits::originOffset(r), span.after);
     if (!v.hit()) {
       // The ray passed behind the stored surface (a thickness false hit) or met a neighbour of
-      // the sampled triangle: geometry takes over two pixels before the hit pixel.
+      // the sampled triangle. It got behind a surface without a crossing where the samples
+      // looked, so the march's "empty so far" is not to be trusted for this ray either:
+      // geometry answers it from the origin (measured: from two pixels before the hit pixel
+      // instead, 3× the wrong answers on FZK-Haus and 2× on am_thornish, for 4 % less time).
       ++rejected;
-      s.from[i] = span.before;
+      s.from[i] = 0.0f;
       continue;
     }
     s.best[i] = v;
@@ -184,6 +187,11 @@ void HybridTracer::run(Query q, std::span<const Ray> rays, std::span<TraceHit> h
     const Ray& r = rays[i];
     const GeoHit& b = s.best[i];
     const float end = b.hit() ? b.t : r.maxDistance;
+    // A closest-hit miss in known space returns the environment, the most visible error, and
+    // the layers can miss a silhouette thinner than a pixel between two samples: geometry
+    // certifies it (0.1 % of reflection rays on am_thornish; it removes two thirds of the false
+    // misses there). Any-hit misses (half of all AO and shadow rays) are accepted.
+    if (q == Query::Closest && !b.hit() && !(s.from[i] < end)) s.from[i] = 0.0f;
     if ((q == Query::Any && b.hit()) || !(s.from[i] < end)) {
       if (b.hit()) ++screenHits;
       else ++certainMisses;
