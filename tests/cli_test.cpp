@@ -156,6 +156,10 @@ TEST(CliRender, BadTracerAndEffectAreRejected) {
   expectRejected({"render " + kDefault + " --bounces 0", "--bounces 0"}, dir);
   expectRejected({"render " + kDefault + " --tracer hybrid --hybrid-screen ssr", "--hybrid-screen ssr"}, dir);
   expectRejected({"render " + kDefault + " --tracer hybrid --hybrid-geo optix", "--hybrid-geo optix"}, dir);
+  // Issue 16 §3: a memory limit is checked before anything is allocated.
+  expectRejected({"render " + kDefault + " --max-memory 1M", "--max-memory 1 MiB: --width/--height 1280x720"}, dir);
+  expectRejected({"render " + kDefault + " --max-memory lots", "--max-memory lots"}, dir);
+  expectRejected({"compare " + kDefault + " --max-memory 0", "--max-memory 0"}, dir);
 }
 
 // Issue 15 §3: the hybrid's stats block (DESIGN.md keys) adds up.

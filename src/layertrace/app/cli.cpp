@@ -51,6 +51,7 @@ struct RawFrameOptions {
   float thickness = 0.0f;
   float thicknessPx = 0.0f;
   std::string warpEye, warpTarget;  ///< --warp-eye / --warp-target (effect options)
+  std::string maxMemory;            ///< --max-memory
 };
 
 void addFrameOptions(CLI::App* app, lt::RunOptions& run, RawFrameOptions& raw) {
@@ -71,6 +72,7 @@ void addFrameOptions(CLI::App* app, lt::RunOptions& run, RawFrameOptions& raw) {
   app->add_flag("--adaptive-thickness", f.adaptiveThickness, "merge fragments that start inside the previous kept interval (seed 000 §4.2)");
   app->add_flag("--front-faces-only", f.frontFacesOnly, "capture only triangles facing the camera (layers = nearest front surfaces)");
   app->add_option("--pool", f.pool, "fragment pool capacity (0 = automatic, grows on overflow)")->capture_default_str();
+  app->add_option("--max-memory", raw.maxMemory, "refuse, before allocating, any structure that would take the process past this size, e.g. 4G (default: the memory available)");
   app->add_option("--light", raw.lights, "add a point light x,y,z[,intensity] (repeatable; default light: above the eye)");
   app->add_option("--threads", run.threads, "worker threads (0 = all cores)")->capture_default_str();
   app->add_option("--seed", run.seed, "random seed")->capture_default_str();
@@ -127,6 +129,7 @@ void finishEffectOptions(lt::EffectConfig& e, const std::string& effectName, con
 }
 
 void finishFrameOptions(lt::RunOptions& run, const RawFrameOptions& raw) {
+  lt::setMemoryLimit(raw.maxMemory.empty() ? 0 : lt::parseByteSize("--max-memory", raw.maxMemory));
   lt::FrameOptions& f = run.frame;
   if (!raw.eye.empty()) f.eye = parseVec3("--eye", raw.eye);
   if (!raw.target.empty()) f.target = parseVec3("--target", raw.target);

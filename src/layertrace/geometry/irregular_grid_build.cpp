@@ -10,6 +10,7 @@
 #include "layertrace/util/parallel.h"
 #include "layertrace/geometry/irregular_grid.h"
 #include "layertrace/util/error.h"
+#include "layertrace/util/memory.h"
 
 namespace lt {
 
@@ -61,7 +62,11 @@ struct GridBuilder {
   void initialGrid() {
     const Bounds b = scene.bounds();
     const glm::vec3 ext = b.hi - b.lo;
-    const float pad = 1e-4f * glm::length(ext) + 1e-6f;
+    // Padding relative to the extent and to the coordinates' magnitude: a flat scene (one axis
+    // of zero extent) or a tiny one far from the origin still gets a box of positive volume
+    // whose sides survive float rounding (1e-6 alone vanishes next to 1e6).
+    const float magnitude = std::max({1.0f, glm::length(b.lo), glm::length(b.hi)});
+    const float pad = std::max(1e-4f * glm::length(ext), 1e-5f * magnitude);
     g.lo_ = b.lo - glm::vec3(pad);
     g.hi_ = b.hi + glm::vec3(pad);
     const glm::vec3 d = g.hi_ - g.lo_;
@@ -113,6 +118,10 @@ struct GridBuilder {
 
     // Leaves: each top cell fully subdivided to its depth; leaf references from its top cell's.
     g.topOffset_.resize(numTop + 1);
+    uint64_t leaves = 0;
+    for (size_t c = 0; c < numTop; ++c) leaves += uint64_t(1) << (3 * g.topDepth_[c]);
+    if (leaves > 0xFFFFFFFFull) inputError("irregular grid: ", leaves, " cells exceed the 32-bit cell index (use lower --lambda1/--lambda2)");
+    checkAllocation(cat("the irregular grid (", leaves, " cells)"), leaves * (sizeof(GridCell) + sizeof(uint32_t) + sizeof(std::vector<uint32_t>) + 8));
     uint32_t total = 0;
     for (size_t c = 0; c < numTop; ++c) g.topOffset_[c] = total, total += 1u << (3 * g.topDepth_[c]);
     g.topOffset_[numTop] = total;
@@ -324,6 +333,11 @@ IrregularGrid::IrregularGrid(const Scene& scene, const GridConfig& config) : sce
   t = std::chrono::steady_clock::now();
   for (int p = 0; p < config.expansionPasses; ++p) stats_.expandedFaces += b.expandPass();
   stats_.expandMs = since(t);
+  uint64_t refCount = 0;
+  for (size_t c = 0; c < cells_.size(); ++c) refCount += b.cellRefs[c].size();
+  if (refCount > 0xFFFFFFFFull) inputError("irregular grid: ", refCount, " references exceed the 32-bit reference index");
+  checkAllocation(cat("the irregular grid's references (", refCount, ")"), refCount * sizeof(uint32_t));
+  refs_.reserve(refCount);
   for (size_t c = 0; c < cells_.size(); ++c) {
     cells_[c].refBegin = uint32_t(refs_.size());
     refs_.insert(refs_.end(), b.cellRefs[c].begin(), b.cellRefs[c].end());

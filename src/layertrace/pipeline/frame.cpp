@@ -17,16 +17,6 @@ double msSince(std::chrono::steady_clock::time_point t) {
 }
 }  // namespace
 
-uint64_t availableMemoryBytes() {
-  std::ifstream in("/proc/meminfo");
-  std::string key;
-  uint64_t value = 0;
-  std::string unit;
-  while (in >> key >> value >> unit)
-    if (key == "MemAvailable:") return value * 1024;
-  return 0;
-}
-
 void validateFrameOptions(const FrameOptions& o) {
   if (o.width <= 0) inputError("--width ", o.width, ": must be positive");
   if (o.height <= 0) inputError("--height ", o.height, ": must be positive");
@@ -44,10 +34,7 @@ void validateFrameOptions(const FrameOptions& o) {
   const uint64_t pixels = uint64_t(o.width) * uint64_t(o.height);
   const uint64_t pool = o.pool ? o.pool * 20 : pixels * 160;
   const uint64_t need = pixels * (8 + uint64_t(o.layers) * 21 + 64) + pool;
-  const uint64_t avail = availableMemoryBytes();
-  if (avail && need > avail)
-    inputError("--width/--height ", o.width, "x", o.height, ": buffers need ", need >> 20, " MiB, only ", avail >> 20,
-               " MiB available");
+  checkAllocation(cat("--width/--height ", o.width, "x", o.height, ": the frame's buffers"), need);
 }
 
 PointLight defaultLight(const Camera& camera) {

@@ -18,6 +18,7 @@
 #include "layertrace/raster/rasterizer.h"
 #include "layertrace/scene/camera.h"
 #include "layertrace/scene/scene.h"
+#include "layertrace/util/memory.h"
 
 namespace lt {
 
@@ -77,8 +78,5 @@ PointLight defaultLight(const Camera& camera);
 /// The stats keys every subcommand shares: scene, width, height, layers, timings (raster, sort),
 /// memory (lists, arrays), fragments.
 nlohmann::json frameStats(const Frame& frame);
-
-/// Available memory in bytes (MemAvailable), or 0 when unknown.
-uint64_t availableMemoryBytes();
 
 }  // namespace lt

@@ -8,6 +8,7 @@
 #include <tbb/parallel_for.h>
 
 #include "layertrace/util/error.h"
+#include "layertrace/util/memory.h"
 #include "layertrace/util/parallel.h"
 
 namespace lt {
@@ -90,6 +91,7 @@ LayerArrays sortAndTruncate(const FragmentLists& lists, const LayerConfig& confi
   out.height = lists.height;
   out.k = config.k;
   const size_t pixels = size_t(lists.width) * size_t(lists.height);
+  checkAllocation(cat("the k-layer arrays (k = ", config.k, ")"), pixels * (size_t(config.k) * (sizeof(FragmentNode) + sizeof(uint32_t)) + 1));
   out.slots.resize(pixels * size_t(config.k));
   out.count.assign(pixels, 0);
   out.triangle.assign(pixels * size_t(config.k), kNullIndex);

@@ -11,6 +11,7 @@
 #include <tbb/parallel_for.h>
 
 #include "layertrace/util/error.h"
+#include "layertrace/util/memory.h"
 #include "layertrace/util/parallel.h"
 
 namespace lt {
@@ -333,8 +334,9 @@ FragmentLists rasterize(const Scene& scene, const Camera& camera, const RasterCo
     lists.head.assign(size_t(W) * size_t(H), kNullIndex);
     lists.complexity.assign(size_t(W) * size_t(H), 0);
     lists.nodes.resize(0);
-    lists.nodes.resize(capacity);
     lists.triangle.resize(0);
+    checkAllocation(cat("the fragment pool (", capacity, " fragments)"), capacity * (sizeof(FragmentNode) + sizeof(uint32_t)));
+    lists.nodes.resize(capacity);
     lists.triangle.resize(capacity);
     const uint64_t lost = pass.run(lists);
     if (lost == 0 || !config.growOnOverflow || st.passes > 1) break;

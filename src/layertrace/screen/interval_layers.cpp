@@ -1,4 +1,7 @@
 #include "layertrace/screen/interval_layers.h"
+
+#include "layertrace/util/error.h"
+#include "layertrace/util/memory.h"
 #include "layertrace/util/parallel.h"
 
 #include <algorithm>
@@ -14,6 +17,7 @@ IntervalLayers makeIntervalLayers(const LayerArrays& layers, int maxLayers) {
   out.height = layers.height;
   out.k = std::clamp(maxLayers, 1, layers.k);
   const size_t pixels = size_t(layers.width) * size_t(layers.height);
+  checkAllocation("the interval layers", pixels * (size_t(out.k) * sizeof(Interval) + 1));
   out.slots.resize(pixels * size_t(out.k));
   out.count.resize(pixels);
   parallelFor(tbb::blocked_range<size_t>(0, pixels, 4096), [&](const tbb::blocked_range<size_t>& r) {

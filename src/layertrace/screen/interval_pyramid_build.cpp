@@ -8,6 +8,7 @@
 #include "layertrace/util/parallel.h"
 #include "layertrace/screen/interval_pyramid.h"
 #include "layertrace/util/error.h"
+#include "layertrace/util/memory.h"
 
 namespace lt {
 
@@ -87,6 +88,10 @@ IntervalPyramid buildIntervalPyramid(IntervalLayers base, const Camera& camera, 
         }
       }
     });
+    size_t intervals = 0;
+    for (const std::vector<Interval>& row : rows) intervals += row.size();
+    if (intervals > 0xFFFFFFFFull) inputError("interval pyramid level ", L, ": ", intervals, " intervals exceed the 32-bit offsets");
+    checkAllocation(cat("interval pyramid level ", L), intervals * sizeof(Interval) + (size_t(lvl.width) * size_t(lvl.height) + 1) * sizeof(uint32_t));
     lvl.offset.resize(size_t(lvl.width) * size_t(lvl.height) + 1);
     uint32_t total = 0;
     for (int y = 0; y < lvl.height; ++y)

@@ -10,6 +10,7 @@
 #include "layertrace/screen/hssr_march.h"
 #include "layertrace/screen/screen_segment.h"
 #include "layertrace/util/error.h"
+#include "layertrace/util/memory.h"
 #include "layertrace/util/parallel.h"
 
 namespace lt {
@@ -43,6 +44,7 @@ IntervalLayers solidIntervals(const Camera& camera, const CaptureCoverage& c, fl
   out.height = L.height;
   out.k = L.k;
   const size_t pixels = size_t(L.width) * size_t(L.height);
+  checkAllocation("the hybrid's solid intervals", pixels * (size_t(L.k) * sizeof(Interval) + 1));
   out.slots.resize(pixels * size_t(L.k));
   out.count.resize(pixels);
   parallelFor(size_t(0), pixels, [&](size_t p) {
@@ -75,6 +77,7 @@ KnownSpace::KnownSpace(const Camera& camera, const CaptureCoverage& coverage, co
     base.width = layers.width;
     base.height = layers.height;
     base.k = 1;
+    checkAllocation("the known-space pyramid", pixels * (sizeof(Interval) + 1) * 2);
     base.slots.resize(pixels);
     base.count.resize(pixels);
     parallelFor(size_t(0), pixels, [&](size_t p) {

@@ -12,6 +12,7 @@
 #include "layertrace/util/parallel.h"
 #include "layertrace/screen/quadtree.h"
 #include "layertrace/util/error.h"
+#include "layertrace/util/memory.h"
 
 namespace lt {
 
@@ -171,6 +172,7 @@ Quadtree buildQuadtree(const LayerArrays& layers, const Camera& camera, const Qu
     if (w == 1 && h == 1) break;
   }
   const float rootSize = float(1 << (t.levelCount() - 1));
+  checkAllocation(cat("the quad-tree (", t.nodesPerLayer * size_t(t.k), " nodes)"), t.nodesPerLayer * size_t(t.k) * sizeof(QuadNode));
   t.nodes.resize(t.nodesPerLayer * size_t(t.k));
   t.kindCounts.assign(t.levels.size(), {0, 0, 0});
   std::vector<float> w(size_t(t.width) * size_t(t.height));

@@ -1,0 +1,126 @@
+// Issue 16 §3: limits at scale. Every large structure states its size before it allocates and
+// is refused with one line naming it when that would break --max-memory; sizes parse with
+// units; the grid builds on scenes of degenerate extent (flat, tiny and far from the origin,
+// huge) and answers as Embree does there.
+#include <glm/geometric.hpp>
+
+#include "layertrace/geometry/embree_scene.h"
+#include "layertrace/geometry/irregular_grid.h"
+#include "layertrace/pipeline/tracer_factory.h"
+#include "layertrace/raster/rasterizer.h"
+#include "layertrace/scene/load.h"
+#include "layertrace/screen/quadtree.h"
+#include "layertrace/util/error.h"
+#include "layertrace/util/memory.h"
+#include "test_util.h"
+
+namespace lt {
+namespace {
+
+/// Sets --max-memory for one scope.
+struct MemoryLimit {
+  explicit MemoryLimit(uint64_t bytes) { setMemoryLimit(bytes); }
+  ~MemoryLimit() { setMemoryLimit(0); }
+};
+
+TEST(Limits, ByteSizesParseWithBinaryUnits) {
+  EXPECT_EQ(parseByteSize("--max-memory", "65536"), 65536u);
+  EXPECT_EQ(parseByteSize("--max-memory", "512M"), 512ull << 20);
+  EXPECT_EQ(parseByteSize("--max-memory", "2G"), 2ull << 30);
+  EXPECT_EQ(parseByteSize("--max-memory", "1.5GiB"), 3ull << 29);
+  EXPECT_EQ(parseByteSize("--max-memory", "4kb"), 4096u);
+  for (const char* bad : {"", "abc", "0", "-1G", "12Q", "1e30T", "nan"}) {
+    try {
+      parseByteSize("--max-memory", bad);
+      ADD_FAILURE() << "accepted " << bad;
+    } catch (const InputError& e) {
+      EXPECT_NE(std::string(e.what()).find("--max-memory"), std::string::npos) << e.what();
+    }
+  }
+}
+
+/// Expects `build` to throw an InputError that names `what` and the limit.
+template <class F>
+void expectRefused(const char* what, F&& build) {
+  try {
+    build();
+    ADD_FAILURE() << what << " was built past the limit";
+  } catch (const InputError& e) {
+    const std::string m = e.what();
+    EXPECT_NE(m.find(what), std::string::npos) << m;
+    EXPECT_NE(m.find("--max-memory"), std::string::npos) << m;
+    EXPECT_EQ(m.find('\n'), std::string::npos) << m;
+  }
+}
+
+// Every structure checks before it allocates: with a limit just above what the process holds,
+// each is refused by name; without the limit each builds.
+TEST(Limits, EveryStructureIsRefusedByNameBeforeItAllocates) {
+  Scene scene = makeSphere({0, 0, -6}, 2.0f, 256);  // 65 000 triangles
+  scene.append(makeBox({-8, -3, -12}, {8, 6, 1}));
+  scene.finalize("limits");
+  const Frame f = test::frameOf(scene, test::originCamera(), 640, 480, 4, 0.05f);
+  ASSERT_GT(scene.triangleCount(), 50000u);
+  {
+    const MemoryLimit limit(residentBytes() + (1u << 20));
+    expectRefused("fragment pool", [&] { rasterize(f.scene, f.camera); });
+    expectRefused("k-layer arrays", [&] { sortAndTruncate(f.lists, LayerConfig{}); });
+    expectRefused("interval", [&] { buildIntervalPyramid(f.layers, f.camera, PyramidConfig{}); });
+    expectRefused("quad-tree", [&] { buildQuadtree(f.layers, f.camera, QuadtreeConfig{}); });
+    expectRefused("Embree BVH", [&] { EmbreeScene e(f.scene, EmbreeScene::Mode::Fast); });
+    expectRefused("irregular grid", [&] { IrregularGrid g(f.scene); });
+    expectRefused("solid intervals", [&] { buildTracer("hybrid", f, TracerOptions{}); });
+  }
+  EXPECT_NO_THROW(IrregularGrid g(f.scene));
+  EXPECT_NO_THROW(buildTracer("hybrid", f, TracerOptions{}));
+}
+
+/// Mirror-ish rays from random points above a scene toward it; the grid must answer as Embree.
+void expectGridAgreesWithEmbree(const Scene& scene, glm::vec3 eye, glm::vec3 target, float spreadFraction) {
+  const IrregularGrid grid(scene);
+  const EmbreeScene embree(scene, EmbreeScene::Mode::Robust);
+  std::mt19937 rng(uint32_t(test::testSeed()));
+  std::uniform_real_distribution<float> u(-1.0f, 1.0f);
+  const float spread = spreadFraction * glm::length(target - eye);
+  size_t hits = 0, same = 0, n = 2000;
+  for (size_t i = 0; i < n; ++i) {
+    const glm::vec3 aim = target + spread * glm::vec3(u(rng), u(rng), u(rng)) * glm::vec3(1.0f, 1.0f, 0.0f);
+    const glm::vec3 d = glm::normalize(aim - eye);
+    const GeoHit a = grid.intersect(eye, d, 0.0f, 1e30f), b = embree.intersect(eye, d, 0.0f, 1e30f);
+    hits += b.hit();
+    same += a.hit() == b.hit() && (!a.hit() || a.triangle == b.triangle || std::abs(a.t - b.t) <= 1e-4f * b.t);
+  }
+  EXPECT_GT(hits, n / 4) << "too few hits for the comparison to mean anything";
+  EXPECT_GE(double(same), 0.999 * double(n));
+}
+
+// Degenerate extents never divide by zero: a flat scene (zero extent in z), a tiny scene a
+// million units from the origin (its size vanishes next to its coordinates in float), and a
+// huge one.
+TEST(Limits, GridBuildsOnFlatTinyFarAndHugeScenes) {
+  {
+    // Flat in z at z = -1e6: 1e-4 of the extent (20) is below the float spacing there (0.0625),
+    // so a padding relative to the extent alone leaves the box zero-thick.
+    SCOPED_TRACE("flat and far");
+    Scene s = makeQuad({-10, -10, -1e6f}, {20, 0, 0}, {0, 20, 0});
+    s.append(makeQuad({-2, -2, -1e6f}, {1, 0, 0}, {0, 1, 0}));
+    s.finalize("flat");
+    expectGridAgreesWithEmbree(s, {0.3f, 0.2f, -1e6f + 10.0f}, {0, 0, -1e6f}, 0.5f);
+  }
+  {
+    SCOPED_TRACE("tiny and far");
+    const glm::vec3 c(1e6f, -1e6f, 1e6f);
+    Scene s = makeBox(c, c + glm::vec3(0.5f));
+    s.finalize("tiny-far");
+    expectGridAgreesWithEmbree(s, c + glm::vec3(0.25f, 0.2f, 3.0f), c + glm::vec3(0.25f), 0.1f);
+  }
+  {
+    SCOPED_TRACE("huge");
+    Scene s = makeSphere({0, 0, 0}, 1e12f, 32);
+    s.finalize("huge");
+    expectGridAgreesWithEmbree(s, {1e11f, 2e11f, 5e12f}, {0, 0, 0}, 0.1f);
+  }
+}
+
+}  // namespace
+}  // namespace lt
