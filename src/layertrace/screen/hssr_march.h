@@ -103,6 +103,7 @@ MarchHit hssrMarch(const IntervalPyramid& pyramid, int levels, int nUp, const Sc
   // Parameter of the last zero-length (corner) cell the DDA stepped out of: a descent at that
   // same parameter must not go back into it (the oracle visits it once).
   float cornerLeft = -1.0f;
+  float sLast = -1.0f, zLast = 0.0f;  // the last depthAt(s) computed, for reuse
   const int safety = 8 * (W + H) * levels + 64;
   for (int guard = 0; guard < safety; ++guard) {
     const PyramidLevel& lvl = pyramid.levels[size_t(L)];
@@ -113,7 +114,10 @@ MarchHit hssrMarch(const IntervalPyramid& pyramid, int levels, int nUp, const Sc
     const float s1 = std::min(sOut, 1.0f);
     if (s0 > 1.0f) return {};  // the segment ended before this cell
     c.iteration(L);
-    const float za = seg.depthAt(s0), zb = seg.depthAt(s1);
+    // The exit of one cell is usually the entry of the next: reuse its depth (the same
+    // division of the same s, so bit-identical) instead of dividing again.
+    const float za = s0 == sLast ? zLast : seg.depthAt(s0), zb = seg.depthAt(s1);
+    sLast = s1, zLast = zb;
     float zmin = std::min(za, zb), zmax = std::max(za, zb);
     if (L == 0) {
       c.pixel();
