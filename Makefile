@@ -8,14 +8,23 @@ FUZZ_SECONDS ?= 60
 OUT    ?= out
 SCENE  ?= scenes/default.json
 
-.PHONY: deps build build-asan build-fuzz build-tsan run test fuzz fetch bench clean
+.PHONY: deps deps-run build build-cli build-asan build-fuzz build-tsan run test fuzz fetch bench clean
 
 deps:
 	scripts/install-deps.sh
 
+deps-run:
+	scripts/install-deps.sh --run
+
 build: deps
-	cmake -S . -B $(BUILD) -DCMAKE_BUILD_TYPE=Release >/dev/null
+	cmake -S . -B $(BUILD) -DCMAKE_BUILD_TYPE=Release -DBUILD_TESTING=ON -DLAYERTRACE_BENCH=ON >/dev/null
 	cmake --build $(BUILD) -j $(JOBS)
+
+# The CLI alone, in the same Release folder (make test later adds the tests and benchmarks to it
+# without rebuilding the library).
+build-cli: deps-run
+	cmake -S . -B $(BUILD) -DCMAKE_BUILD_TYPE=Release -DBUILD_TESTING=OFF -DLAYERTRACE_BENCH=OFF >/dev/null
+	cmake --build $(BUILD) -j $(JOBS) --target layertrace
 
 build-asan: deps
 	cmake -S . -B $(ASAN) -DCMAKE_BUILD_TYPE=Debug -DLAYERTRACE_SANITIZE=ON -DLAYERTRACE_COUNTERS=OFF -DLAYERTRACE_BENCH=OFF >/dev/null
@@ -40,7 +49,7 @@ fetch: deps
 	scripts/fetch-scenes.sh
 
 # The main job on the embedded default scene.
-run: build
+run: build-cli
 	@mkdir -p $(OUT)
 	$(BUILD)/layertrace render $(SCENE) --tracer hssr --effect reflection --bounces 2 \
 	    -o $(OUT)/default_hssr_reflection.png --stats $(OUT)/default_hssr_reflection.json

@@ -3,13 +3,16 @@
 # Starts from a minimal Debian 12 that has only git and make. Uses sudo when not root.
 set -euo pipefail
 
+# `--run`: only what building and running the CLI needs (`make run`); without it also the
+# tests, benchmarks, fuzzers (clang), scene fetching and plots (`make test`).
 packages=(
   build-essential cmake pkg-config ca-certificates
   libembree-dev libassimp-dev libtbb-dev libglm-dev libcli11-dev nlohmann-json3-dev
-  libopenexr-dev libgtest-dev libbenchmark-dev libstb-dev
-  python3 python3-matplotlib unzip zip
-  clang-16 libclang-rt-16-dev
+  libopenexr-dev libstb-dev
 )
+if [ "${1:-}" != "--run" ]; then
+  packages+=(libgtest-dev libbenchmark-dev python3 python3-matplotlib unzip zip clang-16 libclang-rt-16-dev)
+fi
 # No npm: the default scene's small bunny is committed as an OBJ (scenes/default/bunny.obj).
 
 missing=()
