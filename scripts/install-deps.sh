@@ -8,7 +8,7 @@ set -euo pipefail
 packages=(
   build-essential cmake pkg-config ca-certificates
   libembree-dev libassimp-dev libtbb-dev libglm-dev libcli11-dev nlohmann-json3-dev
-  libopenexr-dev libstb-dev
+  libopenexr-dev libstb-dev zlib1g-dev
 )
 if [ "${1:-}" != "--run" ]; then
   packages+=(libgtest-dev libbenchmark-dev python3 python3-matplotlib unzip zip clang-16 libclang-rt-16-dev)

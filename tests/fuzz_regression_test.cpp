@@ -92,5 +92,84 @@ TEST(FuzzRegression, ZipBombPk3IsRefusedBeforeImport) {
   EXPECT_THROW(checkArchiveSizes(small, 199), InputError);  // the total limit, exactly
 }
 
+// fuzz_pk3: assimp's Q3BSP importer followed a lump directory past the end of a truncated map
+// (heap-use-after-free under ASan). The map is now checked before assimp reads it.
+TEST(FuzzRegression, MalformedQuake3MapsAreRefusedBeforeImport) {
+  const auto files = regressions("pk3");
+  ASSERT_FALSE(files.empty());
+  test::TempDir dir;
+  for (const auto& f : files) {
+    SCOPED_TRACE(f.filename().string());
+    const std::string copy = dir / "map.pk3";
+    std::ofstream(copy, std::ios::binary) << slurpFile(f);
+    try {
+      loadModel(copy);
+      ADD_FAILURE() << "no error";
+    } catch (const InputError& e) {
+      EXPECT_NE(std::string(e.what()).find("malformed Quake 3 map"), std::string::npos) << e.what();
+      EXPECT_NE(std::string(e.what()).find("map.pk3:maps/"), std::string::npos) << e.what();
+    }
+  }
+}
+
+/// A one-triangle Quake 3 map (IBSP 46): one texture, three vertices, three mesh vertices, one
+/// polygon face; the other lumps empty.
+std::string tinyBsp() {
+  auto u32 = [](std::string& s, int32_t v) {
+    for (int i = 0; i < 4; ++i) s += char((uint32_t(v) >> (8 * i)) & 0xFF);
+  };
+  std::string textures(72, '\0'), vertices(3 * 44, '\0'), meshVerts, face;
+  for (int v = 0; v < 3; ++v) u32(meshVerts, v);
+  for (int32_t x : {0, -1, 1, 0, 3, 0, 3, -1}) u32(face, x);  // texture, effect, type 1, vertex 0+3, mesh vertex 0+3, lightmap
+  face.resize(104, '\0');
+  std::string bsp = "IBSP";
+  u32(bsp, 46);
+  int32_t offset = 8 + 8 * 17;
+  std::string body;
+  for (int l = 0; l < 17; ++l) {
+    const std::string& data = l == 1 ? textures : l == 10 ? vertices : l == 11 ? meshVerts : l == 13 ? face : std::string();
+    u32(bsp, offset + int32_t(body.size())), u32(bsp, int32_t(data.size()));
+    body += data;
+  }
+  return bsp + body;
+}
+
+void setI32(std::string& s, size_t at, int32_t v) {
+  for (int i = 0; i < 4; ++i) s[at + size_t(i)] = char((uint32_t(v) >> (8 * i)) & 0xFF);
+}
+
+// Every field the importer follows is checked; each single corruption is refused by name.
+TEST(FuzzRegression, Quake3MapChecksCoverEveryIndexTheImporterFollows) {
+  auto check = [](const std::string& b) { validateQuake3Bsp(reinterpret_cast<const unsigned char*>(b.data()), b.size(), "t.bsp"); };
+  const std::string good = tinyBsp();
+  try {
+    check(good);
+  } catch (const InputError& e) {
+    FAIL() << e.what();
+  }
+  const size_t faceAt = good.size() - 104, meshAt = faceAt - 12;
+  struct Corruption {
+    size_t at;
+    int32_t value;
+    const char* message;
+  };
+  for (const Corruption c : {Corruption{4, 47, "version 47"}, Corruption{8 + 8 * 10, 1 << 30, "lump 10"},
+                             Corruption{8 + 8 * 13 + 4, 100, "not a multiple"}, Corruption{faceAt, 1, "texture 1"},
+                             Corruption{faceAt + 8, 7, "type 7"}, Corruption{faceAt + 16, 4, "vertices 0+4"},
+                             Corruption{faceAt + 24, 4, "mesh vertices 0+4"}, Corruption{faceAt + 28, 0, "lightmap 0"},
+                             Corruption{meshAt + 8, 3, "mesh vertex 2 is 3"}}) {
+    std::string b = good;
+    setI32(b, c.at, c.value);
+    try {
+      check(b);
+      ADD_FAILURE() << "accepted: " << c.message;
+    } catch (const InputError& e) {
+      EXPECT_NE(std::string(e.what()).find(c.message), std::string::npos) << c.message << ": " << e.what();
+    }
+  }
+  EXPECT_THROW(check(good.substr(0, 100)), InputError);
+}
+
 }  // namespace
 }  // namespace lt
+

@@ -4,6 +4,7 @@
 #include <filesystem>
 #include <fstream>
 #include <functional>
+#include <iterator>
 #include <memory>
 #include <vector>
 
@@ -14,6 +15,8 @@
 
 #include <fcntl.h>
 #include <unistd.h>
+
+#include <zlib.h>
 
 #include <assimp/Importer.hpp>
 #include <assimp/postprocess.h>
@@ -195,41 +198,115 @@ uint16_t le16(const unsigned char* p) { return uint16_t(p[0] | p[1] << 8); }
 
 }  // namespace
 
-void checkArchiveSizes(const std::string& path, uint64_t maxTotalBytes) {
-  std::ifstream in(path, std::ios::binary | std::ios::ate);
-  if (!in) inputError("scene ", path, ": cannot open");
-  const auto size = uint64_t(in.tellg());
-  // Reads `n` bytes at `offset`, or fails naming what was being read.
-  auto read = [&](uint64_t offset, uint64_t n, const char* what) {
+namespace {
+
+/// One entry of a zip central directory.
+struct ZipEntry {
+  std::string name;
+  uint16_t method = 0;
+  uint64_t packed = 0, unpacked = 0, localHeader = 0;
+};
+
+/// A zip archive's central directory, read without trusting it: every offset is checked
+/// against the file before it is followed.
+class ZipDirectory {
+ public:
+  explicit ZipDirectory(const std::string& path) : path_(path), in_(path, std::ios::binary | std::ios::ate) {
+    if (!in_) inputError("scene ", path, ": cannot open");
+    size_ = uint64_t(in_.tellg());
+    // The end-of-central-directory record lies in the last 64 KiB + 22 bytes.
+    const uint64_t tailSize = std::min<uint64_t>(size_, 65557);
+    const std::vector<unsigned char> tail = read(size_ - tailSize, tailSize, "end record");
+    const unsigned char* e = nullptr;
+    for (size_t i = tail.size() >= 22 ? tail.size() - 22 + 1 : 0; i-- > 0 && !e;)
+      if (le32(&tail[i]) == 0x06054b50u) e = &tail[i];
+    if (!e) inputError("scene ", path, ": not a zip archive (no end of central directory)");
+    const uint64_t count = le16(e + 10), cdSize = le32(e + 12), cdOffset = le32(e + 16);
+    if (cdOffset + cdSize > size_) inputError("scene ", path, ": zip central directory lies beyond the end of the file");
+    const std::vector<unsigned char> cd = read(cdOffset, cdSize, "central directory");
+    size_t at = 0;
+    for (uint64_t n = 0; n < count; ++n) {
+      if (at + 46 > cd.size() || le32(&cd[at]) != 0x02014b50u) inputError("scene ", path, ": malformed zip central directory");
+      const unsigned char* h = &cd[at];
+      const size_t nameLength = le16(h + 28);
+      if (at + 46 + nameLength > cd.size()) inputError("scene ", path, ": malformed zip central directory");
+      ZipEntry z;
+      z.name.assign(reinterpret_cast<const char*>(h + 46), nameLength);
+      // ZIP64 markers (0xFFFFFFFF) count as the largest size they stand for.
+      z.method = le16(h + 10), z.packed = le32(h + 20), z.unpacked = le32(h + 24), z.localHeader = le32(h + 42);
+      if (z.unpacked == 0xFFFFFFFFu) z.unpacked = uint64_t(1) << 32;
+      entries.push_back(std::move(z));
+      at += 46 + nameLength + le16(h + 30) + le16(h + 32);
+    }
+  }
+
+  /// Reads `n` bytes at `offset`, or fails naming what was being read.
+  std::vector<unsigned char> read(uint64_t offset, uint64_t n, const char* what) {
+    if (offset > size_ || n > size_ - offset) inputError("scene ", path_, ": the zip ", what, " lies beyond the end of the file");
     std::vector<unsigned char> bytes(n);
-    in.seekg(std::streamoff(offset));
-    if (!in.read(reinterpret_cast<char*>(bytes.data()), std::streamsize(n))) inputError("scene ", path, ": cannot read the zip ", what);
+    in_.clear();
+    in_.seekg(std::streamoff(offset));
+    if (!in_.read(reinterpret_cast<char*>(bytes.data()), std::streamsize(n))) inputError("scene ", path_, ": cannot read the zip ", what);
     return bytes;
-  };
-  // The end-of-central-directory record lies in the last 64 KiB + 22 bytes.
-  const uint64_t tailSize = std::min<uint64_t>(size, 65557);
-  const std::vector<unsigned char> tail = read(size - tailSize, tailSize, "end record");
-  const unsigned char* e = nullptr;
-  for (size_t i = tail.size() >= 22 ? tail.size() - 22 + 1 : 0; i-- > 0 && !e;)
-    if (le32(&tail[i]) == 0x06054b50u) e = &tail[i];
-  if (!e) inputError("scene ", path, ": not a zip archive (no end of central directory)");
-  const uint64_t entries = le16(e + 10), cdSize = le32(e + 12), cdOffset = le32(e + 16);
-  if (cdOffset + cdSize > size) inputError("scene ", path, ": zip central directory lies beyond the end of the file");
-  const std::vector<unsigned char> cd = read(cdOffset, cdSize, "central directory");
+  }
+
+  /// The entry's bytes, inflated (stored and deflated entries; the only methods .pk3 files use).
+  std::vector<unsigned char> contents(const ZipEntry& z) {
+    const std::vector<unsigned char> local = read(z.localHeader, 30, "local header");
+    if (le32(local.data()) != 0x04034b50u) inputError("scene ", path_, ": malformed zip local header of ", z.name);
+    const std::vector<unsigned char> packed = read(z.localHeader + 30 + le16(&local[26]) + le16(&local[28]), z.packed, "entry data");
+    if (z.method == 0) return packed;
+    if (z.method != 8) inputError("scene ", path_, ": zip entry ", z.name, " uses compression method ", z.method);
+    std::vector<unsigned char> out(z.unpacked);
+    z_stream zs{};
+    if (inflateInit2(&zs, -MAX_WBITS) != Z_OK) throw InternalError("zlib: inflateInit2 failed");
+    zs.next_in = const_cast<unsigned char*>(packed.data()), zs.avail_in = uInt(packed.size());
+    zs.next_out = out.data(), zs.avail_out = uInt(out.size());
+    const int rc = inflate(&zs, Z_FINISH);
+    const uint64_t produced = zs.total_out;
+    inflateEnd(&zs);
+    if (rc != Z_STREAM_END || produced != z.unpacked)
+      inputError("scene ", path_, ": zip entry ", z.name, " does not inflate to its declared ", z.unpacked, " bytes");
+    return out;
+  }
+
+  std::vector<ZipEntry> entries;
+
+ private:
+  std::string path_;
+  std::ifstream in_;
+  uint64_t size_ = 0;
+};
+
+bool endsWithBsp(const std::string& name) {
+  if (name.size() < 4) return false;
+  std::string ext = name.substr(name.size() - 4);
+  std::transform(ext.begin(), ext.end(), ext.begin(), [](unsigned char ch) { return std::tolower(ch); });
+  return ext == ".bsp";
+}
+
+}  // namespace
+
+void checkArchiveSizes(const std::string& path, uint64_t maxTotalBytes) {
+  const ZipDirectory zip(path);
   uint64_t total = 0;
-  size_t at = 0;
-  for (uint64_t n = 0; n < entries; ++n) {
-    if (at + 46 > cd.size() || le32(&cd[at]) != 0x02014b50u) inputError("scene ", path, ": malformed zip central directory");
-    const unsigned char* h = &cd[at];
-    // ZIP64 markers (0xFFFFFFFF) count as the largest size they stand for.
-    const uint64_t packed = le32(h + 20), unpacked = le32(h + 24);
-    total += unpacked == 0xFFFFFFFFu ? uint64_t(1) << 32 : unpacked;
-    if (unpacked > (uint64_t(64) << 20) && unpacked / std::max<uint64_t>(packed, 1) > 1000)
-      inputError("scene ", path, ": zip entry ", n, " expands ", unpacked, " bytes from ", packed, " (a zip bomb?)");
-    at += 46 + size_t(le16(h + 28)) + le16(h + 30) + le16(h + 32);
+  for (size_t n = 0; n < zip.entries.size(); ++n) {
+    const ZipEntry& z = zip.entries[n];
+    total += z.unpacked;
+    if (z.unpacked > (uint64_t(64) << 20) && z.unpacked / std::max<uint64_t>(z.packed, 1) > 1000)
+      inputError("scene ", path, ": zip entry ", n, " expands ", z.unpacked, " bytes from ", z.packed, " (a zip bomb?)");
   }
   if (total > maxTotalBytes)
     inputError("scene ", path, ": archive declares ", total, " bytes uncompressed, more than the limit of ", maxTotalBytes);
+}
+
+void checkQuake3Archive(const std::string& path) {
+  ZipDirectory zip(path);
+  for (const ZipEntry& z : zip.entries)
+    if (endsWithBsp(z.name)) {
+      const std::vector<unsigned char> bsp = zip.contents(z);
+      validateQuake3Bsp(bsp.data(), bsp.size(), path + ":" + z.name);
+    }
 }
 
 void setModelImportTimeout(unsigned seconds) { gImportTimeout = seconds; }
@@ -242,7 +319,12 @@ Scene loadModel(const std::string& path, const glm::mat4& transform) {
   std::transform(ext.begin(), ext.end(), ext.begin(), [](unsigned char ch) { return std::tolower(ch); });
   const bool q3 = isQuake3(ext);
   // assimp inflates archive entries into memory: refuse what declares more than it could hold.
-  if (ext == ".pk3") checkArchiveSizes(path, kMaxArchiveBytes);
+  if (ext == ".pk3") checkArchiveSizes(path, kMaxArchiveBytes), checkQuake3Archive(path);
+  if (ext == ".bsp") {
+    std::ifstream in(path, std::ios::binary);
+    const std::vector<unsigned char> bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+    validateQuake3Bsp(bytes.data(), bytes.size(), path);
+  }
   auto importer = std::make_unique<Assimp::Importer>();
   const unsigned flags = configureImporter(*importer, q3);
   const aiScene* as = guardedImport(importer, path, [&] { return importer->ReadFile(path, flags); });
