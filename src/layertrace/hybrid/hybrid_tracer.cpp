@@ -76,8 +76,6 @@ float HybridTracer::lengthInScene(glm::vec3 o, glm::vec3 d, float maxDistance) c
   return tExit > 0.0f ? tExit : maxDistance;
 }
 
-/// A segment [from, from + length] of ray `ray` as a ray from free space (its hits' points are
-/// camera-space points of the original ray).
 Ray HybridTracer::segment(const Ray& ray, float from, float to) {
   Ray g = ray;
   g.origin = ray.origin + ray.dir * from;
@@ -128,18 +126,21 @@ void HybridTracer::run(Query q, std::span<const Ray> rays, std::span<TraceHit> h
   uint64_t rejected = 0;
   for (size_t i = 0; i < n; ++i) {
     const Ray& r = rays[i];
+    const TraceHit& sh = s.screenHits[i];
     int x, y;
-    if (r.startsOnSurface && camera_.pixelOf(r.origin, x, y)) {
+    const bool onScreen = r.startsOnSurface && camera_.pixelOf(r.origin, x, y);
+    if (!onScreen && !sh.hit) continue;
+    const ScreenSegment seg = makeScreenSegment(camera_, r);
+    if (onScreen) {
       // 6: the ray's own pixel, which screen tracers skip, up to two pixels past it.
-      s.geoRays.push_back(segment(r, 0.0f, rayParamsAroundPixel(camera_, r, x, y, kPixelMargin).after));
+      s.geoRays.push_back(segment(r, 0.0f, rayParamsAroundPixel(camera_, r, seg, x, y, kPixelMargin).after));
       s.geoIndex.push_back(uint32_t(i));
     }
-    const TraceHit& sh = s.screenHits[i];
     if (!sh.hit) continue;
     // 3: the ray against the triangles of the hit pixel's layers up to the hit one, anywhere
     // up to two pixels past the hit pixel (a grazing ray meets the surface a few pixels before
     // its samples say so).
-    const ParamSpan span = rayParamsAroundPixel(camera_, r, sh.x, sh.y, kPixelMargin);
+    const ParamSpan span = rayParamsAroundPixel(camera_, r, seg, sh.x, sh.y, kPixelMargin);
     const GeoHit v = pixelHit(camera_.toWorld(r.origin), camera_.dirToWorld(r.dir), sh.x, sh.y, sh.layer + 1,
                               GeometricHits::originOffset(r), span.after);
     if (!v.hit()) {

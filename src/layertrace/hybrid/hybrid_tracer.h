@@ -35,9 +35,7 @@
 // deeper than its 20-footprint interval.
 #pragma once
 
-#include <atomic>
 #include <cstdint>
-#include <string>
 #include <vector>
 
 #include <tbb/enumerable_thread_specific.h>
@@ -54,8 +52,11 @@ namespace lt {
 /// Who answered the rays of a run (sums since the last reset).
 struct HybridStats {
   uint64_t rays = 0;
-  uint64_t screenHits = 0;       ///< answered by a checked screen hit (or the origin pixel check)
-  uint64_t certainMisses = 0;    ///< answered by a miss in known space
+  /// Answered where screen space located the answer: a checked screen hit (the geometric
+  /// windows that certify it may move it to a neighbouring triangle) or a hit in the origin
+  /// pixel's window.
+  uint64_t screenHits = 0;
+  uint64_t certainMisses = 0;    ///< answered by a miss in known space (any-hit queries only)
   uint64_t geoRays = 0;          ///< handed to the geometric tracer
   uint64_t rejectedHits = 0;     ///< of those: screen hits the exact check rejected
   double geoLengthSum = 0.0;     ///< geometric segment length / the ray's length in the scene
@@ -86,7 +87,8 @@ class HybridTracer : public Tracer {
   void run(Query q, std::span<const Ray> rays, std::span<TraceHit> hits, std::span<RayCounters> counters) const;
   /// The geometric tracer on s.geoRays; counts go to the rays of s.geoIndex.
   void geoQuery(Query q, Scratch& s, std::span<RayCounters> counters) const;
-  /// [from, to] of `ray` as a ray from free space.
+  /// [from, to] of `ray` as a ray from free space (its hits' points are camera-space points of
+  /// the original ray).
   static Ray segment(const Ray& ray, float from, float to);
   /// Ray (world space) against one scene triangle, t in [tmin, tmax].
   bool hitsTriangle(glm::vec3 o, glm::vec3 d, uint32_t triangle, float tmin, float tmax, float& t) const;

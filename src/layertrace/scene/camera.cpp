@@ -70,12 +70,7 @@ CameraDesc withClipPlanes(CameraDesc d, const Scene& scene) {
   const Bounds b = scene.bounds();
   if (d.near <= 0.0f) d.near = std::max(1e-4f, 1e-4f * b.diagonal());
   if (d.far <= 0.0f) {
-    float farthest = 0.0f;
-    for (int i = 0; i < 8; ++i) {
-      const glm::vec3 corner((i & 1) ? b.hi.x : b.lo.x, (i & 2) ? b.hi.y : b.lo.y, (i & 4) ? b.hi.z : b.lo.z);
-      farthest = std::max(farthest, glm::length(corner - d.eye));
-    }
-    d.far = std::max(farthest * 1.01f, d.near * 10.0f);
+    d.far = std::max(b.farthestFrom(d.eye) * 1.01f, d.near * 10.0f);
   }
   if (!(d.far > d.near)) inputError("camera ", d.name, ": far ", d.far, " is not beyond near ", d.near);
   return d;

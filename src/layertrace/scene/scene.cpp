@@ -16,6 +16,14 @@ void Bounds::extend(glm::vec3 p) {
 
 float Bounds::diagonal() const { return empty() ? 0.0f : glm::length(hi - lo); }
 
+float Bounds::farthestFrom(glm::vec3 p) const {
+  if (empty()) return 0.0f;
+  float farthest = 0.0f;
+  for (int i = 0; i < 8; ++i)
+    farthest = std::max(farthest, glm::length(glm::vec3((i & 1) ? hi.x : lo.x, (i & 2) ? hi.y : lo.y, (i & 4) ? hi.z : lo.z) - p));
+  return farthest;
+}
+
 Bounds Scene::bounds() const {
   Bounds b;
   for (const glm::uvec3& t : triangles)

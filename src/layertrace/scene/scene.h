@@ -49,6 +49,8 @@ struct Bounds {
   bool empty() const { return lo.x > hi.x; }
   glm::vec3 center() const { return (lo + hi) * 0.5f; }
   float diagonal() const;
+  /// Distance from p to the farthest corner of the box (0 when empty).
+  float farthestFrom(glm::vec3 p) const;
 };
 
 struct Scene {

@@ -89,16 +89,7 @@ KnownSpace::KnownSpace(const Camera& camera, const CaptureCoverage& coverage, co
     pyramid_ = buildIntervalPyramid(std::move(base), camera, PyramidConfig{std::clamp(levels, 1, 16), kInf});
   }
   // Rule 2: the rasterizer clipped everything beyond the far plane.
-  if (!sceneBounds.empty()) {
-    float farthest = 0.0f;
-    const glm::vec3 eye = camera.desc().eye;
-    for (int i = 0; i < 8; ++i) {
-      const glm::vec3 c((i & 1) ? sceneBounds.hi.x : sceneBounds.lo.x, (i & 2) ? sceneBounds.hi.y : sceneBounds.lo.y,
-                        (i & 4) ? sceneBounds.hi.z : sceneBounds.lo.z);
-      farthest = std::max(farthest, glm::length(c - eye));
-    }
-    if (camera.far() < farthest) farLimit_ = camera.far();
-  }
+  if (camera.far() < sceneBounds.farthestFrom(camera.desc().eye)) farLimit_ = camera.far();
   buildMs_ = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
 }
 
@@ -117,10 +108,8 @@ KnownSpace::Boundary KnownSpace::boundary(const Ray& ray, C& c) const {
     if (std::max(seg.depthAt(0.0f), seg.depthAt(s)) > farLimit_ && sFar >= 0.0f && sFar < s) s = sFar, leaves = true;
   }
   if (!leaves) return {ray.maxDistance, ray.maxDistance};
-  const glm::vec2 d = seg.p1 - seg.p0;
-  const float onePixel = 1.0f / std::max({std::abs(d.x), std::abs(d.y), 1e-6f});
   const float known = rayParamAt(camera_, ray, seg, s);
-  return {known, std::min(known, rayParamAt(camera_, ray, seg, std::max(0.0f, s - onePixel)))};
+  return {known, std::min(known, rayParamAt(camera_, ray, seg, std::max(0.0f, s - seg.pixelParam(1.0f))))};
 }
 
 template KnownSpace::Boundary KnownSpace::boundary(const Ray&, RayCounters&) const;

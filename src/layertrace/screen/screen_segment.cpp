@@ -75,8 +75,12 @@ float rayParamAt(const Camera& camera, const Ray& ray, const ScreenSegment& seg,
   return std::clamp(glm::dot(p - ray.origin, ray.dir), 0.0f, ray.maxDistance);
 }
 
-ParamSpan rayParamsAroundPixel(const Camera& camera, const Ray& ray, int x, int y, float margin) {
-  const ScreenSegment seg = makeScreenSegment(camera, ray);
+float ScreenSegment::pixelParam(float pixels) const {
+  const glm::vec2 d = p1 - p0;
+  return pixels / std::max({std::abs(d.x), std::abs(d.y), 1e-6f});
+}
+
+ParamSpan rayParamsAroundPixel(const Camera& camera, const Ray& ray, const ScreenSegment& seg, int x, int y, float margin) {
   if (!seg.valid) return {0.0f, ray.maxDistance};
   // Liang–Barsky: where the 2D segment enters and leaves the pixel's square.
   const glm::vec2 d = seg.p1 - seg.p0;
@@ -88,7 +92,7 @@ ParamSpan rayParamsAroundPixel(const Camera& camera, const Ray& ray, int x, int 
     sIn = std::max(sIn, std::min(s0, s1));
     sOut = std::min(sOut, std::max(s0, s1));
   }
-  const float m = margin / std::max({std::abs(d.x), std::abs(d.y), 1e-6f});
+  const float m = seg.pixelParam(margin);
   const float after = !seg.clippedEnd && sOut + m >= 1.0f ? ray.maxDistance : rayParamAt(camera, ray, seg, std::clamp(sOut + m, 0.0f, 1.0f));
   return {rayParamAt(camera, ray, seg, std::clamp(sIn - m, 0.0f, 1.0f)), after};
 }

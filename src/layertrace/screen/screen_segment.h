@@ -33,6 +33,8 @@ struct ScreenSegment {
 
   float depthAt(float s) const { return 1.0f / (k0 + s * (k1 - k0)); }
   glm::vec2 pointAt(float s) const { return p0 + s * (p1 - p0); }
+  /// The screen parameter `pixels` pixels of motion along the segment's major axis span.
+  float pixelParam(float pixels) const;
   /// Screen parameter where the ray's depth equals `depth` (any s if the depth is constant).
   float paramAtDepth(float depth) const { return k1 != k0 ? (1.0f / depth - k0) / (k1 - k0) : 0.0f; }
 };
@@ -50,6 +52,7 @@ float rayParamAt(const Camera& camera, const Ray& ray, const ScreenSegment& seg,
 struct ParamSpan {
   float before = 0.0f, after = 0.0f;
 };
-ParamSpan rayParamsAroundPixel(const Camera& camera, const Ray& ray, int x, int y, float margin);
+/// `seg` = makeScreenSegment(camera, ray).
+ParamSpan rayParamsAroundPixel(const Camera& camera, const Ray& ray, const ScreenSegment& seg, int x, int y, float margin);
 
 }  // namespace lt
