@@ -27,6 +27,7 @@
 
 #include "layertrace/scene/load.h"
 #include "layertrace/util/error.h"
+#include "layertrace/util/memory.h"
 
 namespace lt {
 namespace fs = std::filesystem;
@@ -257,6 +258,7 @@ class ZipDirectory {
     const std::vector<unsigned char> packed = read(z.localHeader + 30 + le16(&local[26]) + le16(&local[28]), z.packed, "entry data");
     if (z.method == 0) return packed;
     if (z.method != 8) inputError("scene ", path_, ": zip entry ", z.name, " uses compression method ", z.method);
+    checkAllocation(cat("scene ", path_, ": zip entry ", z.name), z.unpacked);
     std::vector<unsigned char> out(z.unpacked);
     z_stream zs{};
     if (inflateInit2(&zs, -MAX_WBITS) != Z_OK) throw InternalError("zlib: inflateInit2 failed");
@@ -285,10 +287,7 @@ bool endsWithBsp(const std::string& name) {
   return ext == ".bsp";
 }
 
-}  // namespace
-
-void checkArchiveSizes(const std::string& path, uint64_t maxTotalBytes) {
-  const ZipDirectory zip(path);
+void checkSizes(const ZipDirectory& zip, const std::string& path, uint64_t maxTotalBytes) {
   uint64_t total = 0;
   for (size_t n = 0; n < zip.entries.size(); ++n) {
     const ZipEntry& z = zip.entries[n];
@@ -300,13 +299,22 @@ void checkArchiveSizes(const std::string& path, uint64_t maxTotalBytes) {
     inputError("scene ", path, ": archive declares ", total, " bytes uncompressed, more than the limit of ", maxTotalBytes);
 }
 
-void checkQuake3Archive(const std::string& path) {
-  ZipDirectory zip(path);
+void checkMaps(ZipDirectory& zip, const std::string& path) {
   for (const ZipEntry& z : zip.entries)
     if (endsWithBsp(z.name)) {
       const std::vector<unsigned char> bsp = zip.contents(z);
       validateQuake3Bsp(bsp.data(), bsp.size(), path + ":" + z.name);
     }
+}
+
+}  // namespace
+
+void checkArchiveSizes(const std::string& path, uint64_t maxTotalBytes) { checkSizes(ZipDirectory(path), path, maxTotalBytes); }
+
+void checkQuake3Archive(const std::string& path, uint64_t maxTotalBytes) {
+  ZipDirectory zip(path);
+  checkSizes(zip, path, maxTotalBytes);
+  checkMaps(zip, path);
 }
 
 void setModelImportTimeout(unsigned seconds) { gImportTimeout = seconds; }
@@ -319,7 +327,7 @@ Scene loadModel(const std::string& path, const glm::mat4& transform) {
   std::transform(ext.begin(), ext.end(), ext.begin(), [](unsigned char ch) { return std::tolower(ch); });
   const bool q3 = isQuake3(ext);
   // assimp inflates archive entries into memory: refuse what declares more than it could hold.
-  if (ext == ".pk3") checkArchiveSizes(path, kMaxArchiveBytes), checkQuake3Archive(path);
+  if (ext == ".pk3") checkQuake3Archive(path, kMaxArchiveBytes);
   if (ext == ".bsp") {
     std::ifstream in(path, std::ios::binary);
     const std::vector<unsigned char> bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
