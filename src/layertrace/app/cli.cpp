@@ -101,6 +101,9 @@ void addTracerOptions(CLI::App* app, lt::TracerOptions& t) {
   app->add_option("--gamma-dist", t.quadtree.gammaDist, "quadtree: merge planes within this relative depth")->capture_default_str();
   app->add_option("--hybrid-screen", t.hybridScreen, "hybrid: the screen tracer (hssr, hiz, quadtree)")->capture_default_str();
   app->add_option("--hybrid-geo", t.hybridGeo, "hybrid: the geometric tracer for what the layers do not know (embree, grid)")->capture_default_str();
+  app->add_option("--ldc-resolution", t.ldc.resolution, "ldc: texels along the scene box's longest axis (seed 004: 512, 1024)")->capture_default_str();
+  app->add_option("--ldc-block", t.ldc.block, "ldc: coarse min/max block edge in texels (seed 004 §1.3)")->capture_default_str();
+  app->add_option("--ldc-epsilon", t.ldc.epsilon, "ldc: hit tolerance in texels (a sample's patch is widened by this much)")->capture_default_str();
   addGridOptions(app, t.grid);
 }
 
@@ -164,7 +167,7 @@ int runCli(int argc, const char* const* argv, CliMode mode) {
   std::string effectName = "reflection";
   CLI::App* renderCmd = app.add_subcommand("render", "image of one effect traced with one tracer");
   addFrameOptions(renderCmd, render.run, renderRaw);
-  renderCmd->add_option("--tracer", render.tracer, "ssr | ssr-layers | hiz | hssr | quadtree | embree | grid")->capture_default_str();
+  renderCmd->add_option("--tracer", render.tracer, "ssr | ssr-layers | hiz | hssr | quadtree | ldc | hybrid | embree | grid")->capture_default_str();
   addEffectOptions(renderCmd, render.effect, effectName, renderRaw);
   addTracerOptions(renderCmd, render.tracers);
   renderCmd->add_flag("--check-exhaustive", render.checkExhaustive, "trace every ray with the exhaustive oracle too; count differences");
@@ -176,7 +179,7 @@ int runCli(int argc, const char* const* argv, CliMode mode) {
   std::string compareEffect = "reflection", compareTracers = "ssr,ssr-layers,hssr";
   CLI::App* compareCmd = app.add_subcommand("compare", "same rays through several tracers + Embree: accuracy and cost table");
   addFrameOptions(compareCmd, compare.run, compareRaw);
-  compareCmd->add_option("--tracers", compareTracers, "comma list of ssr, ssr-layers, hiz, hssr, quadtree, embree, grid")->capture_default_str();
+  compareCmd->add_option("--tracers", compareTracers, "comma list of ssr, ssr-layers, hiz, hssr, quadtree, ldc, hybrid, embree, grid")->capture_default_str();
   addEffectOptions(compareCmd, compare.effect, compareEffect, compareRaw);
   addTracerOptions(compareCmd, compare.options);
   compareCmd->add_option("--report", compare.report, "also write an HTML report (one self-contained page) to this folder");

@@ -92,6 +92,9 @@ void writePixelStats(const std::string& dir, const EffectResult& r);
 /// The `quadtree` stats block: thresholds, nodes per level and kind, visits per kind.
 nlohmann::json quadtreeStats(const Quadtree& tree, const QuadtreeConfig& config, const EffectResult& r);
 
+/// The `ldc` stats block: build time, memory and samples per axis, lost triangles, visits per ray.
+nlohmann::json ldcStats(const LayeredDepthCube& ldc, const EffectResult& r);
+
 /// The `hybrid` stats block (DESIGN.md: screen_fraction, geo_fraction, geo_length_mean) of the
 /// tracer's runs since its last reset; null for any other tracer.
 nlohmann::json hybridStats(const BuiltTracer& built, const TracerOptions& options);

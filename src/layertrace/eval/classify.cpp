@@ -59,6 +59,19 @@ bool inWidenedInterval(const FragmentNode& f, const TraceHit& truth, glm::vec3 d
   return f.depth - delta <= z && z <= f.back() + delta;
 }
 
+/// A hit on no camera layer is as close to the true one as a screen tracer's must be: within 1.5
+/// pixel footprints across the ray and along it, where a surface seen at a grazing angle (true
+/// normal n) may add up to 20 footprints — the screen rules' δ, measured at the true point's
+/// distance from the eye so that it also applies off screen.
+bool withinOnePixel(glm::vec3 reported, const TraceHit& truth, glm::vec3 dir, const Camera& camera) {
+  const float footprint = camera.pixelFootprint(std::max(glm::length(truth.point), camera.near()));
+  const glm::vec3 diff = reported - truth.point;
+  const float along = glm::dot(diff, dir), across = glm::length(diff - dir * along);
+  const float cosine = std::abs(glm::dot(dir, truth.normal));
+  const float slope = std::min(20.0f, cosine > 0.0f ? 1.0f / cosine : 20.0f);
+  return across <= 1.5f * footprint && std::abs(along) <= 1.5f * footprint * slope;
+}
+
 }  // namespace
 
 bool storedInLayers(const TraceHit& truth, glm::vec3 dir, const Camera& camera, const LayerArrays& layers) {
@@ -84,10 +97,10 @@ RayClass classifyRay(const Ray& ray, const TraceHit& tracer, const TraceHit& tru
   const bool inOriginPixel = truthOnScreen && tx == ox && ty == oy;
   if (tracer.hit) {
     if (query == Query::Any) return truth.hit ? RayClass::CorrectHit : RayClass::WrongHitThickness;
-    if (tracer.layer < 0) {  // a geometric tracer's hit: the same triangle or the same distance
+    if (tracer.layer < 0 && truth.hit) {  // a hit on no camera layer (geometric tracers, ldc)
       const float tr = glm::length(tracer.point - ray.origin), tt = glm::length(truth.point - ray.origin);
-      if (truth.hit && (truth.triangle == tracer.triangle || std::abs(tr - tt) <= 1e-4f * std::max(tr, tt)))
-        return RayClass::CorrectHit;
+      if (truth.triangle == tracer.triangle || std::abs(tr - tt) <= 1e-4f * std::max(tr, tt)) return RayClass::CorrectHit;
+      if (withinOnePixel(tracer.point, truth, ray.dir, camera)) return RayClass::CorrectHit;
     }
     if (tracer.layer >= 0 && truthOnScreen && std::abs(tx - tracer.x) <= 1 && std::abs(ty - tracer.y) <= 1) {
       if (truth.triangle == tracer.triangle) return RayClass::CorrectHit;

@@ -15,6 +15,10 @@
 //                       widened by δ on both sides, where δ = 1.5 × (the ray's depth change
 //                       across one pixel of screen motion + the stored surface's depth change
 //                       across one pixel, from its normal, at most 20 footprints).
+//   A hit on no camera layer (geometric tracers, ldc: layer -1) is correct when it is on P's
+//   triangle, at P's distance (10^-4 relative), or within 1.5 pixel footprints of P across the
+//   ray and along it (up to 20 footprints along it for a surface seen at a grazing angle), the
+//   footprint taken at P's distance from the eye so that the rule also holds off screen.
 //   wrong hit, split by cause:
 //     thickness         no true hit, or P lies farther along the ray than F: the ray passed
 //                       behind F's surface inside its z-thickness.

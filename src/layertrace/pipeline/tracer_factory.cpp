@@ -18,6 +18,7 @@ void validateTracerOptions(const TracerOptions& o) {
   if (o.pyramid.levels < 1 || o.pyramid.levels > 16) inputError("--levels ", o.pyramid.levels, ": must be between 1 and 16");
   if (!(o.pyramid.tau > 0.0f)) inputError("--tau ", o.pyramid.tau, ": must be positive");
   validateQuadtreeConfig(o.quadtree);
+  validateLdcConfig(o.ldc);
   if (o.hybridScreen != "hssr" && o.hybridScreen != "hiz" && o.hybridScreen != "quadtree")
     inputError("--hybrid-screen ", o.hybridScreen, ": unknown (use hssr, hiz or quadtree)");
   if (o.hybridGeo != "embree" && o.hybridGeo != "grid") inputError("--hybrid-geo ", o.hybridGeo, ": unknown (use embree or grid)");
@@ -26,7 +27,7 @@ void validateTracerOptions(const TracerOptions& o) {
 bool isScreenTracer(const std::string& n) {
   return n == "ssr" || n == "ssr-layers" || n == "hiz" || n == "hssr" || n == "quadtree";
 }
-bool isKnownTracer(const std::string& n) { return isScreenTracer(n) || n == "hybrid" || n == "embree" || n == "grid"; }
+bool isKnownTracer(const std::string& n) { return isScreenTracer(n) || n == "ldc" || n == "hybrid" || n == "embree" || n == "grid"; }
 
 BuiltTracer buildTracer(const std::string& name, const Frame& frame, const TracerOptions& o) {
   BuiltTracer b;
@@ -47,6 +48,11 @@ BuiltTracer buildTracer(const std::string& name, const Frame& frame, const Trace
     b.buildMs = b.quadtree->buildMs;
     b.memoryBytes = b.quadtree->memoryBytes();
     b.tracer = std::make_unique<QuadtreeTracer>(frame.camera, frame.layers, *b.quadtree);
+  } else if (name == "ldc") {
+    b.ldc = std::make_unique<LayeredDepthCube>(buildLdc(frame.scene, o.ldc));
+    b.buildMs = b.ldc->buildMs;
+    b.memoryBytes = b.ldc->memoryBytes();
+    b.tracer = std::make_unique<LdcTracer>(frame.camera, *b.ldc);
   } else if (name == "ssr" || name == "ssr-layers") {
     SsrConfig sc = o.ssr;
     sc.allLayers = name == "ssr-layers";

@@ -12,6 +12,7 @@
 #include "layertrace/screen/hiz_pyramid.h"
 #include "layertrace/screen/hssr_tracer.h"
 #include "layertrace/screen/interval_pyramid.h"
+#include "layertrace/screen/ldc.h"
 #include "layertrace/screen/quadtree.h"
 #include "layertrace/screen/ssr_tracer.h"
 
@@ -28,6 +29,7 @@ struct TracerOptions {
   HssrConfig hssr;
   GridConfig grid;
   QuadtreeConfig quadtree;
+  LdcConfig ldc;
   std::string hybridScreen = "hssr";  ///< --hybrid-screen: hssr, hiz or quadtree
   std::string hybridGeo = "embree";   ///< --hybrid-geo: embree or grid
 };
@@ -35,10 +37,11 @@ struct TracerOptions {
 /// Throws InputError naming the option for any invalid value, whichever tracer will run.
 void validateTracerOptions(const TracerOptions& options);
 
-/// Known tracer names: ssr, ssr-layers, hiz, hssr, quadtree (screen space); embree, grid
-/// (geometric); hybrid (a screen tracer, then a geometric one where the layers do not know).
-inline constexpr const char* kTracerNames = "ssr, ssr-layers, hiz, hssr, quadtree, hybrid, embree, grid";
-/// A tracer that answers from the layers alone (the exhaustive oracle applies to it).
+/// Known tracer names: ssr, ssr-layers, hiz, hssr, quadtree (screen space, from the camera's
+/// layers); ldc (seed 004's view-independent layered depth cube); embree, grid (geometric);
+/// hybrid (a screen tracer, then a geometric one where the layers do not know).
+inline constexpr const char* kTracerNames = "ssr, ssr-layers, hiz, hssr, quadtree, ldc, hybrid, embree, grid";
+/// A tracer that answers from the camera's layers alone (the exhaustive oracle applies to it).
 bool isScreenTracer(const std::string& name);
 bool isKnownTracer(const std::string& name);
 
@@ -46,6 +49,7 @@ struct BuiltTracer {
   std::unique_ptr<Tracer> tracer;
   std::unique_ptr<IntervalPyramid> pyramid;  ///< hssr, hiz
   std::unique_ptr<Quadtree> quadtree;        ///< quadtree
+  std::unique_ptr<LayeredDepthCube> ldc;     ///< ldc
   std::unique_ptr<EmbreeScene> embree;       ///< embree
   std::unique_ptr<IrregularGrid> grid;       ///< grid
   std::unique_ptr<KnownSpace> known;         ///< hybrid: where the layers' knowledge ends

@@ -187,6 +187,7 @@ struct RasterPass {
     const TriangleSetup& ts = setups[s.triangle];
     const glm::uvec3 vi = scene.triangles[s.triangle];
     const uint32_t albedoSpec = materialPacked[scene.triMaterial[s.triangle]];
+    const bool ortho = camera.orthographic();
     for (int py = y0; py <= y1; ++py) {
       const int64_t cy = int64_t(py) * kSub + kSub / 2;
       int64_t cx = int64_t(x0) * kSub + kSub / 2;
@@ -206,12 +207,16 @@ struct RasterPass {
         const uint32_t node = alloc.next++;
         ++sto;
         // Depth and attributes where the pixel-centre ray meets the plane (perspective-correct).
-        const glm::vec3 dir = camera.rayThrough({float(px) + 0.5f, float(py) + 0.5f});
+        // (An orthographic ray starts at its pixel's point on the z = 0 plane, not at the eye.)
+        const glm::vec2 centre{float(px) + 0.5f, float(py) + 0.5f};
+        const glm::vec3 dir = camera.rayThrough(centre);
+        const glm::vec3 origin = ortho ? camera.rayOrigin(centre) : glm::vec3(0.0f);
+        const float offset = ortho ? ts.planeOffset - glm::dot(ts.planeNormal, origin) : ts.planeOffset;
         const float denom = glm::dot(ts.planeNormal, dir);
-        float depth = denom != 0.0f ? ts.planeOffset / denom : camera.far();
+        float depth = denom != 0.0f ? offset / denom : camera.far();
         if (!(depth >= camera.near())) depth = camera.near();
         if (!(depth <= camera.far())) depth = camera.far();
-        const glm::vec3 vp = dir * depth - ts.v0;
+        const glm::vec3 vp = (ortho ? origin + dir * depth : dir * depth) - ts.v0;
         const float d20 = glm::dot(vp, ts.e1), d21 = glm::dot(vp, ts.e2);
         float b1 = std::clamp((ts.d11 * d20 - ts.d01 * d21) * ts.invDen, 0.0f, 1.0f);
         float b2 = std::clamp((ts.d00 * d21 - ts.d01 * d20) * ts.invDen, 0.0f, 1.0f);
@@ -238,6 +243,7 @@ FragmentLists rasterize(const Scene& scene, const Camera& camera, const RasterCo
   const auto start = std::chrono::steady_clock::now();
   const int W = camera.width(), H = camera.height();
   LT_CHECK(config.tileSize > 0, config.tileSize);
+  LT_CHECK(config.triangleMask.empty() || config.triangleMask.size() == scene.triangles.size(), config.triangleMask.size());
 
   // Vertices to clip space; normals to camera space (the view matrix is rigid).
   const glm::mat4 toClip = camera.clipProjection() * camera.view();
@@ -262,12 +268,13 @@ FragmentLists rasterize(const Scene& scene, const Camera& camera, const RasterCo
   std::vector<TriangleSetup> setups(numTris);
   parallelFor(size_t(0), numChunks, [&](size_t c) {
     for (size_t t = c * chunkSize; t < std::min(numTris, (c + 1) * chunkSize); ++t) {
+      if (!config.triangleMask.empty() && config.triangleMask[t] != config.maskValue) continue;
       if (config.frontFacesOnly) {
         // Counter-clockwise seen from the eye is the front (OpenGL, glTF, OBJ): the camera-space
-        // normal of the winding points back toward the eye at the origin.
+        // normal of the winding points back toward the eye at the origin (orthographic: toward +z).
         const glm::uvec3 i = scene.triangles[t];
         const glm::vec3 a = camPos[i.x], n = glm::cross(camPos[i.y] - a, camPos[i.z] - a);
-        if (!(glm::dot(n, a) < 0.0f)) continue;
+        if (!(glm::dot(n, camera.orthographic() ? glm::vec3(0.0f, 0.0f, -1.0f) : a) < 0.0f)) continue;
       }
       const size_t before = chunkSubs[c].size();
       setupTriangle(scene, camera, clip, uint32_t(t), chunkSubs[c]);

@@ -13,6 +13,7 @@
 #pragma once
 
 #include <cstdint>
+#include <span>
 
 #include "layertrace/raster/fragment_lists.h"
 #include "layertrace/scene/camera.h"
@@ -31,6 +32,10 @@ struct RasterConfig {
   /// hold the k nearest *front* surfaces: for view synthesis the second layer is the surface a
   /// closed object hides, not the object's own back (README "View synthesis").
   bool frontFacesOnly = false;
+  /// When not empty (one entry per scene triangle): rasterize only the triangles whose entry
+  /// equals maskValue (the layered depth cube gives each triangle to one axis view, seed 004).
+  std::span<const uint8_t> triangleMask;
+  uint8_t maskValue = 1;
 };
 
 struct RasterStats {
@@ -40,7 +45,7 @@ struct RasterStats {
   uint64_t subTriangles = 0;   ///< triangles after clipping
 };
 
-/// Rasterizes `scene` seen by `camera` into per-pixel fragment lists.
+/// Rasterizes `scene` seen by `camera` (pinhole or orthographic) into per-pixel fragment lists.
 FragmentLists rasterize(const Scene& scene, const Camera& camera, const RasterConfig& config = {},
                         RasterStats* stats = nullptr);
 

@@ -25,10 +25,27 @@ Camera::Camera(const CameraDesc& desc, int width, int height)
     const glm::vec3 f = glm::abs(glm::normalize(fwd));
     desc_.up = f.x <= f.y && f.x <= f.z ? glm::vec3(1, 0, 0) : f.y <= f.z ? glm::vec3(0, 1, 0) : glm::vec3(0, 0, 1);
   }
-  if (!(desc.fovY > 0.0f && desc.fovY < 180.0f))
+  ortho_ = desc.orthoHeight > 0.0f;
+  if (!ortho_ && !(desc.fovY > 0.0f && desc.fovY < 180.0f))
     inputError("camera ", desc.name, ": fov ", desc.fovY, " is not in (0, 180) degrees");
   view_ = glm::lookAt(desc_.eye, desc_.target, desc_.up);
   viewInv_ = glm::inverse(view_);
+  if (ortho_) {
+    LT_CHECK(std::isfinite(desc.orthoHeight), desc.orthoHeight);
+    focal_ = float(height) / desc.orthoHeight;
+    pixelScale_ = 1.0f / focal_;
+    // x_px = W/2 + f x, y_px = H/2 - f y, w = 1.
+    pixelProj_ = glm::mat4(0.0f);
+    pixelProj_[0][0] = focal_;
+    pixelProj_[3][0] = float(width) * 0.5f;
+    pixelProj_[1][1] = -focal_;
+    pixelProj_[3][1] = float(height) * 0.5f;
+    pixelProj_[2][2] = 1.0f;
+    pixelProj_[3][3] = 1.0f;
+    const float hw = 0.5f * float(width) * pixelScale_, hh = 0.5f * desc.orthoHeight;
+    clipProj_ = glm::ortho(-hw, hw, -hh, hh, near_, far_);
+    return;
+  }
   const float tanHalf = std::tan(glm::radians(desc.fovY) * 0.5f);
   focal_ = float(height) * 0.5f / tanHalf;
   pixelScale_ = 1.0f / focal_;
@@ -44,12 +61,19 @@ Camera::Camera(const CameraDesc& desc, int width, int height)
 }
 
 glm::vec2 Camera::project(glm::vec3 cam) const {
+  if (ortho_) return {float(width_) * 0.5f + focal_ * cam.x, float(height_) * 0.5f - focal_ * cam.y};
   const float depth = -cam.z;
   return {float(width_) * 0.5f + focal_ * cam.x / depth, float(height_) * 0.5f - focal_ * cam.y / depth};
 }
 
 glm::vec3 Camera::rayThrough(glm::vec2 pixel) const {
+  if (ortho_) return {0.0f, 0.0f, -1.0f};
   return {(pixel.x - float(width_) * 0.5f) * pixelScale_, -(pixel.y - float(height_) * 0.5f) * pixelScale_, -1.0f};
+}
+
+glm::vec3 Camera::rayOrigin(glm::vec2 pixel) const {
+  if (!ortho_) return glm::vec3(0.0f);
+  return {(pixel.x - float(width_) * 0.5f) * pixelScale_, -(pixel.y - float(height_) * 0.5f) * pixelScale_, 0.0f};
 }
 
 CameraDesc autoCamera(const Scene& scene) {

@@ -52,14 +52,23 @@ class Camera {
   }
 
   /// Camera-space direction through the screen point `pixel` whose depth component is 1
-  /// (so a point at parameter t along it has depth t).
+  /// (so a point at parameter t along it has depth t). Orthographic: (0, 0, -1) everywhere.
   glm::vec3 rayThrough(glm::vec2 pixel) const;
 
-  /// Focal length in pixels: x_px = W/2 + focal·x/depth, y_px = H/2 − focal·y/depth.
+  /// Camera-space origin of the ray through `pixel`: the eye (0, 0, 0) for a pinhole camera, the
+  /// pixel's point on the z = 0 plane for an orthographic one.
+  glm::vec3 rayOrigin(glm::vec2 pixel) const;
+
+  /// An orthographic camera (CameraDesc::orthoHeight > 0): x_px = W/2 + focal·x, y_px = H/2 −
+  /// focal·y, with focal in pixels per scene unit; depth = -z as always.
+  bool orthographic() const { return ortho_; }
+
+  /// Focal length in pixels: x_px = W/2 + focal·x/depth, y_px = H/2 − focal·y/depth
+  /// (orthographic: pixels per scene unit, no division by depth).
   float focal() const { return focal_; }
 
   /// Pixel footprint (world size of one pixel) at the given depth.
-  float pixelFootprint(float depth) const { return depth * pixelScale_; }
+  float pixelFootprint(float depth) const { return ortho_ ? pixelScale_ : depth * pixelScale_; }
 
  private:
   CameraDesc desc_;
@@ -67,6 +76,7 @@ class Camera {
   float near_ = 0.1f, far_ = 100.0f;
   float focal_ = 1.0f;       ///< focal length in pixels
   float pixelScale_ = 1.0f;  ///< 1 / focal_
+  bool ortho_ = false;
   glm::mat4 view_{1.0f}, viewInv_{1.0f}, pixelProj_{1.0f}, clipProj_{1.0f};
 };
 

@@ -40,6 +40,9 @@ struct CameraDesc {
   float fovY = 60.0f;
   float near = 0.0f;  ///< 0 = derive from the scene size (see Scene::defaultNearFar)
   float far = 0.0f;   ///< 0 = derive from the scene size
+  /// > 0: an orthographic view this many scene units high (fovY is then unused). Only internal
+  /// captures use it (the layered depth cube's axis views, seed 004); scene files cannot ask.
+  float orthoHeight = 0.0f;
 };
 
 struct Bounds {
