@@ -88,6 +88,13 @@ void addGridOptions(CLI::App* app, lt::GridConfig& g) {
   app->add_flag("--partial-expansion", g.partialExpansion, "grid: also expand into neighbours whose swept part holds only shared primitives");
 }
 
+void addLdcOptions(CLI::App* app, lt::LdcConfig& c) {
+  app->add_option("--ldc-resolution", c.resolution, "ldc: texels along the scene box's longest axis (seed 004: 512, 1024)")->capture_default_str();
+  app->add_option("--ldc-block", c.block, "ldc: coarse block edge in texels (seed 004 §1.3)")->capture_default_str();
+  app->add_option("--ldc-block-intervals", c.blockIntervals, "ldc: depth intervals per block (1 = seed 004's min/max)")->capture_default_str();
+  app->add_option("--ldc-epsilon", c.epsilon, "ldc: hit tolerance in texels (a sample's patch is widened by this much)")->capture_default_str();
+}
+
 void addTracerOptions(CLI::App* app, lt::TracerOptions& t) {
   app->add_option("--stride", t.ssr.stride, "ssr: pixels per step")->capture_default_str();
   app->add_option("--jitter", t.ssr.jitter, "ssr: start offset in strides, [0,1]")->capture_default_str();
@@ -101,9 +108,7 @@ void addTracerOptions(CLI::App* app, lt::TracerOptions& t) {
   app->add_option("--gamma-dist", t.quadtree.gammaDist, "quadtree: merge planes within this relative depth")->capture_default_str();
   app->add_option("--hybrid-screen", t.hybridScreen, "hybrid: the screen tracer (hssr, hiz, quadtree)")->capture_default_str();
   app->add_option("--hybrid-geo", t.hybridGeo, "hybrid: the geometric tracer for what the layers do not know (embree, grid)")->capture_default_str();
-  app->add_option("--ldc-resolution", t.ldc.resolution, "ldc: texels along the scene box's longest axis (seed 004: 512, 1024)")->capture_default_str();
-  app->add_option("--ldc-block", t.ldc.block, "ldc: coarse min/max block edge in texels (seed 004 §1.3)")->capture_default_str();
-  app->add_option("--ldc-epsilon", t.ldc.epsilon, "ldc: hit tolerance in texels (a sample's patch is widened by this much)")->capture_default_str();
+  addLdcOptions(app, t.ldc);
   addGridOptions(app, t.grid);
 }
 
@@ -203,6 +208,12 @@ int runCli(int argc, const char* const* argv, CliMode mode) {
   geobenchCmd->add_option("--repeat", geobench.repeat, "runs per timing (the median is reported)")->capture_default_str();
   geobenchCmd->add_flag("--sweep", geobench.sweep, "also sweep lambda1 x lambda2: build time vs traversal time");
 
+  lt::LdcOptions ldc;
+  RawFrameOptions ldcRaw;
+  CLI::App* ldcCmd = app.add_subcommand("ldc", "build the layered depth cube (seed 004): per-axis depth complexity and albedo images");
+  addFrameOptions(ldcCmd, ldc.run, ldcRaw);
+  addLdcOptions(ldcCmd, ldc.ldc);
+
   std::string names;
   bool known = false;
   for (const CLI::App* sub : app.get_subcommands({})) {
@@ -239,18 +250,23 @@ int runCli(int argc, const char* const* argv, CliMode mode) {
       // command makes before loading anything.
       for (auto [cmd, run, raw] : {std::tuple{layersCmd, &layers.run, &layersRaw}, std::tuple{geobenchCmd, &geobench.run, &geobenchRaw},
                                    std::tuple{benchCmd, &bench.run, &benchRaw}, std::tuple{compareCmd, &compare.run, &compareRaw},
-                                   std::tuple{renderCmd, &render.run, &renderRaw}})
+                                   std::tuple{renderCmd, &render.run, &renderRaw}, std::tuple{ldcCmd, &ldc.run, &ldcRaw}})
         if (cmd->parsed()) prepare(*run, *raw), lt::validateFrameOptions(run->frame);
       if (compareCmd->parsed()) finishEffectOptions(compare.effect, compareEffect, compareRaw), lt::validateEffectConfig(compare.effect);
       if (renderCmd->parsed()) finishEffectOptions(render.effect, effectName, renderRaw), lt::validateEffectConfig(render.effect);
       if (renderCmd->parsed()) lt::validateTracerOptions(render.tracers);
       if (compareCmd->parsed()) lt::validateTracerOptions(compare.options);
       if (benchCmd->parsed()) lt::validateTracerOptions(bench.options);
+      if (ldcCmd->parsed()) lt::validateLdcConfig(ldc.ldc);
       return 0;
     }
     if (layersCmd->parsed()) {
       prepare(layers.run, layersRaw);
       return lt::runLayers(layers);
+    }
+    if (ldcCmd->parsed()) {
+      prepare(ldc.run, ldcRaw);
+      return lt::runLdc(ldc);
     }
     if (geobenchCmd->parsed()) {
       prepare(geobench.run, geobenchRaw);

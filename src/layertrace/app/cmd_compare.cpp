@@ -119,7 +119,7 @@ int runCompare(const CompareOptions& o) {
     t["iterations_mean"] = r.rays ? double(r.iterationSum) / double(r.rays) : 0.0;
     t["rays"] = rayStats(r, screen);
     if (!hybrid.is_null()) t["hybrid"] = hybrid;
-    if (built.ldc) t["ldc"] = ldcStats(*built.ldc, r);
+    if (built.ldc) t["ldc"] = ldcStats(*built.ldc, &r);
     stats["compare"][name] = t;
     images.emplace_back(name + ".png", r.image);
     images.emplace_back(name + "_traced.png", r.traced);

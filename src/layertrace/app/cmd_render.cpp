@@ -47,8 +47,7 @@ nlohmann::json quadtreeStats(const Quadtree& t, const QuadtreeConfig& c, const E
           {"occlusion_hits_mean", double(r.occlusionSum) / rays}};
 }
 
-nlohmann::json ldcStats(const LayeredDepthCube& ldc, const EffectResult& r) {
-  const double rays = r.rays ? double(r.rays) : 1.0;
+nlohmann::json ldcStats(const LayeredDepthCube& ldc, const EffectResult* r) {
   nlohmann::json views = nlohmann::json::object();
   for (const LdcView& v : ldc.views)
     views[std::string(1, "xyz"[v.axis])] = {{"width", v.width},
@@ -58,8 +57,9 @@ nlohmann::json ldcStats(const LayeredDepthCube& ldc, const EffectResult& r) {
                                             {"lost_triangles", v.lostTriangles},
                                             {"memory_bytes", v.memoryBytes()},
                                             {"build_ms", v.rasterMs}};
-  return {{"resolution", ldc.config.resolution},
+  nlohmann::json j = {{"resolution", ldc.config.resolution},
           {"block", ldc.config.block},
+          {"block_intervals", ldc.config.blockIntervals},
           {"epsilon_texels", ldc.config.epsilon},
           {"texel", ldc.texel},
           {"build_ms", ldc.buildMs},
@@ -69,10 +69,14 @@ nlohmann::json ldcStats(const LayeredDepthCube& ldc, const EffectResult& r) {
           // centroid's texel (ldc.h, the centroid-texel policy).
           {"lost_triangles", ldc.lostTriangles()},
           {"degenerate_triangles", ldc.degenerateTriangles},
-          {"views", views},
-          {"blocks_per_ray", double(r.levelIterations[1]) / rays},
-          {"texels_per_ray", double(r.levelIterations[0]) / rays},
-          {"samples_tested_per_ray", double(r.intervalSum) / rays}};
+          {"views", views}};
+  if (r) {
+    const double rays = r->rays ? double(r->rays) : 1.0;
+    j["blocks_per_ray"] = double(r->levelIterations[1]) / rays;
+    j["texels_per_ray"] = double(r->levelIterations[0]) / rays;
+    j["samples_tested_per_ray"] = double(r->intervalSum) / rays;
+  }
+  return j;
 }
 
 nlohmann::json hybridStats(const BuiltTracer& built, const TracerOptions& o) {
@@ -217,7 +221,7 @@ int runRender(const RenderOptions& o) {
 
   if (built.quadtree) stats["quadtree"] = quadtreeStats(*built.quadtree, o.tracers.quadtree, r);
   if (built.known) stats["hybrid"] = hybridStats(built, o.tracers);
-  if (built.ldc) stats["ldc"] = ldcStats(*built.ldc, r);
+  if (built.ldc) stats["ldc"] = ldcStats(*built.ldc, &r);
 
   std::optional<Image> direct;
   if (ec.effect == Effect::Warp) {

@@ -92,8 +92,18 @@ void writePixelStats(const std::string& dir, const EffectResult& r);
 /// The `quadtree` stats block: thresholds, nodes per level and kind, visits per kind.
 nlohmann::json quadtreeStats(const Quadtree& tree, const QuadtreeConfig& config, const EffectResult& r);
 
-/// The `ldc` stats block: build time, memory and samples per axis, lost triangles, visits per ray.
-nlohmann::json ldcStats(const LayeredDepthCube& ldc, const EffectResult& r);
+/// The `ldc` stats block: build time, memory and samples per axis, lost triangles; with a traced
+/// effect also blocks, texels and samples visited per ray.
+nlohmann::json ldcStats(const LayeredDepthCube& ldc, const EffectResult* r);
+
+struct LdcOptions {
+  RunOptions run;
+  LdcConfig ldc;
+};
+
+/// `layertrace ldc`: builds the layered depth cube (seed 004) of a scene and writes per axis its
+/// depth-complexity map and first-layer albedo, and the `ldc` stats.
+int runLdc(const LdcOptions& options);
 
 /// The `hybrid` stats block (DESIGN.md: screen_fraction, geo_fraction, geo_length_mean) of the
 /// tracer's runs since its last reset; null for any other tracer.

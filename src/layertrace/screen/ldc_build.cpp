@@ -170,22 +170,43 @@ void buildView(const Scene& scene, std::span<const uint8_t> axisOf, std::span<co
     }
   });
 
-  // §1.3: per block of config.block² texels, min and max depth over all its samples.
-  const int B = config.block;
+  // §1.3: per block of config.block² texels, the depth range of its samples — as up to
+  // config.blockIntervals disjoint intervals: sort the depths and split at the widest gaps.
+  const int B = config.block, slots = config.blockIntervals;
   view.blocksX = (W + B - 1) / B;
   view.blocksY = (H + B - 1) / B;
   const size_t blocks = size_t(view.blocksX) * size_t(view.blocksY);
-  view.blockMin.assign(blocks, std::numeric_limits<float>::infinity());
-  view.blockMax.assign(blocks, -std::numeric_limits<float>::infinity());
+  const float inf = std::numeric_limits<float>::infinity();
+  view.blockIntervals.assign(blocks * size_t(slots), glm::vec2(inf, -inf));
   parallelFor(size_t(0), size_t(view.blocksY), [&](size_t by) {
-    for (int y = int(by) * B; y < std::min(H, int(by + 1) * B); ++y)
-      for (int x = 0; x < W; ++x) {
-        const size_t blk = by * size_t(view.blocksX) + size_t(x / B);
-        for (uint32_t i = view.offset[view.texelIndex(x, y)]; i < view.offset[view.texelIndex(x, y) + 1]; ++i) {
-          view.blockMin[blk] = std::min(view.blockMin[blk], view.samples[i].depth);
-          view.blockMax[blk] = std::max(view.blockMax[blk], view.samples[i].depth);
-        }
+    std::vector<float> depths;
+    std::vector<uint32_t> gaps;
+    for (size_t bx = 0; bx < size_t(view.blocksX); ++bx) {
+      depths.clear();
+      for (int y = int(by) * B; y < std::min(H, int(by + 1) * B); ++y)
+        for (int x = int(bx) * B; x < std::min(W, int(bx + 1) * B); ++x)
+          for (uint32_t i = view.offset[view.texelIndex(x, y)]; i < view.offset[view.texelIndex(x, y) + 1]; ++i)
+            depths.push_back(view.samples[i].depth);
+      if (depths.empty()) continue;
+      std::sort(depths.begin(), depths.end());
+      // The slots - 1 widest gaps (ties: the nearer gap) become the splits, in depth order.
+      gaps.clear();
+      for (uint32_t g = 1; g < depths.size(); ++g) gaps.push_back(g);
+      const size_t splits = std::min(gaps.size(), size_t(slots - 1));
+      std::partial_sort(gaps.begin(), gaps.begin() + std::ptrdiff_t(splits), gaps.end(), [&](uint32_t g, uint32_t h) {
+        const float wg = depths[g] - depths[g - 1], wh = depths[h] - depths[h - 1];
+        return wg != wh ? wg > wh : g < h;
+      });
+      gaps.resize(splits);
+      std::sort(gaps.begin(), gaps.end());
+      glm::vec2* out = &view.blockIntervals[(by * size_t(view.blocksX) + bx) * size_t(slots)];
+      uint32_t first = 0;
+      for (size_t k = 0; k <= splits; ++k) {
+        const uint32_t end = k < splits ? gaps[k] : uint32_t(depths.size());
+        out[k] = {depths[first], depths[end - 1]};
+        first = end;
       }
+    }
   });
   view.rasterMs = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
 }
@@ -196,11 +217,13 @@ void validateLdcConfig(const LdcConfig& c) {
   if (c.resolution < 16 || c.resolution > 16384) inputError("--ldc-resolution ", c.resolution, ": must be between 16 and 16384");
   if (c.block < 1 || c.block > 256) inputError("--ldc-block ", c.block, ": must be between 1 and 256");
   if (!(c.epsilon >= 0.0f && c.epsilon <= 4.0f)) inputError("--ldc-epsilon ", c.epsilon, ": must be between 0 and 4 (texels)");
+  if (c.blockIntervals < 1 || c.blockIntervals > 16)
+    inputError("--ldc-block-intervals ", c.blockIntervals, ": must be between 1 and 16");
 }
 
 size_t LdcView::memoryBytes() const {
   return offset.size() * sizeof(uint32_t) + samples.size() * sizeof(FragmentNode) + triangle.size() * sizeof(uint32_t) +
-         (blockMin.size() + blockMax.size()) * sizeof(float);
+         blockIntervals.size() * sizeof(glm::vec2);
 }
 
 LayeredDepthCube buildLdc(const Scene& scene, const LdcConfig& config) {

@@ -15,18 +15,21 @@ namespace {
 constexpr float kInf = std::numeric_limits<float>::infinity();
 
 /// The ray in one view's texel coordinates: x(t) = px + dx t, y(t) = py + dy t (texels, y down),
-/// depth(t) = pz + dz t (scene units), t in scene units along the ray.
+/// depth(t) = pz + dz t (scene units), t in scene units along the ray; ix, iy = 1/dx, 1/dy
+/// (infinite for 0).
 struct ViewRay {
-  float px, py, dx, dy, pz, dz;
+  float px, py, dx, dy, pz, dz, ix, iy;
+  ViewRay(float px_, float py_, float dx_, float dy_, float pz_, float dz_)
+      : px(px_), py(py_), dx(dx_), dy(dy_), pz(pz_), dz(dz_), ix(1.0f / dx_), iy(1.0f / dy_) {}
   float x(float t) const { return px + dx * t; }
   float y(float t) const { return py + dy * t; }
   float depth(float t) const { return pz + dz * t; }
 };
 
-/// Narrows [t0, t1] to where p + d t lies in [lo, hi]; false when that is empty.
-inline bool clipSlab(float p, float d, float lo, float hi, float& t0, float& t1) {
+/// Narrows [t0, t1] to where p + d t lies in [lo, hi] (inv = 1/d); false when that is empty.
+inline bool clipSlab(float p, float d, float inv, float lo, float hi, float& t0, float& t1) {
   if (d == 0.0f) return p >= lo && p <= hi;
-  float a = (lo - p) / d, b = (hi - p) / d;
+  float a = (lo - p) * inv, b = (hi - p) * inv;
   if (a > b) std::swap(a, b);
   t0 = std::max(t0, a);
   t1 = std::min(t1, b);
@@ -37,16 +40,18 @@ inline bool clipSlab(float p, float d, float lo, float hi, float& t0, float& t1)
 /// [x0, x1] × [y0, y1]; false when it never does.
 inline bool depthRangeOver(const ViewRay& r, float x0, float x1, float y0, float y1, float t0, float t1, float& zLo,
                            float& zHi) {
-  if (!clipSlab(r.px, r.dx, x0, x1, t0, t1) || !clipSlab(r.py, r.dy, y0, y1, t0, t1)) return false;
+  if (!clipSlab(r.px, r.dx, r.ix, x0, x1, t0, t1) || !clipSlab(r.py, r.dy, r.iy, y0, y1, t0, t1)) return false;
   const float za = r.depth(t0), zb = r.depth(t1);
   zLo = std::min(za, zb), zHi = std::max(za, zb);
   return true;
 }
 
-/// A 2D DDA over cells of `size` texels, clamped to cells [cx0, cx1] × [cy0, cy1]: visits the
-/// cells in the order the ray crosses them, each with its exit parameter.
+/// A 2D DDA over cells of `size` texels, started in a cell clamped to [cx0, cx1] × [cy0, cy1]:
+/// visits the cells in the order the ray crosses them. The exits are computed from the cell
+/// index each time (no accumulated increments), with the ray's reciprocal direction.
 struct Dda {
   int ix, iy, stepX, stepY;
+  float nextX, nextY;  // exit parameters through x and y
   float size;
   const ViewRay* r;
 
@@ -56,21 +61,20 @@ struct Dda {
     iy = std::clamp(int(std::floor(ray.y(t) / cellSize)), cy0, cy1);
     stepX = ray.dx > 0.0f ? 1 : ray.dx < 0.0f ? -1 : 0;
     stepY = ray.dy > 0.0f ? 1 : ray.dy < 0.0f ? -1 : 0;
+    nextX = exitX(), nextY = exitY();
   }
-  /// The parameter where the ray leaves the current cell through x (resp. y).
-  float exitX() const { return stepX == 0 ? kInf : (float(ix + (stepX > 0)) * size - r->px) / r->dx; }
-  float exitY() const { return stepY == 0 ? kInf : (float(iy + (stepY > 0)) * size - r->py) / r->dy; }
-  /// Steps to the next cell; returns the exit parameter of the cell it left.
-  float step() {
-    const float ex = exitX(), ey = exitY();
-    if (ex < ey) {
+  float exitX() const { return stepX == 0 ? kInf : (float(ix + (stepX > 0)) * size - r->px) * r->ix; }
+  float exitY() const { return stepY == 0 ? kInf : (float(iy + (stepY > 0)) * size - r->py) * r->iy; }
+  float exit() const { return std::min(nextX, nextY); }
+  void step() {
+    if (nextX < nextY) {
       ix += stepX;
-      return ex;
+      nextX = exitX();
+    } else {
+      iy += stepY;
+      nextY = exitY();
     }
-    iy += stepY;
-    return ey;
   }
-  float exit() const { return std::min(exitX(), exitY()); }
 };
 
 }  // namespace
@@ -92,13 +96,13 @@ bool LdcTracer::traceView(const LdcView& v, glm::vec3 wo, glm::vec3 wd, float tM
   // Clip to the view's box: the texel rectangle and the depth range of the padded scene box.
   float t0 = tMin, t1 = tMax;
   const float zBoxLo = texel, zBoxHi = v.camera.far() - texel;
-  if (!clipSlab(r.px, r.dx, 0.0f, float(v.width), t0, t1) || !clipSlab(r.py, r.dy, 0.0f, float(v.height), t0, t1) ||
-      !clipSlab(r.pz, r.dz, zBoxLo, zBoxHi, t0, t1))
+  if (!clipSlab(r.px, r.dx, r.ix, 0.0f, float(v.width), t0, t1) || !clipSlab(r.py, r.dy, r.iy, 0.0f, float(v.height), t0, t1) ||
+      !clipSlab(r.pz, r.dz, 1.0f / r.dz, zBoxLo, zBoxHi, t0, t1))
     return false;
   // A sample's patch lies within (0.5 + eps) texels of its centre across, and — because its axis
   // is the triangle's dominant one, |n_u|, |n_v| ≤ |n_axis| — within 2 (0.5 + eps) texels in depth.
   const float half = (0.5f + eps) * texel, margin = 2.0f * half * 1.001f;
-  const int B = ldc_.config.block;
+  const int B = ldc_.config.block, slots = ldc_.config.blockIntervals;
   bool found = false;
 
   Dda blocks;
@@ -107,12 +111,15 @@ bool LdcTracer::traceView(const LdcView& v, glm::vec3 wo, glm::vec3 wd, float tM
   for (;;) {
     const float blockExit = std::min(blocks.exit(), t1);
     counters.iteration(1);
-    const size_t blk = size_t(blocks.iy) * size_t(v.blocksX) + size_t(blocks.ix);
+    const glm::vec2* spans = &v.blockIntervals[(size_t(blocks.iy) * size_t(v.blocksX) + size_t(blocks.ix)) * size_t(slots)];
     float zLo, zHi;
     const float bx0 = float(blocks.ix * B), by0 = float(blocks.iy * B);
-    if (v.blockMin[blk] <= v.blockMax[blk] &&
-        depthRangeOver(r, bx0 - eps, bx0 + float(B) + eps, by0 - eps, by0 + float(B) + eps, tMin, tMax, zLo, zHi) &&
-        zHi + margin >= v.blockMin[blk] && zLo - margin <= v.blockMax[blk]) {
+    bool overlap = false;
+    if (spans[0].x <= spans[0].y &&
+        depthRangeOver(r, bx0 - eps, bx0 + float(B) + eps, by0 - eps, by0 + float(B) + eps, tMin, tMax, zLo, zHi))
+      for (int k = 0; k < slots && spans[k].x <= spans[k].y && !overlap; ++k)
+        overlap = zHi + margin >= spans[k].x && zLo - margin <= spans[k].y;
+    if (overlap) {
       // The block's texels, entered where the ray enters the block.
       const int x0 = blocks.ix * B, y0 = blocks.iy * B;
       const int x1 = std::min(x0 + B, v.width) - 1, y1 = std::min(y0 + B, v.height) - 1;
