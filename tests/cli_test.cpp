@@ -156,6 +156,10 @@ TEST(CliRender, BadTracerAndEffectAreRejected) {
   expectRejected({"render " + kDefault + " --bounces 0", "--bounces 0"}, dir);
   expectRejected({"render " + kDefault + " --tracer hybrid --hybrid-screen ssr", "--hybrid-screen ssr"}, dir);
   expectRejected({"render " + kDefault + " --tracer hybrid --hybrid-geo optix", "--hybrid-geo optix"}, dir);
+  expectRejected({"render " + kDefault + " --tracer ldc --ldc-resolution 8", "--ldc-resolution 8"}, dir);
+  expectRejected({"compare " + kDefault + " --tracers ldc --ldc-epsilon -1", "--ldc-epsilon -1"}, dir);
+  expectRejected({"ldc " + kDefault + " --ldc-block-intervals 0", "--ldc-block-intervals 0"}, dir);
+  expectRejected({"ldc " + kDefault + " --ldc-block 300", "--ldc-block 300"}, dir);
   // Issue 16 §3: a memory limit is checked before anything is allocated.
   expectRejected({"render " + kDefault + " --max-memory 1M", "--max-memory 1 MiB: --width/--height 1280x720"}, dir);
   expectRejected({"render " + kDefault + " --max-memory lots", "--max-memory lots"}, dir);
@@ -178,6 +182,36 @@ TEST(CliRender, HybridStatsSayWhoAnsweredTheRays) {
   EXPECT_LE(h["geo_length_mean"].get<double>(), 1.0);
 }
 
+// Issue 12 §4: `layertrace ldc` shows what the layered depth cube captured, and its stats block
+// accounts for every triangle and byte; `render --tracer ldc` adds the per-ray visits.
+TEST(CliLdc, WritesTheImagesOfEachAxisAndTheStats) {
+  test::TempDir dir;
+  ASSERT_NO_FATAL_FAILURE(expectRuns("ldc " + kDefault + " --quiet --ldc-resolution 300 -o " + (dir / "ldc") + " --stats " + (dir / "ldc.json")));
+  for (const char* axis : {"x", "y", "z"})
+    for (const char* image : {"_depth_complexity.png", "_depth_complexity.exr", "_albedo.png"})
+      EXPECT_TRUE(fs::exists(dir / (std::string("ldc/ldc_") + axis + image))) << axis << image;
+  const auto j = readJson(dir / "ldc.json")["ldc"];
+  EXPECT_EQ(j["resolution"], 300);
+  uint64_t triangles = 0, samples = 0, memory = 0, lost = 0;
+  for (const char* axis : {"x", "y", "z"}) {
+    const auto& v = j["views"][axis];
+    triangles += v["triangles"].get<uint64_t>(), samples += v["samples"].get<uint64_t>();
+    memory += v["memory_bytes"].get<uint64_t>(), lost += v["lost_triangles"].get<uint64_t>();
+    EXPECT_GT(v["depth_complexity_max"].get<int>(), 1);
+    EXPECT_LE(std::max(v["width"].get<int>(), v["height"].get<int>()), 300);
+  }
+  EXPECT_EQ(triangles + j["degenerate_triangles"].get<uint64_t>(), readJson(dir / "ldc.json")["triangles"].get<uint64_t>());
+  EXPECT_EQ(samples, j["samples"].get<uint64_t>());
+  EXPECT_EQ(memory, j["memory_bytes"].get<uint64_t>());
+  EXPECT_EQ(lost, j["lost_triangles"].get<uint64_t>());
+  ASSERT_NO_FATAL_FAILURE(expectRuns("render " + kDefault + " --width 160 --height 90 --quiet --tracer ldc --ldc-resolution 300 -o " +
+                                     (dir / "r.png") + " --stats " + (dir / "r.json")));
+  const auto r = readJson(dir / "r.json")["ldc"];
+  EXPECT_GT(r["blocks_per_ray"].get<double>(), 1.0);
+  EXPECT_GT(r["texels_per_ray"].get<double>(), 1.0);
+  EXPECT_GT(r["samples_tested_per_ray"].get<double>(), 0.5);
+}
+
 }  // namespace
 }  // namespace lt
 
@@ -186,7 +220,7 @@ namespace {
 
 TEST(CliRender, EveryEffectAndTracerGivesTheSameBytesForOneAndTwoThreads) {
   test::TempDir dir;
-  for (const char* tracer : {"ssr", "ssr-layers", "hiz", "hssr", "quadtree", "hybrid", "embree", "grid"})
+  for (const char* tracer : {"ssr", "ssr-layers", "hiz", "hssr", "quadtree", "ldc", "hybrid", "embree", "grid"})
     for (const char* effect : {"reflection", "refraction", "ao", "shadow", "shade"}) {
       std::string bytes[2];
       for (int threads : {1, 2}) {

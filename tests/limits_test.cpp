@@ -70,6 +70,7 @@ TEST(Limits, EveryStructureIsRefusedByNameBeforeItAllocates) {
     expectRefused("Embree BVH", [&] { EmbreeScene e(f.scene, EmbreeScene::Mode::Fast); });
     expectRefused("irregular grid", [&] { IrregularGrid g(f.scene); });
     expectRefused("solid intervals", [&] { buildTracer("hybrid", f, TracerOptions{}); });
+    expectRefused("layered depth cube", [&] { buildLdc(f.scene, LdcConfig{}); });
   }
   EXPECT_NO_THROW(IrregularGrid g(f.scene));
   EXPECT_NO_THROW(buildTracer("hybrid", f, TracerOptions{}));

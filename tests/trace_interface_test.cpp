@@ -32,14 +32,16 @@ Frame defaultFrame(int w = 160, int h = 90) {
   return ::testing::AssertionSuccess();
 }
 
-const char* const kTracers[] = {"ssr", "ssr-layers", "hiz", "hssr", "quadtree", "hybrid", "embree", "grid"};
+const char* const kTracers[] = {"ssr", "ssr-layers", "hiz", "hssr", "quadtree", "ldc", "hybrid", "embree", "grid"};
 
 TEST(TraceInterface, BatchPathsAnswerAsTheOneRayPathBitForBit) {
   const Frame f = defaultFrame();
   const std::vector<Ray> rays = test::sampleRays(f, 3000, test::testSeed());
+  TracerOptions options;
+  options.ldc.resolution = 256;  // the paths, not the capture, are under test (fast under ASan)
   for (const char* name : kTracers) {
     SCOPED_TRACE(name);
-    const BuiltTracer b = buildTracer(name, f, TracerOptions{});
+    const BuiltTracer b = buildTracer(name, f, options);
     std::vector<TraceHit> uncounted(rays.size()), counted(rays.size()), any(rays.size());
     std::vector<RayCounters> counters(rays.size());
     b.tracer->traceBatch(rays, uncounted, {});

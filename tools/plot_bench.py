@@ -16,8 +16,9 @@ def main():
     # The title names what the experiment sweeps, not the run's default of it.
     swept = {"stride": "SSR stride 1-8 vs HSSR", "layers": "construction time vs layers k", "memory": "memory at 720p and 1080p",
              "tau": "HSSR vs tau", "resolution": "cost vs resolution", "threads": "cost vs threads",
-             "capture": "capture vs Embree all-hit, by threads", "gamma": "quadtree merge thresholds"}
-    fixed = f"{data['width']}x{data['height']}" if exp in ("layers", "threads", "stride", "tau", "capture", "gamma") else f"k={data['layers']}"
+             "capture": "capture vs Embree all-hit, by threads", "gamma": "quadtree merge thresholds",
+             "ldc": "layered depth cube: resolution x block"}
+    fixed = f"{data['width']}x{data['height']}" if exp in ("layers", "threads", "stride", "tau", "capture", "gamma", "ldc") else f"k={data['layers']}"
     title = f"{exp}: {swept.get(exp, exp)} — {data['scene']} ({fixed})"
     if exp == "stride":
         ssr = [r for r in rows if r["tracer"] == "ssr-layers"]
@@ -85,6 +86,18 @@ def main():
             sel = [r for r in sweep if r["gamma_norm"] == norm]
             ax2.semilogx([r["gamma_dist"] for r in sel], [100 * r["changed_vs_unmerged"] for r in sel], "s--", color=f"C{i}")
         ax2.set_ylabel("answers changed vs no merging [% of rays] (dashed)")
+    elif exp == "ldc":
+        label = lambda r: r["tracer"] if r["tracer"] != "ldc" else f"{r['resolution']}/b{r['block']}/i{r['block_intervals']}"
+        xs = range(len(rows))
+        ax.bar([x - 0.2 for x in xs], [r["build_ms"] for r in rows], 0.4, label="build ms (hssr: capture + pyramid)")
+        ax.bar([x + 0.2 for x in xs], [r["trace_ms"] for r in rows], 0.4, label="trace ms")
+        ax.set_yscale("log")
+        ax.set_xticks(list(xs), [label(r) for r in rows], rotation=30, fontsize=7)
+        ax.set_ylabel("time [ms] (log)")
+        ax2 = ax.twinx()
+        ax2.plot(list(xs), [100 * (r["correct_hit"] + r["correct_miss"]) for r in rows], "ks--", label="correct %")
+        ax2.set_ylabel("correct hit + correct miss [% of rays] (dashed)")
+        ax2.set_ylim(0, 100)
     elif exp == "warp":
         for i, k in enumerate(sorted({r["k"] for r in rows})):
             for j, tracer in enumerate(["ssr", "hssr", "quadtree"]):

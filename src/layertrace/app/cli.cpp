@@ -193,9 +193,9 @@ int runCli(int argc, const char* const* argv, CliMode mode) {
 
   lt::BenchOptions bench;
   RawFrameOptions benchRaw;
-  CLI::App* benchCmd = app.add_subcommand("bench", "the papers' experiments: stride|layers|tau|memory|resolution|threads|capture|warp|gamma");
+  CLI::App* benchCmd = app.add_subcommand("bench", "the papers' experiments: stride|layers|tau|memory|resolution|threads|capture|warp|gamma|ldc");
   addFrameOptions(benchCmd, bench.run, benchRaw);
-  benchCmd->add_option("--experiment", bench.experiment, "stride | layers | tau | memory | resolution | threads | capture | warp | gamma")->required();
+  benchCmd->add_option("--experiment", bench.experiment, "stride | layers | tau | memory | resolution | threads | capture | warp | gamma | ldc")->required();
   benchCmd->add_option("--repeat", bench.repeat, "runs per measurement (the median is reported)")->capture_default_str();
   addTracerOptions(benchCmd, bench.options);
   benchCmd->add_option("--report", bench.report, "also write an HTML report to this folder");

@@ -11,6 +11,9 @@
 //               offsets of 0–20 % of the eye–target distance × k ∈ {1, 2, 4} × every screen tracer
 //   gamma       the quad-tree's merge thresholds γ_norm × γ_dist (seed 002 gives none): plane
 //               nodes, trace time, strict classes and answers changed against no merging
+//   ldc         the layered depth cube (seed 004) at 512² and 1K² with blocks of 4, 8, 16 texels
+//               and 1 (the paper's min/max) or 4 intervals per block: construction vs tracing time
+//               (seed 004 Table 1), memory, strict classes, beside plain Embree and HSSR on the same rays
 // Every time is the median of --repeat runs on the same rays; results carry the machine, the
 // build type and the date, and go to DIR/NAME.csv, DIR/NAME.json and DIR/NAME.png.
 #include <algorithm>
@@ -102,7 +105,7 @@ class Progress {
 };
 
 struct Classified {
-  double traceMs = 0.0, iterations = 0.0, falseMiss = 0.0, correctHit = 0.0;
+  double traceMs = 0.0, iterations = 0.0, falseMiss = 0.0, correctHit = 0.0, infoMiss = 0.0, wrongHit = 0.0, correctMiss = 0.0;
 };
 
 /// Median trace time of `tracer` over the effect's rays, plus (optionally) its classification.
@@ -126,6 +129,10 @@ Classified measure(const Frame& frame, const Tracer& tracer, const EffectConfig&
     const double n = double(std::max<uint64_t>(r.rays, 1));
     c.falseMiss = double(counts[size_t(RayClass::FalseMiss)]) / n;
     c.correctHit = double(counts[size_t(RayClass::CorrectHit)]) / n;
+    c.infoMiss = double(counts[size_t(RayClass::InfoMiss)]) / n;
+    c.correctMiss = double(counts[size_t(RayClass::CorrectMiss)]) / n;
+    for (int k = 0; k < kRayClasses; ++k)
+      if (isWrongHit(RayClass(k))) c.wrongHit += double(counts[size_t(k)]) / n;
   }
   return c;
 }
@@ -133,11 +140,11 @@ Classified measure(const Frame& frame, const Tracer& tracer, const EffectConfig&
 }  // namespace
 
 int runBench(const BenchOptions& o) {
-  static const char* kExperiments[] = {"stride", "layers", "tau", "memory", "resolution", "threads", "warp", "capture", "gamma"};
+  static const char* kExperiments[] = {"stride", "layers", "tau", "memory", "resolution", "threads", "warp", "capture", "gamma", "ldc"};
   if (std::find_if(std::begin(kExperiments), std::end(kExperiments), [&](const char* e) { return o.experiment == e; }) ==
       std::end(kExperiments))
     inputError("--experiment ", o.experiment.empty() ? "(none)" : o.experiment,
-               ": unknown (use stride, layers, tau, memory, resolution, threads, warp, capture, gamma)");
+               ": unknown (use stride, layers, tau, memory, resolution, threads, warp, capture, gamma, ldc)");
   if (o.repeat < 1 || o.repeat > 100) inputError("--repeat ", o.repeat, ": must be between 1 and 100");
   validateTracerOptions(o.options);
   validateEffectConfig(o.effect);
@@ -314,6 +321,45 @@ int runBench(const BenchOptions& o) {
       const EffectResult r = renderEffect(frame, *b.tracer, ec, &changed);
       t.rows.push_back({norm, dist, planes, c.traceMs, c.iterations, c.correctHit, c.falseMiss,
                         double(changed.mismatches()) / double(std::max<uint64_t>(r.rays, 1))});
+    }
+  }
+  if (e == "ldc") {
+    rasterizeFrame(o.run.frame, frame);
+    const BuiltTracer ref = buildReference(frame);
+    t.columns = {"tracer", "resolution", "block", "block_intervals", "build_ms", "trace_ms", "memory_bytes", "samples",
+                 "lost_triangles", "correct_hit", "correct_miss", "wrong_hit", "false_miss", "info_miss", "trace_vs_embree"};
+    struct Setting {
+      int resolution, block, intervals;
+    };
+    std::vector<Setting> settings;
+    for (int res : {512, 1024})
+      for (Setting s : {Setting{res, 4, 4}, Setting{res, 8, 4}, Setting{res, 16, 4}, Setting{res, 8, 1}}) settings.push_back(s);
+    Progress p(o.run.quiet, e, int(settings.size()) + 2);
+    // The baselines on the same rays: plain Embree (speed claims) and HSSR with its capture.
+    p.step("embree");
+    const BuiltTracer embree = buildTracer("embree", frame, o.options);
+    const Classified em = measure(frame, *embree.tracer, ec, o.repeat, ref.tracer.get());
+    t.rows.push_back({"embree", 0, 0, 0, embree.buildMs, em.traceMs, embree.memoryBytes, 0, 0, em.correctHit, em.correctMiss,
+                      em.wrongHit, em.falseMiss, em.infoMiss, 1.0});
+    p.step("hssr");
+    const BuiltTracer hssr = buildTracer("hssr", frame, o.options);
+    const Classified hs = measure(frame, *hssr.tracer, ec, o.repeat, ref.tracer.get());
+    t.rows.push_back({"hssr", 0, 0, 0, frame.rasterMs + frame.sortMs + hssr.buildMs, hs.traceMs,
+                      frame.lists.memoryBytes() + frame.layers.memoryBytes() + hssr.memoryBytes, frame.lists.generated, 0, hs.correctHit,
+                      hs.correctMiss, hs.wrongHit, hs.falseMiss, hs.infoMiss, hs.traceMs / em.traceMs});
+    for (const Setting& s : settings) {
+      p.step(cat("ldc ", s.resolution, " block ", s.block, " intervals ", s.intervals));
+      TracerOptions to = o.options;
+      to.ldc.resolution = s.resolution, to.ldc.block = s.block, to.ldc.blockIntervals = s.intervals;
+      std::vector<double> builds;
+      BuiltTracer b = buildTracer("ldc", frame, to);  // warm-up, discarded
+      for (int i = 0; i < o.repeat; ++i) {
+        b = buildTracer("ldc", frame, to);
+        builds.push_back(b.buildMs);
+      }
+      const Classified c = measure(frame, *b.tracer, ec, o.repeat, ref.tracer.get());
+      t.rows.push_back({"ldc", s.resolution, s.block, s.intervals, median(builds), c.traceMs, b.memoryBytes, b.ldc->samples(),
+                        b.ldc->lostTriangles(), c.correctHit, c.correctMiss, c.wrongHit, c.falseMiss, c.infoMiss, c.traceMs / em.traceMs});
     }
   }
   if (e == "warp") {
