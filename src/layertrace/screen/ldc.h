@@ -124,7 +124,9 @@ class LdcTracer : public TracerImpl<LdcTracer> {
   template <bool AnyHit, class C>
   TraceHit traceAny(const Ray& ray, C& counters) const;
   template <bool AnyHit, class C>
-  bool traceView(const LdcView& view, glm::vec3 worldOrigin, glm::vec3 worldDir, float tMin, float& tMax,
+  /// One LDI; `found` says whether an earlier LDI hit (then tMax is that hit). Returns whether
+  /// any LDI so far hit.
+  bool traceView(const LdcView& view, glm::vec3 worldOrigin, glm::vec3 worldDir, float tMin, float& tMax, bool found,
                  ViewHit& hit, C& counters) const;
 
   const Camera& camera_;

@@ -88,7 +88,7 @@ struct LdcTracer::ViewHit {
 LdcTracer::LdcTracer(const Camera& camera, const LayeredDepthCube& ldc) : camera_(camera), ldc_(ldc) {}
 
 template <bool AnyHit, class C>
-bool LdcTracer::traceView(const LdcView& v, glm::vec3 wo, glm::vec3 wd, float tMin, float& tMax,
+bool LdcTracer::traceView(const LdcView& v, glm::vec3 wo, glm::vec3 wd, float tMin, float& tMax, bool found,
                           ViewHit& best, C& counters) const {
   const float texel = ldc_.texel, inv = 1.0f / texel, eps = ldc_.config.epsilon;
   const glm::vec3 o = v.camera.toCamera(wo), d = v.camera.dirToCamera(wd);
@@ -103,7 +103,6 @@ bool LdcTracer::traceView(const LdcView& v, glm::vec3 wo, glm::vec3 wd, float tM
   // is the triangle's dominant one, |n_u|, |n_v| ≤ |n_axis| — within 2 (0.5 + eps) texels in depth.
   const float half = (0.5f + eps) * texel, margin = 2.0f * half * 1.001f;
   const int B = ldc_.config.block, slots = ldc_.config.blockIntervals;
-  bool found = false;
 
   Dda blocks;
   blocks.start(r, float(B), t0, 0, v.blocksX - 1, 0, v.blocksY - 1);
@@ -145,7 +144,8 @@ bool LdcTracer::traceView(const LdcView& v, glm::vec3 wo, glm::vec3 wd, float tM
             if (denom == 0.0f) continue;
             const glm::vec3 P{centre.x, centre.y, -s.depth};
             const float t = glm::dot(P - o, n) / denom;
-            if (!(t >= tMin && t <= tMax)) continue;
+            // Only a strictly nearer sample replaces a hit (ties: the first one met).
+            if (!(t >= tMin && (found ? t < tMax : t <= tMax))) continue;
             const glm::vec3 X = o + d * t;
             if (std::abs(X.x - P.x) > half || std::abs(X.y - P.y) > half) continue;
             tMax = t;
@@ -177,8 +177,14 @@ TraceHit LdcTracer::traceAny(const Ray& ray, C& counters) const {
   float tMax = ray.maxDistance;
   ViewHit best;
   bool found = false;
-  for (const LdcView& v : ldc_.views) {
-    found = traceView<AnyHit>(v, wo, wd, tMin, tMax, best, counters) || found;
+  // The LDI of the ray's dominant axis first: a ray mostly along x mostly meets surfaces facing
+  // x, and its hit there shortens the ray for the other two (the order changes only the work:
+  // the nearest hit wins, ties to the view traced first).
+  const glm::vec3 m = glm::abs(wd);
+  int order[3] = {0, 1, 2};
+  std::stable_sort(order, order + 3, [&](int a, int b) { return m[a] > m[b]; });
+  for (int a : order) {
+    found = traceView<AnyHit>(ldc_.views[size_t(a)], wo, wd, tMin, tMax, found, best, counters);
     if (AnyHit && found) break;
   }
   TraceHit hit;
