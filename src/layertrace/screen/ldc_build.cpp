@@ -107,9 +107,12 @@ void buildView(const Scene& scene, std::span<const uint8_t> axisOf, std::span<co
     const glm::vec2 px = cam.project(c);
     const int x = std::clamp(int(std::floor(px.x)), 0, W - 1), y = std::clamp(int(std::floor(px.y)), 0, H - 1);
     const glm::vec3 shading = scene.normals[i.x] + scene.normals[i.y] + scene.normals[i.z];
+    // The sample stands at the texel centre: the triangle's plane there (its normal's view-axis
+    // component is the dominant one, so the division is safe).
+    const glm::vec3 n = toView * unitNormals[t], centre = cam.rayOrigin({float(x) + 0.5f, float(y) + 0.5f});
     Extra e;
     e.texel = view.texelIndex(x, y);
-    e.node.depth = -c.z;
+    e.node.depth = -(c.z - (n.x * (centre.x - c.x) + n.y * (centre.y - c.y)) / n.z);
     e.node.normal = encodeOctahedral(toView * shading);
     e.node.albedoSpec = materialPacked[scene.triMaterial[t]];
     e.node.next = encodeOctahedral(toView * unitNormals[t]);
