@@ -112,7 +112,9 @@ TEST(Ldc, BoxRoomRaysHitTheAnalyticWallAlongEveryAxisAndOctant) {
       const float expected = exitDistance(r.origin, r.dir, lo, hi);
       ASSERT_TRUE(h.hit) << "origin " << origin.x << "," << origin.y << "," << origin.z << " dir " << r.dir.x << "," << r.dir.y << "," << r.dir.z;
       EXPECT_NEAR(glm::length(h.point - r.origin), expected, 1e-4f * expected + 1e-4f) << "dir " << r.dir.x << "," << r.dir.y << "," << r.dir.z;
-      EXPECT_GE(c.iterations, 1u);
+      if (kCountersCompiled) {
+        EXPECT_GE(c.iterations, 1u);
+      }
       ++rays;
     }
   EXPECT_GT(rays, 1600);

@@ -131,7 +131,7 @@ TEST(TraceInterface, ObserverSeesEveryRayAndChangesNothing) {
 // include each other.
 TEST(TraceInterface, SourceTreeKeepsTheLayering) {
   const std::map<std::string, int> rank = {{"util", 0},     {"scene", 1},  {"raster", 2},   {"trace", 3},  {"screen", 4}, {"geometry", 4},
-                                           {"hybrid", 5},   {"pipeline", 6}, {"render", 7}, {"eval", 8},   {"app", 9}};
+                                           {"hybrid", 5},   {"pipeline", 6}, {"render", 7}, {"eval", 8},   {"api", 9}, {"app", 10}};
   const std::string include = "#include \"layertrace/";
   const std::filesystem::path root = std::filesystem::path(test::sourceDir()) / "src/layertrace";
   size_t files = 0;
