@@ -26,9 +26,12 @@ build-cli: deps-run
 	cmake -S . -B $(BUILD) -DCMAKE_BUILD_TYPE=Release -DBUILD_TESTING=OFF -DLAYERTRACE_BENCH=OFF >/dev/null
 	cmake --build $(BUILD) -j $(JOBS) --target layertrace
 
+# The sanitizer build also makes the library shared (BUILD_SHARED_LIBS): make test installs it
+# and builds the examples against it, as the Release build does with the static one.
 build-asan: deps
-	cmake -S . -B $(ASAN) -DCMAKE_BUILD_TYPE=Debug -DLAYERTRACE_SANITIZE=ON -DLAYERTRACE_COUNTERS=OFF -DLAYERTRACE_BENCH=OFF >/dev/null
-	cmake --build $(ASAN) -j $(JOBS) --target layertrace_tests
+	cmake -S . -B $(ASAN) -DCMAKE_BUILD_TYPE=Debug -DLAYERTRACE_SANITIZE=ON -DLAYERTRACE_COUNTERS=OFF -DLAYERTRACE_BENCH=OFF \
+	    -DBUILD_SHARED_LIBS=ON >/dev/null
+	cmake --build $(ASAN) -j $(JOBS) --target layertrace_tests layertrace_library layertrace
 
 # libFuzzer needs clang; the fuzz build is separate from the GCC builds (fuzz/README.md).
 build-fuzz: deps
@@ -56,7 +59,9 @@ run: build-cli
 	$(BUILD)/layertrace layers $(SCENE) -o $(OUT)/layers --stats $(OUT)/layers.json --verify
 	@echo "wrote $(OUT)/default_hssr_reflection.png (+ .json), $(OUT)/layers/ and $(OUT)/layers.json"
 
-# The whole suite: Release tests (with the fetched scenes) and the unit tests under ASan+UBSan.
+# The whole suite: Release tests (with the fetched scenes, and the install of the static library
+# with the examples built against it) and the unit tests under ASan+UBSan (with the shared library
+# installed and the examples built against it).
 # The sanitizer build also compiles the per-ray counters out (LAYERTRACE_COUNTERS=OFF), so
 # both configurations of the tracers are built and tested.
 # Then the unit tests under ThreadSanitizer, and the fuzz targets of our own parsers for 20 s each
@@ -64,7 +69,7 @@ run: build-cli
 test: build build-asan build-tsan build-fuzz fetch
 	cd $(BUILD) && ctest --output-on-failure -j $(JOBS)
 	cd $(ASAN) && ASAN_OPTIONS=detect_leaks=1 UBSAN_OPTIONS=halt_on_error=1:print_stacktrace=1 \
-	    LAYERTRACE_SANITIZED=1 ctest --output-on-failure -j $(JOBS) -L unit
+	    LAYERTRACE_SANITIZED=1 ctest --output-on-failure -j $(JOBS) -L 'unit|install'
 	cd $(TSAN) && TSAN_OPTIONS="halt_on_error=1 suppressions=$(CURDIR)/scripts/tsan.supp" \
 	    LAYERTRACE_SANITIZED=1 ctest --output-on-failure -j $(JOBS) -L unit
 	scripts/run-fuzz.sh $(FUZZ) 20 json_scene cli
