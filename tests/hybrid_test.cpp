@@ -21,14 +21,7 @@ Scene twoWalls() {
   return s;
 }
 
-Ray freeRay(glm::vec3 origin, glm::vec3 dir, float maxDistance = 1e30f) {
-  Ray r;
-  r.origin = origin;
-  r.dir = glm::normalize(dir);
-  r.maxDistance = maxDistance;
-  r.startsOnSurface = false;
-  return r;
-}
+using test::freeRay;
 
 float depthAt(const Ray& r, float t) { return -(r.origin + r.dir * t).z; }
 

@@ -17,14 +17,7 @@
 namespace lt {
 namespace {
 
-Ray freeRay(glm::vec3 origin, glm::vec3 dir, float maxDistance = 1e30f) {
-  Ray r;
-  r.origin = origin;
-  r.dir = glm::normalize(dir);
-  r.maxDistance = maxDistance;
-  r.startsOnSurface = false;
-  return r;
-}
+using test::freeRay;
 
 /// An orthographic camera looking down -z (camera space = world space), `height` units high.
 Camera orthoCamera(float height, int W, int H) {

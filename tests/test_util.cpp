@@ -124,4 +124,13 @@ uint64_t testSeed() {
   return env ? std::strtoull(env, nullptr, 10) : 20171122ull;
 }
 
+Ray freeRay(glm::vec3 origin, glm::vec3 dir, float maxDistance) {
+  Ray r;
+  r.origin = origin;
+  r.dir = glm::normalize(dir);
+  r.maxDistance = maxDistance;
+  r.startsOnSurface = false;
+  return r;
+}
+
 }  // namespace lt::test

@@ -38,6 +38,9 @@ bool haveFetchedScenes();
 /// A camera at the origin looking down -z (camera space = world space).
 CameraDesc originCamera(float fovY = 60.0f, float near = 0.01f, float far = 100.0f);
 
+/// A ray from free space (not from a stored surface: Ray::startsOnSurface = false), `dir` normalised.
+Ray freeRay(glm::vec3 origin, glm::vec3 dir, float maxDistance = 1e30f);
+
 /// Adds a triangle to a scene with one material.
 void addTriangle(Scene& s, glm::vec3 a, glm::vec3 b, glm::vec3 c, uint32_t material = 0);
 

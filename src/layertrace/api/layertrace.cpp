@@ -298,12 +298,9 @@ void MeshTracer::occluded(std::span<const Ray> rays, std::span<TraceHit> hits, R
 
 // ---- Evaluation and rendering ----------------------------------------------------------------
 
-static_assert(int(HitClass::CorrectMiss) == int(RayClass::CorrectMiss) && int(HitClass::InfoMiss) == int(RayClass::InfoMiss) &&
-              int(HitClass::WrongHitThickness) == int(RayClass::WrongHitThickness) && kRayClasses == 8);
-
 const char* hitClassName(HitClass c) {
   if (uint8_t(c) >= kRayClasses) invalid(cat("hitClassName: ", int(c), " is not a class"));
-  return rayClassName(RayClass(c));
+  return rayClassName(c);
 }
 
 std::vector<uint8_t> classifyHits(const ScreenLayers& layers, std::span<const Ray> rays, std::span<const TraceHit> hits,

@@ -156,17 +156,10 @@ class LAYERTRACE_API MeshTracer {
   std::unique_ptr<Impl> impl_;
 };
 
-/// The strict classes of layertrace's evaluation (README "How rays are graded").
-enum class HitClass : uint8_t {
-  CorrectHit,
-  WrongHitThickness,
-  WrongHitUnstored,
-  WrongHitOther,
-  FalseMiss,
-  OriginPixelMiss,
-  InfoMiss,
-  CorrectMiss,
-};
+/// The strict classes of layertrace's evaluation (README "How rays are graded"): CorrectHit,
+/// WrongHitThickness, WrongHitUnstored, WrongHitOther, FalseMiss, OriginPixelMiss, InfoMiss,
+/// CorrectMiss (trace/tracer.h).
+using HitClass = RayClass;
 /// "correct_hit", "wrong_hit_thickness", ... (the stats keys of `layertrace compare`).
 LAYERTRACE_API const char* hitClassName(HitClass c);
 

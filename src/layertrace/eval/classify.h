@@ -53,17 +53,7 @@
 
 namespace lt {
 
-enum class RayClass : uint8_t {
-  CorrectHit,
-  WrongHitThickness,
-  WrongHitUnstored,
-  WrongHitOther,
-  FalseMiss,
-  OriginPixelMiss,
-  InfoMiss,
-  CorrectMiss,
-};
-inline constexpr int kRayClasses = 8;
+// RayClass, kRayClasses: trace/tracer.h (the public API grades hits with them too).
 const char* rayClassName(RayClass c);  ///< "correct_hit", "wrong_hit_thickness", ...
 glm::vec3 rayClassColor(RayClass c);   ///< legend colours of the classification image
 inline bool isWrongHit(RayClass c) { return c == RayClass::WrongHitThickness || c == RayClass::WrongHitUnstored || c == RayClass::WrongHitOther; }

@@ -89,6 +89,20 @@ struct NoCounters {
   void occlusion() {}
 };
 
+/// The strict classes of an image-space answer graded against the geometric one (eval/classify.h
+/// states the rules; README "How rays are graded").
+enum class RayClass : uint8_t {
+  CorrectHit,
+  WrongHitThickness,
+  WrongHitUnstored,
+  WrongHitOther,
+  FalseMiss,
+  OriginPixelMiss,
+  InfoMiss,
+  CorrectMiss,
+};
+inline constexpr int kRayClasses = 8;
+
 /// What a query asks: the closest hit (shading, reflection) or any hit before maxDistance
 /// (shadow, AO), where a tracer may stop at the first surface it meets.
 enum class Query : uint8_t { Closest, Any };
