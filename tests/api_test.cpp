@@ -145,6 +145,49 @@ TEST(Api, WorldSpaceRaysAndClassificationAgreeWithTheCameraPath) {
   EXPECT_STREQ(hitClassName(HitClass::InfoMiss), "info_miss");
 }
 
+// A scene given as arrays: captureLayers stores what `layertrace render` stores, and render()
+// makes the CLI's image (one light above the eye; the same tracer, effect and k).
+TEST(Api, CaptureAndRenderOfUserTrianglesAreTheCliPaths) {
+  const Frame f = defaultFrame();
+  const View view = viewOf(f.camera);
+  const TriangleScene scene(f.scene.positions, f.scene.triangles);
+  const ScreenLayers captured = captureLayers(scene, view, f.layers.k);
+  size_t stored = 0;
+  for (int y = 0; y < f.layers.height; ++y)
+    for (int x = 0; x < f.layers.width; ++x) {
+      ASSERT_EQ(captured.countAt(x, y), f.layers.countAt(x, y)) << x << "," << y;
+      stored += size_t(captured.countAt(x, y));
+    }
+  EXPECT_GT(stored, size_t(f.layers.width * f.layers.height));
+  // Every surface half a mirror, so the reflection rays show in the image.
+  const std::vector<uint32_t> material(f.scene.triangleCount(), 0);
+  const std::vector<MeshMaterial> mirror{{glm::vec3(0.6f), 0.5f}};
+  const TriangleScene mirrors(f.scene.positions, f.scene.triangles, material, mirror);
+  auto meanAbsDiff = [](const RgbImage& a, const RgbImage& b) {
+    double d = 0.0;
+    for (size_t i = 0; i < a.rgb.size(); ++i) d += std::abs(a.rgb[i] - b.rgb[i]);
+    return d / double(a.rgb.size());
+  };
+  RenderRequest r;
+  r.view = view;
+  // Shading the primary hits: HSSR's layers and Embree see the same surfaces.
+  r.effect = "shade";
+  const RgbImage shadeHssr = render(mirrors, r);
+  r.tracer = "embree";
+  const RgbImage shadeEmbree = render(mirrors, r);
+  ASSERT_EQ(shadeHssr.rgb.size(), size_t(view.width * view.height * 3));
+  double mean = 0.0;
+  for (float v : shadeEmbree.rgb) mean += v / double(shadeEmbree.rgb.size());
+  EXPECT_GT(mean, 0.02);  // lit
+  EXPECT_LE(meanAbsDiff(shadeHssr, shadeEmbree), 1.0 / 255.0);
+  // Reflections: HSSR misses what the layers do not hold, Embree does not.
+  r.effect = "reflection";
+  const RgbImage reflEmbree = render(mirrors, r);
+  r.tracer = "hssr";
+  const RgbImage reflHssr = render(mirrors, r);
+  EXPECT_GT(meanAbsDiff(reflHssr, reflEmbree), 1.0 / 255.0);
+}
+
 /// Expects std::invalid_argument whose message names `what`.
 template <class F>
 void expectInvalid(const std::string& what, F&& f) {

@@ -402,6 +402,26 @@ TEST(CliBench, GammaSweepsTheQuadtreeMergeThresholds) {
   for (const auto& r : rows) EXPECT_GT(r["correct_hit"].get<double>(), 0.3);
 }
 
+// Issue 12 §1–2, 6: bench --experiment ldc sweeps 512² and 1K² × blocks 4, 8, 16 (and the paper's
+// min/max) beside Embree and HSSR; the blocks change no answer, the finer LDIs store more.
+TEST(CliBench, LdcSweepsResolutionAndBlocks) {
+  nlohmann::json j;
+  ASSERT_NO_FATAL_FAILURE(j = benchOnDefaultScene("ldc", 160, 90));
+  const auto& rows = j["rows"];
+  ASSERT_EQ(rows.size(), 10u);
+  EXPECT_EQ(rows[0]["tracer"], "embree");
+  EXPECT_EQ(rows[1]["tracer"], "hssr");
+  for (size_t i = 2; i < rows.size(); ++i) {
+    const auto& r = rows[i];
+    EXPECT_EQ(r["tracer"], "ldc");
+    EXPECT_EQ(r["correct_hit"], rows[i < 6 ? 2 : 6]["correct_hit"]) << "blocks changed answers, row " << i;
+    EXPECT_GT(r["correct_hit"].get<double>(), rows[1]["correct_hit"].get<double>()) << "row " << i;
+    EXPECT_GT(r["trace_ms"].get<double>(), 0.0);
+  }
+  EXPECT_GT(rows[6]["samples"].get<uint64_t>(), 3 * rows[2]["samples"].get<uint64_t>());  // 1K² vs 512²
+  EXPECT_EQ(rows[5]["block_intervals"], 1);
+}
+
 }  // namespace
 }  // namespace lt
 

@@ -95,7 +95,8 @@ enum class RaySpace : uint8_t { Camera, World };
 
 /// A screen-space tracer over ScreenLayers (which must outlive it): "hssr" (seed 000's
 /// hierarchical tracer, exact against its oracle), "hiz", "ssr", "ssr-layers" or "quadtree".
-/// It builds the structure it needs (e.g. the interval pyramid) once. Thread-safe for tracing.
+/// It builds the structure it needs (e.g. the interval pyramid) once; std::invalid_argument for
+/// another name. Its trace calls may run concurrently from several threads.
 class LAYERTRACE_API ScreenTracer {
  public:
   explicit ScreenTracer(const ScreenLayers& layers, const std::string& name = "hssr");
@@ -103,8 +104,10 @@ class LAYERTRACE_API ScreenTracer {
   ~ScreenTracer();
 
   /// Closest hit of every ray: hits[i] answers rays[i] (same sizes). A hit carries its pixel,
-  /// layer, the point where the ray meets the stored interval, and the stored normal and id.
-  /// Secondary rays (Ray::startsOnSurface) skip their own pixel (seed 000 §5.1).
+  /// layer, the point where the ray meets the stored interval, and the stored normal and id, in
+  /// the rays' space. Secondary rays (Ray::startsOnSurface) skip their own pixel (seed 000 §5.1).
+  /// std::invalid_argument for different sizes, a non-finite origin, a direction that is not of
+  /// unit length or a maxDistance that is not positive (naming rays[i]).
   void trace(std::span<const Ray> rays, std::span<TraceHit> hits, RaySpace space = RaySpace::Camera) const;
   /// Whether anything blocks each ray before its maxDistance (hits[i].hit).
   void occluded(std::span<const Ray> rays, std::span<TraceHit> hits, RaySpace space = RaySpace::Camera) const;
@@ -139,9 +142,11 @@ class LAYERTRACE_API TriangleScene {
   std::unique_ptr<Impl> impl_;
 };
 
-/// A geometric tracer (Embree or the grid) over a TriangleScene (which must outlive it), for rays of `view`'s camera
-/// space: "embree" (Embree 3, robust mode: layertrace's ground truth) or "grid" (seed 003's
-/// irregular grid). Hits carry the triangle index, the exact point and pixel -1..width.
+/// A geometric tracer over a TriangleScene (which must outlive it), for rays in `view`'s camera
+/// space (or world space): "embree" (Embree 3, robust mode: layertrace's ground truth) or "grid"
+/// (seed 003's irregular grid); std::invalid_argument for another name or an invalid view. Hits
+/// carry the triangle index, the exact point and normal, and layer -1; trace and occluded
+/// validate their arguments as ScreenTracer's do.
 class LAYERTRACE_API MeshTracer {
  public:
   MeshTracer(const TriangleScene& scene, const View& view, const std::string& name = "embree");
