@@ -254,7 +254,7 @@ LayeredDepthCube buildLdc(const Scene& scene, const LdcConfig& config) {
     texels += uint64_t(v.width) * uint64_t(v.height);
   }
   // Rasterizer heads and counters plus the offsets, before any sample exists.
-  checkAllocation(cat("the layered depth cube (", texels, " texels)"), texels * 3 * sizeof(uint32_t));
+  checkAllocation(cat("the layered depth cube (--ldc-resolution ", config.resolution, ": ", texels, " texels)"), texels * 3 * sizeof(uint32_t));
 
   const size_t n = scene.triangles.size();
   std::vector<uint8_t> axisOf(n, kNoAxis);
