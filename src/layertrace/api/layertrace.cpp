@@ -314,19 +314,30 @@ std::vector<uint8_t> classifyHits(const ScreenLayers& layers, std::span<const Ra
   return classes;
 }
 
-ScreenLayers captureLayers(const TriangleScene& scene, const View& view, int k, float thicknessPx) {
+namespace {
+
+/// The frame `layertrace render` makes of a scene: the view's camera, its default light, and the
+/// k layers captured with a z-thickness of thicknessPx pixel footprints.
+Frame capturedFrame(const TriangleScene& scene, const View& view, int k, float thicknessPx) {
   if (k < 1 || k > 16) invalid(cat("k ", k, ": must be between 1 and 16"));
-  auto impl = std::make_unique<ScreenLayers::Impl>();
-  impl->view = view;
-  impl->frame.camera = cameraOf(view);
-  impl->frame.thicknessPerDepth = thicknessPerDepth(impl->frame.camera, thicknessPx);
+  Frame frame;
+  frame.camera = cameraOf(view);
+  frame.thicknessPerDepth = thicknessPerDepth(frame.camera, thicknessPx);
+  frame.lights.push_back(defaultLight(frame.camera));
+  frame.scene = scene.impl().scene;
   FrameOptions fo;
   fo.layers = k;
-  guarded([&] {
-    impl->frame.scene = scene.impl().scene;
-    rasterizeFrame(fo, impl->frame);
-    impl->frame.scene = Scene{};  // the layers are what the API traces
-  });
+  guarded([&] { rasterizeFrame(fo, frame); });
+  return frame;
+}
+
+}  // namespace
+
+ScreenLayers captureLayers(const TriangleScene& scene, const View& view, int k, float thicknessPx) {
+  auto impl = std::make_unique<ScreenLayers::Impl>();
+  impl->view = view;
+  impl->frame = capturedFrame(scene, view, k, thicknessPx);
+  impl->frame.scene = Scene{};  // the layers are what the API traces
   return ScreenLayers(std::move(impl));
 }
 
@@ -347,14 +358,7 @@ RgbImage render(const TriangleScene& scene, const RenderRequest& r) {
     ec.bounces = r.bounces;
     if (ec.effect == Effect::Warp) invalid("effect \"warp\": needs a second view (use the CLI)");
     validateEffectConfig(ec);
-    Frame frame;
-    frame.scene = scene.impl().scene;
-    frame.camera = cameraOf(r.view);
-    frame.lights.push_back(defaultLight(frame.camera));
-    frame.thicknessPerDepth = kDefaultThicknessPx / frame.camera.focal();
-    FrameOptions fo;
-    fo.layers = r.layers;
-    rasterizeFrame(fo, frame);
+    const Frame frame = capturedFrame(scene, r.view, r.layers, kDefaultThicknessPx);
     const BuiltTracer built = buildTracer(r.tracer, frame, TracerOptions{});
     const EffectResult result = renderEffect(frame, *built.tracer, ec);
     RgbImage out;

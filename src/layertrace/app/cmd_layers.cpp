@@ -21,6 +21,18 @@ void ensureDirectory(const std::string& dir, const std::string& option) {
   if (ec || !fs::is_directory(dir)) inputError(option, " ", dir, ": cannot create directory");
 }
 
+ComplexityImages depthComplexityImages(int width, int height, const std::vector<uint32_t>& counts) {
+  ComplexityImages out{Image(width, height), Image(width, height, 1)};
+  for (uint32_t c : counts) out.max = std::max(out.max, c);
+  for (int y = 0; y < height; ++y)
+    for (int x = 0; x < width; ++x) {
+      const uint32_t c = counts[size_t(y) * size_t(width) + size_t(x)];
+      out.heat.set(x, y, c == 0 ? glm::vec3(0.0f) : heatColor(float(c) / float(out.max)));
+      out.counts.at(x, y)[0] = float(c);
+    }
+  return out;
+}
+
 int runLayers(const LayersOptions& o) {
   const std::string outDir = o.run.output.empty() ? "out/layers" : o.run.output;
   Frame frame = buildFrame(o.run.frame);
@@ -64,17 +76,10 @@ int runLayers(const LayersOptions& o) {
     images.emplace_back(cat("layer", layer, "_normal.png"), std::move(normal));
     images.emplace_back(cat("layer", layer, "_depth.png"), std::move(depth));
   }
-  uint32_t maxDc = 1;
-  for (uint32_t c : frame.lists.complexity) maxDc = std::max(maxDc, c);
-  Image heat(W, H), counts(W, H, 1);
-  for (int y = 0; y < H; ++y)
-    for (int x = 0; x < W; ++x) {
-      const uint32_t c = frame.lists.complexity[frame.lists.pixelIndex(x, y)];
-      heat.set(x, y, c == 0 ? glm::vec3(0.0f) : heatColor(float(c) / float(maxDc)));
-      counts.at(x, y)[0] = float(c);
-    }
-  images.emplace_back("depth_complexity.png", std::move(heat));
-  images.emplace_back("depth_complexity.exr", std::move(counts));
+  ComplexityImages dc = depthComplexityImages(W, H, frame.lists.complexity);
+  const uint32_t maxDc = dc.max;
+  images.emplace_back("depth_complexity.png", std::move(dc.heat));
+  images.emplace_back("depth_complexity.exr", std::move(dc.counts));
 
   ensureDirectory(outDir, "-o");
   for (const auto& [name, image] : images) {

@@ -24,19 +24,16 @@ int runLdc(const LdcOptions& o) {
   std::vector<std::pair<std::string, Image>> images;
   for (const LdcView& v : ldc.views) {
     const std::string axis(1, "xyz"[v.axis]);
-    uint32_t maxDc = 1;
+    std::vector<uint32_t> counts(size_t(v.width) * size_t(v.height));
+    for (size_t p = 0; p < counts.size(); ++p) counts[p] = v.offset[p + 1] - v.offset[p];
+    ComplexityImages dc = depthComplexityImages(v.width, v.height, counts);
+    Image albedo(v.width, v.height);
     for (int y = 0; y < v.height; ++y)
-      for (int x = 0; x < v.width; ++x) maxDc = std::max(maxDc, v.countAt(x, y));
-    Image heat(v.width, v.height), counts(v.width, v.height, 1), albedo(v.width, v.height);
-    for (int y = 0; y < v.height; ++y)
-      for (int x = 0; x < v.width; ++x) {
-        const uint32_t c = v.countAt(x, y);
-        heat.set(x, y, c == 0 ? glm::vec3(0.0f) : heatColor(float(c) / float(maxDc)));
-        counts.at(x, y)[0] = float(c);
-        if (c) albedo.set(x, y, unpackAlbedo(v.samples[v.offset[v.texelIndex(x, y)]].albedoSpec));
-      }
-    images.emplace_back("ldc_" + axis + "_depth_complexity.png", std::move(heat));
-    images.emplace_back("ldc_" + axis + "_depth_complexity.exr", std::move(counts));
+      for (int x = 0; x < v.width; ++x)
+        if (v.countAt(x, y)) albedo.set(x, y, unpackAlbedo(v.samples[v.offset[v.texelIndex(x, y)]].albedoSpec));
+    const uint32_t maxDc = dc.max;
+    images.emplace_back("ldc_" + axis + "_depth_complexity.png", std::move(dc.heat));
+    images.emplace_back("ldc_" + axis + "_depth_complexity.exr", std::move(dc.counts));
     images.emplace_back("ldc_" + axis + "_albedo.png", std::move(albedo));
     stats["ldc"]["views"][axis]["depth_complexity_max"] = maxDc;
   }

@@ -7,6 +7,7 @@
 #include <string>
 
 #include "layertrace/pipeline/frame.h"
+#include "layertrace/util/image.h"
 
 namespace lt {
 
@@ -31,6 +32,14 @@ int runLayers(const LayersOptions& options);
 
 /// Writes `json` to `path` atomically (pretty-printed), if `path` is not empty.
 void writeStats(const std::string& path, const std::string& json);
+
+/// The depth-complexity map of a width × height buffer of fragment counts (row-major): a heat
+/// image (black = none, blue = 1, red = the maximum) and the raw counts (one channel, for EXR).
+struct ComplexityImages {
+  Image heat, counts;
+  uint32_t max = 1;
+};
+ComplexityImages depthComplexityImages(int width, int height, const std::vector<uint32_t>& counts);
 
 /// Creates `dir` (and parents); InputError naming the option if impossible.
 void ensureDirectory(const std::string& dir, const std::string& option);
