@@ -2,6 +2,7 @@
 // same hit as the exhaustive oracle (the same traversal with one level), for any τ, level count
 // and n_up. Rays: mirror reflections from random covered pixels, and random directions.
 #include <atomic>
+#include <bit>
 #include <random>
 
 #include <tbb/parallel_for.h>
@@ -9,6 +10,8 @@
 #include <glm/geometric.hpp>
 
 #include "layertrace/pipeline/frame.h"
+#include "layertrace/screen/hssr_march.h"
+#include "layertrace/screen/hssr_march_reference.h"
 #include "layertrace/screen/hssr_tracer.h"
 #include "layertrace/screen/interval_pyramid.h"
 #include "layertrace/util/parallel.h"
@@ -66,6 +69,42 @@ void expectExact(const Frame& f, size_t count) {
     }
 }
 
+/// The fast march (incremental spans, κ-domain fixed-slot coarse cells, sentinels) against the
+/// reference march it replaced: the same level-0 pixel, interval and entry parameter, bit for
+/// bit, for the oracle (1 level) and the hierarchical march, on `rays` and their mirror bounces.
+void expectSameAsReference(const Frame& f, size_t count) {
+  const uint64_t seed = test::testSeed() + 7;
+  std::vector<Ray> rays = test::sampleRays(f, count, seed);
+  const int W = f.camera.width(), H = f.camera.height();
+  for (int levels : {1, 3, 5, 8}) {
+    const IntervalPyramid p = buildIntervalPyramid(f.layers, f.camera, PyramidConfig{levels, 25.0f});
+    for (int nUp : {1, 2}) {
+      std::atomic<size_t> mismatches{0}, firstBad{rays.size()}, hits{0};
+      parallelFor(size_t(0), rays.size(), [&](size_t i) {
+        const ScreenSegment seg = makeScreenSegment(f.camera, rays[i]);
+        if (!seg.valid) return;
+        NoCounters c;
+        const MarchHit a = hssrMarch(p, levels, nUp, seg, W, H, c), b = hssrMarchReference(p, levels, nUp, seg, W, H, c);
+        hits += a.hit();
+        if (a.x != b.x || a.y != b.y || a.interval != b.interval || std::bit_cast<uint32_t>(a.s) != std::bit_cast<uint32_t>(b.s)) {
+          ++mismatches;
+          size_t cur = firstBad.load();
+          while (i < cur && !firstBad.compare_exchange_weak(cur, i)) {}
+        }
+      });
+      EXPECT_GT(hits.load(), rays.size() / 10) << "too few hits to mean anything";
+      EXPECT_EQ(mismatches.load(), 0u) << "levels " << levels << " n_up " << nUp << " first ray " << firstBad.load() << " seed " << seed;
+    }
+  }
+}
+
+TEST(Hssr, FastMarchEqualsReferenceMarch) {
+  FrameOptions o;
+  o.scenePath = test::sourceDir() + "/scenes/default.json";
+  o.width = 317, o.height = 179;  // partial cells on every pyramid level
+  expectSameAsReference(buildFrame(o), 40000);
+}
+
 TEST(Hssr, MatchesExhaustiveOracleOnDefaultScene) {
   FrameOptions o;
   o.scenePath = test::sourceDir() + "/scenes/default.json";
@@ -80,7 +119,9 @@ class RealSceneHssr : public ::testing::TestWithParam<std::pair<const char*, con
 TEST_P(RealSceneHssr, MatchesExhaustiveOracle) {
   ASSERT_TRUE(test::haveFetchedScenes()) << "run scripts/fetch-scenes.sh";
   const FrameOptions o = test::realSceneOptions(GetParam().first, GetParam().second);
-  expectExact(buildFrame(o), 100000);
+  const Frame f = buildFrame(o);
+  expectExact(f, 100000);
+  expectSameAsReference(f, 100000);
 }
 
 INSTANTIATE_TEST_SUITE_P(Scenes, RealSceneHssr,

@@ -24,10 +24,11 @@ struct MarchHit {
 };
 
 namespace hssr_detail {
-/// The 2D line P(s) = p0 + s d and the parameters where it crosses a cell's box (seed 000 §5.1:
-/// "a simple 2D ray/AABB test"). Every level computes a boundary's parameter with the same
+/// The 2D line P(s) = p0 + s d and the parameters where it crosses cell boundaries (seed 000
+/// §5.1: "a simple 2D ray/AABB test"). Every level computes a boundary's parameter with the same
 /// expression, so a level-0 pixel gets bit-identical entry/exit whichever level the ray came
-/// down from (hssr-pitfalls §8).
+/// down from (hssr-pitfalls §8) — and the same values as the reference march
+/// (hssr_march_reference.h), which recomputes all four crossings of every cell.
 struct Line {
   glm::vec2 p0, d;
   float invDx, invDy;
@@ -41,19 +42,72 @@ struct Line {
   }
   float crossX(float x) const { return stepX ? (x - p0.x) * invDx : std::numeric_limits<float>::infinity(); }
   float crossY(float y) const { return stepY ? (y - p0.y) * invDy : std::numeric_limits<float>::infinity(); }
-  /// Entry and exit parameters of cell (cx, cy) of size `size` pixels; also which axis exits first.
-  void cellParams(int cx, int cy, int size, float& sIn, float& sOut, bool& exitX) const {
-    const float x0 = float(cx * size), x1 = float((cx + 1) * size), y0 = float(cy * size), y1 = float((cy + 1) * size);
-    const float txIn = stepX > 0 ? crossX(x0) : stepX < 0 ? crossX(x1) : -std::numeric_limits<float>::infinity();
-    const float txOut = stepX > 0 ? crossX(x1) : crossX(x0);
-    const float tyIn = stepY > 0 ? crossY(y0) : stepY < 0 ? crossY(y1) : -std::numeric_limits<float>::infinity();
-    const float tyOut = stepY > 0 ? crossY(y1) : crossY(y0);
-    sIn = std::max(txIn, tyIn);
-    sOut = std::min(txOut, tyOut);
-    // An axis-parallel line only passes the cells of its own row or column.
-    if ((stepX == 0 && !(p0.x >= x0 && p0.x < x1)) || (stepY == 0 && !(p0.y >= y0 && p0.y < y1)))
-      sIn = std::numeric_limits<float>::infinity(), sOut = -std::numeric_limits<float>::infinity();
-    exitX = txOut <= tyOut;  // ties step in x first (deterministic, hssr-pitfalls §7)
+
+  /// Where the line enters and leaves a cell's column (x) and row (y). An axis-parallel line
+  /// passes no cell outside its own row or column: such a cell is `blocked` (in = +∞, out = −∞).
+  struct Span {
+    float xIn, xOut, yIn, yOut;
+    float in() const { return std::max(xIn, yIn); }
+    float out() const { return std::min(xOut, yOut); }
+    bool exitX() const { return xOut <= yOut; }  // ties step in x first (hssr-pitfalls §7)
+  };
+  /// The column [x0, x1) as entered along the line.
+  void slabX(float x0, float x1, float& in, float& out) const {
+    constexpr float inf = std::numeric_limits<float>::infinity();
+    in = stepX > 0 ? crossX(x0) : stepX < 0 ? crossX(x1) : -inf;
+    out = stepX > 0 ? crossX(x1) : crossX(x0);
+    if (stepX == 0 && !(p0.x >= x0 && p0.x < x1)) in = inf, out = -inf;
+  }
+  void slabY(float y0, float y1, float& in, float& out) const {
+    constexpr float inf = std::numeric_limits<float>::infinity();
+    in = stepY > 0 ? crossY(y0) : stepY < 0 ? crossY(y1) : -inf;
+    out = stepY > 0 ? crossY(y1) : crossY(y0);
+    if (stepY == 0 && !(p0.y >= y0 && p0.y < y1)) in = inf, out = -inf;
+  }
+  /// Cell (cx, cy) of size `size` pixels, all four crossings (on entry, ascent, or a rounding
+  /// fallback; the march otherwise keeps spans incrementally).
+  Span span(int cx, int cy, int size) const {
+    Span sp;
+    slabX(float(cx * size), float((cx + 1) * size), sp.xIn, sp.xOut);
+    slabY(float(cy * size), float((cy + 1) * size), sp.yIn, sp.yOut);
+    return sp;
+  }
+  /// Step from a cell of size `size` to its neighbour across the exit boundary: the exit of one
+  /// cell is the entry of the next, so one new crossing per step.
+  void step(Span& sp, int& cx, int& cy, int size) const {
+    if (sp.exitX()) {
+      cx += stepX;
+      sp.xIn = sp.xOut;
+      sp.xOut = crossX(float((stepX > 0 ? cx + 1 : cx) * size));
+    } else {
+      cy += stepY;
+      sp.yIn = sp.yOut;
+      sp.yOut = crossY(float((stepY > 0 ? cy + 1 : cy) * size));
+    }
+  }
+  /// The column of child `b` (0 left, 1 right) of a cell whose column is [xIn, xOut] along the
+  /// line and whose middle is crossed at `mid`: the child entered first has the cell's entry.
+  void childX(const Span& parent, float mid, float xMid, int b, float& in, float& out) const {
+    constexpr float inf = std::numeric_limits<float>::infinity();
+    if (stepX == 0) {
+      const bool inside = (p0.x >= xMid) == (b == 1);
+      in = inside ? -inf : inf, out = inside ? inf : -inf;
+    } else if ((stepX > 0) == (b == 0)) {
+      in = parent.xIn, out = mid;
+    } else {
+      in = mid, out = parent.xOut;
+    }
+  }
+  void childY(const Span& parent, float mid, float yMid, int b, float& in, float& out) const {
+    constexpr float inf = std::numeric_limits<float>::infinity();
+    if (stepY == 0) {
+      const bool inside = (p0.y >= yMid) == (b == 1);
+      in = inside ? -inf : inf, out = inside ? inf : -inf;
+    } else if ((stepY > 0) == (b == 0)) {
+      in = parent.yIn, out = mid;
+    } else {
+      in = mid, out = parent.yOut;
+    }
   }
 };
 
@@ -61,10 +115,18 @@ struct Line {
 
 /// seed 000 §5 over `pyramid` (its first `levels` levels) for a valid segment of a W×H view.
 /// Hits are reported at level 0 only; `nUp` cells without an overlap before ascending.
+///
+/// Visits the same level-0 pixels with the same depths as hssrMarchReference and returns the
+/// same hit (tested hit for hit); what differs is the cost per cell: spans are kept
+/// incrementally (one crossing per step, two per descent instead of sixteen), coarse cells are
+/// tested in inverse depth κ = 1/z — linear in s, so no division — against fixed-slot cells
+/// (CoarseCell, no offset load), and level 0 stops at the slots' sentinel (no count load).
 template <class C>
 MarchHit hssrMarch(const IntervalPyramid& pyramid, int levels, int nUp, const ScreenSegment& seg, int W, int H, C& c) {
   using hssr_detail::Line;
+  constexpr float inf = std::numeric_limits<float>::infinity();
   const Line line(seg);
+  const int k = pyramid.base.k;
   int ox = std::clamp(int(std::floor(seg.p0.x)), 0, W - 1), oy = std::clamp(int(std::floor(seg.p0.y)), 0, H - 1);
   const bool increasing = seg.k1 <= seg.k0;  // depth grows along the ray (hssr-pitfalls §6)
   if (line.stepX == 0 && line.stepY == 0) {
@@ -74,80 +136,86 @@ MarchHit hssrMarch(const IntervalPyramid& pyramid, int levels, int nUp, const Sc
     c.iteration(0);
     c.pixel();
     const float za = seg.depthAt(0.0f), zb = seg.depthAt(1.0f);
-    const int i = firstMet(pyramid.base.pixel(ox, oy), pyramid.base.countAt(ox, oy), std::min(za, zb), std::max(za, zb), increasing, c);
+    const int i = firstMet(pyramid.base.pixel(ox, oy), k, std::min(za, zb), std::max(za, zb), increasing, c);
     return i >= 0 ? MarchHit{ox, oy, i, 0.0f} : MarchHit{};
   }
-  // Back-off for the coarse entry: paramAtDepth divides by k1 − k0, so its rounding error
-  // grows as the ray turns parallel to the image plane (|k1 − k0| ≪ k0). Step back at least
-  // 1/64 pixel, and at least 4× the error bound of the division (in units of s):
-  //   |Δs| ≤ 4 u (max(k0, k1, 1/z) / |k1 − k0| + |s|),  u = 2^-24,
+  // κ along the segment, κ(s) = k0 + s dκ: the same expression depthAt divides 1 by.
+  const float k0 = seg.k0, dk = seg.k1 - seg.k0;
+  const float invDk = 1.0f / dk, invAbsDk = std::abs(invDk);
+  // Back-off for the coarse entry: the entry s = (κ_z − k0) / dκ loses accuracy as the ray turns
+  // parallel to the image plane (|dκ| ≪ κ). Step back at least 1/64 pixel, and at least 8× the
+  // error bound of the product (in units of s; 4× bounded the reference's division, the
+  // reciprocal adds 2u|s|):
+  //   |Δs| ≤ 8 u (max(k0, k1, κ_z) / |dκ| + |s|),  u = 2^-24,
   // so rounding can never carry the entry past the pixel the level-0 scan would hit.
   const float pixelBackoff = 1.0f / (64.0f * std::max(std::abs(line.d.x), std::abs(line.d.y)));
-  const float kScale = std::max(seg.k0, seg.k1) / std::abs(seg.k1 - seg.k0);
-  auto backoff = [&](float e, float z) {
+  const float kScale = std::max(seg.k0, seg.k1) * invAbsDk;
+  auto backoff = [&](float e, float kz) {
     constexpr float u = 1.0f / 16777216.0f;
-    return std::max(pixelBackoff, 4.0f * u * (std::max(kScale, 1.0f / (z * std::abs(seg.k1 - seg.k0))) + std::abs(e)));
+    return std::max(pixelBackoff, 8.0f * u * (std::max(kScale, kz * invAbsDk) + std::abs(e)));
   };
 
   // seed 000 §5.1: skip the first pixel (no self-intersection with the origin's surface). A ray
   // entering from outside the view starts no surface: its first pixel is tested, and no pixel
   // is the origin pixel of the ascend rule.
-  float sIn, sOut;
-  bool exitX;
-  line.cellParams(ox, oy, 1, sIn, sOut, exitX);
-  const float sStart = seg.clippedStart ? 0.0f : sOut;
+  Line::Span sp = line.span(ox, oy, 1);
+  // An axis-parallel segment starting outside its clamped pixel's row/column (p0 on the far
+  // border) meets no cell: the reference returns at its first cell.
+  if (!(sp.in() <= sp.out())) return {};
+  const float sStart = seg.clippedStart ? 0.0f : sp.out();
   float s = sStart;
-  int L = 0, cx = ox + (exitX ? line.stepX : 0), cy = oy + (exitX ? 0 : line.stepY);
-  if (seg.clippedStart) cx = ox, cy = oy, ox = oy = -(1 << 29);
+  int L = 0, cx = ox, cy = oy;
+  if (seg.clippedStart) ox = oy = -(1 << 29);
+  else line.step(sp, cx, cy, 1);
   int misses = 0;
   // Parameter of the last zero-length (corner) cell the DDA stepped out of: a descent at that
   // same parameter must not go back into it (the oracle visits it once).
   float cornerLeft = -1.0f;
-  float sLast = -1.0f, zLast = 0.0f;  // the last depthAt(s) computed, for reuse
+  float sLast = -1.0f, zLast = 0.0f;  // the last level-0 depthAt(s), for reuse
   const int safety = 8 * (W + H) * levels + 64;
   for (int guard = 0; guard < safety; ++guard) {
     const PyramidLevel& lvl = pyramid.levels[size_t(L)];
     if (cx < 0 || cy < 0 || cx >= lvl.width || cy >= lvl.height) return {};
-    const int size = 1 << L;
-    line.cellParams(cx, cy, size, sIn, sOut, exitX);
+    const float sIn = sp.in(), sOut = sp.out();
     const float s0 = L == 0 ? std::max(sIn, sStart) : std::max(sIn, s);
     const float s1 = std::min(sOut, 1.0f);
     if (s0 > 1.0f) return {};  // the segment ended before this cell
     c.iteration(L);
-    // The exit of one cell is usually the entry of the next: reuse its depth (the same
-    // division of the same s, so bit-identical) instead of dividing again.
-    const float za = s0 == sLast ? zLast : seg.depthAt(s0), zb = seg.depthAt(s1);
-    sLast = s1, zLast = zb;
-    float zmin = std::min(za, zb), zmax = std::max(za, zb);
     if (L == 0) {
       c.pixel();
-      const int i = firstMet(pyramid.base.pixel(cx, cy), pyramid.base.countAt(cx, cy), zmin, zmax, increasing, c);
+      // The exit of one pixel is usually the entry of the next: reuse its depth (the same
+      // division of the same s, so bit-identical) instead of dividing again.
+      const float za = s0 == sLast ? zLast : seg.depthAt(s0), zb = seg.depthAt(s1);
+      sLast = s1, zLast = zb;
+      const int i = firstMet(pyramid.base.pixel(cx, cy), k, std::min(za, zb), std::max(za, zb), increasing, c);
       if (i >= 0) return MarchHit{cx, cy, i, s0};
     } else {
-      // Coarse levels only accelerate: widen the range by a few ulps so rounding can never
-      // make them skip what level 0 would find.
-      zmin *= 1.0f - 4e-7f, zmax *= 1.0f + 4e-7f;
-      const size_t cell = lvl.cellIndex(cx, cy);
-      float sHit = std::numeric_limits<float>::infinity();
-      for (uint32_t i = lvl.offset[cell]; i < lvl.offset[cell + 1]; ++i) {
+      // Coarse levels only accelerate: widen the κ range by a few ulps so rounding (of κ here,
+      // of 1/κ at level 0, of the stored 1/z) can never make them skip what level 0 would find.
+      const float ka = k0 + s0 * dk, kb = k0 + s1 * dk;
+      const float kmin = std::min(ka, kb) * (1.0f - 4e-7f), kmax = std::max(ka, kb) * (1.0f + 4e-7f);
+      const CoarseCell& cell = lvl.cells[lvl.cellIndex(cx, cy)];
+      float sHit = inf;
+      for (int i = 0; i < CoarseCell::kSlots; ++i) {
         c.interval();
-        const Interval& iv = lvl.intervals[i];
-        if (iv.front > zmax) break;
-        if (iv.back < zmin) continue;
+        if (cell.kFront[i] < kmin) break;  // front beyond the ray's depths; the sentinel too
+        if (cell.kBack[i] > kmax) continue;
         // Enter at the front when depth grows, at the back when it shrinks; never move back.
         // Step back from the computed entry by its error bound (backoff above): an entry that
         // lands just past a pixel boundary would skip the pixel the oracle hits. Re-testing a
         // little more is always safe; s0 keeps it from reaching behind the current position.
-        const float z = increasing ? iv.front : iv.back;
-        const float p = seg.paramAtDepth(z);
-        const float e = p - backoff(p, z);
+        const float kz = increasing ? cell.kFront[i] : cell.kBack[i];
+        const float p = (kz - k0) * invDk;
+        const float e = p - backoff(p, kz);
         sHit = std::min(sHit, std::clamp(std::isfinite(e) ? e : s0, s0, s1));
       }
-      if (sHit != std::numeric_limits<float>::infinity()) {
+      if (sHit != inf) {
         // seed 000 §5.2: advance to the entry, re-project, descend one level.
         s = std::max(s, sHit);
         --L;
-        const int half = size >> 1;
+        const int half = 1 << L;
+        const float xMid = float((2 * cx + 1) * half), yMid = float((2 * cy + 1) * half);
+        const float mx = line.crossX(xMid), my = line.crossY(yMid);
         // The child holding s, chosen as the oracle's DDA reaches it (hssr-pitfalls §7, §8).
         // The child being left (exit == s) is done. Where the line passes exactly through a
         // corner, the DDA steps in x first and visits that zero-length cell (entry == exit == s)
@@ -155,23 +223,26 @@ MarchHit hssrMarch(const IntervalPyramid& pyramid, int levels, int nUp, const Sc
         // oracle's, ties included.
         int best = -1;
         float bestOut = 0.0f;
-        for (int k = 0; k < 4; ++k) {
-          const int nx = 2 * cx + (k & 1), ny = 2 * cy + (k >> 1);
-          float a, b;
-          bool ex;
-          line.cellParams(nx, ny, half, a, b, ex);
+        Line::Span bestSpan{};
+        for (int q = 0; q < 4; ++q) {
+          Line::Span ch;
+          line.childX(sp, mx, xMid, q & 1, ch.xIn, ch.xOut);
+          line.childY(sp, my, yMid, q >> 1, ch.yIn, ch.yOut);
+          const float a = ch.in(), b = ch.out();
           if (!(a <= s && s <= b) || (b == s && a < b)) continue;
           // A zero-length cell is one the x-first DDA steps into at a corner and leaves through
           // y; the other corner cell (left through x) it never visits. Once left, not again.
-          if (a == b && (ex || a == cornerLeft)) continue;
-          if (best < 0 || b < bestOut) best = k, bestOut = b;
+          if (a == b && (ch.exitX() || a == cornerLeft)) continue;
+          if (best < 0 || b < bestOut) best = q, bestOut = b, bestSpan = ch;
         }
         if (best < 0) {  // rounding left s just outside every child: take the one under P(s)
-          const glm::vec2 p = seg.pointAt(s);
-          best = (p.x >= float((2 * cx + 1) * half) ? 1 : 0) + (p.y >= float((2 * cy + 1) * half) ? 2 : 0);
+          const glm::vec2 pt = seg.pointAt(s);
+          best = (pt.x >= xMid ? 1 : 0) + (pt.y >= yMid ? 2 : 0);
+          bestSpan = line.span(2 * cx + (best & 1), 2 * cy + (best >> 1), half);
         }
         cx = 2 * cx + (best & 1);
         cy = 2 * cy + (best >> 1);
+        sp = bestSpan;
         misses = 0;
         continue;
       }
@@ -180,14 +251,15 @@ MarchHit hssrMarch(const IntervalPyramid& pyramid, int levels, int nUp, const Sc
     if (sIn == sOut) cornerLeft = sOut;
     s = std::max(s, s1);
     if (sOut >= 1.0f) return {};
-    if (exitX) cx += line.stepX;
-    else cy += line.stepY;
+    const int size = 1 << L;
+    line.step(sp, cx, cy, size);
     if (++misses >= nUp && L + 1 < levels) {
       const int px = cx >> 1, py = cy >> 1;
       // seed 000 §5.2: only ascend when the coarser cell does not overlap the origin pixel.
       if ((ox >> (L + 1)) != px || (oy >> (L + 1)) != py) {
         if (px < pyramid.levels[size_t(L + 1)].width && py < pyramid.levels[size_t(L + 1)].height && cx >= 0 && cy >= 0) {
           ++L, cx = px, cy = py, misses = 0;
+          sp = line.span(cx, cy, 2 * size);
         }
       }
     }

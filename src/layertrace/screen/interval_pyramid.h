@@ -23,15 +23,33 @@ struct PyramidConfig {
   float tau = 25.0f;
 };
 
+/// A coarse cell in the form the march reads (hssr_march.h): its intervals as inverse depths
+/// κ = 1/z, at most kSlots of them in one half cache line, sorted front to back (κFront
+/// descending), unused slots κFront = −∞ (a sentinel the march's early exit stops at, so no
+/// count is read). With the ray's κ linear in the screen parameter (screen_segment.h) the march
+/// tests a cell and finds where it enters an interval without a division. A cell whose CSR list
+/// holds more than kSlots intervals merges the two separated by the smallest depth gap until
+/// kSlots remain (choice: a fixed size removes the dependent offset load; merging only widens
+/// intervals, so the cell still covers its children — hssr-pitfalls §3 — and answers cannot
+/// change; on the real views ≤ 0.3 % of level-1 cells need it).
+struct alignas(32) CoarseCell {
+  static constexpr int kSlots = 4;
+  float kFront[kSlots];  ///< 1 / front depth (the larger κ)
+  float kBack[kSlots];   ///< 1 / back depth (0 for an interval that reaches ∞)
+};
+
 struct PyramidLevel {
   int width = 0, height = 0;
   std::vector<uint32_t> offset;  ///< per cell: first interval; offset[cells] = total
   std::vector<Interval> intervals;
+  std::vector<CoarseCell> cells;  ///< the same intervals as fixed-slot κ cells (levels ≥ 1)
   size_t cellIndex(int x, int y) const { return size_t(y) * size_t(width) + size_t(x); }
 };
 
 struct IntervalPyramid {
-  IntervalLayers base;                ///< level 0: k intervals per pixel
+  /// level 0: k intervals per pixel; slots past a pixel's count hold {+∞, +∞}, a sentinel that
+  /// ends firstMet's scan, so the march reads no count
+  IntervalLayers base;
   std::vector<PyramidLevel> levels;  ///< levels[0] only records the size: level 0 is `base`
   int levelCount() const { return int(levels.size()); }
   size_t memoryBytes() const;

@@ -1,5 +1,6 @@
 #include <algorithm>
 #include <chrono>
+#include <limits>
 #include <utility>
 
 #include <tbb/blocked_range.h>
@@ -14,7 +15,8 @@ namespace lt {
 
 size_t IntervalPyramid::memoryBytes() const {
   size_t bytes = base.memoryBytes();
-  for (const PyramidLevel& l : levels) bytes += l.offset.size() * sizeof(uint32_t) + l.intervals.size() * sizeof(Interval);
+  for (const PyramidLevel& l : levels)
+    bytes += l.offset.size() * sizeof(uint32_t) + l.intervals.size() * sizeof(Interval) + l.cells.size() * sizeof(CoarseCell);
   return bytes;
 }
 
@@ -38,6 +40,36 @@ void mergeChildren(std::vector<Interval>& children, float tauPerDepth, std::vect
   }
 }
 
+/// One cell's CSR intervals (sorted by front, disjoint) as a fixed-slot κ cell (CoarseCell).
+CoarseCell toCoarseCell(const Interval* first, const Interval* last, std::vector<Interval>& scratch) {
+  scratch.assign(first, last);
+  while (scratch.size() > size_t(CoarseCell::kSlots)) {
+    // Merge the neighbours separated by the smallest gap: the union still covers both.
+    size_t best = 0;
+    for (size_t i = 1; i + 1 < scratch.size(); ++i)
+      if (scratch[i + 1].front - scratch[i].back < scratch[best + 1].front - scratch[best].back) best = i;
+    scratch[best].back = std::max(scratch[best].back, scratch[best + 1].back);
+    scratch.erase(scratch.begin() + std::ptrdiff_t(best) + 1);
+  }
+  CoarseCell c;
+  for (int i = 0; i < CoarseCell::kSlots; ++i) {
+    const bool used = size_t(i) < scratch.size();
+    // The same division the reference march made (paramAtDepth), so κ is bit-identical to it.
+    c.kFront[i] = used ? 1.0f / scratch[size_t(i)].front : -std::numeric_limits<float>::infinity();
+    c.kBack[i] = used ? 1.0f / scratch[size_t(i)].back : std::numeric_limits<float>::infinity();
+  }
+  return c;
+}
+
+void buildCoarseCells(PyramidLevel& lvl) {
+  lvl.cells.resize(size_t(lvl.width) * size_t(lvl.height));
+  parallelFor(tbb::blocked_range<size_t>(0, lvl.cells.size(), 4096), [&](const tbb::blocked_range<size_t>& r) {
+    std::vector<Interval> scratch;
+    for (size_t c = r.begin(); c != r.end(); ++c)
+      lvl.cells[c] = toCoarseCell(lvl.intervals.data() + lvl.offset[c], lvl.intervals.data() + lvl.offset[c + 1], scratch);
+  });
+}
+
 }  // namespace
 
 IntervalPyramid buildIntervalPyramid(const LayerArrays& layers, const Camera& camera, const PyramidConfig& config) {
@@ -53,6 +85,12 @@ IntervalPyramid buildIntervalPyramid(IntervalLayers base, const Camera& camera, 
   const auto start = std::chrono::steady_clock::now();
   IntervalPyramid p;
   p.base = std::move(base);
+  // The march's sentinel: slots past a pixel's count hold {+∞, +∞} (interval_pyramid.h).
+  parallelFor(tbb::blocked_range<size_t>(0, p.base.count.size(), 4096), [&](const tbb::blocked_range<size_t>& r) {
+    constexpr float inf = std::numeric_limits<float>::infinity();
+    for (size_t px = r.begin(); px != r.end(); ++px)
+      for (size_t i = p.base.count[px]; i < size_t(p.base.k); ++i) p.base.slots[px * size_t(p.base.k) + i] = {inf, inf};
+  });
   p.levels.resize(size_t(config.levels));
   p.levels[0].width = p.base.width;
   p.levels[0].height = p.base.height;
@@ -91,7 +129,8 @@ IntervalPyramid buildIntervalPyramid(IntervalLayers base, const Camera& camera, 
     size_t intervals = 0;
     for (const std::vector<Interval>& row : rows) intervals += row.size();
     if (intervals > 0xFFFFFFFFull) inputError("interval pyramid level ", L, ": ", intervals, " intervals exceed the 32-bit offsets");
-    checkAllocation(cat("interval pyramid level ", L), intervals * sizeof(Interval) + (size_t(lvl.width) * size_t(lvl.height) + 1) * sizeof(uint32_t));
+    checkAllocation(cat("interval pyramid level ", L),
+                    intervals * sizeof(Interval) + (size_t(lvl.width) * size_t(lvl.height) + 1) * (sizeof(uint32_t) + sizeof(CoarseCell)));
     lvl.offset.resize(size_t(lvl.width) * size_t(lvl.height) + 1);
     uint32_t total = 0;
     for (int y = 0; y < lvl.height; ++y)
@@ -104,6 +143,7 @@ IntervalPyramid buildIntervalPyramid(IntervalLayers base, const Camera& camera, 
     parallelFor(0, lvl.height, [&](int y) {
       std::copy(rows[size_t(y)].begin(), rows[size_t(y)].end(), lvl.intervals.begin() + lvl.offset[lvl.cellIndex(0, y)]);
     });
+    buildCoarseCells(lvl);
   }
   p.buildMs = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
   return p;
