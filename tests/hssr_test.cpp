@@ -95,6 +95,18 @@ void expectSameAsReference(const Frame& f, size_t count) {
       EXPECT_GT(hits.load(), rays.size() / 10) << "too few hits to mean anything";
       EXPECT_EQ(mismatches.load(), 0u) << "levels " << levels << " n_up " << nUp << " first ray " << firstBad.load() << " seed " << seed;
     }
+    // The uncounted batch runs the copy compiled for this CPU (util/cpu_dispatch.h): the same
+    // hits as the one-ray path.
+    const HssrTracer t(f.camera, f.layers, p, HssrConfig{2, levels});
+    std::vector<TraceHit> batch(rays.size());
+    t.traceBatch(rays, batch, {});
+    size_t differ = 0;
+    for (size_t i = 0; i < rays.size(); ++i) {
+      RayCounters c;
+      const TraceHit one = t.trace(rays[i], c);
+      differ += one.hit != batch[i].hit || one.x != batch[i].x || one.y != batch[i].y || one.layer != batch[i].layer;
+    }
+    EXPECT_EQ(differ, 0u) << "levels " << levels;
   }
 }
 

@@ -5,6 +5,7 @@
 #include "layertrace/screen/fragment_hit.h"
 #include "layertrace/screen/hssr_march.h"
 #include "layertrace/screen/screen_segment.h"
+#include "layertrace/util/cpu_dispatch.h"
 #include "layertrace/util/error.h"
 
 namespace lt {
@@ -21,6 +22,18 @@ TraceHit HssrTracer::traceImpl(const Ray& ray, C& c) const {
   if (!seg.valid) return {};
   const MarchHit m = hssrMarch(pyramid_, levels_, config_.nUp, seg, camera_.width(), camera_.height(), c);
   return m.hit() ? fragmentHit(camera_, layers_, m.x, m.y, m.interval) : TraceHit{};
+}
+
+namespace {
+LT_CPU_DISPATCH void traceUncounted(const HssrTracer& t, std::span<const Ray> rays, std::span<TraceHit> hits) {
+  NoCounters none;
+  for (size_t i = 0; i < rays.size(); ++i) hits[i] = t.traceImpl(rays[i], none);
+}
+}  // namespace
+
+void HssrTracer::traceBatch(std::span<const Ray> rays, std::span<TraceHit> hits, std::span<RayCounters> counters) const {
+  if (kCountersCompiled && !counters.empty()) return TracerImpl::traceBatch(rays, hits, counters);
+  traceUncounted(*this, rays, hits);
 }
 
 template TraceHit HssrTracer::traceImpl(const Ray&, RayCounters&) const;

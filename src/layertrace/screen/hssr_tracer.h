@@ -26,6 +26,10 @@ class HssrTracer : public TracerImpl<HssrTracer> {
   /// seed 000 §5, written once against the counter calls (trace/tracer.h).
   template <class C>
   TraceHit traceImpl(const Ray& ray, C& counters) const;
+  /// Uncounted batches (timing runs, renders without stats) run a copy of the march compiled
+  /// for the CPU it runs on (util/cpu_dispatch.h): the same answers bit for bit (no FMA
+  /// contraction anywhere), tested against traceImpl.
+  void traceBatch(std::span<const Ray> rays, std::span<TraceHit> hits, std::span<RayCounters> counters) const override;
 
  private:
   const Camera& camera_;

@@ -10,6 +10,7 @@
 #include <vector>
 
 #include "layertrace/raster/layer_arrays.h"
+#include "layertrace/util/default_init.h"
 
 namespace lt {
 
@@ -19,7 +20,7 @@ struct Interval {
 
 struct IntervalLayers {
   int width = 0, height = 0, k = 0;
-  std::vector<Interval> slots;  ///< pixel-major, k per pixel, sorted by front
+  PoolVector<Interval> slots;  ///< pixel-major, k per pixel, sorted by front
   std::vector<uint8_t> count;
   size_t pixelIndex(int x, int y) const { return size_t(y) * size_t(width) + size_t(x); }
   const Interval* pixel(int x, int y) const { return &slots[pixelIndex(x, y) * size_t(k)]; }

@@ -42,7 +42,7 @@ struct PyramidLevel {
   int width = 0, height = 0;
   std::vector<uint32_t> offset;  ///< per cell: first interval; offset[cells] = total
   std::vector<Interval> intervals;
-  std::vector<CoarseCell> cells;  ///< the same intervals as fixed-slot κ cells (levels ≥ 1)
+  PoolVector<CoarseCell> cells;  ///< the same intervals as fixed-slot κ cells (levels ≥ 1)
   size_t cellIndex(int x, int y) const { return size_t(y) * size_t(width) + size_t(x); }
 };
 
