@@ -87,7 +87,9 @@ TEST(Grid, CellsPartitionTheVirtualGridAndExpansionKeepsSubsets) {
   o.scenePath = test::sourceDir() + "/scenes/default.json";
   Frame f;
   loadFrameScene(o, f);
-  const IrregularGrid grid(f.scene);
+  GridConfig whole;  // seed 003's expansion (partial expansion: the next test)
+  whole.partialExpansion = false;
+  const IrregularGrid grid(f.scene, whole);
   const auto& cells = grid.cells();
   EXPECT_LT(grid.stats().cellsAfterMerge, grid.stats().cellsInitial);  // merging did something
   EXPECT_GT(grid.stats().expandedFaces, 0u);
@@ -115,6 +117,40 @@ TEST(Grid, CellsPartitionTheVirtualGridAndExpansionKeepsSubsets) {
   }
 }
 
+// Partial expansion (the default): every primitive that overlaps a voxel of a cell's expanded
+// box is referenced by that cell — what makes skipping the swept voxels safe.
+TEST(Grid, PartialExpansionReferencesEveryPrimitiveOfTheSweptVoxels) {
+  FrameOptions o;
+  o.scenePath = test::sourceDir() + "/scenes/default.json";
+  Frame f;
+  loadFrameScene(o, f);
+  const IrregularGrid grid(f.scene);
+  GridConfig whole;
+  whole.partialExpansion = false;
+  EXPECT_GT(grid.stats().expandedFaces, IrregularGrid(f.scene, whole).stats().expandedFaces);
+  const auto& cells = grid.cells();
+  const auto& refs = grid.refs();
+  size_t checked = 0;
+  for (size_t a = 0; a < cells.size(); a += 5) {
+    const GridCell& A = cells[a];
+    for (int z = A.elo[2]; z < A.ehi[2]; ++z)
+      for (int y = A.elo[1]; y < A.ehi[1]; ++y)
+        for (int x = A.elo[0]; x < A.ehi[0]; ++x) {
+          const int v[3] = {x, y, z};
+          const GridCell& B = cells[grid.cellAt(v)];
+          const glm::vec3 lo = grid.origin() + glm::vec3(float(x), float(y), float(z)) * grid.voxelSize(), hi = lo + grid.voxelSize();
+          for (uint32_t r = B.refBegin; r < B.refEnd; ++r) {
+            const glm::uvec3 t = f.scene.triangles[refs[r]];
+            if (!triangleBoxOverlap(f.scene.positions[t.x], f.scene.positions[t.y], f.scene.positions[t.z], lo, hi, 0.0f)) continue;
+            ++checked;
+            ASSERT_TRUE(std::binary_search(refs.begin() + A.refBegin, refs.begin() + A.refEnd, refs[r]))
+                << "cell " << a << " skips triangle " << refs[r] << " in voxel " << x << "," << y << "," << z;
+          }
+        }
+  }
+  EXPECT_GT(checked, 1000u);
+}
+
 TEST(Grid, AgreesWithEmbreeOnTheDefaultScene) {
   FrameOptions o;
   o.scenePath = test::sourceDir() + "/scenes/default.json";
@@ -127,7 +163,9 @@ TEST(Grid, AgreesWithEmbreeOnTheDefaultScene) {
     gc.partialExpansion = variant == 2;
     const IrregularGrid grid(f.scene, gc);
     if (variant == 2) {
-      EXPECT_GT(grid.stats().expandedFaces, IrregularGrid(f.scene).stats().expandedFaces);
+      GridConfig whole;
+      whole.partialExpansion = false;
+      EXPECT_GT(grid.stats().expandedFaces, IrregularGrid(f.scene, whole).stats().expandedFaces);
     }
     const Agreement a = compareWithEmbree(f.scene, f.camera.desc(), grid, 320, 180, test::testSeed());
     EXPECT_GE(a.fraction(), 0.9999) << "variant " << variant << ": " << a.agree << " of " << a.rays;

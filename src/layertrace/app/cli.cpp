@@ -85,7 +85,8 @@ void addFrameOptions(CLI::App* app, lt::RunOptions& run, RawFrameOptions& raw) {
 void addGridOptions(CLI::App* app, lt::GridConfig& g) {
   app->add_option("--lambda1", g.lambda1, "grid: top-level density (seed 003)")->capture_default_str();
   app->add_option("--lambda2", g.lambda2, "grid: second-level density (seed 003)")->capture_default_str();
-  app->add_flag("--partial-expansion", g.partialExpansion, "grid: also expand into neighbours whose swept part holds only shared primitives");
+  app->add_flag("--partial-expansion,!--no-partial-expansion", g.partialExpansion,
+                "grid: also expand into neighbours whose swept part holds only shared primitives (default on)");
 }
 
 void addLdcOptions(CLI::App* app, lt::LdcConfig& c) {

@@ -37,10 +37,12 @@ struct GridConfig {
   /// (Our reading of the slides' C_t: a traversal step costs like a primitive test.)
   float traversalCost = 1.0f;
   int expansionPasses = 3;    ///< seed 003: 3 for static scenes, 1 for dynamic ones
-  /// Partial expansion (our extension; the slides' expansion is all-or-nothing per neighbour):
-  /// a face may also sweep into a neighbour B whose references are not a subset of A's, as
-  /// long as every primitive of B that overlaps the swept part of B is referenced by A.
-  bool partialExpansion = false;
+  /// Partial expansion (the slides' expansion is all-or-nothing per neighbour; hagrid's
+  /// released code expands partially): a face may also sweep into a neighbour B whose
+  /// references are not a subset of A's, as long as every primitive of B that overlaps the
+  /// swept part of B is referenced by A. On by default: 5–10 % faster traversal on the real
+  /// scenes for ~10–30 % more build time, the same agreement with Embree (README).
+  bool partialExpansion = true;
 };
 
 struct GridCell {
@@ -72,7 +74,12 @@ class IrregularGrid {
   const std::vector<GridCell>& cells() const { return cells_; }
   const std::vector<uint32_t>& refs() const { return refs_; }
   /// The cell containing virtual voxel v (the voxel map lookup).
-  uint32_t cellAt(const int v[3]) const;
+  uint32_t cellAt(const int v[3]) const {
+    const TopCell& t = topCells_[(size_t(v[2] >> depth_) * size_t(top_[1]) + size_t(v[1] >> depth_)) * size_t(top_[0]) + size_t(v[0] >> depth_)];
+    const int d = int(t.depth), mask = (1 << depth_) - 1, shift = depth_ - d;
+    const uint32_t l0 = uint32_t((v[0] & mask) >> shift), l1 = uint32_t((v[1] & mask) >> shift), l2 = uint32_t((v[2] & mask) >> shift);
+    return leaf_[t.offset + ((l2 << (2 * d)) + (l1 << d) + l0)];
+  }
   int virtualResolution(int axis) const { return virt_[axis]; }
   glm::vec3 voxelSize() const { return voxel_; }
   glm::vec3 origin() const { return lo_; }
@@ -81,6 +88,21 @@ class IrregularGrid {
   template <bool AnyHit>
   GeoHit traverse(glm::vec3 o, glm::vec3 d, float tnear, float tfar, TraversalCounts* counts) const;
   friend struct GridBuilder;
+
+  /// What the traversal reads, packed apart from the builder's data (the same values): one
+  /// load finds a top cell's leaves, a cell's exit box and references fill 32 bytes, a
+  /// triangle's vertex and edges sit together.
+  struct TopCell {
+    uint32_t offset, depth;
+  };
+  struct TraversalCell {
+    int elo[3], ehi[3];
+    uint32_t refBegin, refEnd;
+  };
+  struct Triangle {
+    glm::vec3 v0, e1, e2;
+  };
+  void packForTraversal();
 
   const Scene* scene_;
   glm::vec3 lo_{0.0f}, hi_{0.0f}, voxel_{1.0f};
@@ -92,7 +114,9 @@ class IrregularGrid {
   std::vector<uint32_t> leaf_;      ///< voxel map, level 2: cell id of each leaf
   std::vector<GridCell> cells_;
   std::vector<uint32_t> refs_;
-  std::vector<glm::vec3> v0_, e1_, e2_;  ///< triangle data for intersection
+  std::vector<TopCell> topCells_;
+  std::vector<TraversalCell> hot_;
+  std::vector<Triangle> tris_;  ///< triangle data for intersection
   GridStats stats_;
 };
 

@@ -324,6 +324,10 @@ IrregularGrid::IrregularGrid(const Scene& scene, const GridConfig& config) : sce
   };
   GridBuilder b{*this, scene, config, {}, {}};
   b.initialGrid();
+  // The voxel map's top level is final now (merging relabels leaves only): the builder's
+  // lookups use cellAt too.
+  topCells_.resize(topDepth_.size());
+  for (size_t c = 0; c < topDepth_.size(); ++c) topCells_[c] = {topOffset_[c], topDepth_[c]};
   stats_.initialMs = since(start);
   auto t = std::chrono::steady_clock::now();
   if (config.merge) b.merge();
@@ -344,28 +348,27 @@ IrregularGrid::IrregularGrid(const Scene& scene, const GridConfig& config) : sce
     cells_[c].refEnd = uint32_t(refs_.size());
   }
   stats_.refs = refs_.size();
-  v0_.resize(scene.triangleCount()), e1_.resize(scene.triangleCount()), e2_.resize(scene.triangleCount());
-  for (size_t tri = 0; tri < scene.triangleCount(); ++tri) {
-    const glm::uvec3 i = scene.triangles[tri];
-    v0_[tri] = scene.positions[i.x];
-    e1_[tri] = scene.positions[i.y] - v0_[tri];
-    e2_[tri] = scene.positions[i.z] - v0_[tri];
-  }
+  packForTraversal();
   stats_.buildMs = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
 }
 
-uint32_t IrregularGrid::cellAt(const int v[3]) const {
-  int t[3], l[3];
-  for (int i = 0; i < 3; ++i) t[i] = v[i] >> depth_;
-  const size_t top = (size_t(t[2]) * size_t(top_[1]) + size_t(t[1])) * size_t(top_[0]) + size_t(t[0]);
-  const int d = topDepth_[top];
-  for (int i = 0; i < 3; ++i) l[i] = (v[i] & ((1 << depth_) - 1)) >> (depth_ - d);
-  return leaf_[topOffset_[top] + uint32_t((l[2] << (2 * d)) + (l[1] << d) + l[0])];
+void IrregularGrid::packForTraversal() {
+  hot_.resize(cells_.size());
+  for (size_t c = 0; c < cells_.size(); ++c) {
+    const GridCell& g = cells_[c];
+    hot_[c] = {{g.elo[0], g.elo[1], g.elo[2]}, {g.ehi[0], g.ehi[1], g.ehi[2]}, g.refBegin, g.refEnd};
+  }
+  tris_.resize(scene_->triangleCount());
+  for (size_t tri = 0; tri < tris_.size(); ++tri) {
+    const glm::uvec3 i = scene_->triangles[tri];
+    const glm::vec3 v0 = scene_->positions[i.x];
+    tris_[tri] = {v0, scene_->positions[i.y] - v0, scene_->positions[i.z] - v0};
+  }
 }
 
 size_t IrregularGrid::memoryBytes() const {
   return topDepth_.size() + topOffset_.size() * 4 + leaf_.size() * 4 + cells_.size() * sizeof(GridCell) + refs_.size() * 4 +
-         3 * v0_.size() * sizeof(glm::vec3);
+         topCells_.size() * sizeof(TopCell) + hot_.size() * sizeof(TraversalCell) + tris_.size() * sizeof(Triangle);
 }
 
 }  // namespace lt

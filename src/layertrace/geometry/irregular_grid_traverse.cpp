@@ -10,6 +10,7 @@
 
 #include "layertrace/geometry/irregular_grid.h"
 #include "layertrace/geometry/ray_triangle.h"
+#include "layertrace/util/cpu_dispatch.h"
 
 namespace lt {
 
@@ -36,12 +37,13 @@ GeoHit IrregularGrid::traverse(glm::vec3 o, glm::vec3 d, float tnear, float tfar
   const int maxSteps = 4 * (virt_[0] + virt_[1] + virt_[2]) + 16;
   int step = 0;
   for (; step < maxSteps; ++step) {
-    const GridCell& c = cells_[cellAt(v)];
+    const TraversalCell& c = hot_[cellAt(v)];
     if (counts) ++counts->steps, counts->tests += c.refEnd - c.refBegin;
     for (uint32_t r = c.refBegin; r < c.refEnd; ++r) {
       const uint32_t tri = refs_[r];
       float t;
-      if (hitTriangle(o, d, v0_[tri], e1_[tri], e2_[tri], tnear, bestT, t)) {
+      const Triangle& T = tris_[tri];
+      if (hitTriangle(o, d, T.v0, T.e1, T.e2, tnear, bestT, t)) {
         if (AnyHit) {
           best.t = t, best.triangle = tri;
           return best;
@@ -79,11 +81,11 @@ GeoHit IrregularGrid::traverse(glm::vec3 o, glm::vec3 d, float tnear, float tfar
   return best;
 }
 
-GeoHit IrregularGrid::intersect(glm::vec3 origin, glm::vec3 dir, float tnear, float tfar, TraversalCounts* counts) const {
+LT_CPU_DISPATCH GeoHit IrregularGrid::intersect(glm::vec3 origin, glm::vec3 dir, float tnear, float tfar, TraversalCounts* counts) const {
   return traverse<false>(origin, dir, tnear, tfar, counts);
 }
 
-bool IrregularGrid::occluded(glm::vec3 origin, glm::vec3 dir, float tnear, float tfar, TraversalCounts* counts) const {
+LT_CPU_DISPATCH bool IrregularGrid::occluded(glm::vec3 origin, glm::vec3 dir, float tnear, float tfar, TraversalCounts* counts) const {
   return traverse<true>(origin, dir, tnear, tfar, counts).hit();
 }
 
