@@ -82,7 +82,8 @@ class IrregularGrid {
   }
   int virtualResolution(int axis) const { return virt_[axis]; }
   glm::vec3 voxelSize() const { return voxel_; }
-  glm::vec3 origin() const { return lo_; }
+  glm::vec3 origin() const { return lo_; }  ///< the grid box's lower corner
+  glm::vec3 boxMax() const { return hi_; }   ///< the grid box's upper corner
 
  private:
   template <bool AnyHit>
