@@ -31,7 +31,7 @@ struct PyramidConfig {
 /// holds more than kSlots intervals merges the two separated by the smallest depth gap until
 /// kSlots remain (choice: a fixed size removes the dependent offset load; merging only widens
 /// intervals, so the cell still covers its children — hssr-pitfalls §3 — and answers cannot
-/// change; on the real views ≤ 0.3 % of level-1 cells need it).
+/// change; on the real views at 1280×720, τ = 25: 0.01–0.32 % of level-1 cells, ≤ 0.13 % above).
 struct alignas(32) CoarseCell {
   static constexpr int kSlots = 4;
   float kFront[kSlots];  ///< 1 / front depth (the larger κ)
