@@ -116,6 +116,22 @@ GeoHit referenceTraverse(const IrregularGrid& g, const Scene& scene, glm::vec3 o
   return best;
 }
 
+/// Calls f(a, A, v, B) for every voxel v of the expanded box of every `stride`-th cell A, B being
+/// the cell that owns v.
+template <class F>
+void forEachExpandedVoxel(const IrregularGrid& grid, size_t stride, F&& f) {
+  const auto& cells = grid.cells();
+  for (size_t a = 0; a < cells.size(); a += stride) {
+    const GridCell& A = cells[a];
+    for (int z = A.elo[2]; z < A.ehi[2]; ++z)
+      for (int y = A.elo[1]; y < A.ehi[1]; ++y)
+        for (int x = A.elo[0]; x < A.ehi[0]; ++x) {
+          const int v[3] = {x, y, z};
+          f(a, A, v, cells[grid.cellAt(v)]);
+        }
+  }
+}
+
 TEST(Grid, TriangleBoxOverlapMatchesSampling) {
   std::mt19937_64 rng(test::testSeed());
   std::uniform_real_distribution<float> u(-1.0f, 1.0f);
@@ -162,17 +178,9 @@ TEST(Grid, CellsPartitionTheVirtualGridAndExpansionKeepsSubsets) {
   // Expansion: every voxel inside a cell's expanded box belongs to a cell whose references are
   // a subset of that cell's (the traversal-correctness condition of seed 003).
   const auto& refs = grid.refs();
-  for (size_t a = 0; a < cells.size(); a += 7) {
-    const GridCell& A = cells[a];
-    for (int z = A.elo[2]; z < A.ehi[2]; ++z)
-      for (int y = A.elo[1]; y < A.ehi[1]; ++y)
-        for (int x = A.elo[0]; x < A.ehi[0]; ++x) {
-          const int v[3] = {x, y, z};
-          const GridCell& B = cells[grid.cellAt(v)];
-          ASSERT_TRUE(std::includes(refs.begin() + A.refBegin, refs.begin() + A.refEnd, refs.begin() + B.refBegin,
-                                    refs.begin() + B.refEnd));
-        }
-  }
+  forEachExpandedVoxel(grid, 7, [&](size_t, const GridCell& A, const int*, const GridCell& B) {
+    ASSERT_TRUE(std::includes(refs.begin() + A.refBegin, refs.begin() + A.refEnd, refs.begin() + B.refBegin, refs.begin() + B.refEnd));
+  });
 }
 
 // Partial expansion (the default): every primitive that overlaps a voxel of a cell's expanded
@@ -186,26 +194,18 @@ TEST(Grid, PartialExpansionReferencesEveryPrimitiveOfTheSweptVoxels) {
   GridConfig whole;
   whole.partialExpansion = false;
   EXPECT_GT(grid.stats().expandedFaces, IrregularGrid(f.scene, whole).stats().expandedFaces);
-  const auto& cells = grid.cells();
   const auto& refs = grid.refs();
   size_t checked = 0;
-  for (size_t a = 0; a < cells.size(); a += 5) {
-    const GridCell& A = cells[a];
-    for (int z = A.elo[2]; z < A.ehi[2]; ++z)
-      for (int y = A.elo[1]; y < A.ehi[1]; ++y)
-        for (int x = A.elo[0]; x < A.ehi[0]; ++x) {
-          const int v[3] = {x, y, z};
-          const GridCell& B = cells[grid.cellAt(v)];
-          const glm::vec3 lo = grid.origin() + glm::vec3(float(x), float(y), float(z)) * grid.voxelSize(), hi = lo + grid.voxelSize();
-          for (uint32_t r = B.refBegin; r < B.refEnd; ++r) {
-            const glm::uvec3 t = f.scene.triangles[refs[r]];
-            if (!triangleBoxOverlap(f.scene.positions[t.x], f.scene.positions[t.y], f.scene.positions[t.z], lo, hi, 0.0f)) continue;
-            ++checked;
-            ASSERT_TRUE(std::binary_search(refs.begin() + A.refBegin, refs.begin() + A.refEnd, refs[r]))
-                << "cell " << a << " skips triangle " << refs[r] << " in voxel " << x << "," << y << "," << z;
-          }
-        }
-  }
+  forEachExpandedVoxel(grid, 5, [&](size_t a, const GridCell& A, const int* v, const GridCell& B) {
+    const glm::vec3 lo = grid.origin() + glm::vec3(float(v[0]), float(v[1]), float(v[2])) * grid.voxelSize(), hi = lo + grid.voxelSize();
+    for (uint32_t r = B.refBegin; r < B.refEnd; ++r) {
+      const glm::uvec3 t = f.scene.triangles[refs[r]];
+      if (!triangleBoxOverlap(f.scene.positions[t.x], f.scene.positions[t.y], f.scene.positions[t.z], lo, hi, 0.0f)) continue;
+      ++checked;
+      ASSERT_TRUE(std::binary_search(refs.begin() + A.refBegin, refs.begin() + A.refEnd, refs[r]))
+          << "cell " << a << " skips triangle " << refs[r] << " in voxel " << v[0] << "," << v[1] << "," << v[2];
+    }
+  });
   EXPECT_GT(checked, 1000u);
 }
 
