@@ -30,18 +30,18 @@ build-cli: deps-run
 # and builds the examples against it, as the Release build does with the static one.
 build-asan: deps
 	cmake -S . -B $(ASAN) -DCMAKE_BUILD_TYPE=Debug -DLAYERTRACE_SANITIZE=ON -DLAYERTRACE_COUNTERS=OFF -DLAYERTRACE_BENCH=OFF \
-	    -DBUILD_SHARED_LIBS=ON >/dev/null
+	    -DBUILD_SHARED_LIBS=ON -DLAYERTRACE_VIEWER=OFF >/dev/null
 	cmake --build $(ASAN) -j $(JOBS) --target layertrace_tests layertrace_library layertrace
 
 # libFuzzer needs clang; the fuzz build is separate from the GCC builds (fuzz/README.md).
 build-fuzz: deps
 	cmake -S . -B $(FUZZ) -DCMAKE_CXX_COMPILER=clang++-16 -DCMAKE_BUILD_TYPE=Debug -DLAYERTRACE_SANITIZE=ON -DLAYERTRACE_FUZZ=ON \
-	    -DLAYERTRACE_COUNTERS=OFF -DLAYERTRACE_BENCH=OFF -DBUILD_TESTING=OFF >/dev/null
+	    -DLAYERTRACE_COUNTERS=OFF -DLAYERTRACE_BENCH=OFF -DBUILD_TESTING=OFF -DLAYERTRACE_VIEWER=OFF >/dev/null
 	cmake --build $(FUZZ) -j $(JOBS) --target fuzz_targets
 
 # ThreadSanitizer build of the tests that run threads.
 build-tsan: deps
-	cmake -S . -B $(TSAN) -DCMAKE_BUILD_TYPE=Debug -DLAYERTRACE_TSAN=ON -DLAYERTRACE_COUNTERS=OFF -DLAYERTRACE_BENCH=OFF >/dev/null
+	cmake -S . -B $(TSAN) -DCMAKE_BUILD_TYPE=Debug -DLAYERTRACE_TSAN=ON -DLAYERTRACE_COUNTERS=OFF -DLAYERTRACE_BENCH=OFF -DLAYERTRACE_VIEWER=OFF >/dev/null
 	cmake --build $(TSAN) -j $(JOBS) --target layertrace_tests
 
 # Every fuzz target for FUZZ_SECONDS seconds; fails on any crash, leak or timeout.

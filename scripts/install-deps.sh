@@ -12,6 +12,8 @@ packages=(
 )
 if [ "${1:-}" != "--run" ]; then
   packages+=(libgtest-dev libbenchmark-dev python3 python3-matplotlib unzip zip clang-16 libclang-rt-16-dev)
+  # The viewer (`layertrace view`) and its test under a virtual X server with Mesa's software GL.
+  packages+=(libglfw3-dev libimgui-dev xvfb xauth libgl1-mesa-dri)
 fi
 # No npm: the default scene's small bunny is committed as an OBJ (scenes/default/bunny.obj).
 

@@ -12,6 +12,7 @@
 #include <tbb/global_control.h>
 
 #include "layertrace/app/commands.h"
+#include "layertrace/app/view_session.h"
 #include "layertrace/util/error.h"
 
 namespace {
@@ -157,6 +158,12 @@ void finishFrameOptions(lt::RunOptions& run, const RawFrameOptions& raw) {
 
 namespace lt {
 
+namespace {
+ViewRunner viewRunner = nullptr;
+}  // namespace
+
+void setViewRunner(ViewRunner runner) { viewRunner = runner; }
+
 int runCli(int argc, const char* const* argv, CliMode mode) {
   CLI::App app{"layertrace: image-space ray tracing of secondary effects through multi-layer fragment buffers"};
   app.require_subcommand(1);
@@ -215,6 +222,19 @@ int runCli(int argc, const char* const* argv, CliMode mode) {
   addFrameOptions(ldcCmd, ldc.run, ldcRaw);
   addLdcOptions(ldcCmd, ldc.ldc);
 
+  lt::ViewOptions view;
+  RawFrameOptions viewRaw;
+  std::string viewEffect = "reflection";
+  CLI::App* viewCmd = app.add_subcommand("view", "interactive viewer: fly through the scene, switch tracers and overlays live");
+  addFrameOptions(viewCmd, view.render.run, viewRaw);
+  viewCmd->add_option("--tracer", view.render.tracer, "ssr | ssr-layers | hiz | hssr | quadtree | ldc | hybrid | embree | grid")->capture_default_str();
+  addEffectOptions(viewCmd, view.render.effect, viewEffect, viewRaw);
+  addTracerOptions(viewCmd, view.render.tracers);
+  viewCmd->add_option("--frames", view.frames, "render this many full frames without input, then exit (scripted mode)")->capture_default_str();
+  viewCmd->add_option("--screenshot", view.screenshot, "scripted mode: write the last traced image (without the UI) to this PNG");
+  viewCmd->add_option("--screenshot-ui", view.screenshotUi, "scripted mode: write the whole window of the last frame to this PNG");
+  viewCmd->add_option("--overlay", view.overlay, "image | classes (strict classes vs Embree) | iterations | layer | complexity")->capture_default_str();
+
   std::string names;
   bool known = false;
   for (const CLI::App* sub : app.get_subcommands({})) {
@@ -251,11 +271,16 @@ int runCli(int argc, const char* const* argv, CliMode mode) {
       // command makes before loading anything.
       for (auto [cmd, run, raw] : {std::tuple{layersCmd, &layers.run, &layersRaw}, std::tuple{geobenchCmd, &geobench.run, &geobenchRaw},
                                    std::tuple{benchCmd, &bench.run, &benchRaw}, std::tuple{compareCmd, &compare.run, &compareRaw},
-                                   std::tuple{renderCmd, &render.run, &renderRaw}, std::tuple{ldcCmd, &ldc.run, &ldcRaw}})
+                                   std::tuple{renderCmd, &render.run, &renderRaw}, std::tuple{ldcCmd, &ldc.run, &ldcRaw},
+                                   std::tuple{viewCmd, &view.render.run, &viewRaw}})
         if (cmd->parsed()) prepare(*run, *raw), lt::validateFrameOptions(run->frame);
       if (compareCmd->parsed()) finishEffectOptions(compare.effect, compareEffect, compareRaw), lt::validateEffectConfig(compare.effect);
       if (renderCmd->parsed()) finishEffectOptions(render.effect, effectName, renderRaw), lt::validateEffectConfig(render.effect);
       if (renderCmd->parsed()) lt::validateTracerOptions(render.tracers);
+      if (viewCmd->parsed()) {
+        finishEffectOptions(view.render.effect, viewEffect, viewRaw), lt::validateEffectConfig(view.render.effect);
+        lt::validateTracerOptions(view.render.tracers), lt::validateViewOptions(view);
+      }
       if (compareCmd->parsed()) lt::validateTracerOptions(compare.options);
       if (benchCmd->parsed()) lt::validateTracerOptions(bench.options);
       if (ldcCmd->parsed()) lt::validateLdcConfig(ldc.ldc);
@@ -282,6 +307,15 @@ int runCli(int argc, const char* const* argv, CliMode mode) {
       finishEffectOptions(compare.effect, compareEffect, compareRaw);
       compare.tracers = splitList(compareTracers);
       return lt::runCompare(compare);
+    }
+    if (viewCmd->parsed()) {
+      prepare(view.render.run, viewRaw);
+      finishEffectOptions(view.render.effect, viewEffect, viewRaw);
+      lt::validateViewOptions(view);
+      if (!viewRunner)
+        lt::inputError("view: this build has no viewer (configure with GLFW, OpenGL and Dear ImGui: apt-get install libglfw3-dev "
+                       "libimgui-dev, then rebuild; -DLAYERTRACE_VIEWER=ON)");
+      return viewRunner(view);
     }
     if (renderCmd->parsed()) {
       prepare(render.run, renderRaw);

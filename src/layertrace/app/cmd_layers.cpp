@@ -21,6 +21,14 @@ void ensureDirectory(const std::string& dir, const std::string& option) {
   if (ec || !fs::is_directory(dir)) inputError(option, " ", dir, ": cannot create directory");
 }
 
+Image layerAlbedo(const LayerArrays& L, int layer) {
+  Image albedo(L.width, L.height);
+  for (int y = 0; y < L.height; ++y)
+    for (int x = 0; x < L.width; ++x)
+      if (layer < L.countAt(x, y)) albedo.set(x, y, unpackAlbedo(L.pixel(x, y)[layer].albedoSpec));
+  return albedo;
+}
+
 ComplexityImages depthComplexityImages(int width, int height, const std::vector<uint32_t>& counts) {
   ComplexityImages out{Image(width, height), Image(width, height, 1)};
   for (uint32_t c : counts) out.max = std::max(out.max, c);
@@ -63,12 +71,11 @@ int runLayers(const LayersOptions& o) {
     }
   std::vector<std::pair<std::string, Image>> images;
   for (int layer = 0; layer < L.k; ++layer) {
-    Image albedo(W, H), normal(W, H), depth(W, H, 1);
+    Image albedo = layerAlbedo(L, layer), normal(W, H), depth(W, H, 1);
     for (int y = 0; y < H; ++y)
       for (int x = 0; x < W; ++x) {
         if (layer >= L.countAt(x, y)) continue;
         const FragmentNode& f = L.pixel(x, y)[layer];
-        albedo.set(x, y, unpackAlbedo(f.albedoSpec));
         normal.set(x, y, decodeOctahedral(f.normal) * 0.5f + 0.5f);
         depth.at(x, y)[0] = dmax > dmin ? 1.0f - 0.9f * (f.depth - dmin) / (dmax - dmin) : 1.0f;
       }

@@ -100,16 +100,20 @@ nlohmann::json hybridStats(const BuiltTracer& built, const TracerOptions& o) {
           {"known_space_bytes", built.known->memoryBytes()}};
 }
 
-void writePixelStats(const std::string& dir, const EffectResult& r) {
-  ensureDirectory(dir, "--pixelstats");
-  writeImage((fs::path(dir) / "iterations.exr").string(), r.iterations);
-  writeImage((fs::path(dir) / "intervals.exr").string(), r.intervals);
+Image iterationHeat(const EffectResult& r) {
   float maxIt = 1.0f;
   for (float v : r.iterations.data) maxIt = std::max(maxIt, v);
   Image heat(r.iterations.width, r.iterations.height);
   for (int y = 0; y < heat.height; ++y)
     for (int x = 0; x < heat.width; ++x) heat.set(x, y, heatColor(std::log1p(r.iterations.at(x, y)[0]) / std::log1p(maxIt)));
-  writeImage((fs::path(dir) / "iterations.png").string(), heat);
+  return heat;
+}
+
+void writePixelStats(const std::string& dir, const EffectResult& r) {
+  ensureDirectory(dir, "--pixelstats");
+  writeImage((fs::path(dir) / "iterations.exr").string(), r.iterations);
+  writeImage((fs::path(dir) / "intervals.exr").string(), r.intervals);
+  writeImage((fs::path(dir) / "iterations.png").string(), iterationHeat(r));
 }
 
 WarpReference warpReference(const Frame& frame, const FrameOptions& options, const EffectConfig& warp) {

@@ -41,6 +41,8 @@ struct ComplexityImages {
 };
 ComplexityImages depthComplexityImages(int width, int height, const std::vector<uint32_t>& counts);
 
+/// The albedo of every pixel's `layer`-th stored fragment (black where it has fewer).
+Image layerAlbedo(const LayerArrays& layers, int layer);
 /// Creates `dir` (and parents); InputError naming the option if impossible.
 void ensureDirectory(const std::string& dir, const std::string& option);
 
@@ -62,6 +64,15 @@ struct RenderOptions {
 
 /// `layertrace render`: one effect traced with one tracer → image, stats, per-pixel counters.
 int runRender(const RenderOptions& options);
+
+/// `layertrace view`: the render options plus the scripted mode of tests and figures.
+struct ViewOptions {
+  RenderOptions render;
+  int frames = 0;            ///< --frames N: render N full frames without input, then exit (0 = interactive)
+  std::string screenshot;    ///< --screenshot PNG: the traced image of the last frame (no UI)
+  std::string screenshotUi;  ///< --screenshot-ui PNG: the whole window of the last frame
+  std::string overlay = "image";  ///< --overlay: image | classes | iterations | layer | complexity
+};
 
 struct CompareOptions {
   RunOptions run;
@@ -96,6 +107,8 @@ int runGeobench(const GeobenchOptions& options);
 
 /// The `rays.*` stats of one traced effect (render and compare).
 nlohmann::json rayStats(const EffectResult& r, bool screenTracer);
+/// The per-pixel iteration heat map of --pixelstats (log scale, blue → red).
+Image iterationHeat(const EffectResult& r);
 /// Writes iterations.exr/.png and intervals.exr to `dir` (--pixelstats).
 void writePixelStats(const std::string& dir, const EffectResult& r);
 /// The `quadtree` stats block: thresholds, nodes per level and kind, visits per kind.

@@ -69,10 +69,14 @@ void loadFrameScene(const FrameOptions& o, Frame& frame) {
   if (o.target) desc.target = *o.target, desc.name = "custom";
   if (o.up) desc.up = *o.up;
   if (o.fov) desc.fovY = *o.fov;
-  frame.camera = Camera(withClipPlanes(desc, frame.scene), o.width, o.height);
+  setFrameView(o, desc, frame);
   frame.lights = frame.scene.lights;
   for (const glm::vec4& l : o.lights) frame.lights.push_back({glm::vec3(l), glm::vec3(l.w)});
   if (frame.lights.empty()) frame.lights.push_back(defaultLight(frame.camera));
+}
+
+void setFrameView(const FrameOptions& o, const CameraDesc& desc, Frame& frame) {
+  frame.camera = Camera(withClipPlanes(desc, frame.scene), o.width, o.height);
   frame.thickness = o.thickness ? *o.thickness : 0.0f;
   frame.thicknessPerDepth = o.thickness ? 0.0f : o.thicknessPx.value_or(kDefaultThicknessPx) / frame.camera.focal();
 }

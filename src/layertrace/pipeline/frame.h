@@ -64,6 +64,9 @@ void validateFrameOptions(const FrameOptions& options);
 /// Loads the scene and sets up camera and lights (no rasterization).
 void loadFrameScene(const FrameOptions& options, Frame& frame);
 
+/// Points the loaded frame's camera at `desc` with the options' size and sets the z-thickness
+/// for it (lights stay; the viewer moves the camera with it). Call rasterizeFrame next.
+void setFrameView(const FrameOptions& options, const CameraDesc& desc, Frame& frame);
 /// Rasterizes and sorts for the frame's camera. Throws InputError on fragment-pool overflow
 /// when --pool fixed the capacity, with the exact counts.
 void rasterizeFrame(const FrameOptions& options, Frame& frame);

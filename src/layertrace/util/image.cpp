@@ -43,6 +43,22 @@ float srgbToLinear(float v) {
   return v <= 0.04045f ? v / 12.92f : std::pow((v + 0.055f) / 1.055f, 2.4f);
 }
 
+}  // namespace
+
+void encode8(const Image& image, bool srgb, int outChannels, std::vector<uint8_t>& bytes) {
+  bytes.resize(size_t(image.width) * size_t(image.height) * size_t(outChannels));
+  for (int y = 0; y < image.height; ++y)
+    for (int x = 0; x < image.width; ++x)
+      for (int c = 0; c < outChannels; ++c) {
+        float v = image.at(x, y)[std::min(c, image.channels - 1)];
+        v = srgb ? linearToSrgb(v) : std::clamp(v, 0.0f, 1.0f);
+        bytes[(size_t(y) * size_t(image.width) + size_t(x)) * size_t(outChannels) + size_t(c)] =
+            static_cast<unsigned char>(std::lround(v * 255.0f));
+      }
+}
+
+namespace {
+
 std::string tempNameFor(const std::string& path) {
   return cat(path, ".tmp.", ::getpid());
 }
@@ -58,15 +74,8 @@ void commit(const std::string& tmp, const std::string& path) {
 
 void writePng(const std::string& tmp, const Image& image, bool srgb) {
   const int outChannels = image.channels == 1 ? 1 : 3;
-  std::vector<unsigned char> bytes(size_t(image.width) * size_t(image.height) * size_t(outChannels));
-  for (int y = 0; y < image.height; ++y)
-    for (int x = 0; x < image.width; ++x)
-      for (int c = 0; c < outChannels; ++c) {
-        float v = image.at(x, y)[std::min(c, image.channels - 1)];
-        v = srgb ? linearToSrgb(v) : std::clamp(v, 0.0f, 1.0f);
-        bytes[(size_t(y) * size_t(image.width) + size_t(x)) * size_t(outChannels) + size_t(c)] =
-            static_cast<unsigned char>(std::lround(v * 255.0f));
-      }
+  std::vector<uint8_t> bytes;
+  encode8(image, srgb, outChannels, bytes);
   if (!stbi_write_png(tmp.c_str(), image.width, image.height, outChannels, bytes.data(),
                       image.width * outChannels))
     inputError("output ", tmp, ": cannot write PNG");
@@ -126,6 +135,17 @@ void writeImage(const std::string& path, const Image& image, bool srgb) {
     std::error_code ec;
     fs::remove(tmp, ec);
     inputError("output ", path, ": cannot write (", e.what(), ")");
+  }
+  commit(tmp, path);
+}
+
+void writePngBytes(const std::string& path, int width, int height, int channels, const uint8_t* bytes) {
+  if (extensionOf(path) != ".png") inputError("output ", path, ": expected a .png file");
+  const std::string tmp = tempNameFor(path);
+  if (!stbi_write_png(tmp.c_str(), width, height, channels, bytes, width * channels)) {
+    std::error_code ec;
+    fs::remove(tmp, ec);
+    inputError("output ", path, ": cannot write PNG");
   }
   commit(tmp, path);
 }

@@ -3,6 +3,7 @@
 #pragma once
 
 #include <cstddef>
+#include <cstdint>
 #include <string>
 #include <vector>
 
@@ -39,6 +40,11 @@ struct Image {
 /// `.exr` (32-bit float, linear). Throws InputError for an unknown extension or unwritable path.
 void writeImage(const std::string& path, const Image& image, bool srgb = true);
 
+/// The 8-bit encoding writeImage uses for PNG (sRGB when `srgb`, else clamped), `outChannels`
+/// (1 or 3) per pixel, row 0 first — also what the viewer shows.
+void encode8(const Image& image, bool srgb, int outChannels, std::vector<uint8_t>& bytes);
+/// Writes 8-bit pixels (row 0 at the top) as a PNG, atomically.
+void writePngBytes(const std::string& path, int width, int height, int channels, const uint8_t* bytes);
 /// Reads `.png` (decoded back to linear when `srgb`) or `.exr`. Used by round-trip tests.
 Image readImage(const std::string& path, bool srgb = true);
 

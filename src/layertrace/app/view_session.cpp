@@ -1,0 +1,147 @@
+#include "layertrace/app/view_session.h"
+
+#include <chrono>
+#include <filesystem>
+#include <map>
+#include <memory>
+#include <sstream>
+
+#include "layertrace/eval/classify.h"
+#include "layertrace/util/error.h"
+
+namespace lt {
+
+namespace {
+
+double msSince(std::chrono::steady_clock::time_point t0) {
+  return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+}
+
+/// View-independent structures (Embree's BVH, the grid, the layered depth cube) depend on the
+/// scene and their own options only: the viewer builds each once per option set. The key
+/// names the tracer and those options.
+std::string geometricKey(const std::string& tracer, const TracerOptions& o) {
+  std::ostringstream k;
+  k << tracer;
+  if (tracer == "grid") k << ' ' << o.grid.lambda1 << ' ' << o.grid.lambda2 << ' ' << o.grid.partialExpansion;
+  if (tracer == "ldc") k << ' ' << o.ldc.resolution << ' ' << o.ldc.block << ' ' << o.ldc.blockIntervals << ' ' << o.ldc.epsilon;
+  return k.str();
+}
+
+}  // namespace
+
+struct ViewCache {
+  std::map<std::string, BuiltTracer> geometric;
+  std::unique_ptr<BuiltTracer> reference;
+};
+
+ViewOverlay parseViewOverlay(const std::string& name) {
+  for (int i = 0; i < 5; ++i)
+    if (name == kViewOverlayOptions[i]) return ViewOverlay(i);
+  inputError("--overlay ", name, ": unknown (use image, classes, iterations, layer, complexity)");
+}
+
+void validateViewOptions(const ViewOptions& o) {
+  parseViewOverlay(o.overlay);
+  if (o.frames < 0 || o.frames > 100000) inputError("--frames ", o.frames, ": must be between 0 and 100000");
+  for (const auto& [opt, path] : {std::pair{"--screenshot ", &o.screenshot}, std::pair{"--screenshot-ui ", &o.screenshotUi}}) {
+    if (path->empty()) continue;
+    if (o.frames == 0) inputError(opt, *path, ": needs --frames N (scripted mode)");
+    if (std::filesystem::path(*path).extension() != ".png") inputError(opt, *path, ": must be a .png file");
+  }
+  const RenderOptions& r = o.render;
+  if (!isKnownTracer(r.tracer)) inputError("--tracer ", r.tracer, ": unknown (use ", kTracerNames, ")");
+}
+
+ViewSession::~ViewSession() = default;
+
+ViewSession::ViewSession(const RenderOptions& options) : options_(options), cache_(std::make_unique<ViewCache>()) {
+  validateTracerOptions(options.tracers);
+  validateEffectConfig(options.effect);
+  if (!isKnownTracer(options.tracer)) inputError("--tracer ", options.tracer, ": unknown (use ", kTracerNames, ")");
+  loadFrameScene(options.run.frame, frame_);
+  initial_.camera = frame_.camera.desc();
+  initial_.width = options.run.frame.width;
+  initial_.height = options.run.frame.height;
+  initial_.tracer = options.tracer;
+  initial_.effect = options.effect;
+  initial_.effect.seed = options.run.seed;
+  initial_.effect.progress = false;
+  initial_.tracers = options.tracers;
+  initial_.layers = options.run.frame.layers;
+  initial_.thicknessPx = options.run.frame.thicknessPx.value_or(kDefaultThicknessPx);
+}
+
+ViewResult ViewSession::render(const ViewRequest& q) {
+  ViewResult out;
+  out.scale = std::max(1, q.scale);
+  const auto t0 = std::chrono::steady_clock::now();
+  try {
+    validateTracerOptions(q.tracers);
+    validateEffectConfig(q.effect);
+    FrameOptions fo = options_.run.frame;
+    fo.width = std::max(1, q.width / out.scale);
+    fo.height = std::max(1, q.height / out.scale);
+    fo.layers = q.layers;
+    if (!options_.run.frame.thickness) fo.thicknessPx = q.thicknessPx;
+    validateFrameOptions(fo);
+    setFrameView(fo, q.camera, frame_);
+    rasterizeFrame(fo, frame_);
+    out.captureMs = frame_.rasterMs + frame_.sortMs;
+
+    ViewCache& cache = *cache_;
+    const bool screenDependent = isScreenTracer(q.tracer) || q.tracer == "hybrid";
+    BuiltTracer fresh;
+    const BuiltTracer* built = nullptr;
+    const auto ts = std::chrono::steady_clock::now();
+    if (screenDependent) {
+      fresh = buildTracer(q.tracer, frame_, q.tracers);
+      built = &fresh;
+    } else {
+      const std::string key = geometricKey(q.tracer, q.tracers);
+      auto it = cache.geometric.find(key);
+      if (it == cache.geometric.end()) it = cache.geometric.emplace(key, buildTracer(q.tracer, frame_, q.tracers)).first;
+      built = &it->second;
+    }
+    out.structureMs = msSince(ts);
+
+    std::unique_ptr<ClassifyObserver> classes;
+    if (q.overlay == ViewOverlay::Classes) {
+      if (!cache.reference) cache.reference = std::make_unique<BuiltTracer>(buildReference(frame_));
+      classes = std::make_unique<ClassifyObserver>(*cache.reference->tracer, frame_.camera, frame_.layers);
+    }
+    EffectConfig ec = q.effect;
+    ec.progress = false;
+    ec.countRays = q.overlay == ViewOverlay::Iterations;  // the heat map needs the counters
+    EffectResult r = renderEffect(frame_, *built->tracer, ec, classes.get());
+    out.traceMs = r.traceMs;
+    out.rays = r.rays;
+    out.iterationsMean = r.rays ? double(r.iterationSum) / double(r.rays) : 0.0;
+    switch (q.overlay) {
+      case ViewOverlay::None: out.image = r.image; break;
+      case ViewOverlay::Classes: {
+        out.image = classes->classImage();
+        const auto counts = classes->counts();
+        uint64_t total = 0;
+        for (uint64_t c : counts) total += c;
+        for (int i = 0; i < kRayClasses; ++i) out.classFractions[size_t(i)] = total ? double(counts[size_t(i)]) / double(total) : 0.0;
+        out.classified = true;
+        break;
+      }
+      case ViewOverlay::Iterations: out.image = iterationHeat(r); break;
+      case ViewOverlay::Layer: out.image = layerAlbedo(frame_.layers, std::clamp(q.layer, 0, frame_.layers.k - 1)); break;
+      case ViewOverlay::DepthComplexity:
+        out.image = depthComplexityImages(frame_.camera.width(), frame_.camera.height(), frame_.lists.complexity).heat;
+        break;
+    }
+    out.traced = std::move(r.image);
+  } catch (const InputError& e) {
+    out = ViewResult{};
+    out.scale = std::max(1, q.scale);
+    out.error = e.what();
+  }
+  out.totalMs = msSince(t0);
+  return out;
+}
+
+}  // namespace lt

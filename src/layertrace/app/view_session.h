@@ -1,0 +1,73 @@
+// The CPU side of `layertrace view`: the scene loaded once, and one picture per request — capture
+// for the request's camera, the tracer's structure, the effect, and the overlay the user picked.
+// It has no window and no OpenGL, so tests run it headless; apps/viewer/ puts it on screen.
+#pragma once
+
+#include <array>
+#include <memory>
+#include <string>
+
+#include "layertrace/app/commands.h"
+
+namespace lt {
+
+/// What the viewer shows over (instead of) the traced image.
+enum class ViewOverlay { None, Classes, Iterations, Layer, DepthComplexity };
+inline constexpr const char* kViewOverlayNames[] = {"image", "classes vs Embree", "iterations", "layer albedo", "depth complexity"};
+/// The --overlay names, in ViewOverlay order.
+inline constexpr const char* kViewOverlayOptions[] = {"image", "classes", "iterations", "layer", "complexity"};
+/// --overlay NAME → ViewOverlay (InputError naming the value).
+ViewOverlay parseViewOverlay(const std::string& name);
+
+/// One picture: the camera, the size (divided by `scale` while the camera moves) and every
+/// option the panel edits.
+struct ViewRequest {
+  CameraDesc camera;
+  int width = 1280, height = 720;  ///< full size
+  int scale = 1;                   ///< 1 = full resolution; 2 = half width and height (¼ of the pixels)
+  std::string tracer = "hssr";
+  EffectConfig effect;
+  TracerOptions tracers;
+  int layers = 4;                  ///< k
+  float thicknessPx = kDefaultThicknessPx;
+  ViewOverlay overlay = ViewOverlay::None;
+  int layer = 0;  ///< ViewOverlay::Layer: which stored layer
+};
+
+struct ViewResult {
+  Image image;   ///< what to show: the traced image or the overlay, width/scale × height/scale
+  Image traced;  ///< the effect's image (what `render` writes)
+  int scale = 1;
+  double captureMs = 0.0, structureMs = 0.0, traceMs = 0.0, totalMs = 0.0;
+  uint64_t rays = 0;
+  double iterationsMean = 0.0;
+  bool classified = false;  ///< classFractions hold the strict classes of this frame's rays
+  std::array<double, kRayClasses> classFractions{};
+  std::string error;  ///< a refused option (the picture is then empty)
+};
+
+/// Checks --frames and the screenshot paths (InputError naming the option).
+void validateViewOptions(const ViewOptions& options);
+
+struct ViewCache;
+
+class ViewSession {
+ public:
+  /// Loads the scene and sets the first camera from `options` (as `render` does).
+  explicit ViewSession(const RenderOptions& options);
+  ~ViewSession();
+  /// The request that reproduces `layertrace render` with the same options.
+  ViewRequest initialRequest() const { return initial_; }
+  const Frame& frame() const { return frame_; }
+  /// Renders `request` (not thread-safe: one caller at a time). Invalid options come back as
+  /// ViewResult::error, not as exceptions.
+  ViewResult render(const ViewRequest& request);
+
+ private:
+  RenderOptions options_;
+  Frame frame_;
+  ViewRequest initial_;
+  std::unique_ptr<ViewCache> cache_;  ///< view-independent structures built so far (refer to frame_)
+};
+
+}  // namespace lt

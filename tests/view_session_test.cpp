@@ -1,0 +1,111 @@
+// The viewer's CPU side (app/view_session.h), headless: its full picture is `render`'s image bit
+// for bit, a moving camera's picture has ¼ of the pixels, overlays come back with the right
+// size and meaning, and a refused option becomes an error message instead of an exception.
+#include "layertrace/app/view_session.h"
+#include "layertrace/eval/classify.h"
+#include "test_util.h"
+#include "layertrace/util/error.h"
+
+namespace lt {
+namespace {
+
+RenderOptions defaultOptions() {
+  RenderOptions o;
+  o.run.frame.scenePath = test::sourceDir() + "/scenes/default.json";
+  o.run.frame.width = 160, o.run.frame.height = 90;
+  o.tracer = "hssr";
+  o.effect.effect = Effect::Reflection;
+  o.effect.bounces = 2;
+  return o;
+}
+
+TEST(ViewSession, FullPictureIsRendersImage) {
+  const RenderOptions o = defaultOptions();
+  ViewSession session(o);
+  const ViewResult v = session.render(session.initialRequest());
+  ASSERT_TRUE(v.error.empty()) << v.error;
+  // What runRender computes for the same options.
+  const Frame f = buildFrame(o.run.frame);
+  const BuiltTracer b = buildTracer(o.tracer, f, o.tracers);
+  EffectConfig ec = o.effect;
+  ec.seed = o.run.seed;
+  const EffectResult r = renderEffect(f, *b.tracer, ec);
+  ASSERT_EQ(v.traced.width, r.image.width);
+  ASSERT_EQ(v.traced.height, r.image.height);
+  EXPECT_EQ(v.traced.data, r.image.data);
+  EXPECT_EQ(v.image.data, r.image.data);  // no overlay: the picture shown is the traced one
+  EXPECT_EQ(v.rays, r.rays);
+}
+
+TEST(ViewSession, MovingCameraTracesAQuarterOfThePixelsAndTheNewCameraCounts) {
+  ViewSession session(defaultOptions());
+  ViewRequest q = session.initialRequest();
+  q.scale = 2;
+  const ViewResult moving = session.render(q);
+  ASSERT_TRUE(moving.error.empty()) << moving.error;
+  EXPECT_EQ(moving.image.width, 80);
+  EXPECT_EQ(moving.image.height, 45);
+  // Another camera gives another picture; going back gives the first one again (nothing of
+  // the previous view leaks into the next).
+  q.scale = 1;
+  const ViewResult first = session.render(q);
+  ViewRequest other = q;
+  other.camera.eye += 0.3f * (other.camera.target - other.camera.eye);
+  const ViewResult moved = session.render(other);
+  const ViewResult again = session.render(q);
+  EXPECT_NE(first.traced.data, moved.traced.data);
+  EXPECT_EQ(first.traced.data, again.traced.data);
+}
+
+TEST(ViewSession, OverlaysAndGeometricTracers) {
+  ViewSession session(defaultOptions());
+  ViewRequest q = session.initialRequest();
+  q.overlay = ViewOverlay::Classes;
+  const ViewResult c = session.render(q);
+  ASSERT_TRUE(c.classified);
+  double sum = 0.0;
+  for (double x : c.classFractions) sum += x;
+  EXPECT_NEAR(sum, 1.0, 1e-9);
+  EXPECT_GT(c.classFractions[size_t(RayClass::CorrectHit)], 0.3);
+  EXPECT_NE(c.image.data, c.traced.data);
+  // Embree against itself: every ray in a correct class.
+  q.tracer = "embree";
+  for (int repeat = 0; repeat < 2; ++repeat) {  // the second frame reuses the cached BVH
+    const ViewResult e = session.render(q);
+    ASSERT_TRUE(e.error.empty()) << e.error;
+    EXPECT_NEAR(e.classFractions[size_t(RayClass::CorrectHit)] + e.classFractions[size_t(RayClass::CorrectMiss)], 1.0, 1e-3);
+  }
+  q.tracer = "hssr";
+  q.overlay = ViewOverlay::Iterations;
+  EXPECT_GT(session.render(q).iterationsMean, 1.0);
+  q.overlay = ViewOverlay::Layer;
+  q.layer = 1;
+  const ViewResult l = session.render(q);
+  EXPECT_EQ(l.image.width, 160);
+  q.overlay = ViewOverlay::DepthComplexity;
+  EXPECT_EQ(session.render(q).image.height, 90);
+}
+
+TEST(ViewSession, RefusedOptionsBecomeMessages) {
+  ViewSession session(defaultOptions());
+  ViewRequest q = session.initialRequest();
+  q.layers = 0;
+  const ViewResult bad = session.render(q);
+  EXPECT_NE(bad.error.find("--layers"), std::string::npos) << bad.error;
+  EXPECT_TRUE(bad.image.data.empty());
+  q.layers = 4;
+  q.tracers.pyramid.tau = -1.0f;
+  EXPECT_NE(session.render(q).error.find("--tau"), std::string::npos);
+  q.tracers.pyramid.tau = 25.0f;
+  EXPECT_TRUE(session.render(q).error.empty());  // and the session still works
+  EXPECT_THROW(parseViewOverlay("nope"), InputError);
+  ViewOptions v;
+  v.screenshot = "a.png";
+  EXPECT_THROW(validateViewOptions(v), InputError);  // needs --frames
+  v.frames = 2;
+  v.screenshot = "a.jpg";
+  EXPECT_THROW(validateViewOptions(v), InputError);
+}
+
+}  // namespace
+}  // namespace lt
