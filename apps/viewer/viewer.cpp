@@ -21,6 +21,7 @@
 #include <vector>
 
 #include <glm/geometric.hpp>
+#include <glm/gtx/rotate_vector.hpp>
 #include <imgui.h>
 #include <backends/imgui_impl_glfw.h>
 #include <backends/imgui_impl_opengl3.h>
@@ -98,31 +99,33 @@ class Worker {
   std::thread thread_;  // last: started after the members it uses
 };
 
-/// The fly camera: position, yaw and pitch (radians) around the scene's up axis (+y).
+/// The fly camera: position and view direction, turned about the camera's own up vector (the
+/// scene's up, whatever axis that is) and its right vector.
 struct FlyCamera {
-  glm::vec3 eye{0.0f};
-  float yaw = 0.0f, pitch = 0.0f, fov = 60.0f, distance = 1.0f;
+  glm::vec3 eye{0.0f}, forward{0.0f, 0.0f, -1.0f}, up{0.0f, 1.0f, 0.0f};
+  float distance = 1.0f;
   std::string name;
 
   static FlyCamera from(const CameraDesc& d) {
     FlyCamera c;
     c.eye = d.eye;
-    const glm::vec3 dir = glm::normalize(d.target - d.eye);
-    c.yaw = std::atan2(dir.x, -dir.z);
-    c.pitch = std::asin(std::clamp(dir.y, -1.0f, 1.0f));
-    c.fov = d.fovY;
+    c.forward = glm::normalize(d.target - d.eye);
+    c.up = glm::normalize(d.up);
     c.distance = glm::length(d.target - d.eye);
     c.name = d.name;
     return c;
   }
-  glm::vec3 forward() const { return {std::sin(yaw) * std::cos(pitch), std::sin(pitch), -std::cos(yaw) * std::cos(pitch)}; }
-  glm::vec3 right() const { return glm::normalize(glm::cross(forward(), glm::vec3(0.0f, 1.0f, 0.0f))); }
+  glm::vec3 right() const { return glm::normalize(glm::cross(forward, up)); }
+  /// Yaw about `up`, pitch about `right`, never past 85° from the up axis.
+  void turn(float yaw, float pitch) {
+    forward = glm::normalize(glm::rotate(forward, -yaw, up));
+    const glm::vec3 f = glm::normalize(glm::rotate(forward, -pitch, right()));
+    if (std::abs(glm::dot(f, up)) < 0.996f) forward = f;
+  }
   CameraDesc desc(const CameraDesc& base) const {
     CameraDesc d = base;
     d.eye = eye;
-    d.target = eye + forward() * distance;
-    d.up = {0.0f, 1.0f, 0.0f};
-    d.fovY = fov;
+    d.target = eye + forward * distance;
     d.name = name;
     return d;
   }
@@ -206,7 +209,7 @@ bool panel(ViewRequest& q, FlyCamera& cam, const std::vector<CameraDesc>& camera
   ImGui::Separator();
   if (!cameras.empty() && ImGui::BeginCombo("camera", cam.name.c_str())) {
     for (const CameraDesc& d : cameras)
-      if (ImGui::Selectable(d.name.c_str(), d.name == cam.name)) cam = FlyCamera::from(d), changed = true;
+      if (ImGui::Selectable(d.name.c_str(), d.name == cam.name)) cam = FlyCamera::from(d), q.camera = d, changed = true;
     ImGui::EndCombo();
   }
   ImGui::TextDisabled("WASD move, Q/E down/up, right mouse drag: look, shift: faster");
@@ -220,12 +223,12 @@ bool fly(GLFWwindow* window, FlyCamera& cam, float speed, float dt, double& last
   bool moved = false;
   if (!io.WantCaptureKeyboard) {
     glm::vec3 v(0.0f);
-    if (glfwGetKey(window, GLFW_KEY_W) == GLFW_PRESS) v += cam.forward();
-    if (glfwGetKey(window, GLFW_KEY_S) == GLFW_PRESS) v -= cam.forward();
+    if (glfwGetKey(window, GLFW_KEY_W) == GLFW_PRESS) v += cam.forward;
+    if (glfwGetKey(window, GLFW_KEY_S) == GLFW_PRESS) v -= cam.forward;
     if (glfwGetKey(window, GLFW_KEY_D) == GLFW_PRESS) v += cam.right();
     if (glfwGetKey(window, GLFW_KEY_A) == GLFW_PRESS) v -= cam.right();
-    if (glfwGetKey(window, GLFW_KEY_E) == GLFW_PRESS) v.y += 1.0f;
-    if (glfwGetKey(window, GLFW_KEY_Q) == GLFW_PRESS) v.y -= 1.0f;
+    if (glfwGetKey(window, GLFW_KEY_E) == GLFW_PRESS) v += cam.up;
+    if (glfwGetKey(window, GLFW_KEY_Q) == GLFW_PRESS) v -= cam.up;
     if (glm::length(v) > 0.0f) {
       const float boost = glfwGetKey(window, GLFW_KEY_LEFT_SHIFT) == GLFW_PRESS ? 4.0f : 1.0f;
       cam.eye += glm::normalize(v) * speed * boost * dt;
@@ -236,8 +239,7 @@ bool fly(GLFWwindow* window, FlyCamera& cam, float speed, float dt, double& last
   glfwGetCursorPos(window, &x, &y);
   const bool down = glfwGetMouseButton(window, GLFW_MOUSE_BUTTON_RIGHT) == GLFW_PRESS && !io.WantCaptureMouse;
   if (down && dragging && (x != lastX || y != lastY)) {
-    cam.yaw += float(x - lastX) * 0.004f;
-    cam.pitch = std::clamp(cam.pitch - float(y - lastY) * 0.004f, -1.5f, 1.5f);
+    cam.turn(float(x - lastX) * 0.004f, float(y - lastY) * 0.004f);
     moved = true;
   }
   dragging = down, lastX = x, lastY = y;
@@ -308,9 +310,10 @@ int runViewer(const ViewOptions& o) {
       ImGui_ImplGlfw_NewFrame();
       ImGui::NewFrame();
       if (!scripted) {
-        if (fly(window, cam, speed, float(frameMs) * 1e-3f, lastX, lastY, dragging)) lastMove = now, dirty = true;
+        // The request keeps the scene's camera bit for bit until the user moves it.
+        if (fly(window, cam, speed, float(frameMs) * 1e-3f, lastX, lastY, dragging))
+          lastMove = now, dirty = true, request.camera = cam.desc(request.camera);
         const bool moving = now - lastMove < std::chrono::milliseconds(200);
-        request.camera = cam.desc(request.camera);
         // While moving: ¼ of the pixels whenever the worker is free; once stopped: the full
         // picture if what is shown is reduced or out of date.
         if (worker.idle() && (dirty || (!moving && shown && shown->scale != 1))) {
