@@ -85,29 +85,26 @@ struct Line {
       sp.yOut = crossY(float((stepY > 0 ? cy + 1 : cy) * size));
     }
   }
-  /// The column of child `b` (0 left, 1 right) of a cell whose column is [xIn, xOut] along the
-  /// line and whose middle is crossed at `mid`: the child entered first has the cell's entry.
-  void childX(const Span& parent, float mid, float xMid, int b, float& in, float& out) const {
+  /// One axis of child `b` (0 low, 1 high) of a cell whose slab on that axis the line crosses
+  /// over [parentIn, parentOut] and whose middle `middle` it crosses at `mid`: the child
+  /// entered first has the cell's entry. `pos` and `step` are the line's start and direction on
+  /// the axis (an axis-parallel line passes only the child holding pos).
+  static void childSlab(float parentIn, float parentOut, float mid, float middle, float pos, int step, int b, float& in, float& out) {
     constexpr float inf = std::numeric_limits<float>::infinity();
-    if (stepX == 0) {
-      const bool inside = (p0.x >= xMid) == (b == 1);
+    if (step == 0) {
+      const bool inside = (pos >= middle) == (b == 1);
       in = inside ? -inf : inf, out = inside ? inf : -inf;
-    } else if ((stepX > 0) == (b == 0)) {
-      in = parent.xIn, out = mid;
+    } else if ((step > 0) == (b == 0)) {
+      in = parentIn, out = mid;
     } else {
-      in = mid, out = parent.xOut;
+      in = mid, out = parentOut;
     }
   }
+  void childX(const Span& parent, float mid, float xMid, int b, float& in, float& out) const {
+    childSlab(parent.xIn, parent.xOut, mid, xMid, p0.x, stepX, b, in, out);
+  }
   void childY(const Span& parent, float mid, float yMid, int b, float& in, float& out) const {
-    constexpr float inf = std::numeric_limits<float>::infinity();
-    if (stepY == 0) {
-      const bool inside = (p0.y >= yMid) == (b == 1);
-      in = inside ? -inf : inf, out = inside ? inf : -inf;
-    } else if ((stepY > 0) == (b == 0)) {
-      in = parent.yIn, out = mid;
-    } else {
-      in = mid, out = parent.yOut;
-    }
+    childSlab(parent.yIn, parent.yOut, mid, yMid, p0.y, stepY, b, in, out);
   }
 };
 
