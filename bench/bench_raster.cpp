@@ -1,4 +1,4 @@
-// Issue 2 §10: raster + sort at 1280×720, k = 4, on the FZK-Haus interior, with 1 and 2 threads,
+// Issue 2 §10 and issue 13: raster + sort (list pipeline, and tile-local capture) at 1280×720, k = 4, on the FZK-Haus interior, with 1 and 2 threads,
 // beside Embree collecting the same fragments with all-hit primary rays. Reports ms per frame
 // (Google Benchmark's time) and million fragments per second (counter "Mfrag/s").
 #include <filesystem>
@@ -41,6 +41,25 @@ void BM_RasterSort(benchmark::State& state) {
   state.counters["fragments"] = double(fragments);
 }
 
+// Issue 13: the tile-local capture, buffers reused from iteration to iteration as in animation.
+void BM_TileCapture(benchmark::State& state) {
+  tbb::global_control gc(tbb::global_control::max_allowed_parallelism, size_t(state.range(0)));
+  lt::Frame& f = fzk();
+  lt::LayerCapture capture;
+  lt::LayerArrays layers;
+  std::vector<uint32_t> complexity;
+  lt::LayerConfig lc{4, f.thickness};
+  lc.thicknessPerDepth = f.thicknessPerDepth;
+  lt::CaptureStats st;
+  for (auto _ : state) {
+    capture.capture(f.scene, f.camera, lt::RasterConfig{}, lc, layers, complexity, &st);
+    benchmark::DoNotOptimize(layers.count.data());
+  }
+  state.counters["Mfrag/s"] = benchmark::Counter(double(st.generated) * 1e-6, benchmark::Counter::kIsIterationInvariantRate);
+  state.counters["setup_ms"] = st.setupMs;
+  state.counters["tiles_ms"] = st.tilesMs;
+}
+
 void BM_EmbreeAllHits(benchmark::State& state) {
   tbb::global_control gc(tbb::global_control::max_allowed_parallelism, size_t(state.range(0)));
   lt::Frame& f = fzk();
@@ -65,6 +84,7 @@ void BM_EmbreeAllHits(benchmark::State& state) {
 }
 
 BENCHMARK(BM_RasterSort)->Arg(1)->Arg(2)->Unit(benchmark::kMillisecond)->UseRealTime()->MinTime(1.0);
+BENCHMARK(BM_TileCapture)->Arg(1)->Arg(2)->Unit(benchmark::kMillisecond)->UseRealTime()->MinTime(1.0);
 BENCHMARK(BM_EmbreeAllHits)->Arg(1)->Arg(2)->Unit(benchmark::kMillisecond)->UseRealTime()->MinTime(1.0);
 
 }  // namespace

@@ -18,6 +18,7 @@ Frame defaultFrame() {
   FrameOptions o;
   o.scenePath = test::sourceDir() + "/scenes/default.json";
   o.width = 160, o.height = 90;
+  o.captureLists = true;  // the lists feed ScreenLayers::fromFragments below
   return buildFrame(o);
 }
 

@@ -61,10 +61,11 @@ TEST(Limits, EveryStructureIsRefusedByNameBeforeItAllocates) {
   scene.finalize("limits");
   const Frame f = test::frameOf(scene, test::originCamera(), 640, 480, 4, 0.05f);
   ASSERT_GT(scene.triangleCount(), 50000u);
+  const FragmentLists lists = rasterize(f.scene, f.camera);
   {
     const MemoryLimit limit(residentBytes() + (1u << 20));
     expectRefused("fragment pool", [&] { rasterize(f.scene, f.camera); });
-    expectRefused("k-layer arrays", [&] { sortAndTruncate(f.lists, LayerConfig{}); });
+    expectRefused("k-layer arrays", [&] { sortAndTruncate(lists, LayerConfig{}); });
     expectRefused("interval", [&] { buildIntervalPyramid(f.layers, f.camera, PyramidConfig{}); });
     expectRefused("quad-tree", [&] { buildQuadtree(f.layers, f.camera, QuadtreeConfig{}); });
     expectRefused("Embree BVH", [&] { EmbreeScene e(f.scene, EmbreeScene::Mode::Fast); });

@@ -42,6 +42,20 @@ TEST(Fragment, OctahedralRoundTripErrorBound) {
   EXPECT_LT(worst, 1e-4f) << "seed " << test::testSeed();
 }
 
+// The inline rounding of the octahedral encoder is std::lround's: every half, its neighbours
+// one ulp either side, and random values over the snorm16 range.
+TEST(Fragment, InlineRoundingIsLround) {
+  std::mt19937_64 rng(test::testSeed());
+  std::uniform_real_distribution<float> u(-32767.0f, 32767.0f);
+  auto check = [](float v) { ASSERT_EQ(roundHalfAway(v), std::lround(v)) << v; };
+  for (int i = -32767; i < 32767; ++i) {
+    const float half = float(i) + 0.5f;
+    check(half), check(std::nextafter(half, 0.0f)), check(std::nextafter(half, 1e9f)), check(std::nextafter(half, -1e9f));
+    check(float(i)), check(-0.0f);
+  }
+  for (int i = 0; i < 2000000; ++i) check(u(rng) * (i % 2 ? 1.0f : 1e-4f));
+}
+
 TEST(Fragment, AlbedoSpecularPackingRoundTrip) {
   std::mt19937_64 rng(test::testSeed());
   std::uniform_real_distribution<float> u(0.0f, 1.0f);

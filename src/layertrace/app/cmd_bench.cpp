@@ -274,27 +274,34 @@ int runBench(const BenchOptions& o) {
   }
 
   if (e == "capture") {
-    t.columns = {"threads",    "raster_ms",          "sort_ms",         "capture_ms",       "pyramid_ms",       "fragments",
-                 "mfragments_per_s", "embree_allhit_ms", "embree_hits", "capture_speedup_vs_embree", "lists_bytes",
-                 "arrays_bytes",     "pyramid_bytes"};
+    // Both pipelines on the same view: "tiles" (rasterize and sort to k in one tile-local pass,
+    // the default) and "lists" (every fragment linked into per-pixel lists, then sorted: the
+    // reference, and what --verify needs). Each row: warm-up discarded, medians of --repeat.
+    t.columns = {"pipeline", "threads", "raster_ms", "sort_ms", "capture_ms", "pyramid_ms", "fragments", "mfragments_per_s",
+                 "embree_allhit_ms", "embree_hits", "capture_speedup_vs_embree", "lists_bytes", "arrays_bytes", "pyramid_bytes",
+                 "scratch_bytes"};
     const EmbreeScene embree(frame.scene, EmbreeScene::Mode::Capture);
     std::vector<int> counts{1};
     if (std::thread::hardware_concurrency() > 1) counts.push_back(int(std::thread::hardware_concurrency()));
-    Progress p(o.run.quiet, e, int(counts.size()));
+    Progress p(o.run.quiet, e, int(counts.size()) * 2);
     for (int n : counts) {
-      p.step(cat(n, " threads"));
       tbb::global_control gc(tbb::global_control::max_allowed_parallelism, size_t(n));
-      std::vector<double> rs, ss;
-      rasterizeFrame(o.run.frame, frame);  // warm-up, discarded
-      for (int i = 0; i < o.repeat; ++i) rasterizeFrame(o.run.frame, frame), rs.push_back(frame.rasterMs), ss.push_back(frame.sortMs);
-      IntervalPyramid pyr;
-      const double pyramid = medianMs(o.repeat, [&] { pyr = buildIntervalPyramid(frame.layers, frame.camera, o.options.pyramid); });
       uint64_t hits = 0;
       const double allHit = medianMs(o.repeat, [&] { hits = embreeCapture(frame.camera, embree); });
-      const double capture = median(rs) + median(ss);
-      t.rows.push_back({n, median(rs), median(ss), capture, pyramid, frame.lists.generated,
-                        double(frame.lists.generated) / capture * 1e-3, allHit, hits, allHit / capture, frame.lists.memoryBytes(),
-                        frame.layers.memoryBytes(), pyr.memoryBytes()});
+      for (bool lists : {false, true}) {
+        p.step(cat(lists ? "lists, " : "tiles, ", n, " threads"));
+        FrameOptions fo = o.run.frame;
+        fo.captureLists = lists;
+        std::vector<double> rs, ss;
+        rasterizeFrame(fo, frame);  // warm-up, discarded
+        for (int i = 0; i < o.repeat; ++i) rasterizeFrame(fo, frame), rs.push_back(frame.rasterMs), ss.push_back(frame.sortMs);
+        IntervalPyramid pyr;
+        const double pyramid = medianMs(o.repeat, [&] { pyr = buildIntervalPyramid(frame.layers, frame.camera, o.options.pyramid); });
+        const double capture = median(rs) + median(ss);
+        t.rows.push_back({lists ? "lists" : "tiles", n, median(rs), median(ss), capture, pyramid, frame.lists.generated,
+                          double(frame.lists.generated) / capture * 1e-3, allHit, hits, allHit / capture, frame.lists.memoryBytes(),
+                          frame.layers.memoryBytes(), pyr.memoryBytes(), frame.capture.scratchBytes()});
+      }
     }
   }
   if (e == "gamma") {

@@ -43,7 +43,9 @@ ComplexityImages depthComplexityImages(int width, int height, const std::vector<
 
 int runLayers(const LayersOptions& o) {
   const std::string outDir = o.run.output.empty() ? "out/layers" : o.run.output;
-  Frame frame = buildFrame(o.run.frame);
+  FrameOptions fo = o.run.frame;
+  fo.captureLists = o.verify;  // --verify compares every fragment of every list with Embree
+  Frame frame = buildFrame(fo);
   nlohmann::json stats = frameStats(frame);
   stats["tracer"] = nullptr;
   stats["effect"] = nullptr;

@@ -1,4 +1,6 @@
 #include "layertrace/eval/verify_layers.h"
+
+#include "layertrace/util/error.h"
 #include "layertrace/util/parallel.h"
 
 #include <algorithm>
@@ -11,6 +13,7 @@
 namespace lt {
 
 VerifyResult verifyLayers(const FragmentLists& lists, const Camera& camera, const EmbreeScene& embree) {
+  LT_CHECK(lists.head.size() == size_t(lists.width) * size_t(lists.height), lists.head.size());  // needs the list pipeline
   std::atomic<uint64_t> matching{0}, fewer{0}, more{0}, depth{0};
   const glm::vec3 eye = camera.desc().eye;
   parallelFor(tbb::blocked_range<int>(0, lists.height, 4), [&](const tbb::blocked_range<int>& r) {

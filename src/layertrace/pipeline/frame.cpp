@@ -81,11 +81,34 @@ void setFrameView(const FrameOptions& o, const CameraDesc& desc, Frame& frame) {
   frame.thicknessPerDepth = o.thickness ? 0.0f : o.thicknessPx.value_or(kDefaultThicknessPx) / frame.camera.focal();
 }
 
+bool needsFragmentLists(const FrameOptions& o) {
+  return o.captureLists || o.pool != 0 || o.adaptiveThickness || o.minSeparation > 0.0f;
+}
+
 void rasterizeFrame(const FrameOptions& o, Frame& frame) {
   RasterConfig rc;
   rc.poolCapacity = o.pool;
   rc.growOnOverflow = o.pool == 0;
   rc.frontFacesOnly = frame.frontFacesOnly = o.frontFacesOnly;
+  LayerConfig lc;
+  lc.k = o.layers;
+  lc.thickness = frame.thickness;
+  lc.thicknessPerDepth = frame.thicknessPerDepth;
+  lc.minSeparation = o.minSeparation;
+  lc.adaptiveThickness = o.adaptiveThickness;
+  if (!needsFragmentLists(o)) {
+    // Tile-local capture: no lists, the k layers straight from the rasterizer (issue 13).
+    CaptureStats cs;
+    FragmentLists& lists = frame.lists;
+    lists.head = {}, lists.nodes = {}, lists.triangle = {};
+    frame.capture.capture(frame.scene, frame.camera, rc, lc, frame.layers, lists.complexity, &cs);
+    lists.width = frame.camera.width(), lists.height = frame.camera.height();
+    lists.generated = lists.stored = cs.generated;
+    frame.raster = RasterStats{cs.ms(), 0, 1, cs.subTriangles};
+    frame.rasterMs = cs.ms();  // rasterize and sort are one pass: the sort is inside
+    frame.sortMs = 0.0;
+    return;
+  }
   frame.lists = rasterize(frame.scene, frame.camera, rc, &frame.raster);
   frame.rasterMs = frame.raster.ms;
   if (frame.lists.lost() > 0)
@@ -93,12 +116,6 @@ void rasterizeFrame(const FrameOptions& o, Frame& frame) {
                frame.lists.stored, " stored, ", frame.lists.lost(), " lost (use --pool ", frame.lists.generated,
                " or more, or 0 for automatic)");
   const auto t0 = std::chrono::steady_clock::now();
-  LayerConfig lc;
-  lc.k = o.layers;
-  lc.thickness = frame.thickness;
-  lc.thicknessPerDepth = frame.thicknessPerDepth;
-  lc.minSeparation = o.minSeparation;
-  lc.adaptiveThickness = o.adaptiveThickness;
   frame.layers = sortAndTruncate(frame.lists, lc);
   frame.sortMs = msSince(t0);
 }
@@ -132,6 +149,9 @@ nlohmann::json frameStats(const Frame& f) {
   j["timings_ms"]["load"] = f.loadMs;
   j["timings_ms"]["raster"] = f.rasterMs;
   j["timings_ms"]["sort"] = f.sortMs;
+  // "tiles": rasterized and sorted in one tile-local pass (raster includes the sort, sort = 0);
+  // "lists": every fragment linked into per-pixel lists, then sorted (seed 000 §4.1–4.2).
+  j["capture_pipeline"] = f.listsCaptured() ? "lists" : "tiles";
   j["memory_bytes"]["lists"] = f.lists.memoryBytes();
   j["memory_bytes"]["arrays"] = f.layers.memoryBytes();
   uint64_t maxDc = 0;

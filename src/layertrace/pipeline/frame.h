@@ -14,6 +14,7 @@
 #include <glm/vec4.hpp>
 #include <nlohmann/json.hpp>
 
+#include "layertrace/raster/capture.h"
 #include "layertrace/raster/layer_arrays.h"
 #include "layertrace/raster/rasterizer.h"
 #include "layertrace/scene/camera.h"
@@ -42,6 +43,10 @@ struct FrameOptions {
   bool adaptiveThickness = false;      ///< --adaptive-thickness (seed 000 §4.2)
   bool frontFacesOnly = false;         ///< --front-faces-only: cull back faces at capture
   uint64_t pool = 0;                   ///< --pool fragments; 0 = automatic (grows on overflow)
+  /// Keep every fragment in per-pixel lists (the reference pipeline: rasterize, then sort). Not
+  /// an option of its own: `layers --verify` and the list-reading options (--pool,
+  /// --adaptive-thickness, --min-separation) need it; everything else captures tile by tile.
+  bool captureLists = false;
   std::vector<glm::vec4> lights;       ///< --light x,y,z[,intensity] (repeatable)
 };
 
@@ -49,14 +54,21 @@ struct Frame {
   Scene scene;
   Camera camera;
   std::vector<PointLight> lights;  ///< the lights in effect (scene's, --light, or the default)
+  /// The fragment lists of the reference pipeline. After a tile-local capture only the
+  /// per-pixel complexity and the counts are set (no nodes): listsCaptured() tells which.
   FragmentLists lists;
   LayerArrays layers;
+  LayerCapture capture;  ///< owns the tile-local capture's scratch, reused frame to frame
   float thickness = 0.0f;          ///< fixed part of the z-thickness (scene units)
   float thicknessPerDepth = 0.0f;  ///< plus this per unit depth (--thickness-px / focal)
   bool frontFacesOnly = false;     ///< captured with --front-faces-only
   double loadMs = 0.0, rasterMs = 0.0, sortMs = 0.0;
   RasterStats raster;
+  bool listsCaptured() const { return lists.capacity() > 0; }
 };
+
+/// Whether `options` need whole per-pixel lists (see FrameOptions::captureLists).
+bool needsFragmentLists(const FrameOptions& options);
 
 /// Checks values that need no scene (sizes, k, memory); throws InputError naming the option.
 void validateFrameOptions(const FrameOptions& options);

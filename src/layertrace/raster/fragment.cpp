@@ -10,11 +10,6 @@ namespace {
 
 glm::vec2 signNotZero(glm::vec2 v) { return {v.x >= 0.0f ? 1.0f : -1.0f, v.y >= 0.0f ? 1.0f : -1.0f}; }
 
-uint32_t toSnorm16(float v) {
-  const long q = std::lround(std::clamp(v, -1.0f, 1.0f) * 32767.0f);
-  return uint32_t(uint16_t(int16_t(q)));
-}
-
 float fromSnorm16(uint32_t bits) { return std::max(float(int16_t(uint16_t(bits))) / 32767.0f, -1.0f); }
 
 float srgbEncode(float v) {
@@ -35,14 +30,6 @@ const std::array<float, 256>& srgbDecodeTable() {
 }
 
 }  // namespace
-
-uint32_t encodeOctahedral(glm::vec3 n) {
-  const float l1 = std::abs(n.x) + std::abs(n.y) + std::abs(n.z);
-  if (!(l1 > 0.0f)) return toSnorm16(0.0f) | (toSnorm16(0.0f) << 16);  // degenerate: decodes to +z
-  glm::vec2 p = glm::vec2(n.x, n.y) / l1;
-  if (n.z < 0.0f) p = (1.0f - glm::abs(glm::vec2(p.y, p.x))) * signNotZero(p);
-  return toSnorm16(p.x) | (toSnorm16(p.y) << 16);
-}
 
 glm::vec3 decodeOctahedral(uint32_t packed) {
   const glm::vec2 p(fromSnorm16(packed & 0xFFFFu), fromSnorm16(packed >> 16));

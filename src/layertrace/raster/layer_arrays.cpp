@@ -78,7 +78,7 @@ int adaptiveK(const FragmentLists& lists, uint32_t head, int k, const LayerConfi
 
 }  // namespace
 
-LayerArrays sortAndTruncate(const FragmentLists& lists, const LayerConfig& config) {
+void validateLayerConfig(const LayerConfig& config) {
   if (config.k < 1 || config.k > 16) inputError("--layers ", config.k, ": must be between 1 and 16");
   if (!(config.thickness >= 0.0f) || !std::isfinite(config.thickness))
     inputError("--thickness ", config.thickness, ": must be a positive number");
@@ -86,11 +86,16 @@ LayerArrays sortAndTruncate(const FragmentLists& lists, const LayerConfig& confi
     inputError("--thickness-px: the thickness per unit depth ", config.thicknessPerDepth, " must be >= 0");
   if (!(config.thickness > 0.0f || config.thicknessPerDepth > 0.0f)) inputError("--thickness ", config.thickness, ": must be positive");
   if (!(config.minSeparation >= 0.0f)) inputError("--min-separation ", config.minSeparation, ": must be >= 0");
+}
+
+LayerArrays sortAndTruncate(const FragmentLists& lists, const LayerConfig& config) {
+  validateLayerConfig(config);
   LayerArrays out;
   out.width = lists.width;
   out.height = lists.height;
   out.k = config.k;
   const size_t pixels = size_t(lists.width) * size_t(lists.height);
+  LT_CHECK(lists.head.size() == pixels, lists.head.size(), pixels);  // lists of a tile-local capture hold no nodes
   checkAllocation(cat("the k-layer arrays (k = ", config.k, ")"), pixels * (size_t(config.k) * (sizeof(FragmentNode) + sizeof(uint32_t)) + 1));
   out.slots.resize(pixels * size_t(config.k));
   out.count.assign(pixels, 0);

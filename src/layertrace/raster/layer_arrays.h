@@ -45,6 +45,10 @@ struct LayerArrays {
   }
 };
 
+/// Throws InputError naming the option for k outside 1..16, a negative, non-finite or zero
+/// thickness, or a negative minimum separation.
+void validateLayerConfig(const LayerConfig& config);
+
 /// Insertion sort of each pixel's list, keeping the k front-most fragments (ties keep list
 /// order, so the result is deterministic). Throws InputError for k outside 1..16 or a
 /// non-positive thickness.

@@ -66,16 +66,6 @@ glm::vec2 Camera::project(glm::vec3 cam) const {
   return {float(width_) * 0.5f + focal_ * cam.x / depth, float(height_) * 0.5f - focal_ * cam.y / depth};
 }
 
-glm::vec3 Camera::rayThrough(glm::vec2 pixel) const {
-  if (ortho_) return {0.0f, 0.0f, -1.0f};
-  return {(pixel.x - float(width_) * 0.5f) * pixelScale_, -(pixel.y - float(height_) * 0.5f) * pixelScale_, -1.0f};
-}
-
-glm::vec3 Camera::rayOrigin(glm::vec2 pixel) const {
-  if (!ortho_) return glm::vec3(0.0f);
-  return {(pixel.x - float(width_) * 0.5f) * pixelScale_, -(pixel.y - float(height_) * 0.5f) * pixelScale_, 0.0f};
-}
-
 CameraDesc autoCamera(const Scene& scene) {
   const Bounds b = scene.bounds();
   const glm::vec3 c = b.center();

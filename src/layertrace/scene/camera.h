@@ -53,11 +53,18 @@ class Camera {
 
   /// Camera-space direction through the screen point `pixel` whose depth component is 1
   /// (so a point at parameter t along it has depth t). Orthographic: (0, 0, -1) everywhere.
-  glm::vec3 rayThrough(glm::vec2 pixel) const;
+  /// Inline: the rasterizer evaluates it once per fragment.
+  glm::vec3 rayThrough(glm::vec2 pixel) const {
+    if (ortho_) return {0.0f, 0.0f, -1.0f};
+    return {(pixel.x - float(width_) * 0.5f) * pixelScale_, -(pixel.y - float(height_) * 0.5f) * pixelScale_, -1.0f};
+  }
 
   /// Camera-space origin of the ray through `pixel`: the eye (0, 0, 0) for a pinhole camera, the
   /// pixel's point on the z = 0 plane for an orthographic one.
-  glm::vec3 rayOrigin(glm::vec2 pixel) const;
+  glm::vec3 rayOrigin(glm::vec2 pixel) const {
+    if (!ortho_) return glm::vec3(0.0f);
+    return {(pixel.x - float(width_) * 0.5f) * pixelScale_, -(pixel.y - float(height_) * 0.5f) * pixelScale_, 0.0f};
+  }
 
   /// An orthographic camera (CameraDesc::orthoHeight > 0): x_px = W/2 + focal·x, y_px = H/2 −
   /// focal·y, with focal in pixels per scene unit; depth = -z as always.

@@ -1,0 +1,62 @@
+// Tile-local capture (issue 13; DESIGN.md "Performance approach"): rasterize every fragment and
+// keep each pixel's k front-most ones in a single pass over screen tiles, so a tile's fragments
+// are sorted while they are in cache and no fragment is ever stored twice.
+//
+// The reference pipeline — rasterize() into per-pixel lists (seed 000 §4.1), then
+// sortAndTruncate() (§4.2) — stays: it is what `layers --verify`, adaptive thickness, minimum
+// separation and a fixed --pool need (they read whole lists), and what this pass is tested
+// against bit for bit (capture_test.cpp). Equal depths are kept in the reference's order: its
+// lists are last-generated-first and its insertion sort is stable, so among equal depths the
+// fragment generated last (the higher sub-triangle index) comes first.
+//
+// A LayerCapture owns its scratch memory (transformed vertices, clipped triangles, tile bins);
+// capturing the next frame of the same scene and size into the same LayerArrays allocates
+// nothing.
+#pragma once
+
+#include <cstdint>
+#include <memory>
+#include <vector>
+
+#include "layertrace/raster/layer_arrays.h"
+#include "layertrace/raster/rasterizer.h"
+
+namespace lt {
+
+namespace raster {
+struct RasterSetup;
+}
+
+struct CaptureStats {
+  double setupMs = 0.0;  ///< transform, clip, bin to tiles
+  double tilesMs = 0.0;  ///< rasterize + sort to k per tile
+  uint64_t generated = 0;     ///< fragments the rasterizer produced (all of them are considered)
+  uint64_t subTriangles = 0;  ///< triangles after clipping
+  double ms() const { return setupMs + tilesMs; }
+};
+
+class LayerCapture {
+ public:
+  LayerCapture();
+  ~LayerCapture();
+  LayerCapture(LayerCapture&&) noexcept;
+  LayerCapture& operator=(LayerCapture&&) noexcept;
+  /// Scratch memory only: a copy starts with none.
+  LayerCapture(const LayerCapture&);
+  LayerCapture& operator=(const LayerCapture&);
+
+  /// Rasterizes `scene` for `camera` straight into `layers` (k front-most fragments per pixel
+  /// with their thickness, as sortAndTruncate) and `complexity` (fragments per pixel). Reuses the
+  /// memory of both. Throws InputError for a bad LayerConfig, and for adaptive thickness or a
+  /// minimum separation (they need whole lists: use the reference pipeline).
+  void capture(const Scene& scene, const Camera& camera, const RasterConfig& raster, const LayerConfig& config,
+               LayerArrays& layers, std::vector<uint32_t>& complexity, CaptureStats* stats = nullptr);
+
+  /// Bytes of scratch the object holds between frames.
+  size_t scratchBytes() const;
+
+ private:
+  std::unique_ptr<raster::RasterSetup> setup_;
+};
+
+}  // namespace lt

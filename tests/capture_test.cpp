@@ -1,0 +1,163 @@
+// Issue 13 §6: the tile-local capture gives the k-layer arrays of the reference pipeline
+// (rasterize into lists, then sort and truncate) bit for bit, for any tile size and thread count,
+// and reuses its memory from frame to frame.
+#include <cstring>
+#include <random>
+
+#include <tbb/global_control.h>
+
+#include "layertrace/raster/capture.h"
+#include "layertrace/raster/layer_arrays.h"
+#include "layertrace/raster/rasterizer.h"
+#include "layertrace/util/error.h"
+#include "test_util.h"
+
+namespace lt {
+namespace {
+
+/// Random triangles in front of (and some through) the near plane, every third one duplicated
+/// with another material: identical vertices give identical depths, so the order of equal depths
+/// decides which material a slot holds.
+Scene tieSoup(uint64_t seed) {
+  Scene s;
+  s.materials = {Material{"red", {0.9f, 0.1f, 0.1f}}, Material{"green", {0.1f, 0.9f, 0.1f}}, Material{"blue", {0.1f, 0.1f, 0.9f}}};
+  std::mt19937_64 rng(seed);
+  std::uniform_real_distribution<float> u(-1.0f, 1.0f), d(0.5f, 30.0f);
+  for (int i = 0; i < 400; ++i) {
+    const float z = -d(rng), r = 0.2f * -z;
+    glm::vec3 v[3];
+    for (glm::vec3& p : v) p = {u(rng) * 3.0f * r, u(rng) * 2.0f * r, z + u(rng) * 4.0f};
+    test::addTriangle(s, v[0], v[1], v[2], uint32_t(i % 3));
+    if (i % 3 == 0) test::addTriangle(s, v[0], v[1], v[2], 1 + uint32_t(i / 3) % 2);
+  }
+  for (size_t n = 0; n < s.normals.size(); ++n) s.normals[n] = glm::normalize(glm::vec3(u(rng), u(rng), 1.0f));
+  s.finalize("tie-soup");
+  return s;
+}
+
+struct Captured {
+  LayerArrays layers;
+  std::vector<uint32_t> complexity;
+  uint64_t generated = 0;
+};
+
+Captured reference(const Scene& s, const Camera& cam, const RasterConfig& rc, const LayerConfig& lc) {
+  const FragmentLists lists = rasterize(s, cam, rc);
+  return {sortAndTruncate(lists, lc), lists.complexity, lists.generated};
+}
+
+Captured tiled(const Scene& s, const Camera& cam, const RasterConfig& rc, const LayerConfig& lc) {
+  Captured c;
+  LayerCapture capture;
+  CaptureStats st;
+  capture.capture(s, cam, rc, lc, c.layers, c.complexity, &st);
+  c.generated = st.generated;
+  return c;
+}
+
+::testing::AssertionResult sameBytes(const Captured& a, const Captured& b) {
+  if (a.layers.width != b.layers.width || a.layers.height != b.layers.height || a.layers.k != b.layers.k)
+    return ::testing::AssertionFailure() << "sizes differ";
+  if (a.generated != b.generated) return ::testing::AssertionFailure() << "generated " << a.generated << " vs " << b.generated;
+  if (a.complexity != b.complexity) return ::testing::AssertionFailure() << "depth complexity differs";
+  if (a.layers.count != b.layers.count) return ::testing::AssertionFailure() << "layer counts differ";
+  if (a.layers.triangle != b.layers.triangle) return ::testing::AssertionFailure() << "slot triangles differ";
+  for (size_t i = 0; i < a.layers.slots.size(); ++i)
+    if (std::memcmp(&a.layers.slots[i], &b.layers.slots[i], sizeof(FragmentNode)) != 0)
+      return ::testing::AssertionFailure() << "slot " << i << " (pixel " << i / size_t(a.layers.k) << ") differs: depth "
+                                           << a.layers.slots[i].depth << " vs " << b.layers.slots[i].depth;
+  return ::testing::AssertionSuccess();
+}
+
+/// Kept slots of one pixel with equal depths (the ties the order rule decides).
+size_t tiedSlots(const LayerArrays& L) {
+  size_t ties = 0;
+  for (size_t p = 0; p < L.count.size(); ++p)
+    for (int i = 1; i < L.count[p]; ++i) ties += L.slots[p * size_t(L.k) + size_t(i)].depth == L.slots[p * size_t(L.k) + size_t(i) - 1].depth;
+  return ties;
+}
+
+TEST(Capture, TileLocalEqualsListPipelineBitForBit) {
+  const Scene s = tieSoup(test::testSeed());
+  CameraDesc ortho = test::originCamera(60.0f, 0.3f, 40.0f);
+  ortho.orthoHeight = 12.0f;
+  const CameraDesc views[] = {test::originCamera(60.0f, 0.3f, 40.0f), ortho};
+  size_t ties = 0;
+  for (const CameraDesc& view : views)
+    for (bool front : {false, true})
+      for (int k : {1, 3, 4, 16})
+        for (float perDepth : {0.0f, 0.01f}) {
+          const Camera cam(view, 203, 117);  // not a multiple of any tile size
+          RasterConfig rc;
+          rc.frontFacesOnly = front;
+          const LayerConfig lc{k, 0.05f, 0.0f, false, perDepth};
+          const Captured ref = reference(s, cam, rc, lc);
+          ASSERT_GT(ref.generated, 10000u);
+          ties += tiedSlots(ref.layers);
+          for (int tileSize : {8, 32, 45}) {
+            rc.tileSize = tileSize;
+            EXPECT_TRUE(sameBytes(tiled(s, cam, rc, lc), ref))
+                << "ortho " << (view.orthoHeight > 0) << " front-only " << front << " k " << k << " tile " << tileSize;
+          }
+        }
+  EXPECT_GT(ties, 1000u) << "the scene should make the order of equal depths matter";
+}
+
+TEST(Capture, OneAndTwoThreadsGiveTheSameBytes) {
+  const Scene s = tieSoup(test::testSeed() + 1);
+  const Camera cam(test::originCamera(60.0f, 0.3f, 40.0f), 320, 180);
+  const LayerConfig lc{4, 0.05f};
+  Captured one, two;
+  {
+    tbb::global_control gc(tbb::global_control::max_allowed_parallelism, 1);
+    one = tiled(s, cam, RasterConfig{}, lc);
+  }
+  {
+    tbb::global_control gc(tbb::global_control::max_allowed_parallelism, 2);
+    two = tiled(s, cam, RasterConfig{}, lc);
+  }
+  EXPECT_TRUE(sameBytes(one, two));
+}
+
+// Issue 13 §4: the second frame of the same size writes into the memory of the first.
+TEST(Capture, ASecondFrameReusesEveryBuffer) {
+  const Scene s = tieSoup(test::testSeed() + 2);
+  CameraDesc view = test::originCamera(60.0f, 0.3f, 40.0f);
+  const LayerConfig lc{4, 0.05f};
+  LayerCapture capture;
+  LayerArrays layers;
+  std::vector<uint32_t> complexity;
+  capture.capture(s, Camera(view, 160, 90), RasterConfig{}, lc, layers, complexity);
+  const void* slots = layers.slots.data();
+  const void* counts = layers.count.data();
+  const void* tris = layers.triangle.data();
+  const void* dc = complexity.data();
+  const size_t scratch = capture.scratchBytes();
+  ASSERT_GT(scratch, 0u);
+  view.eye = {0.3f, -0.2f, 0.5f};  // another view of the same scene
+  const Camera moved(view, 160, 90);
+  capture.capture(s, moved, RasterConfig{}, lc, layers, complexity);
+  EXPECT_EQ(layers.slots.data(), slots);
+  EXPECT_EQ(layers.count.data(), counts);
+  EXPECT_EQ(layers.triangle.data(), tris);
+  EXPECT_EQ(complexity.data(), dc);
+  EXPECT_EQ(capture.scratchBytes(), scratch);
+  // And the reused buffers hold the new view's answer, nothing of the old one.
+  Captured ref = reference(s, moved, RasterConfig{}, lc);
+  ref.generated = 0;
+  EXPECT_TRUE(sameBytes(Captured{layers, complexity, 0}, ref));
+}
+
+TEST(Capture, OptionsThatNeedWholeListsAreRefused) {
+  const Scene s = tieSoup(1);
+  const Camera cam(test::originCamera(), 32, 32);
+  LayerCapture capture;
+  LayerArrays layers;
+  std::vector<uint32_t> complexity;
+  EXPECT_THROW(capture.capture(s, cam, RasterConfig{}, LayerConfig{4, 0.1f, 0.2f}, layers, complexity), InputError);
+  EXPECT_THROW(capture.capture(s, cam, RasterConfig{}, LayerConfig{4, 0.1f, 0.0f, true}, layers, complexity), InputError);
+  EXPECT_THROW(capture.capture(s, cam, RasterConfig{}, LayerConfig{17, 0.1f}, layers, complexity), InputError);
+}
+
+}  // namespace
+}  // namespace lt
