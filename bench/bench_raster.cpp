@@ -10,6 +10,7 @@
 
 #include "layertrace/pipeline/frame.h"
 #include "layertrace/geometry/embree_scene.h"
+#include "layertrace/screen/interval_pyramid.h"
 
 namespace {
 
@@ -60,6 +61,22 @@ void BM_TileCapture(benchmark::State& state) {
   state.counters["tiles_ms"] = st.tilesMs;
 }
 
+// The interval pyramid over the captured layers (seed 000 §4.3), 5 levels, τ = 25.
+void BM_Pyramid(benchmark::State& state) {
+  tbb::global_control gc(tbb::global_control::max_allowed_parallelism, size_t(state.range(0)));
+  lt::Frame& f = fzk();
+  lt::LayerCapture capture;
+  lt::LayerArrays layers;
+  std::vector<uint32_t> complexity;
+  lt::LayerConfig lc{4, f.thickness};
+  lc.thicknessPerDepth = f.thicknessPerDepth;
+  capture.capture(f.scene, f.camera, lt::RasterConfig{}, lc, layers, complexity);
+  for (auto _ : state) {
+    const lt::IntervalPyramid p = lt::buildIntervalPyramid(layers, f.camera, lt::PyramidConfig{});
+    benchmark::DoNotOptimize(p.levels.back().cells.data());
+  }
+}
+
 void BM_EmbreeAllHits(benchmark::State& state) {
   tbb::global_control gc(tbb::global_control::max_allowed_parallelism, size_t(state.range(0)));
   lt::Frame& f = fzk();
@@ -85,6 +102,7 @@ void BM_EmbreeAllHits(benchmark::State& state) {
 
 BENCHMARK(BM_RasterSort)->Arg(1)->Arg(2)->Unit(benchmark::kMillisecond)->UseRealTime()->MinTime(1.0);
 BENCHMARK(BM_TileCapture)->Arg(1)->Arg(2)->Unit(benchmark::kMillisecond)->UseRealTime()->MinTime(1.0);
+BENCHMARK(BM_Pyramid)->Arg(1)->Arg(2)->Unit(benchmark::kMillisecond)->UseRealTime()->MinTime(1.0);
 BENCHMARK(BM_EmbreeAllHits)->Arg(1)->Arg(2)->Unit(benchmark::kMillisecond)->UseRealTime()->MinTime(1.0);
 
 }  // namespace

@@ -5,11 +5,16 @@
 #include "layertrace/util/parallel.h"
 
 #include <algorithm>
+#include <limits>
 
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>
 
 namespace lt {
+
+namespace {
+constexpr float kInf = std::numeric_limits<float>::infinity();
+}
 
 IntervalLayers makeIntervalLayers(const LayerArrays& layers, int maxLayers) {
   IntervalLayers out;
@@ -26,7 +31,7 @@ IntervalLayers makeIntervalLayers(const LayerArrays& layers, int maxLayers) {
       out.count[p] = uint8_t(n);
       const FragmentNode* f = &layers.slots[p * size_t(layers.k)];
       Interval* s = &out.slots[p * size_t(out.k)];
-      for (int i = 0; i < out.k; ++i) s[i] = i < n ? Interval{f[i].depth, f[i].back()} : Interval{0.0f, 0.0f};
+      for (int i = 0; i < out.k; ++i) s[i] = i < n ? Interval{f[i].depth, f[i].back()} : Interval{kInf, kInf};
     }
   });
   return out;

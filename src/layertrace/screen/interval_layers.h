@@ -49,7 +49,8 @@ int firstMet(const Interval* f, int n, float zmin, float zmax, bool increasing, 
   return best;
 }
 
-/// The first `maxLayers` intervals of every pixel (all k when maxLayers >= k).
+/// The first `maxLayers` intervals of every pixel (all k when maxLayers >= k); slots past a
+/// pixel's count hold {+∞, +∞} (the sentinel the HSSR march stops at, interval_pyramid.h).
 IntervalLayers makeIntervalLayers(const LayerArrays& layers, int maxLayers);
 
 }  // namespace lt

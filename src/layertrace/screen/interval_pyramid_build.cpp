@@ -26,8 +26,20 @@ namespace {
 /// starts at the front-most remaining child d_min and takes every child starting within
 /// [d_min, d_min + τ(d_min)]; a child that is longer than τ or overlaps the running interval
 /// extends it instead of being dropped or split (hssr-pitfalls §3: the merge must cover).
+/// The result depends on the order of fronts only: children with equal fronts always end in the
+/// same parent interval (the second is within τ of the first), so any sort gives the same bits.
 void mergeChildren(std::vector<Interval>& children, float tauPerDepth, std::vector<Interval>& out) {
-  std::sort(children.begin(), children.end(), [](const Interval& a, const Interval& b) { return a.front < b.front; });
+  auto byFront = [](const Interval& a, const Interval& b) { return a.front < b.front; };
+  if (children.size() <= 32) {  // a level-1 cell has at most 4k children: insertion sort wins
+    for (size_t i = 1; i < children.size(); ++i) {
+      const Interval c = children[i];
+      size_t j = i;
+      for (; j > 0 && c.front < children[j - 1].front; --j) children[j] = children[j - 1];
+      children[j] = c;
+    }
+  } else {
+    std::sort(children.begin(), children.end(), byFront);
+  }
   size_t i = 0;
   while (i < children.size()) {
     Interval cur = children[i++];
@@ -74,7 +86,7 @@ void buildCoarseCells(PyramidLevel& lvl) {
 
 IntervalPyramid buildIntervalPyramid(const LayerArrays& layers, const Camera& camera, const PyramidConfig& config) {
   const auto start = std::chrono::steady_clock::now();
-  IntervalPyramid p = buildIntervalPyramid(makeIntervalLayers(layers, layers.k), camera, config);
+  IntervalPyramid p = buildIntervalPyramid(makeIntervalLayers(layers, layers.k), camera, config);  // sentinels written
   p.buildMs = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
   return p;
 }
@@ -107,6 +119,7 @@ IntervalPyramid buildIntervalPyramid(IntervalLayers base, const Camera& camera, 
       std::vector<Interval> children;
       for (int y = r.begin(); y != r.end(); ++y) {
         std::vector<Interval>& row = rows[size_t(y)];
+        row.reserve(size_t(lvl.width) * 2);
         rowCounts[size_t(y)].resize(size_t(lvl.width));
         for (int x = 0; x < lvl.width; ++x) {
           children.clear();
