@@ -29,10 +29,10 @@ void validateFrameOptions(const FrameOptions& o) {
   if (o.fov && !(*o.fov > 0.0f && *o.fov < 180.0f)) inputError("--fov ", *o.fov, ": must be in (0, 180) degrees");
   for (const glm::vec4& l : o.lights)
     if (!(l.w >= 0.0f) || !std::isfinite(l.x + l.y + l.z + l.w)) inputError("--light ", l.x, ",", l.y, ",", l.z, ",", l.w, ": invalid");
-  // Buffers per pixel: heads + counters (8), the initial pool of 8 fragments (8 × 20),
-  // k layer slots (k × 20 + 1), and images/tracer state (~64).
+  // Buffers per pixel: heads + counters (8), the initial pool of 8 fragments (8 × 20; the
+  // tile-local capture has none), k layer slots (k × 20 + 1), and images/tracer state (~64).
   const uint64_t pixels = uint64_t(o.width) * uint64_t(o.height);
-  const uint64_t pool = o.pool ? o.pool * 20 : pixels * 160;
+  const uint64_t pool = !needsFragmentLists(o) ? 0 : o.pool ? o.pool * 20 : pixels * 160;
   const uint64_t need = pixels * (8 + uint64_t(o.layers) * 21 + 64) + pool;
   checkAllocation(cat("--width/--height ", o.width, "x", o.height, ": the frame's buffers"), need);
 }

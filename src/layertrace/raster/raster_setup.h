@@ -106,9 +106,10 @@ inline void forEachCovered(const SubTriangle& s, int x0, int y0, int x1, int y1,
 /// The same pixels in the same order, found per row as the exact integer span where all three
 /// edge functions are >= 0 (E is linear in px: each edge bounds the span from one side), so the
 /// loop visits covered pixels only — thin and slanted triangles waste no tests on their
-/// bounding box. capture_test checks it against forEachCovered through the whole pipeline.
-template <class F>
-inline void forEachCoveredSpan(const SubTriangle& s, int x0, int y0, int x1, int y1, F&& f) {
+/// bounding box. Calls g(py, xa, xb) for each non-empty row span [xa, xb]. capture_test checks
+/// it against forEachCovered through the whole pipeline.
+template <class G>
+inline void forEachCoveredSpan(const SubTriangle& s, int x0, int y0, int x1, int y1, G&& g) {
   if (x0 > x1 || y0 > y1) return;
   const EdgeFunctions E(s);
   for (int py = y0; py <= y1; ++py) {
@@ -124,7 +125,7 @@ inline void forEachCoveredSpan(const SubTriangle& s, int x0, int y0, int x1, int
         lo = hi + 1;
       }
     }
-    for (int64_t i = lo; i <= hi; ++i) f(x0 + int(i), py);
+    if (lo <= hi) g(py, x0 + int(lo), x0 + int(hi));
   }
 }
 
@@ -147,6 +148,29 @@ inline float fragmentDepth(const Camera& camera, const TriangleSetup& ts, const 
   if (!(depth >= camera.near())) depth = camera.near();
   if (!(depth <= camera.far())) depth = camera.far();
   return depth;
+}
+
+/// fragmentDepth for the n pixels xa .. xa + n - 1 of row py, written to out[0 .. n): for a
+/// pinhole camera the loop is straight-line float code the compiler vectorizes, performing
+/// per lane exactly fragmentDepth's operations in its order (glm::dot sums (x + y) + z), so
+/// every depth has the same bits (capture_test compares the pipelines byte for byte).
+inline void spanDepths(const Camera& camera, const TriangleSetup& ts, int py, int xa, int n, float* out) {
+  if (camera.orthographic()) {
+    for (int i = 0; i < n; ++i) out[i] = fragmentDepth(camera, ts, pixelRay(camera, xa + i, py));
+    return;
+  }
+  const float scale = camera.pixelFootprint(1.0f), halfW = float(camera.width()) * 0.5f;
+  const float dirY = camera.rayThrough({0.5f, float(py) + 0.5f}).y;
+  const float nx = ts.planeNormal.x, rowTerm = ts.planeNormal.y * dirY, zTerm = ts.planeNormal.z * -1.0f;
+  const float offset = ts.planeOffset, near = camera.near(), far = camera.far();
+  for (int i = 0; i < n; ++i) {
+    const float dirX = (float(xa + i) + 0.5f - halfW) * scale;
+    const float denom = (nx * dirX + rowTerm) + zTerm;
+    float depth = denom != 0.0f ? offset / denom : far;
+    depth = depth >= near ? depth : near;  // also NaN → near, as fragmentDepth
+    depth = depth <= far ? depth : far;
+    out[i] = depth;
+  }
 }
 
 /// The octahedral-encoded interpolated normal at that depth (barycentrics clamped to the
