@@ -9,6 +9,7 @@
 #include "layertrace/raster/capture.h"
 #include "layertrace/raster/layer_arrays.h"
 #include "layertrace/raster/rasterizer.h"
+#include "layertrace/screen/interval_pyramid.h"
 #include "layertrace/util/error.h"
 #include "test_util.h"
 
@@ -146,6 +147,44 @@ TEST(Capture, ASecondFrameReusesEveryBuffer) {
   Captured ref = reference(s, moved, RasterConfig{}, lc);
   ref.generated = 0;
   EXPECT_TRUE(sameBytes(Captured{layers, complexity, 0}, ref));
+}
+
+::testing::AssertionResult samePyramid(const IntervalPyramid& a, const IntervalPyramid& b) {
+  auto bytesEqual = [](const auto& x, const auto& y) {
+    return x.size() == y.size() && (x.empty() || std::memcmp(x.data(), y.data(), x.size() * sizeof(x[0])) == 0);
+  };
+  if (!bytesEqual(a.base.slots, b.base.slots) || a.base.count != b.base.count) return ::testing::AssertionFailure() << "level 0 differs";
+  if (a.levels.size() != b.levels.size()) return ::testing::AssertionFailure() << "level counts differ";
+  for (size_t L = 1; L < a.levels.size(); ++L)
+    if (a.levels[L].offset != b.levels[L].offset || !bytesEqual(a.levels[L].intervals, b.levels[L].intervals) ||
+        !bytesEqual(a.levels[L].cells, b.levels[L].cells))
+      return ::testing::AssertionFailure() << "level " << L << " differs";
+  return ::testing::AssertionSuccess();
+}
+
+// The pyramid too: rebuilt for the next view into the same memory, it equals a fresh build.
+TEST(Capture, APyramidRebuiltInPlaceEqualsAFreshOne) {
+  const Scene s = tieSoup(test::testSeed() + 3);
+  CameraDesc view = test::originCamera(60.0f, 0.3f, 40.0f);
+  const LayerConfig lc{4, 0.05f};
+  const PyramidConfig pc{5, 25.0f};
+  LayerCapture capture;
+  LayerArrays layers;
+  std::vector<uint32_t> complexity;
+  const Camera first(view, 203, 117);
+  capture.capture(s, first, RasterConfig{}, lc, layers, complexity);
+  IntervalPyramid reused;
+  buildIntervalPyramid(layers, first, pc, reused);
+  const void* base = reused.base.slots.data();
+  const void* cells = reused.levels[1].cells.data();
+  view.eye = {-0.4f, 0.1f, 0.2f};
+  const Camera second(view, 203, 117);
+  capture.capture(s, second, RasterConfig{}, lc, layers, complexity);
+  buildIntervalPyramid(layers, second, pc, reused);
+  EXPECT_EQ(reused.base.slots.data(), base);
+  EXPECT_EQ(reused.levels[1].cells.data(), cells);
+  EXPECT_TRUE(samePyramid(reused, buildIntervalPyramid(layers, second, pc)));
+  EXPECT_FALSE(samePyramid(reused, buildIntervalPyramid(layers, first, PyramidConfig{5, 5.0f}))) << "the comparison must be able to fail";
 }
 
 TEST(Capture, OptionsThatNeedWholeListsAreRefused) {

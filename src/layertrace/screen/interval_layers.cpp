@@ -18,11 +18,16 @@ constexpr float kInf = std::numeric_limits<float>::infinity();
 
 IntervalLayers makeIntervalLayers(const LayerArrays& layers, int maxLayers) {
   IntervalLayers out;
+  makeIntervalLayers(layers, maxLayers, out);
+  return out;
+}
+
+void makeIntervalLayers(const LayerArrays& layers, int maxLayers, IntervalLayers& out) {
   out.width = layers.width;
   out.height = layers.height;
   out.k = std::clamp(maxLayers, 1, layers.k);
   const size_t pixels = size_t(layers.width) * size_t(layers.height);
-  checkAllocation("the interval layers", pixels * (size_t(out.k) * sizeof(Interval) + 1));
+  if (out.slots.size() != pixels * size_t(out.k)) checkAllocation("the interval layers", pixels * (size_t(out.k) * sizeof(Interval) + 1));
   out.slots.resize(pixels * size_t(out.k));
   out.count.resize(pixels);
   parallelFor(tbb::blocked_range<size_t>(0, pixels, 4096), [&](const tbb::blocked_range<size_t>& r) {
@@ -34,7 +39,6 @@ IntervalLayers makeIntervalLayers(const LayerArrays& layers, int maxLayers) {
       for (int i = 0; i < out.k; ++i) s[i] = i < n ? Interval{f[i].depth, f[i].back()} : Interval{kInf, kInf};
     }
   });
-  return out;
 }
 
 }  // namespace lt

@@ -52,5 +52,7 @@ int firstMet(const Interval* f, int n, float zmin, float zmax, bool increasing, 
 /// The first `maxLayers` intervals of every pixel (all k when maxLayers >= k); slots past a
 /// pixel's count hold {+∞, +∞} (the sentinel the HSSR march stops at, interval_pyramid.h).
 IntervalLayers makeIntervalLayers(const LayerArrays& layers, int maxLayers);
+/// The same into `out`, reusing its memory (no allocation when the size is unchanged).
+void makeIntervalLayers(const LayerArrays& layers, int maxLayers, IntervalLayers& out);
 
 }  // namespace lt

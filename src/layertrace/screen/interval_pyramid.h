@@ -54,10 +54,17 @@ struct IntervalPyramid {
   int levelCount() const { return int(levels.size()); }
   size_t memoryBytes() const;
   double buildMs = 0.0;
+  /// Build scratch (merged intervals and counts per row of cells), kept so that a rebuild of
+  /// the same size writes into memory it already has.
+  std::vector<std::vector<Interval>> scratchRows;
+  std::vector<std::vector<uint32_t>> scratchCounts;
 };
 
 /// Builds levels 1..levels-1 (parallel over rows of cells).
 IntervalPyramid buildIntervalPyramid(const LayerArrays& layers, const Camera& camera, const PyramidConfig& config);
+/// The same into `out`, reusing its memory: the next frame's pyramid of the same size allocates
+/// nothing and pays no first-touch page faults (issue 13 §4; they were half of a cold build).
+void buildIntervalPyramid(const LayerArrays& layers, const Camera& camera, const PyramidConfig& config, IntervalPyramid& out);
 /// The same over level-0 intervals that need not come from fragments (known_space.h).
 IntervalPyramid buildIntervalPyramid(IntervalLayers base, const Camera& camera, const PyramidConfig& config);
 

@@ -17,6 +17,8 @@ size_t IntervalPyramid::memoryBytes() const {
   size_t bytes = base.memoryBytes();
   for (const PyramidLevel& l : levels)
     bytes += l.offset.size() * sizeof(uint32_t) + l.intervals.size() * sizeof(Interval) + l.cells.size() * sizeof(CoarseCell);
+  for (const auto& row : scratchRows) bytes += row.capacity() * sizeof(Interval);  // kept for the next build
+  for (const auto& row : scratchCounts) bytes += row.capacity() * sizeof(uint32_t);
   return bytes;
 }
 
@@ -82,27 +84,13 @@ void buildCoarseCells(PyramidLevel& lvl) {
   });
 }
 
-}  // namespace
-
-IntervalPyramid buildIntervalPyramid(const LayerArrays& layers, const Camera& camera, const PyramidConfig& config) {
-  const auto start = std::chrono::steady_clock::now();
-  IntervalPyramid p = buildIntervalPyramid(makeIntervalLayers(layers, layers.k), camera, config);  // sentinels written
-  p.buildMs = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
-  return p;
-}
-
-IntervalPyramid buildIntervalPyramid(IntervalLayers base, const Camera& camera, const PyramidConfig& config) {
+void validate(const PyramidConfig& config) {
   if (config.levels < 1 || config.levels > 16) inputError("--levels ", config.levels, ": must be between 1 and 16");
   if (!(config.tau > 0.0f)) inputError("--tau ", config.tau, ": must be positive");
-  const auto start = std::chrono::steady_clock::now();
-  IntervalPyramid p;
-  p.base = std::move(base);
-  // The march's sentinel: slots past a pixel's count hold {+∞, +∞} (interval_pyramid.h).
-  parallelFor(tbb::blocked_range<size_t>(0, p.base.count.size(), 4096), [&](const tbb::blocked_range<size_t>& r) {
-    constexpr float inf = std::numeric_limits<float>::infinity();
-    for (size_t px = r.begin(); px != r.end(); ++px)
-      for (size_t i = p.base.count[px]; i < size_t(p.base.k); ++i) p.base.slots[px * size_t(p.base.k) + i] = {inf, inf};
-  });
+}
+
+/// Levels 1..levels-1 over p.base (seed 000 §4.3), into p's existing memory where it fits.
+void buildLevels(IntervalPyramid& p, const Camera& camera, const PyramidConfig& config) {
   p.levels.resize(size_t(config.levels));
   p.levels[0].width = p.base.width;
   p.levels[0].height = p.base.height;
@@ -113,12 +101,15 @@ IntervalPyramid buildIntervalPyramid(IntervalLayers base, const Camera& camera, 
     lvl.height = (child.height + 1) / 2;
     // τ for this level: factor × footprint of a 2^L-pixel cell per unit depth.
     const float tauPerDepth = config.tau * camera.pixelFootprint(1.0f) * float(1 << L);
-    std::vector<std::vector<Interval>> rows(size_t(lvl.height));
-    std::vector<std::vector<uint32_t>> rowCounts(size_t(lvl.height));
+    std::vector<std::vector<Interval>>& rows = p.scratchRows;
+    std::vector<std::vector<uint32_t>>& rowCounts = p.scratchCounts;
+    rows.resize(size_t(lvl.height));
+    rowCounts.resize(size_t(lvl.height));
     parallelFor(tbb::blocked_range<int>(0, lvl.height, 4), [&](const tbb::blocked_range<int>& r) {
       std::vector<Interval> children;
       for (int y = r.begin(); y != r.end(); ++y) {
         std::vector<Interval>& row = rows[size_t(y)];
+        row.clear();
         row.reserve(size_t(lvl.width) * 2);
         rowCounts[size_t(y)].resize(size_t(lvl.width));
         for (int x = 0; x < lvl.width; ++x) {
@@ -140,10 +131,11 @@ IntervalPyramid buildIntervalPyramid(IntervalLayers base, const Camera& camera, 
       }
     });
     size_t intervals = 0;
-    for (const std::vector<Interval>& row : rows) intervals += row.size();
+    for (int y = 0; y < lvl.height; ++y) intervals += rows[size_t(y)].size();
     if (intervals > 0xFFFFFFFFull) inputError("interval pyramid level ", L, ": ", intervals, " intervals exceed the 32-bit offsets");
-    checkAllocation(cat("interval pyramid level ", L),
-                    intervals * sizeof(Interval) + (size_t(lvl.width) * size_t(lvl.height) + 1) * (sizeof(uint32_t) + sizeof(CoarseCell)));
+    if (intervals > lvl.intervals.capacity() || size_t(lvl.width) * size_t(lvl.height) > lvl.cells.capacity())
+      checkAllocation(cat("interval pyramid level ", L),
+                      intervals * sizeof(Interval) + (size_t(lvl.width) * size_t(lvl.height) + 1) * (sizeof(uint32_t) + sizeof(CoarseCell)));
     lvl.offset.resize(size_t(lvl.width) * size_t(lvl.height) + 1);
     uint32_t total = 0;
     for (int y = 0; y < lvl.height; ++y)
@@ -158,6 +150,36 @@ IntervalPyramid buildIntervalPyramid(IntervalLayers base, const Camera& camera, 
     });
     buildCoarseCells(lvl);
   }
+}
+
+}  // namespace
+
+IntervalPyramid buildIntervalPyramid(const LayerArrays& layers, const Camera& camera, const PyramidConfig& config) {
+  IntervalPyramid p;
+  buildIntervalPyramid(layers, camera, config, p);
+  return p;
+}
+
+void buildIntervalPyramid(const LayerArrays& layers, const Camera& camera, const PyramidConfig& config, IntervalPyramid& out) {
+  validate(config);
+  const auto start = std::chrono::steady_clock::now();
+  makeIntervalLayers(layers, layers.k, out.base);  // with the sentinels
+  buildLevels(out, camera, config);
+  out.buildMs = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
+}
+
+IntervalPyramid buildIntervalPyramid(IntervalLayers base, const Camera& camera, const PyramidConfig& config) {
+  validate(config);
+  const auto start = std::chrono::steady_clock::now();
+  IntervalPyramid p;
+  p.base = std::move(base);
+  // The march's sentinel: slots past a pixel's count hold {+∞, +∞} (interval_pyramid.h).
+  parallelFor(tbb::blocked_range<size_t>(0, p.base.count.size(), 4096), [&](const tbb::blocked_range<size_t>& r) {
+    constexpr float inf = std::numeric_limits<float>::infinity();
+    for (size_t px = r.begin(); px != r.end(); ++px)
+      for (size_t i = p.base.count[px]; i < size_t(p.base.k); ++i) p.base.slots[px * size_t(p.base.k) + i] = {inf, inf};
+  });
+  buildLevels(p, camera, config);
   p.buildMs = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
   return p;
 }
