@@ -41,7 +41,7 @@ LT_CPU_DISPATCH void captureTile(const Scene& scene, const Camera& camera, const
   uint64_t gen = 0;
   float depths[kMaxTileSize];
   for (uint32_t i = setup.tileStart[tile]; i < setup.tileStart[tile + 1]; ++i) {
-    const raster::SubTriangle& s = setup.subs[setup.tileList[i]];
+    const raster::SubTriangle& s = *setup.subs[setup.tileList[i]];
     const raster::TriangleSetup& ts = setup.setups[s.triangle];
     const glm::uvec3 vi = scene.triangles[s.triangle];
     const uint32_t albedoSpec = setup.materialPacked[scene.triMaterial[s.triangle]];
@@ -96,7 +96,7 @@ size_t LayerCapture::scratchBytes() const {
   if (!setup_) return 0;
   const RasterSetup& s = *setup_;
   size_t bytes = s.clip.capacity() * sizeof(glm::vec4) + (s.camPos.capacity() + s.camNormals.capacity()) * sizeof(glm::vec3) +
-                 s.setups.capacity() * sizeof(raster::TriangleSetup) + s.subs.capacity() * sizeof(raster::SubTriangle) +
+                 s.setups.capacity() * sizeof(raster::TriangleSetup) + s.subs.capacity() * sizeof(raster::SubTriangle*) +
                  (s.materialPacked.capacity() + s.chunkBase.capacity() + s.counts.capacity() + s.offsets.capacity() +
                   s.tileStart.capacity() + s.tileList.capacity()) *
                      sizeof(uint32_t);

@@ -169,9 +169,11 @@ void prepareRaster(const Scene& scene, const Camera& camera, const RasterConfig&
   std::vector<uint32_t>& chunkBase = setup.chunkBase;
   chunkBase.assign(numChunks + 1, 0);
   for (size_t c = 0; c < numChunks; ++c) chunkBase[c + 1] = chunkBase[c] + uint32_t(chunkSubs[c].size());
-  std::vector<SubTriangle>& subs = setup.subs;
+  std::vector<const SubTriangle*>& subs = setup.subs;  // pointers, not copies: the chunks stay
   subs.resize(chunkBase[numChunks]);
-  parallelFor(size_t(0), numChunks, [&](size_t c) { std::copy(chunkSubs[c].begin(), chunkSubs[c].end(), subs.begin() + chunkBase[c]); });
+  parallelFor(size_t(0), numChunks, [&](size_t c) {
+    for (size_t j = 0; j < chunkSubs[c].size(); ++j) subs[chunkBase[c] + j] = &chunkSubs[c][j];
+  });
 
   // Bin sub-triangles to tiles: count, prefix sum (tile-major, chunk-minor), fill.
   const int ts = setup.tileSize = config.tileSize;
@@ -185,7 +187,7 @@ void prepareRaster(const Scene& scene, const Camera& camera, const RasterConfig&
       for (int tx = s.px0 / ts; tx <= s.px1 / ts; ++tx) f(size_t(ty) * size_t(tilesX) + size_t(tx));
   };
   parallelFor(size_t(0), numChunks, [&](size_t c) {
-    for (uint32_t i = chunkBase[c]; i < chunkBase[c + 1]; ++i) forTiles(subs[i], [&](size_t tile) { ++counts[c * numTiles + tile]; });
+    for (uint32_t i = chunkBase[c]; i < chunkBase[c + 1]; ++i) forTiles(*subs[i], [&](size_t tile) { ++counts[c * numTiles + tile]; });
   });
   std::vector<uint32_t>& tileStart = setup.tileStart;
   tileStart.resize(numTiles + 1);
@@ -203,7 +205,7 @@ void prepareRaster(const Scene& scene, const Camera& camera, const RasterConfig&
   setup.tileList.resize(running);
   parallelFor(size_t(0), numChunks, [&](size_t c) {
     for (uint32_t i = chunkBase[c]; i < chunkBase[c + 1]; ++i)
-      forTiles(subs[i], [&](size_t tile) { setup.tileList[offsets[c * numTiles + tile]++] = i; });
+      forTiles(*subs[i], [&](size_t tile) { setup.tileList[offsets[c * numTiles + tile]++] = i; });
   });
 }
 

@@ -51,7 +51,7 @@ struct RasterSetup {
   std::vector<TriangleSetup> setups;
   std::vector<std::vector<SubTriangle>> chunkSubs;
   std::vector<uint32_t> chunkBase;
-  std::vector<SubTriangle> subs;
+  std::vector<const SubTriangle*> subs;  ///< all chunks' sub-triangles in triangle order
   std::vector<uint32_t> counts, offsets;
   std::vector<uint32_t> tileStart;  ///< per tile, offsets into tileList; numTiles + 1 entries
   std::vector<uint32_t> tileList;   ///< sub-triangle indices

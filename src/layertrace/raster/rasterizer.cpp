@@ -40,7 +40,7 @@ struct ListPass {
         int tx0, ty0, tx1, ty1;
         setup.tileBounds(tile, camera, tx0, ty0, tx1, ty1);
         for (uint32_t i = setup.tileStart[tile]; i < setup.tileStart[tile + 1]; ++i) {
-          const raster::SubTriangle& s = setup.subs[setup.tileList[i]];
+          const raster::SubTriangle& s = *setup.subs[setup.tileList[i]];
           const raster::TriangleSetup& ts = setup.setups[s.triangle];
           const glm::uvec3 vi = scene.triangles[s.triangle];
           const uint32_t albedoSpec = setup.materialPacked[scene.triMaterial[s.triangle]];
