@@ -104,6 +104,32 @@ TEST(Capture, TileLocalEqualsListPipelineBitForBit) {
   EXPECT_GT(ties, 1000u) << "the scene should make the order of equal depths matter";
 }
 
+// Issue 13 §2: with lists asked for, the same pass writes them in exact-size storage; every
+// pixel's list equals the reference pool's (same fragments, same order), and the k layers are
+// unchanged.
+TEST(Capture, ListsFromTheTilePassEqualTheReferenceLists) {
+  const Scene s = tieSoup(test::testSeed() + 4);
+  CameraDesc ortho = test::originCamera(60.0f, 0.3f, 40.0f);
+  ortho.orthoHeight = 12.0f;
+  LayerCapture capture;
+  for (const CameraDesc& view : {test::originCamera(60.0f, 0.3f, 40.0f), ortho})
+    for (int tileSize : {16, 32}) {
+      const Camera cam(view, 203, 117);
+      RasterConfig rc;
+      rc.tileSize = tileSize;
+      const LayerConfig lc{3, 0.05f};
+      const FragmentLists want = rasterize(s, cam, rc);
+      LayerArrays layers;
+      FragmentLists lists;
+      capture.captureWithLists(s, cam, rc, lc, layers, lists);
+      EXPECT_EQ(lists.generated, want.generated);
+      EXPECT_EQ(lists.nodes.size(), want.generated) << "exact-size storage, not a pool";
+      EXPECT_TRUE(lists.complexity == want.complexity);
+      EXPECT_TRUE(test::sameListContents(lists, want)) << "ortho " << (view.orthoHeight > 0) << " tile " << tileSize;
+      EXPECT_TRUE(sameBytes(Captured{layers, lists.complexity, lists.generated}, Captured{sortAndTruncate(want, lc), want.complexity, want.generated}));
+    }
+}
+
 TEST(Capture, OneAndTwoThreadsGiveTheSameBytes) {
   const Scene s = tieSoup(test::testSeed() + 1);
   const Camera cam(test::originCamera(60.0f, 0.3f, 40.0f), 320, 180);

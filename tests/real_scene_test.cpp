@@ -7,6 +7,7 @@
 #include "layertrace/pipeline/frame.h"
 #include "layertrace/eval/verify_layers.h"
 #include "layertrace/geometry/embree_scene.h"
+#include "layertrace/util/error.h"
 #include "test_util.h"
 
 namespace lt {
@@ -35,28 +36,34 @@ TEST_P(RealSceneVerify, FragmentListsMatchEmbreeAllHits) {
   EXPECT_GE(v.matchFraction(), 0.999) << "fewer " << v.fewerFragments << " more " << v.moreFragments << " depth " << v.depthMismatch;
 }
 
-// Issue 13 §6: on real views the tile-local capture (the default pipeline) gives the list
-// pipeline's k-layer arrays and depth complexity bit for bit, with 1 and 2 threads.
-TEST_P(RealSceneVerify, TileLocalCaptureEqualsListPipeline) {
+// Issue 13 §6: on real views the tile-local capture (the default pipeline) gives the reference
+// pipeline's k-layer arrays and depth complexity bit for bit, with 1 and 2 threads, and with
+// lists the same fragments in every pixel's list in the same order.
+TEST_P(RealSceneVerify, TileLocalCaptureEqualsReferencePipeline) {
   ASSERT_TRUE(test::haveFetchedScenes()) << "run scripts/fetch-scenes.sh";
   FrameOptions o = test::realSceneOptions(GetParam().scene, GetParam().camera);
-  o.captureLists = true;
+  o.referenceCapture = true;
   Frame f = buildFrame(o);
-  ASSERT_TRUE(f.listsCaptured());
+  ASSERT_EQ(f.capturePipeline, "reference");
   const LayerArrays want = f.layers;
-  const std::vector<uint32_t> wantComplexity = f.lists.complexity;
-  const uint64_t wantGenerated = f.lists.generated;
-  o.captureLists = false;
-  for (int threads : {1, 2}) {
-    tbb::global_control gc(tbb::global_control::max_allowed_parallelism, size_t(threads));
-    rasterizeFrame(o, f);  // the same scene and camera, captured again tile by tile into reused memory
-    ASSERT_FALSE(f.listsCaptured());
-    EXPECT_EQ(f.lists.generated, wantGenerated);
-    EXPECT_TRUE(f.lists.complexity == wantComplexity) << threads << " threads";
-    EXPECT_TRUE(f.layers.count == want.count && f.layers.triangle == want.triangle) << threads << " threads";
-    ASSERT_EQ(f.layers.slots.size(), want.slots.size());
-    EXPECT_EQ(std::memcmp(f.layers.slots.data(), want.slots.data(), want.slots.size() * sizeof(FragmentNode)), 0) << threads << " threads";
-  }
+  const FragmentLists wantLists = f.lists;
+  o.referenceCapture = false;
+  for (int threads : {1, 2})
+    for (bool lists : {false, true}) {
+      tbb::global_control gc(tbb::global_control::max_allowed_parallelism, size_t(threads));
+      o.captureLists = lists;
+      rasterizeFrame(o, f);  // the same scene and camera, captured again tile by tile into reused memory
+      const std::string what = cat(threads, " threads, ", f.capturePipeline);
+      ASSERT_EQ(f.capturePipeline, lists ? "tiles+lists" : "tiles");
+      EXPECT_EQ(f.lists.generated, wantLists.generated) << what;
+      EXPECT_TRUE(f.lists.complexity == wantLists.complexity) << what;
+      EXPECT_TRUE(f.layers.count == want.count && f.layers.triangle == want.triangle) << what;
+      ASSERT_EQ(f.layers.slots.size(), want.slots.size());
+      EXPECT_EQ(std::memcmp(f.layers.slots.data(), want.slots.data(), want.slots.size() * sizeof(FragmentNode)), 0) << what;
+      if (!lists) continue;
+      ASSERT_EQ(f.lists.nodes.size(), wantLists.generated) << "exact-size storage";
+      EXPECT_TRUE(test::sameListContents(f.lists, wantLists)) << what;
+    }
 }
 
 INSTANTIATE_TEST_SUITE_P(Scenes, RealSceneVerify,

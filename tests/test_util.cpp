@@ -119,6 +119,21 @@ Frame frameOf(const Scene& scene, const CameraDesc& view, int W, int H, int k, f
   return f;
 }
 
+::testing::AssertionResult sameListContents(const FragmentLists& a, const FragmentLists& b) {
+  if (a.head.size() != b.head.size()) return ::testing::AssertionFailure() << "pixel counts differ";
+  for (size_t p = 0; p < a.head.size(); ++p)
+    for (uint32_t i = a.head[p], j = b.head[p];; i = a.nodes[i].next, j = b.nodes[j].next) {
+      if (i == kNullIndex || j == kNullIndex) {
+        if (i != j) return ::testing::AssertionFailure() << "pixel " << p << ": lists of different lengths";
+        break;
+      }
+      const FragmentNode &x = a.nodes[i], &y = b.nodes[j];
+      if (x.depth != y.depth || x.normal != y.normal || x.albedoSpec != y.albedoSpec || a.triangle[i] != b.triangle[j])
+        return ::testing::AssertionFailure() << "pixel " << p << ": fragments differ (depth " << x.depth << " vs " << y.depth << ")";
+    }
+  return ::testing::AssertionSuccess();
+}
+
 uint64_t testSeed() {
   const char* env = std::getenv("LAYERTRACE_TEST_SEED");
   return env ? std::strtoull(env, nullptr, 10) : 20171122ull;

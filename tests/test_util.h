@@ -55,6 +55,10 @@ std::vector<Ray> sampleRays(const Frame& f, size_t count, uint64_t seed, bool sc
 /// A frame of an in-code scene: rasterized and sorted with the given view, size, k, thickness.
 Frame frameOf(const Scene& scene, const CameraDesc& view, int W, int H, int k = 4, float thickness = 0.1f);
 
+/// Every pixel's list holds the same fragments (depth, normal, albedo, triangle) in the same
+/// order in both, wherever in their storage the nodes lie.
+::testing::AssertionResult sameListContents(const FragmentLists& a, const FragmentLists& b);
+
 /// Seed for randomized tests: LAYERTRACE_TEST_SEED or a fixed default; printed on failure.
 uint64_t testSeed();
 

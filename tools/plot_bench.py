@@ -66,14 +66,14 @@ def main():
         ax.set_xlabel("threads")
         ax.set_ylabel("time [ms]")
     elif exp == "capture":
-        for i, pipe in enumerate(("tiles", "lists")):
-            sel = [r for r in rows if r.get("pipeline", "lists") == pipe]
+        for i, pipe in enumerate(("tiles", "tiles+lists", "reference")):
+            sel = [r for r in rows if r.get("pipeline", "reference") == pipe]
             if not sel:
                 continue
             th = [r["threads"] for r in sel]
             ax.plot(th, [r["capture_ms"] for r in sel], "o-", color=f"C{i}", label=f"capture ({pipe}: raster + sort)")
             ax.plot(th, [r["pyramid_ms"] for r in sel], "s:", color=f"C{i}", label=f"pyramid ({pipe})")
-        emb = [r for r in rows if r.get("pipeline", "lists") == "tiles"] or rows
+        emb = [r for r in rows if r.get("pipeline", "reference") == "tiles"] or rows
         ax.plot([r["threads"] for r in emb], [r["embree_allhit_ms"] for r in emb], "^--", color="C3", label="Embree all-hit capture")
         ax.set_xlabel("threads")
         ax.set_ylabel("time [ms]")

@@ -274,24 +274,26 @@ int runBench(const BenchOptions& o) {
   }
 
   if (e == "capture") {
-    // Both pipelines on the same view: "tiles" (rasterize and sort to k in one tile-local pass,
-    // the default) and "lists" (every fragment linked into per-pixel lists, then sorted: the
-    // reference, and what --verify needs). Each row: warm-up discarded, medians of --repeat.
+    // The pipelines on the same view: "tiles" (rasterize and sort to k in one tile-local pass,
+    // the default), "tiles+lists" (the same pass also writing exact-size lists, as --verify
+    // needs) and "reference" (every fragment linked into lists in a pool, then sorted). Each
+    // row: warm-up discarded, medians of --repeat.
     t.columns = {"pipeline", "threads", "raster_ms", "sort_ms", "capture_ms", "pyramid_ms", "fragments", "mfragments_per_s",
                  "embree_allhit_ms", "embree_hits", "capture_speedup_vs_embree", "lists_bytes", "arrays_bytes", "pyramid_bytes",
                  "scratch_bytes"};
     const EmbreeScene embree(frame.scene, EmbreeScene::Mode::Capture);
     std::vector<int> counts{1};
     if (std::thread::hardware_concurrency() > 1) counts.push_back(int(std::thread::hardware_concurrency()));
-    Progress p(o.run.quiet, e, int(counts.size()) * 2);
+    Progress p(o.run.quiet, e, int(counts.size()) * 3);
     for (int n : counts) {
       tbb::global_control gc(tbb::global_control::max_allowed_parallelism, size_t(n));
       uint64_t hits = 0;
       const double allHit = medianMs(o.repeat, [&] { hits = embreeCapture(frame.camera, embree); });
-      for (bool lists : {false, true}) {
-        p.step(cat(lists ? "lists, " : "tiles, ", n, " threads"));
+      for (const char* pipeline : {"tiles", "tiles+lists", "reference"}) {
+        p.step(cat(pipeline, ", ", n, " threads"));
         FrameOptions fo = o.run.frame;
-        fo.captureLists = lists;
+        fo.captureLists = std::string(pipeline) == "tiles+lists";
+        fo.referenceCapture = std::string(pipeline) == "reference";
         std::vector<double> rs, ss;
         rasterizeFrame(fo, frame);  // warm-up, discarded
         for (int i = 0; i < o.repeat; ++i) rasterizeFrame(fo, frame), rs.push_back(frame.rasterMs), ss.push_back(frame.sortMs);
@@ -300,7 +302,7 @@ int runBench(const BenchOptions& o) {
         buildIntervalPyramid(frame.layers, frame.camera, o.options.pyramid, pyr);
         const double pyramid = medianMs(o.repeat, [&] { buildIntervalPyramid(frame.layers, frame.camera, o.options.pyramid, pyr); });
         const double capture = median(rs) + median(ss);
-        t.rows.push_back({lists ? "lists" : "tiles", n, median(rs), median(ss), capture, pyramid, frame.lists.generated,
+        t.rows.push_back({pipeline, n, median(rs), median(ss), capture, pyramid, frame.lists.generated,
                           double(frame.lists.generated) / capture * 1e-3, allHit, hits, allHit / capture, frame.lists.memoryBytes(),
                           frame.layers.memoryBytes(), pyr.memoryBytes(), frame.capture.scratchBytes()});
       }

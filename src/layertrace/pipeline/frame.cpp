@@ -82,7 +82,7 @@ void setFrameView(const FrameOptions& o, const CameraDesc& desc, Frame& frame) {
 }
 
 bool needsFragmentLists(const FrameOptions& o) {
-  return o.captureLists || o.pool != 0 || o.adaptiveThickness || o.minSeparation > 0.0f;
+  return o.captureLists || o.referenceCapture || o.pool != 0 || o.adaptiveThickness || o.minSeparation > 0.0f;
 }
 
 void rasterizeFrame(const FrameOptions& o, Frame& frame) {
@@ -96,19 +96,34 @@ void rasterizeFrame(const FrameOptions& o, Frame& frame) {
   lc.thicknessPerDepth = frame.thicknessPerDepth;
   lc.minSeparation = o.minSeparation;
   lc.adaptiveThickness = o.adaptiveThickness;
-  if (!needsFragmentLists(o)) {
-    // Tile-local capture: no lists, the k layers straight from the rasterizer (issue 13).
+  if (o.pool == 0 && !o.referenceCapture) {
+    // Tile-local capture (issue 13): the k layers straight from the rasterizer, and the lists
+    // too when something reads them (exact-size storage from a counting pass).
     CaptureStats cs;
     FragmentLists& lists = frame.lists;
-    lists.head = {}, lists.nodes = {}, lists.triangle = {};
-    frame.capture.capture(frame.scene, frame.camera, rc, lc, frame.layers, lists.complexity, &cs);
-    lists.width = frame.camera.width(), lists.height = frame.camera.height();
-    lists.generated = lists.stored = cs.generated;
+    if (!needsFragmentLists(o)) {
+      lists.head = {}, lists.nodes = {}, lists.triangle = {};
+      frame.capture.capture(frame.scene, frame.camera, rc, lc, frame.layers, lists.complexity, &cs);
+      lists.width = frame.camera.width(), lists.height = frame.camera.height();
+      lists.generated = lists.stored = cs.generated;
+      frame.sortMs = 0.0;
+      frame.capturePipeline = "tiles";
+    } else {
+      LayerConfig plain = lc;  // the whole-list rules sort the lists afterwards
+      plain.adaptiveThickness = false, plain.minSeparation = 0.0f;
+      frame.capture.captureWithLists(frame.scene, frame.camera, rc, plain, frame.layers, lists, &cs);
+      const auto t0 = std::chrono::steady_clock::now();
+      if (lc.adaptiveThickness || lc.minSeparation > 0.0f) frame.layers = sortAndTruncate(lists, lc);
+      frame.sortMs = msSince(t0);
+      frame.capturePipeline = "tiles+lists";
+    }
     frame.raster = RasterStats{cs.ms(), 0, 1, cs.subTriangles};
-    frame.rasterMs = cs.ms();  // rasterize and sort are one pass: the sort is inside
-    frame.sortMs = 0.0;
+    frame.rasterMs = cs.ms();  // rasterize and sort to k are one pass: the sort is inside
     return;
   }
+  // The reference pipeline: a pool (fixed by --pool N, overflow counted exactly; or 8 fragments
+  // per pixel, grown once when it overflows), then sortAndTruncate.
+  frame.capturePipeline = "reference";
   frame.lists = rasterize(frame.scene, frame.camera, rc, &frame.raster);
   frame.rasterMs = frame.raster.ms;
   if (frame.lists.lost() > 0)
@@ -149,9 +164,10 @@ nlohmann::json frameStats(const Frame& f) {
   j["timings_ms"]["load"] = f.loadMs;
   j["timings_ms"]["raster"] = f.rasterMs;
   j["timings_ms"]["sort"] = f.sortMs;
-  // "tiles": rasterized and sorted in one tile-local pass (raster includes the sort, sort = 0);
-  // "lists": every fragment linked into per-pixel lists, then sorted (seed 000 §4.1–4.2).
-  j["capture_pipeline"] = f.listsCaptured() ? "lists" : "tiles";
+  // "tiles": rasterized and sorted to k in one tile-local pass (raster includes the sort);
+  // "tiles+lists": the same pass also wrote every fragment to exact-size per-pixel lists;
+  // "reference": lists in a pool (--pool), then sorted (seed 000 §4.1–4.2).
+  j["capture_pipeline"] = f.capturePipeline;
   j["memory_bytes"]["lists"] = f.lists.memoryBytes();
   j["memory_bytes"]["arrays"] = f.layers.memoryBytes();
   uint64_t maxDc = 0;

@@ -43,10 +43,13 @@ struct FrameOptions {
   bool adaptiveThickness = false;      ///< --adaptive-thickness (seed 000 §4.2)
   bool frontFacesOnly = false;         ///< --front-faces-only: cull back faces at capture
   uint64_t pool = 0;                   ///< --pool fragments; 0 = automatic (grows on overflow)
-  /// Keep every fragment in per-pixel lists (the reference pipeline: rasterize, then sort). Not
-  /// an option of its own: `layers --verify` and the list-reading options (--pool,
-  /// --adaptive-thickness, --min-separation) need it; everything else captures tile by tile.
+  /// Keep every fragment in per-pixel lists as well. Not an option of its own: `layers --verify`
+  /// and the list-reading options (--adaptive-thickness, --min-separation) set it.
   bool captureLists = false;
+  /// Capture with the reference pipeline (seed 000 §4.1–4.2 as written: every fragment linked
+  /// into lists in a pool through an atomic counter, then sorted): what `--pool` selects, and
+  /// what tests and `bench --experiment capture` compare the tile-local capture with.
+  bool referenceCapture = false;
   std::vector<glm::vec4> lights;       ///< --light x,y,z[,intensity] (repeatable)
 };
 
@@ -54,8 +57,8 @@ struct Frame {
   Scene scene;
   Camera camera;
   std::vector<PointLight> lights;  ///< the lights in effect (scene's, --light, or the default)
-  /// The fragment lists of the reference pipeline. After a tile-local capture only the
-  /// per-pixel complexity and the counts are set (no nodes): listsCaptured() tells which.
+  /// The fragment lists. When nothing asked for them (capturePipeline "tiles") only the
+  /// per-pixel complexity and the counts are set, no nodes: listsCaptured() tells which.
   FragmentLists lists;
   LayerArrays layers;
   LayerCapture capture;  ///< owns the tile-local capture's scratch, reused frame to frame
@@ -64,7 +67,8 @@ struct Frame {
   bool frontFacesOnly = false;     ///< captured with --front-faces-only
   double loadMs = 0.0, rasterMs = 0.0, sortMs = 0.0;
   RasterStats raster;
-  bool listsCaptured() const { return lists.capacity() > 0; }
+  std::string capturePipeline;  ///< "tiles", "tiles+lists" or "reference" (stats key capture_pipeline)
+  bool listsCaptured() const { return lists.head.size() == lists.complexity.size() && !lists.head.empty(); }
 };
 
 /// Whether `options` need whole per-pixel lists (see FrameOptions::captureLists).

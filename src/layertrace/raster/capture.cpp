@@ -24,19 +24,33 @@ double msBetween(std::chrono::steady_clock::time_point a, std::chrono::steady_cl
   return std::chrono::duration<double, std::milli>(b - a).count();
 }
 
+/// Where the list-producing pass writes (FragmentLists in exact-size storage): pixel p's
+/// fragments occupy nodes [offset[p], offset[p] + complexity[p]) in generation order, each node's
+/// `next` naming the one generated before it, so a list read from its head is last-generated-
+/// first — the reference pool's order. `cursor` (the lists' head array) counts up from offset[p]
+/// during the pass and becomes the head at the end.
+struct ListOutput {
+  FragmentNode* nodes;
+  uint32_t* triangle;
+  const uint32_t* offset;
+  uint32_t* cursor;
+};
+
 /// One tile: every fragment of the tile's triangles goes straight into its pixel's k slots
 /// (seed 000 §4.2's insertion sort, run as the fragments arrive instead of over a finished
-/// list). A fragment behind a full pixel's k-th is counted and dropped before its normal is
-/// evaluated.
-LT_CPU_DISPATCH void captureTile(const Scene& scene, const Camera& camera, const RasterSetup& setup, const LayerConfig& config, size_t tile,
-                 LayerArrays& out, std::vector<uint32_t>& complexity, uint64_t& generated) {
+/// list). Without lists, a fragment behind a full pixel's k-th is counted and dropped before its
+/// normal is evaluated; with lists (kLists) every fragment is also written to its pixel's list.
+template <bool kLists>
+inline void captureTileImpl(const Scene& scene, const Camera& camera, const RasterSetup& setup, const LayerConfig& config,
+                            size_t tile, LayerArrays& out, std::vector<uint32_t>& complexity, uint64_t& generated,
+                            const ListOutput& lists) {
   int tx0, ty0, tx1, ty1;
   setup.tileBounds(tile, camera, tx0, ty0, tx1, ty1);
   const int k = config.k;
   for (int y = ty0; y <= ty1; ++y) {
     const size_t row = out.pixelIndex(tx0, y);
     std::fill_n(&out.count[row], tx1 - tx0 + 1, uint8_t(0));
-    std::fill_n(&complexity[row], tx1 - tx0 + 1, 0u);
+    if constexpr (!kLists) std::fill_n(&complexity[row], tx1 - tx0 + 1, 0u);  // the counting pass set it
   }
   uint64_t gen = 0;
   float depths[kMaxTileSize];
@@ -55,8 +69,19 @@ LT_CPU_DISPATCH void captureTile(const Scene& scene, const Camera& camera, const
                                  for (int d = 0; d < n; ++d) {
                                    const int px = xa + d;
                                    const size_t pixel = out.pixelIndex(px, py);
-                                   ++complexity[pixel];
                                    const float depth = depths[d];
+                                   auto normal = [&] {
+                                     return raster::fragmentNormal(camera, ts, setup.camNormals.data(), vi, raster::pixelRay(camera, px, py), depth);
+                                   };
+                                   uint32_t packed = 0;
+                                   if constexpr (kLists) {
+                                     packed = normal();
+                                     const uint32_t node = lists.cursor[pixel]++;
+                                     lists.nodes[node] = {depth, packed, albedoSpec, node == lists.offset[pixel] ? kNullIndex : node - 1};
+                                     lists.triangle[node] = s.triangle;
+                                   } else {
+                                     ++complexity[pixel];
+                                   }
                                    FragmentNode* slot = &out.slots[pixel * size_t(k)];
                                    uint32_t* tri = &out.triangle[pixel * size_t(k)];
                                    const int count = out.count[pixel];
@@ -64,9 +89,8 @@ LT_CPU_DISPATCH void captureTile(const Scene& scene, const Camera& camera, const
                                    if (count == k && depth > slot[k - 1].depth) continue;
                                    int j = std::min(count, k - 1);
                                    for (; j > 0 && depth <= slot[j - 1].depth; --j) slot[j] = slot[j - 1], tri[j] = tri[j - 1];
-                                   const uint32_t normal =
-                                       raster::fragmentNormal(camera, ts, setup.camNormals.data(), vi, raster::pixelRay(camera, px, py), depth);
-                                   slot[j] = {depth, normal, albedoSpec, 0u};
+                                   if constexpr (!kLists) packed = normal();
+                                   slot[j] = {depth, packed, albedoSpec, 0u};
                                    tri[j] = s.triangle;
                                    out.count[pixel] = uint8_t(std::min(count + 1, k));
                                  }
@@ -79,8 +103,36 @@ LT_CPU_DISPATCH void captureTile(const Scene& scene, const Camera& camera, const
       const int n = out.count[pixel];
       for (int i = 0; i < n; ++i) slot[i].setThickness(config.thicknessAt(slot[i].depth));
       for (int i = n; i < k; ++i) slot[i] = FragmentNode{0.0f, 0u, 0u, 0u}, out.triangle[pixel * size_t(k) + size_t(i)] = kNullIndex;
+      if constexpr (kLists) lists.cursor[pixel] = lists.cursor[pixel] == lists.offset[pixel] ? kNullIndex : lists.cursor[pixel] - 1;
     }
   generated += gen;
+}
+
+// Compiled twice each (x86-64-v2 and v3, picked at load time): the span's depth loop vectorizes
+// to 8 lanes with AVX2.
+LT_CPU_DISPATCH void captureTile(const Scene& scene, const Camera& camera, const RasterSetup& setup, const LayerConfig& config,
+                                 size_t tile, LayerArrays& out, std::vector<uint32_t>& complexity, uint64_t& generated) {
+  captureTileImpl<false>(scene, camera, setup, config, tile, out, complexity, generated, ListOutput{});
+}
+LT_CPU_DISPATCH void captureTileWithLists(const Scene& scene, const Camera& camera, const RasterSetup& setup, const LayerConfig& config,
+                                          size_t tile, LayerArrays& out, std::vector<uint32_t>& complexity, uint64_t& generated,
+                                          const ListOutput& lists) {
+  captureTileImpl<true>(scene, camera, setup, config, tile, out, complexity, generated, lists);
+}
+
+/// The counting pass of the list-producing capture: fragments per pixel (coverage only).
+void countTile(const Camera& camera, const RasterSetup& setup, size_t tile, int width, std::vector<uint32_t>& complexity) {
+  int tx0, ty0, tx1, ty1;
+  setup.tileBounds(tile, camera, tx0, ty0, tx1, ty1);
+  for (int y = ty0; y <= ty1; ++y) std::fill_n(&complexity[size_t(y) * size_t(width) + size_t(tx0)], tx1 - tx0 + 1, 0u);
+  for (uint32_t i = setup.tileStart[tile]; i < setup.tileStart[tile + 1]; ++i) {
+    const raster::SubTriangle& s = *setup.subs[setup.tileList[i]];
+    raster::forEachCoveredSpan(s, std::max(tx0, s.px0), std::max(ty0, s.py0), std::min(tx1, s.px1), std::min(ty1, s.py1),
+                               [&](int py, int xa, int xb) {
+                                 uint32_t* row = &complexity[size_t(py) * size_t(width)];
+                                 for (int x = xa; x <= xb; ++x) ++row[x];
+                               });
+  }
 }
 
 }  // namespace
@@ -98,48 +150,95 @@ size_t LayerCapture::scratchBytes() const {
   size_t bytes = s.clip.capacity() * sizeof(glm::vec4) + (s.camPos.capacity() + s.camNormals.capacity()) * sizeof(glm::vec3) +
                  s.setups.capacity() * sizeof(raster::TriangleSetup) + s.subs.capacity() * sizeof(raster::SubTriangle*) +
                  (s.materialPacked.capacity() + s.chunkBase.capacity() + s.counts.capacity() + s.offsets.capacity() +
-                  s.tileStart.capacity() + s.tileList.capacity()) *
+                  s.tileStart.capacity() + s.tileList.capacity() + s.listOffset.capacity()) *
                      sizeof(uint32_t);
   for (const auto& c : s.chunkSubs) bytes += c.capacity() * sizeof(raster::SubTriangle);
   return bytes;
 }
 
-void LayerCapture::capture(const Scene& scene, const Camera& camera, const RasterConfig& rasterConfig, const LayerConfig& config,
-                           LayerArrays& layers, std::vector<uint32_t>& complexity, CaptureStats* stats) {
+namespace {
+
+/// Validates, sets up the view and sizes the k-layer arrays and the complexity counters.
+void beginCapture(const Scene& scene, const Camera& camera, const RasterConfig& rasterConfig, const LayerConfig& config,
+                  RasterSetup& setup, LayerArrays& layers, std::vector<uint32_t>& complexity) {
   validateLayerConfig(config);
   LT_CHECK(rasterConfig.tileSize > 0 && rasterConfig.tileSize <= kMaxTileSize, rasterConfig.tileSize);
   if (config.adaptiveThickness || config.minSeparation > 0.0f)
-    inputError("tile-local capture: adaptive thickness and --min-separation need whole fragment lists (use the list pipeline)");
-  if (!setup_) setup_ = std::make_unique<RasterSetup>();
-  const auto t0 = std::chrono::steady_clock::now();
-  raster::prepareRaster(scene, camera, rasterConfig, *setup_);
-  const auto t1 = std::chrono::steady_clock::now();
-
+    inputError("tile-local capture: adaptive thickness and --min-separation sort whole fragment lists (sortAndTruncate)");
+  raster::prepareRaster(scene, camera, rasterConfig, setup);
   const size_t pixels = size_t(camera.width()) * size_t(camera.height()), k = size_t(config.k);
   if (layers.slots.size() != pixels * k)
     checkAllocation(cat("the k-layer arrays (k = ", config.k, ")"), pixels * (k * (sizeof(FragmentNode) + sizeof(uint32_t)) + 1));
   layers.width = camera.width();
   layers.height = camera.height();
   layers.k = config.k;
-  layers.slots.resize(pixels * k);  // every element is written by its tile below
+  layers.slots.resize(pixels * k);  // every element is written by its tile
   layers.count.resize(pixels);
   layers.triangle.resize(pixels * k);
   complexity.resize(pixels);
+}
 
+template <class Body>
+uint64_t forEachTile(const RasterSetup& setup, Body&& body) {
   std::atomic<uint64_t> generated{0};
-  const RasterSetup& setup = *setup_;
   parallelFor(tbb::blocked_range<size_t>(0, setup.numTiles(), 1), [&](const tbb::blocked_range<size_t>& r) {
     uint64_t gen = 0;
-    for (size_t tile = r.begin(); tile != r.end(); ++tile) captureTile(scene, camera, setup, config, tile, layers, complexity, gen);
+    for (size_t tile = r.begin(); tile != r.end(); ++tile) body(tile, gen);
     generated += gen;
   });
+  return generated;
+}
+
+}  // namespace
+
+void LayerCapture::capture(const Scene& scene, const Camera& camera, const RasterConfig& rasterConfig, const LayerConfig& config,
+                           LayerArrays& layers, std::vector<uint32_t>& complexity, CaptureStats* stats) {
+  if (!setup_) setup_ = std::make_unique<RasterSetup>();
+  const RasterSetup& setup = *setup_;
+  const auto t0 = std::chrono::steady_clock::now();
+  beginCapture(scene, camera, rasterConfig, config, *setup_, layers, complexity);
+  const auto t1 = std::chrono::steady_clock::now();
+  const uint64_t generated =
+      forEachTile(setup, [&](size_t tile, uint64_t& gen) { captureTile(scene, camera, setup, config, tile, layers, complexity, gen); });
   const auto t2 = std::chrono::steady_clock::now();
-  if (stats) {
-    stats->setupMs = msBetween(t0, t1);
-    stats->tilesMs = msBetween(t1, t2);
-    stats->generated = generated;
-    stats->subTriangles = setup.subs.size();
+  if (stats) *stats = CaptureStats{msBetween(t0, t1), msBetween(t1, t2), generated, setup.subs.size()};
+}
+
+void LayerCapture::captureWithLists(const Scene& scene, const Camera& camera, const RasterConfig& rasterConfig,
+                                    const LayerConfig& config, LayerArrays& layers, FragmentLists& lists, CaptureStats* stats) {
+  if (!setup_) setup_ = std::make_unique<RasterSetup>();
+  RasterSetup& setup = *setup_;
+  const auto t0 = std::chrono::steady_clock::now();
+  beginCapture(scene, camera, rasterConfig, config, setup, layers, lists.complexity);
+  const auto t1 = std::chrono::steady_clock::now();
+  const int W = camera.width();
+  const size_t pixels = size_t(W) * size_t(camera.height());
+  lists.width = W;
+  lists.height = camera.height();
+  forEachTile(setup, [&](size_t tile, uint64_t&) { countTile(camera, setup, tile, W, lists.complexity); });
+  // Exact-size storage: pixel p's nodes start at the prefix sum of the counts before it.
+  std::vector<uint32_t>& offset = setup.listOffset;
+  offset.resize(pixels);
+  uint64_t total = 0;
+  for (size_t p = 0; p < pixels; ++p) {
+    offset[p] = uint32_t(std::min<uint64_t>(total, kMaxPoolFragments));
+    total += lists.complexity[p];
   }
+  if (total > kMaxPoolFragments)
+    inputError("scene ", scene.name, ": ", total, " fragments exceed the 32-bit index limit of ", kMaxPoolFragments);
+  if (total > lists.nodes.capacity())
+    checkAllocation(cat("the fragment lists (", total, " fragments)"), total * (sizeof(FragmentNode) + sizeof(uint32_t)));
+  lists.nodes.resize(total);
+  lists.triangle.resize(total);
+  lists.head.assign(offset.begin(), offset.end());  // the pass's cursors, then the heads
+  const ListOutput out{lists.nodes.data(), lists.triangle.data(), offset.data(), lists.head.data()};
+  const uint64_t generated = forEachTile(setup, [&](size_t tile, uint64_t& gen) {
+    captureTileWithLists(scene, camera, setup, config, tile, layers, lists.complexity, gen, out);
+  });
+  LT_CHECK(generated == total, generated, total);
+  lists.generated = lists.stored = total;
+  const auto t2 = std::chrono::steady_clock::now();
+  if (stats) *stats = CaptureStats{msBetween(t0, t1), msBetween(t1, t2), generated, setup.subs.size()};
 }
 
 }  // namespace lt

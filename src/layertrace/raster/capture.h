@@ -18,6 +18,7 @@
 #include <memory>
 #include <vector>
 
+#include "layertrace/raster/fragment_lists.h"
 #include "layertrace/raster/layer_arrays.h"
 #include "layertrace/raster/rasterizer.h"
 
@@ -51,6 +52,15 @@ class LayerCapture {
   /// minimum separation (they need whole lists: use the reference pipeline).
   void capture(const Scene& scene, const Camera& camera, const RasterConfig& raster, const LayerConfig& config,
                LayerArrays& layers, std::vector<uint32_t>& complexity, CaptureStats* stats = nullptr);
+
+  /// The same pass, and every fragment in per-pixel lists as well (what `layers --verify` and
+  /// the whole-list options read): a counting pass sizes the node storage exactly — no pool
+  /// guessed at 8 fragments per pixel, no overflow, no shared counter — and each tile then
+  /// writes its pixels' nodes in generation order, linked last-generated-first as the
+  /// reference's lists are. `lists` keeps its memory from frame to frame; the k layers are
+  /// those of capture().
+  void captureWithLists(const Scene& scene, const Camera& camera, const RasterConfig& raster, const LayerConfig& config,
+                        LayerArrays& layers, FragmentLists& lists, CaptureStats* stats = nullptr);
 
   /// Bytes of scratch the object holds between frames.
   size_t scratchBytes() const;

@@ -55,6 +55,7 @@ struct RasterSetup {
   std::vector<uint32_t> counts, offsets;
   std::vector<uint32_t> tileStart;  ///< per tile, offsets into tileList; numTiles + 1 entries
   std::vector<uint32_t> tileList;   ///< sub-triangle indices
+  std::vector<uint32_t> listOffset;  ///< the list-producing capture's first node per pixel
   int tileSize = 0, tilesX = 0, tilesY = 0;
 
   size_t numTiles() const { return size_t(tilesX) * size_t(tilesY); }
