@@ -6,6 +6,7 @@
 
 #include <tbb/global_control.h>
 
+#include "layertrace/pipeline/frame.h"
 #include "layertrace/raster/capture.h"
 #include "layertrace/raster/layer_arrays.h"
 #include "layertrace/raster/rasterizer.h"
@@ -179,7 +180,7 @@ TEST(Capture, ASecondFrameReusesEveryBuffer) {
   auto bytesEqual = [](const auto& x, const auto& y) {
     return x.size() == y.size() && (x.empty() || std::memcmp(x.data(), y.data(), x.size() * sizeof(x[0])) == 0);
   };
-  if (!bytesEqual(a.base.slots, b.base.slots) || a.base.count != b.base.count) return ::testing::AssertionFailure() << "level 0 differs";
+  if (!bytesEqual(a.base->slots, b.base->slots) || a.base->count != b.base->count) return ::testing::AssertionFailure() << "level 0 differs";
   if (a.levels.size() != b.levels.size()) return ::testing::AssertionFailure() << "level counts differ";
   for (size_t L = 1; L < a.levels.size(); ++L)
     if (a.levels[L].offset != b.levels[L].offset || !bytesEqual(a.levels[L].intervals, b.levels[L].intervals) ||
@@ -201,16 +202,40 @@ TEST(Capture, APyramidRebuiltInPlaceEqualsAFreshOne) {
   capture.capture(s, first, RasterConfig{}, lc, layers, complexity);
   IntervalPyramid reused;
   buildIntervalPyramid(layers, first, pc, reused);
-  const void* base = reused.base.slots.data();
+  const void* base = reused.base->slots.data();
   const void* cells = reused.levels[1].cells.data();
   view.eye = {-0.4f, 0.1f, 0.2f};
   const Camera second(view, 203, 117);
   capture.capture(s, second, RasterConfig{}, lc, layers, complexity);
   buildIntervalPyramid(layers, second, pc, reused);
-  EXPECT_EQ(reused.base.slots.data(), base);
+  EXPECT_EQ(reused.base->slots.data(), base);
   EXPECT_EQ(reused.levels[1].cells.data(), cells);
   EXPECT_TRUE(samePyramid(reused, buildIntervalPyramid(layers, second, pc)));
   EXPECT_FALSE(samePyramid(reused, buildIntervalPyramid(layers, first, PyramidConfig{5, 5.0f}))) << "the comparison must be able to fail";
+}
+
+// The pyramid's level 0 that the capture writes tile by tile is the one makeIntervalLayers
+// builds from the finished k layers, in every pipeline (with adaptive thickness it is rebuilt
+// after the whole-list sort).
+TEST(Capture, LevelZeroFromTheTilesEqualsOneFromTheLayers) {
+  const Scene s = tieSoup(test::testSeed() + 5);
+  for (int variant = 0; variant < 4; ++variant) {
+    Frame f;
+    f.scene = s;
+    f.camera = Camera(test::originCamera(60.0f, 0.3f, 40.0f), 203, 117);
+    f.thickness = 0.05f;
+    FrameOptions o;
+    o.width = 203, o.height = 117, o.thickness = 0.05f;
+    o.captureLists = variant == 1;
+    o.adaptiveThickness = variant == 2;
+    o.referenceCapture = variant == 3;
+    rasterizeFrame(o, f);
+    ASSERT_TRUE(f.level0()) << variant;
+    const IntervalLayers want = makeIntervalLayers(f.layers, f.layers.k);
+    EXPECT_EQ(f.level0()->count, want.count) << f.capturePipeline;
+    ASSERT_EQ(f.level0()->slots.size(), want.slots.size());
+    EXPECT_EQ(std::memcmp(f.level0()->slots.data(), want.slots.data(), want.slots.size() * sizeof(Interval)), 0) << f.capturePipeline;
+  }
 }
 
 TEST(Capture, OptionsThatNeedWholeListsAreRefused) {

@@ -211,7 +211,7 @@ int runRender(const RenderOptions& o) {
     stats["hssr"] = {{"tau", o.tracers.pyramid.tau}, {"levels", o.tracers.pyramid.levels}, {"n_up", o.tracers.hssr.nUp}};
     nlohmann::json perLevel = nlohmann::json::array();
     uint64_t base = 0;
-    for (uint8_t n : p.base.count) base += n;
+    for (uint8_t n : p.base->count) base += n;
     perLevel.push_back(base);
     for (size_t l = 1; l < p.levels.size(); ++l) perLevel.push_back(p.levels[l].intervals.size());
     stats["hssr"]["intervals_per_level"] = perLevel;

@@ -101,9 +101,21 @@ void rasterizeFrame(const FrameOptions& o, Frame& frame) {
     // too when something reads them (exact-size storage from a counting pass).
     CaptureStats cs;
     FragmentLists& lists = frame.lists;
+    // Level 0 of the interval pyramid, written from each finished tile (reused unless a
+    // pyramid of the previous frame still holds it).
+    if (!frame.intervals || frame.intervals.use_count() > 1) frame.intervals = std::make_shared<IntervalLayers>();
+    IntervalLayers& level0 = *frame.intervals;
+    level0.width = frame.camera.width(), level0.height = frame.camera.height(), level0.k = lc.k;
+    {
+      const size_t pixels = size_t(level0.width) * size_t(level0.height);
+      if (level0.slots.size() != pixels * size_t(lc.k)) checkAllocation("the interval layers", pixels * (size_t(lc.k) * sizeof(Interval) + 1));
+      level0.slots.resize(pixels * size_t(lc.k));
+      level0.count.resize(pixels);
+    }
+    const TileDone writeLevel0 = [&](int x0, int y0, int x1, int y1) { writeIntervals(frame.layers, x0, y0, x1, y1, level0); };
     if (!needsFragmentLists(o)) {
       lists.head = {}, lists.nodes = {}, lists.triangle = {};
-      frame.capture.capture(frame.scene, frame.camera, rc, lc, frame.layers, lists.complexity, &cs);
+      frame.capture.capture(frame.scene, frame.camera, rc, lc, frame.layers, lists.complexity, &cs, &writeLevel0);
       lists.width = frame.camera.width(), lists.height = frame.camera.height();
       lists.generated = lists.stored = cs.generated;
       frame.sortMs = 0.0;
@@ -111,9 +123,12 @@ void rasterizeFrame(const FrameOptions& o, Frame& frame) {
     } else {
       LayerConfig plain = lc;  // the whole-list rules sort the lists afterwards
       plain.adaptiveThickness = false, plain.minSeparation = 0.0f;
-      frame.capture.captureWithLists(frame.scene, frame.camera, rc, plain, frame.layers, lists, &cs);
+      frame.capture.captureWithLists(frame.scene, frame.camera, rc, plain, frame.layers, lists, &cs, &writeLevel0);
       const auto t0 = std::chrono::steady_clock::now();
-      if (lc.adaptiveThickness || lc.minSeparation > 0.0f) frame.layers = sortAndTruncate(lists, lc);
+      if (lc.adaptiveThickness || lc.minSeparation > 0.0f) {
+        frame.layers = sortAndTruncate(lists, lc);
+        makeIntervalLayers(frame.layers, frame.layers.k, level0);
+      }
       frame.sortMs = msSince(t0);
       frame.capturePipeline = "tiles+lists";
     }
@@ -132,6 +147,7 @@ void rasterizeFrame(const FrameOptions& o, Frame& frame) {
                " or more, or 0 for automatic)");
   const auto t0 = std::chrono::steady_clock::now();
   frame.layers = sortAndTruncate(frame.lists, lc);
+  frame.intervals = std::make_shared<IntervalLayers>(makeIntervalLayers(frame.layers, frame.layers.k));
   frame.sortMs = msSince(t0);
 }
 

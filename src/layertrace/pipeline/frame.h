@@ -6,6 +6,7 @@
 // layers below them; never render/, eval/ or app/.
 #pragma once
 
+#include <memory>
 #include <optional>
 #include <string>
 #include <vector>
@@ -19,6 +20,7 @@
 #include "layertrace/raster/rasterizer.h"
 #include "layertrace/scene/camera.h"
 #include "layertrace/scene/scene.h"
+#include "layertrace/screen/interval_layers.h"
 #include "layertrace/util/memory.h"
 
 namespace lt {
@@ -62,12 +64,21 @@ struct Frame {
   FragmentLists lists;
   LayerArrays layers;
   LayerCapture capture;  ///< owns the tile-local capture's scratch, reused frame to frame
+  /// The interval pyramid's level 0 (seed 000 Figure 3 right: [depth, depth + thickness] per
+  /// kept fragment), written by the capture tile by tile while each tile is in cache; every
+  /// pyramid built for this frame shares it (tracer_factory.cpp). level0() checks it still
+  /// matches `layers`.
+  std::shared_ptr<IntervalLayers> intervals;
   float thickness = 0.0f;          ///< fixed part of the z-thickness (scene units)
   float thicknessPerDepth = 0.0f;  ///< plus this per unit depth (--thickness-px / focal)
   bool frontFacesOnly = false;     ///< captured with --front-faces-only
   double loadMs = 0.0, rasterMs = 0.0, sortMs = 0.0;
   RasterStats raster;
   std::string capturePipeline;  ///< "tiles", "tiles+lists" or "reference" (stats key capture_pipeline)
+  std::shared_ptr<IntervalLayers> level0() const {
+    return intervals && intervals->width == layers.width && intervals->height == layers.height && intervals->k == layers.k ? intervals
+                                                                                                                        : nullptr;
+  }
   bool listsCaptured() const { return lists.head.size() == lists.complexity.size() && !lists.head.empty(); }
 };
 

@@ -24,6 +24,16 @@ void validateTracerOptions(const TracerOptions& o) {
   if (o.hybridGeo != "embree" && o.hybridGeo != "grid") inputError("--hybrid-geo ", o.hybridGeo, ": unknown (use embree or grid)");
 }
 
+namespace {
+/// The frame's pyramid: over the level 0 the capture wrote, or from the k-layer arrays.
+std::unique_ptr<IntervalPyramid> makePyramid(const Frame& frame, const PyramidConfig& config) {
+  auto p = std::make_unique<IntervalPyramid>();
+  if (std::shared_ptr<IntervalLayers> level0 = frame.level0()) buildIntervalPyramid(std::move(level0), frame.camera, config, *p);
+  else buildIntervalPyramid(frame.layers, frame.camera, config, *p);
+  return p;
+}
+}  // namespace
+
 bool isScreenTracer(const std::string& n) {
   return n == "ssr" || n == "ssr-layers" || n == "hiz" || n == "hssr" || n == "quadtree";
 }
@@ -32,7 +42,7 @@ bool isKnownTracer(const std::string& n) { return isScreenTracer(n) || n == "ldc
 BuiltTracer buildTracer(const std::string& name, const Frame& frame, const TracerOptions& o) {
   BuiltTracer b;
   if (name == "hssr") {
-    b.pyramid = std::make_unique<IntervalPyramid>(buildIntervalPyramid(frame.layers, frame.camera, o.pyramid));
+    b.pyramid = makePyramid(frame, o.pyramid);
     b.buildMs = b.pyramid->buildMs;
     b.memoryBytes = b.pyramid->memoryBytes();
     HssrConfig hc = o.hssr;
@@ -110,7 +120,7 @@ BuiltTracer buildReference(const Frame& frame) {
 
 BuiltTracer buildOracle(const Frame& frame) {
   BuiltTracer b;
-  b.pyramid = std::make_unique<IntervalPyramid>(buildIntervalPyramid(frame.layers, frame.camera, PyramidConfig{1, 25.0f}));
+  b.pyramid = makePyramid(frame, PyramidConfig{1, 25.0f});
   b.tracer = std::make_unique<HssrTracer>(frame.camera, frame.layers, *b.pyramid, HssrConfig{1, 1});
   return b;
 }

@@ -179,11 +179,18 @@ void beginCapture(const Scene& scene, const Camera& camera, const RasterConfig& 
 }
 
 template <class Body>
-uint64_t forEachTile(const RasterSetup& setup, Body&& body) {
+uint64_t forEachTile(const RasterSetup& setup, const Camera& camera, const TileDone* onTile, Body&& body) {
   std::atomic<uint64_t> generated{0};
   parallelFor(tbb::blocked_range<size_t>(0, setup.numTiles(), 1), [&](const tbb::blocked_range<size_t>& r) {
     uint64_t gen = 0;
-    for (size_t tile = r.begin(); tile != r.end(); ++tile) body(tile, gen);
+    for (size_t tile = r.begin(); tile != r.end(); ++tile) {
+      body(tile, gen);
+      if (onTile) {
+        int x0, y0, x1, y1;
+        setup.tileBounds(tile, camera, x0, y0, x1, y1);
+        (*onTile)(x0, y0, x1, y1);
+      }
+    }
     generated += gen;
   });
   return generated;
@@ -192,20 +199,21 @@ uint64_t forEachTile(const RasterSetup& setup, Body&& body) {
 }  // namespace
 
 void LayerCapture::capture(const Scene& scene, const Camera& camera, const RasterConfig& rasterConfig, const LayerConfig& config,
-                           LayerArrays& layers, std::vector<uint32_t>& complexity, CaptureStats* stats) {
+                           LayerArrays& layers, std::vector<uint32_t>& complexity, CaptureStats* stats, const TileDone* onTile) {
   if (!setup_) setup_ = std::make_unique<RasterSetup>();
   const RasterSetup& setup = *setup_;
   const auto t0 = std::chrono::steady_clock::now();
   beginCapture(scene, camera, rasterConfig, config, *setup_, layers, complexity);
   const auto t1 = std::chrono::steady_clock::now();
   const uint64_t generated =
-      forEachTile(setup, [&](size_t tile, uint64_t& gen) { captureTile(scene, camera, setup, config, tile, layers, complexity, gen); });
+      forEachTile(setup, camera, onTile, [&](size_t tile, uint64_t& gen) { captureTile(scene, camera, setup, config, tile, layers, complexity, gen); });
   const auto t2 = std::chrono::steady_clock::now();
   if (stats) *stats = CaptureStats{msBetween(t0, t1), msBetween(t1, t2), generated, setup.subs.size()};
 }
 
 void LayerCapture::captureWithLists(const Scene& scene, const Camera& camera, const RasterConfig& rasterConfig,
-                                    const LayerConfig& config, LayerArrays& layers, FragmentLists& lists, CaptureStats* stats) {
+                                    const LayerConfig& config, LayerArrays& layers, FragmentLists& lists, CaptureStats* stats,
+                                    const TileDone* onTile) {
   if (!setup_) setup_ = std::make_unique<RasterSetup>();
   RasterSetup& setup = *setup_;
   const auto t0 = std::chrono::steady_clock::now();
@@ -215,7 +223,7 @@ void LayerCapture::captureWithLists(const Scene& scene, const Camera& camera, co
   const size_t pixels = size_t(W) * size_t(camera.height());
   lists.width = W;
   lists.height = camera.height();
-  forEachTile(setup, [&](size_t tile, uint64_t&) { countTile(camera, setup, tile, W, lists.complexity); });
+  forEachTile(setup, camera, nullptr, [&](size_t tile, uint64_t&) { countTile(camera, setup, tile, W, lists.complexity); });
   // Exact-size storage: pixel p's nodes start at the prefix sum of the counts before it.
   std::vector<uint32_t>& offset = setup.listOffset;
   offset.resize(pixels);
@@ -232,7 +240,7 @@ void LayerCapture::captureWithLists(const Scene& scene, const Camera& camera, co
   lists.triangle.resize(total);
   lists.head.assign(offset.begin(), offset.end());  // the pass's cursors, then the heads
   const ListOutput out{lists.nodes.data(), lists.triangle.data(), offset.data(), lists.head.data()};
-  const uint64_t generated = forEachTile(setup, [&](size_t tile, uint64_t& gen) {
+  const uint64_t generated = forEachTile(setup, camera, onTile, [&](size_t tile, uint64_t& gen) {
     captureTileWithLists(scene, camera, setup, config, tile, layers, lists.complexity, gen, out);
   });
   LT_CHECK(generated == total, generated, total);

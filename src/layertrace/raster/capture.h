@@ -15,6 +15,7 @@
 #pragma once
 
 #include <cstdint>
+#include <functional>
 #include <memory>
 #include <vector>
 
@@ -36,6 +37,11 @@ struct CaptureStats {
   double ms() const { return setupMs + tilesMs; }
 };
 
+/// Called on the worker thread right after a tile's k layers are final, with the tile's
+/// inclusive pixel bounds, while they are still in cache (the pipeline writes the interval
+/// pyramid's level 0 there).
+using TileDone = std::function<void(int x0, int y0, int x1, int y1)>;
+
 class LayerCapture {
  public:
   LayerCapture();
@@ -51,7 +57,8 @@ class LayerCapture {
   /// memory of both. Throws InputError for a bad LayerConfig, and for adaptive thickness or a
   /// minimum separation (they need whole lists: use the reference pipeline).
   void capture(const Scene& scene, const Camera& camera, const RasterConfig& raster, const LayerConfig& config,
-               LayerArrays& layers, std::vector<uint32_t>& complexity, CaptureStats* stats = nullptr);
+               LayerArrays& layers, std::vector<uint32_t>& complexity, CaptureStats* stats = nullptr,
+               const TileDone* onTile = nullptr);
 
   /// The same pass, and every fragment in per-pixel lists as well (what `layers --verify` and
   /// the whole-list options read): a counting pass sizes the node storage exactly — no pool
@@ -60,7 +67,7 @@ class LayerCapture {
   /// reference's lists are. `lists` keeps its memory from frame to frame; the k layers are
   /// those of capture().
   void captureWithLists(const Scene& scene, const Camera& camera, const RasterConfig& raster, const LayerConfig& config,
-                        LayerArrays& layers, FragmentLists& lists, CaptureStats* stats = nullptr);
+                        LayerArrays& layers, FragmentLists& lists, CaptureStats* stats = nullptr, const TileDone* onTile = nullptr);
 
   /// Bytes of scratch the object holds between frames.
   size_t scratchBytes() const;

@@ -123,7 +123,8 @@ MarchHit hssrMarch(const IntervalPyramid& pyramid, int levels, int nUp, const Sc
   using hssr_detail::Line;
   constexpr float inf = std::numeric_limits<float>::infinity();
   const Line line(seg);
-  const int k = pyramid.base.k;
+  const IntervalLayers& level0 = *pyramid.base;
+  const int k = level0.k;
   int ox = std::clamp(int(std::floor(seg.p0.x)), 0, W - 1), oy = std::clamp(int(std::floor(seg.p0.y)), 0, H - 1);
   const bool increasing = seg.k1 <= seg.k0;  // depth grows along the ray (hssr-pitfalls §6)
   if (line.stepX == 0 && line.stepY == 0) {
@@ -133,7 +134,7 @@ MarchHit hssrMarch(const IntervalPyramid& pyramid, int levels, int nUp, const Sc
     c.iteration(0);
     c.pixel();
     const float za = seg.depthAt(0.0f), zb = seg.depthAt(1.0f);
-    const int i = firstMet(pyramid.base.pixel(ox, oy), k, std::min(za, zb), std::max(za, zb), increasing, c);
+    const int i = firstMet(level0.pixel(ox, oy), k, std::min(za, zb), std::max(za, zb), increasing, c);
     return i >= 0 ? MarchHit{ox, oy, i, 0.0f} : MarchHit{};
   }
   // κ along the segment, κ(s) = k0 + s dκ: the same expression depthAt divides 1 by.
@@ -184,7 +185,7 @@ MarchHit hssrMarch(const IntervalPyramid& pyramid, int levels, int nUp, const Sc
       // division of the same s, so bit-identical) instead of dividing again.
       const float za = s0 == sLast ? zLast : seg.depthAt(s0), zb = seg.depthAt(s1);
       sLast = s1, zLast = zb;
-      const int i = firstMet(pyramid.base.pixel(cx, cy), k, std::min(za, zb), std::max(za, zb), increasing, c);
+      const int i = firstMet(level0.pixel(cx, cy), k, std::min(za, zb), std::max(za, zb), increasing, c);
       if (i >= 0) return MarchHit{cx, cy, i, s0};
     } else {
       // Coarse levels only accelerate: widen the κ range by a few ulps so rounding (of κ here,

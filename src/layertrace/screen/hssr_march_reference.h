@@ -65,7 +65,7 @@ MarchHit hssrMarchReference(const IntervalPyramid& pyramid, int levels, int nUp,
     c.iteration(0);
     c.pixel();
     const float za = seg.depthAt(0.0f), zb = seg.depthAt(1.0f);
-    const int i = firstMet(pyramid.base.pixel(ox, oy), pyramid.base.countAt(ox, oy), std::min(za, zb), std::max(za, zb), increasing, c);
+    const int i = firstMet(pyramid.base->pixel(ox, oy), pyramid.base->countAt(ox, oy), std::min(za, zb), std::max(za, zb), increasing, c);
     return i >= 0 ? MarchHit{ox, oy, i, 0.0f} : MarchHit{};
   }
   // Back-off for the coarse entry: paramAtDepth divides by k1 − k0, so its rounding error
@@ -112,7 +112,7 @@ MarchHit hssrMarchReference(const IntervalPyramid& pyramid, int levels, int nUp,
     float zmin = std::min(za, zb), zmax = std::max(za, zb);
     if (L == 0) {
       c.pixel();
-      const int i = firstMet(pyramid.base.pixel(cx, cy), pyramid.base.countAt(cx, cy), zmin, zmax, increasing, c);
+      const int i = firstMet(pyramid.base->pixel(cx, cy), pyramid.base->countAt(cx, cy), zmin, zmax, increasing, c);
       if (i >= 0) return MarchHit{cx, cy, i, s0};
     } else {
       // Coarse levels only accelerate: widen the range by a few ulps so rounding can never

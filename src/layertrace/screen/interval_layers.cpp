@@ -22,23 +22,39 @@ IntervalLayers makeIntervalLayers(const LayerArrays& layers, int maxLayers) {
   return out;
 }
 
-void makeIntervalLayers(const LayerArrays& layers, int maxLayers, IntervalLayers& out) {
+namespace {
+
+void sizeTo(const LayerArrays& layers, int k, IntervalLayers& out) {
   out.width = layers.width;
   out.height = layers.height;
-  out.k = std::clamp(maxLayers, 1, layers.k);
+  out.k = k;
   const size_t pixels = size_t(layers.width) * size_t(layers.height);
-  if (out.slots.size() != pixels * size_t(out.k)) checkAllocation("the interval layers", pixels * (size_t(out.k) * sizeof(Interval) + 1));
-  out.slots.resize(pixels * size_t(out.k));
+  if (out.slots.size() != pixels * size_t(k)) checkAllocation("the interval layers", pixels * (size_t(k) * sizeof(Interval) + 1));
+  out.slots.resize(pixels * size_t(k));
   out.count.resize(pixels);
-  parallelFor(tbb::blocked_range<size_t>(0, pixels, 4096), [&](const tbb::blocked_range<size_t>& r) {
-    for (size_t p = r.begin(); p != r.end(); ++p) {
-      const int n = std::min<int>(layers.count[p], out.k);
-      out.count[p] = uint8_t(n);
-      const FragmentNode* f = &layers.slots[p * size_t(layers.k)];
-      Interval* s = &out.slots[p * size_t(out.k)];
-      for (int i = 0; i < out.k; ++i) s[i] = i < n ? Interval{f[i].depth, f[i].back()} : Interval{kInf, kInf};
-    }
+}
+
+/// Pixel p: its first out.k intervals, then the {+∞, +∞} sentinel.
+inline void writePixel(const LayerArrays& layers, size_t p, IntervalLayers& out) {
+  const int n = std::min<int>(layers.count[p], out.k);
+  out.count[p] = uint8_t(n);
+  const FragmentNode* f = &layers.slots[p * size_t(layers.k)];
+  Interval* s = &out.slots[p * size_t(out.k)];
+  for (int i = 0; i < out.k; ++i) s[i] = i < n ? Interval{f[i].depth, f[i].back()} : Interval{kInf, kInf};
+}
+
+}  // namespace
+
+void makeIntervalLayers(const LayerArrays& layers, int maxLayers, IntervalLayers& out) {
+  sizeTo(layers, std::clamp(maxLayers, 1, layers.k), out);
+  parallelFor(tbb::blocked_range<size_t>(0, out.count.size(), 4096), [&](const tbb::blocked_range<size_t>& r) {
+    for (size_t p = r.begin(); p != r.end(); ++p) writePixel(layers, p, out);
   });
+}
+
+void writeIntervals(const LayerArrays& layers, int x0, int y0, int x1, int y1, IntervalLayers& out) {
+  for (int y = y0; y <= y1; ++y)
+    for (size_t p = layers.pixelIndex(x0, y), end = layers.pixelIndex(x1, y); p <= end; ++p) writePixel(layers, p, out);
 }
 
 }  // namespace lt

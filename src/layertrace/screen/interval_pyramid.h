@@ -8,6 +8,7 @@
 #pragma once
 
 #include <cstdint>
+#include <memory>
 #include <vector>
 
 #include "layertrace/raster/layer_arrays.h"
@@ -48,8 +49,9 @@ struct PyramidLevel {
 
 struct IntervalPyramid {
   /// level 0: k intervals per pixel; slots past a pixel's count hold {+∞, +∞}, a sentinel that
-  /// ends firstMet's scan, so the march reads no count
-  IntervalLayers base;
+  /// ends firstMet's scan, so the march reads no count. Shared: the capture writes level 0 while
+  /// each tile is in cache (pipeline/frame.h), and every pyramid built for that frame uses it.
+  std::shared_ptr<IntervalLayers> base;
   std::vector<PyramidLevel> levels;  ///< levels[0] only records the size: level 0 is `base`
   int levelCount() const { return int(levels.size()); }
   size_t memoryBytes() const;
@@ -64,7 +66,12 @@ struct IntervalPyramid {
 IntervalPyramid buildIntervalPyramid(const LayerArrays& layers, const Camera& camera, const PyramidConfig& config);
 /// The same into `out`, reusing its memory: the next frame's pyramid of the same size allocates
 /// nothing and pays no first-touch page faults (issue 13 §4; they were half of a cold build).
+/// Level 0 is rewritten in place unless another owner shares it (then a new one is made).
 void buildIntervalPyramid(const LayerArrays& layers, const Camera& camera, const PyramidConfig& config, IntervalPyramid& out);
+/// Levels 1..levels-1 over a level 0 that already exists — with the {+∞, +∞} sentinels, as
+/// makeIntervalLayers and the capture write it — shared, not copied; into `out`'s memory.
+void buildIntervalPyramid(std::shared_ptr<IntervalLayers> level0, const Camera& camera, const PyramidConfig& config,
+                          IntervalPyramid& out);
 /// The same over level-0 intervals that need not come from fragments (known_space.h).
 IntervalPyramid buildIntervalPyramid(IntervalLayers base, const Camera& camera, const PyramidConfig& config);
 

@@ -14,7 +14,7 @@
 namespace lt {
 
 size_t IntervalPyramid::memoryBytes() const {
-  size_t bytes = base.memoryBytes();
+  size_t bytes = base ? base->memoryBytes() : 0;
   for (const PyramidLevel& l : levels)
     bytes += l.offset.size() * sizeof(uint32_t) + l.intervals.size() * sizeof(Interval) + l.cells.size() * sizeof(CoarseCell);
   for (const auto& row : scratchRows) bytes += row.capacity() * sizeof(Interval);  // kept for the next build
@@ -92,8 +92,8 @@ void validate(const PyramidConfig& config) {
 /// Levels 1..levels-1 over p.base (seed 000 §4.3), into p's existing memory where it fits.
 void buildLevels(IntervalPyramid& p, const Camera& camera, const PyramidConfig& config) {
   p.levels.resize(size_t(config.levels));
-  p.levels[0].width = p.base.width;
-  p.levels[0].height = p.base.height;
+  p.levels[0].width = p.base->width;
+  p.levels[0].height = p.base->height;
   for (int L = 1; L < config.levels; ++L) {
     const PyramidLevel& child = p.levels[size_t(L - 1)];
     PyramidLevel& lvl = p.levels[size_t(L)];
@@ -117,8 +117,8 @@ void buildLevels(IntervalPyramid& p, const Camera& camera, const PyramidConfig& 
           for (int cy = 2 * y; cy < std::min(2 * y + 2, child.height); ++cy)
             for (int cx = 2 * x; cx < std::min(2 * x + 2, child.width); ++cx) {
               if (L == 1) {
-                const Interval* f = p.base.pixel(cx, cy);
-                children.insert(children.end(), f, f + p.base.countAt(cx, cy));
+                const Interval* f = p.base->pixel(cx, cy);
+                children.insert(children.end(), f, f + p.base->countAt(cx, cy));
               } else {
                 const size_t c = child.cellIndex(cx, cy);
                 children.insert(children.end(), child.intervals.begin() + child.offset[c], child.intervals.begin() + child.offset[c + 1]);
@@ -163,7 +163,18 @@ IntervalPyramid buildIntervalPyramid(const LayerArrays& layers, const Camera& ca
 void buildIntervalPyramid(const LayerArrays& layers, const Camera& camera, const PyramidConfig& config, IntervalPyramid& out) {
   validate(config);
   const auto start = std::chrono::steady_clock::now();
-  makeIntervalLayers(layers, layers.k, out.base);  // with the sentinels
+  if (!out.base || out.base.use_count() > 1) out.base = std::make_shared<IntervalLayers>();
+  makeIntervalLayers(layers, layers.k, *out.base);  // with the sentinels
+  buildLevels(out, camera, config);
+  out.buildMs = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
+}
+
+void buildIntervalPyramid(std::shared_ptr<IntervalLayers> level0, const Camera& camera, const PyramidConfig& config,
+                          IntervalPyramid& out) {
+  validate(config);
+  LT_CHECK(level0 != nullptr);
+  const auto start = std::chrono::steady_clock::now();
+  out.base = std::move(level0);
   buildLevels(out, camera, config);
   out.buildMs = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
 }
@@ -172,12 +183,13 @@ IntervalPyramid buildIntervalPyramid(IntervalLayers base, const Camera& camera, 
   validate(config);
   const auto start = std::chrono::steady_clock::now();
   IntervalPyramid p;
-  p.base = std::move(base);
+  p.base = std::make_shared<IntervalLayers>(std::move(base));
+  IntervalLayers& b = *p.base;
   // The march's sentinel: slots past a pixel's count hold {+∞, +∞} (interval_pyramid.h).
-  parallelFor(tbb::blocked_range<size_t>(0, p.base.count.size(), 4096), [&](const tbb::blocked_range<size_t>& r) {
+  parallelFor(tbb::blocked_range<size_t>(0, b.count.size(), 4096), [&](const tbb::blocked_range<size_t>& r) {
     constexpr float inf = std::numeric_limits<float>::infinity();
     for (size_t px = r.begin(); px != r.end(); ++px)
-      for (size_t i = p.base.count[px]; i < size_t(p.base.k); ++i) p.base.slots[px * size_t(p.base.k) + i] = {inf, inf};
+      for (size_t i = b.count[px]; i < size_t(b.k); ++i) b.slots[px * size_t(b.k) + i] = {inf, inf};
   });
   buildLevels(p, camera, config);
   p.buildMs = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
