@@ -1,6 +1,7 @@
 // Issue 13 §6: the tile-local capture gives the k-layer arrays of the reference pipeline
 // (rasterize into lists, then sort and truncate) bit for bit, for any tile size and thread count,
 // and reuses its memory from frame to frame.
+#include <algorithm>
 #include <cstring>
 #include <random>
 
@@ -235,6 +236,70 @@ TEST(Capture, LevelZeroFromTheTilesEqualsOneFromTheLayers) {
     EXPECT_EQ(f.level0()->count, want.count) << f.capturePipeline;
     ASSERT_EQ(f.level0()->slots.size(), want.slots.size());
     EXPECT_EQ(std::memcmp(f.level0()->slots.data(), want.slots.data(), want.slots.size() * sizeof(Interval)), 0) << f.capturePipeline;
+  }
+}
+
+/// Seed 000 §4.3 written as plainly as possible: per cell, gather the 2×2 children's intervals,
+/// stable-sort them by front, merge greedily within τ.
+std::vector<std::vector<std::vector<Interval>>> plainPyramid(const IntervalLayers& base, const Camera& camera, const PyramidConfig& c) {
+  std::vector<std::vector<std::vector<Interval>>> levels(size_t(c.levels));
+  int w = base.width, h = base.height;
+  levels[0].resize(size_t(w) * size_t(h));
+  for (int y = 0; y < h; ++y)
+    for (int x = 0; x < w; ++x) levels[0][size_t(y) * size_t(w) + size_t(x)].assign(base.pixel(x, y), base.pixel(x, y) + base.countAt(x, y));
+  for (int L = 1; L < c.levels; ++L) {
+    const int cw = (w + 1) / 2, ch = (h + 1) / 2;
+    const float tau = c.tau * camera.pixelFootprint(1.0f) * float(1 << L);
+    levels[size_t(L)].resize(size_t(cw) * size_t(ch));
+    for (int y = 0; y < ch; ++y)
+      for (int x = 0; x < cw; ++x) {
+        std::vector<Interval> kids;
+        for (int cy = 2 * y; cy < std::min(2 * y + 2, h); ++cy)
+          for (int cx = 2 * x; cx < std::min(2 * x + 2, w); ++cx) {
+            const auto& k = levels[size_t(L - 1)][size_t(cy) * size_t(w) + size_t(cx)];
+            kids.insert(kids.end(), k.begin(), k.end());
+          }
+        std::stable_sort(kids.begin(), kids.end(), [](const Interval& a, const Interval& b) { return a.front < b.front; });
+        auto& out = levels[size_t(L)][size_t(y) * size_t(cw) + size_t(x)];
+        for (size_t i = 0; i < kids.size();) {
+          Interval cur = kids[i++];
+          while (i < kids.size() && (kids[i].front <= cur.front + tau * cur.front || kids[i].front <= cur.back)) cur.back = std::max(cur.back, kids[i++].back);
+          out.push_back(cur);
+        }
+      }
+    w = cw, h = ch;
+  }
+  return levels;
+}
+
+// The pyramid build (in-place, fixed-array gathering, insertion sort) equals the plain merge on
+// every cell of every level, bit for bit.
+TEST(Capture, PyramidEqualsThePlainMerge) {
+  const Scene s = tieSoup(test::testSeed() + 6);
+  for (int k : {1, 4, 16}) {
+    const Camera cam(test::originCamera(60.0f, 0.3f, 40.0f), 203, 117);
+    LayerCapture capture;
+    LayerArrays layers;
+    std::vector<uint32_t> complexity;
+    capture.capture(s, cam, RasterConfig{}, LayerConfig{k, 0.05f, 0.0f, false, 0.002f}, layers, complexity);
+    for (float tau : {2.0f, 25.0f}) {
+      const PyramidConfig pc{6, tau};
+      const IntervalPyramid p = buildIntervalPyramid(layers, cam, pc);
+      const auto want = plainPyramid(*p.base, cam, pc);
+      size_t cells = 0, multi = 0;
+      for (int L = 1; L < pc.levels; ++L) {
+        const PyramidLevel& lvl = p.levels[size_t(L)];
+        ASSERT_EQ(want[size_t(L)].size(), size_t(lvl.width) * size_t(lvl.height));
+        for (size_t c = 0; c < want[size_t(L)].size(); ++c, ++cells) {
+          const auto& w = want[size_t(L)][c];
+          ASSERT_EQ(size_t(lvl.offset[c + 1] - lvl.offset[c]), w.size()) << "k " << k << " tau " << tau << " level " << L << " cell " << c;
+          multi += w.size() > 1;
+          ASSERT_TRUE(w.empty() || std::memcmp(w.data(), &lvl.intervals[lvl.offset[c]], w.size() * sizeof(Interval)) == 0)
+              << "k " << k << " tau " << tau << " level " << L << " cell " << c;
+        }
+      }
+      EXPECT_GT(multi, cells / 20) << "cells with several intervals make the merge matter";
+    }
   }
 }
 

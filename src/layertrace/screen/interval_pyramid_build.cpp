@@ -30,23 +30,23 @@ namespace {
 /// extends it instead of being dropped or split (hssr-pitfalls §3: the merge must cover).
 /// The result depends on the order of fronts only: children with equal fronts always end in the
 /// same parent interval (the second is within τ of the first), so any sort gives the same bits.
-void mergeChildren(std::vector<Interval>& children, float tauPerDepth, std::vector<Interval>& out) {
+void mergeChildren(Interval* children, size_t n, float tauPerDepth, std::vector<Interval>& out) {
   auto byFront = [](const Interval& a, const Interval& b) { return a.front < b.front; };
-  if (children.size() <= 32) {  // a level-1 cell has at most 4k children: insertion sort wins
-    for (size_t i = 1; i < children.size(); ++i) {
+  if (n <= 32) {  // a level-1 cell has at most 4k children: insertion sort wins
+    for (size_t i = 1; i < n; ++i) {
       const Interval c = children[i];
       size_t j = i;
       for (; j > 0 && c.front < children[j - 1].front; --j) children[j] = children[j - 1];
       children[j] = c;
     }
   } else {
-    std::sort(children.begin(), children.end(), byFront);
+    std::sort(children, children + n, byFront);
   }
   size_t i = 0;
-  while (i < children.size()) {
+  while (i < n) {
     Interval cur = children[i++];
     const float limit = cur.front + tauPerDepth * cur.front;
-    while (i < children.size() && (children[i].front <= limit || children[i].front <= cur.back)) {
+    while (i < n && (children[i].front <= limit || children[i].front <= cur.back)) {
       cur.back = std::max(cur.back, children[i].back);
       ++i;
     }
@@ -91,6 +91,7 @@ void validate(const PyramidConfig& config) {
 
 /// Levels 1..levels-1 over p.base (seed 000 §4.3), into p's existing memory where it fits.
 void buildLevels(IntervalPyramid& p, const Camera& camera, const PyramidConfig& config) {
+  LT_CHECK(p.base->k >= 1 && p.base->k <= 16, p.base->k);  // level 1 gathers ≤ 4 × 16 children on the stack
   p.levels.resize(size_t(config.levels));
   p.levels[0].width = p.base->width;
   p.levels[0].height = p.base->height;
@@ -113,19 +114,24 @@ void buildLevels(IntervalPyramid& p, const Camera& camera, const PyramidConfig& 
         row.reserve(size_t(lvl.width) * 2);
         rowCounts[size_t(y)].resize(size_t(lvl.width));
         for (int x = 0; x < lvl.width; ++x) {
+          // Gather the 2×2 children's intervals: level 1 reads at most 4k ≤ 64 of them from
+          // level 0 into a fixed array (short copies, no library calls); above, CSR ranges.
+          Interval small[4 * 16];
+          size_t n = 0;
           children.clear();
           for (int cy = 2 * y; cy < std::min(2 * y + 2, child.height); ++cy)
             for (int cx = 2 * x; cx < std::min(2 * x + 2, child.width); ++cx) {
               if (L == 1) {
                 const Interval* f = p.base->pixel(cx, cy);
-                children.insert(children.end(), f, f + p.base->countAt(cx, cy));
+                for (int i = 0, m = p.base->countAt(cx, cy); i < m; ++i) small[n++] = f[i];
               } else {
                 const size_t c = child.cellIndex(cx, cy);
                 children.insert(children.end(), child.intervals.begin() + child.offset[c], child.intervals.begin() + child.offset[c + 1]);
               }
             }
           const size_t before = row.size();
-          mergeChildren(children, tauPerDepth, row);
+          if (L == 1) mergeChildren(small, n, tauPerDepth, row);
+          else mergeChildren(children.data(), children.size(), tauPerDepth, row);
           rowCounts[size_t(y)][size_t(x)] = uint32_t(row.size() - before);
         }
       }
