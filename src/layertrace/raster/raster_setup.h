@@ -59,6 +59,18 @@ struct RasterSetup {
   int tileSize = 0, tilesX = 0, tilesY = 0;
 
   size_t numTiles() const { return size_t(tilesX) * size_t(tilesY); }
+
+  /// The i-th entry of the tile bins with what a fragment of it needs.
+  struct Binned {
+    const SubTriangle& sub;
+    const TriangleSetup& setup;
+    glm::uvec3 vertices;
+    uint32_t albedoSpec;
+  };
+  Binned binned(const Scene& scene, uint32_t i) const {
+    const SubTriangle& s = *subs[tileList[i]];
+    return {s, setups[s.triangle], scene.triangles[s.triangle], materialPacked[scene.triMaterial[s.triangle]]};
+  }
   /// Inclusive pixel bounds of `tile`, clamped to the screen.
   void tileBounds(size_t tile, const Camera& camera, int& x0, int& y0, int& x1, int& y1) const {
     x0 = int(tile % size_t(tilesX)) * tileSize, y0 = int(tile / size_t(tilesX)) * tileSize;
