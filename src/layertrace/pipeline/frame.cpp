@@ -103,15 +103,10 @@ void rasterizeFrame(const FrameOptions& o, Frame& frame) {
     FragmentLists& lists = frame.lists;
     // Level 0 of the interval pyramid, written from each finished tile (reused unless a
     // pyramid of the previous frame still holds it).
+    validateLayerConfig(lc);  // before anything is sized by k
     if (!frame.intervals || frame.intervals.use_count() > 1) frame.intervals = std::make_shared<IntervalLayers>();
     IntervalLayers& level0 = *frame.intervals;
-    level0.width = frame.camera.width(), level0.height = frame.camera.height(), level0.k = lc.k;
-    {
-      const size_t pixels = size_t(level0.width) * size_t(level0.height);
-      if (level0.slots.size() != pixels * size_t(lc.k)) checkAllocation("the interval layers", pixels * (size_t(lc.k) * sizeof(Interval) + 1));
-      level0.slots.resize(pixels * size_t(lc.k));
-      level0.count.resize(pixels);
-    }
+    sizeIntervalLayers(frame.camera.width(), frame.camera.height(), lc.k, level0);
     const TileDone writeLevel0 = [&](int x0, int y0, int x1, int y1) { writeIntervals(frame.layers, x0, y0, x1, y1, level0); };
     if (!needsFragmentLists(o)) {
       lists.head = {}, lists.nodes = {}, lists.triangle = {};

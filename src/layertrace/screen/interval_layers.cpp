@@ -24,16 +24,6 @@ IntervalLayers makeIntervalLayers(const LayerArrays& layers, int maxLayers) {
 
 namespace {
 
-void sizeTo(const LayerArrays& layers, int k, IntervalLayers& out) {
-  out.width = layers.width;
-  out.height = layers.height;
-  out.k = k;
-  const size_t pixels = size_t(layers.width) * size_t(layers.height);
-  if (out.slots.size() != pixels * size_t(k)) checkAllocation("the interval layers", pixels * (size_t(k) * sizeof(Interval) + 1));
-  out.slots.resize(pixels * size_t(k));
-  out.count.resize(pixels);
-}
-
 /// Pixel p: its first out.k intervals, then the {+∞, +∞} sentinel.
 inline void writePixel(const LayerArrays& layers, size_t p, IntervalLayers& out) {
   const int n = std::min<int>(layers.count[p], out.k);
@@ -45,8 +35,18 @@ inline void writePixel(const LayerArrays& layers, size_t p, IntervalLayers& out)
 
 }  // namespace
 
+void sizeIntervalLayers(int width, int height, int k, IntervalLayers& out) {
+  out.width = width;
+  out.height = height;
+  out.k = k;
+  const size_t pixels = size_t(width) * size_t(height);
+  if (out.slots.size() != pixels * size_t(k)) checkAllocation("the interval layers", pixels * (size_t(k) * sizeof(Interval) + 1));
+  out.slots.resize(pixels * size_t(k));
+  out.count.resize(pixels);
+}
+
 void makeIntervalLayers(const LayerArrays& layers, int maxLayers, IntervalLayers& out) {
-  sizeTo(layers, std::clamp(maxLayers, 1, layers.k), out);
+  sizeIntervalLayers(layers.width, layers.height, std::clamp(maxLayers, 1, layers.k), out);
   parallelFor(tbb::blocked_range<size_t>(0, out.count.size(), 4096), [&](const tbb::blocked_range<size_t>& r) {
     for (size_t p = r.begin(); p != r.end(); ++p) writePixel(layers, p, out);
   });

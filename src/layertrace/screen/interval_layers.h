@@ -54,6 +54,9 @@ int firstMet(const Interval* f, int n, float zmin, float zmax, bool increasing, 
 IntervalLayers makeIntervalLayers(const LayerArrays& layers, int maxLayers);
 /// The same into `out`, reusing its memory (no allocation when the size is unchanged).
 void makeIntervalLayers(const LayerArrays& layers, int maxLayers, IntervalLayers& out);
+/// Sizes `out` for width × height pixels of k intervals (checking the memory first when it
+/// grows); reuses its memory when the size is unchanged. Contents are left to writeIntervals.
+void sizeIntervalLayers(int width, int height, int k, IntervalLayers& out);
 /// The pixels [x0, x1] × [y0, y1] (inclusive) of an `out` already sized for all k layers: the
 /// capture writes level 0 so, tile by tile, while the tile's layers are in cache.
 void writeIntervals(const LayerArrays& layers, int x0, int y0, int x1, int y1, IntervalLayers& out);
