@@ -60,7 +60,7 @@ struct Frame {
   Camera camera;
   std::vector<PointLight> lights;  ///< the lights in effect (scene's, --light, or the default)
   /// The fragment lists. When nothing asked for them (capturePipeline "tiles") only the
-  /// per-pixel complexity and the counts are set, no nodes: listsCaptured() tells which.
+  /// per-pixel complexity and the counts are set, no nodes.
   FragmentLists lists;
   LayerArrays layers;
   LayerCapture capture;  ///< owns the tile-local capture's scratch, reused frame to frame
@@ -79,7 +79,6 @@ struct Frame {
     return intervals && intervals->width == layers.width && intervals->height == layers.height && intervals->k == layers.k ? intervals
                                                                                                                         : nullptr;
   }
-  bool listsCaptured() const { return lists.head.size() == lists.complexity.size() && !lists.head.empty(); }
 };
 
 /// Whether `options` need whole per-pixel lists (see FrameOptions::captureLists).
