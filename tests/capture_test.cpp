@@ -8,11 +8,13 @@
 #include <tbb/global_control.h>
 
 #include "layertrace/pipeline/frame.h"
+#include "layertrace/pipeline/tracer_factory.h"
 #include "layertrace/raster/capture.h"
 #include "layertrace/raster/layer_arrays.h"
 #include "layertrace/raster/rasterizer.h"
 #include "layertrace/screen/interval_pyramid.h"
 #include "layertrace/util/error.h"
+#include "layertrace/util/parallel.h"
 #include "test_util.h"
 
 namespace lt {
@@ -301,6 +303,89 @@ TEST(Capture, PyramidEqualsThePlainMerge) {
       EXPECT_GT(multi, cells / 20) << "cells with several intervals make the merge matter";
     }
   }
+}
+
+// Levels 1… merged tile by tile (PyramidTileBuilder: tiles in any order, concurrently) equal
+// the global build over the same level 0, for tile sizes holding whole cells of every level
+// (32), of some levels (8: levels above 3 are built globally by finish) and of none (45); at
+// odd image sizes, so that edge tiles and edge cells are partial.
+TEST(Capture, APyramidBuiltPerTileEqualsTheGlobalBuild) {
+  const Scene s = tieSoup(test::testSeed() + 8);
+  const Camera cam(test::originCamera(60.0f, 0.3f, 40.0f), 203, 117);
+  for (int k : {1, 4}) {
+    LayerCapture capture;
+    LayerArrays layers;
+    std::vector<uint32_t> complexity;
+    capture.capture(s, cam, RasterConfig{}, LayerConfig{k, 0.05f}, layers, complexity);
+    const auto level0 = std::make_shared<IntervalLayers>(makeIntervalLayers(layers, k));
+    for (int tileSize : {32, 8, 45})
+      for (int levels : {1, 2, 5, 8})
+        for (float tau : {2.0f, 25.0f}) {
+          const PyramidConfig pc{levels, tau};
+          PyramidTileBuilder builder;
+          IntervalPyramid tiled;
+          builder.begin(level0, cam, pc, tileSize, tiled);
+          EXPECT_EQ(builder.tileLevels(), std::min(levels - 1, tileSize == 32 ? 5 : tileSize == 8 ? 3 : 0));
+          const int tx = (cam.width() + tileSize - 1) / tileSize, ty = (cam.height() + tileSize - 1) / tileSize;
+          parallelFor(0, tx * ty, [&](int t) {
+            const int i = tx * ty - 1 - t;  // last tile first: no order is assumed
+            const int x0 = (i % tx) * tileSize, y0 = (i / tx) * tileSize;
+            builder.tile(x0, y0, std::min(x0 + tileSize, cam.width()) - 1, std::min(y0 + tileSize, cam.height()) - 1);
+          });
+          builder.finish(2);
+          IntervalPyramid global;
+          buildIntervalPyramid(level0, cam, pc, global);
+          EXPECT_TRUE(samePyramid(tiled, global)) << "k " << k << " tile " << tileSize << " levels " << levels << " tau " << tau;
+          if (levels == 5 && tau == 25.0f) {
+            IntervalPyramid other;
+            buildIntervalPyramid(level0, cam, PyramidConfig{levels, 2.0f}, other);
+            EXPECT_FALSE(samePyramid(tiled, other)) << "the comparison must be able to fail";
+          }
+        }
+  }
+}
+
+// Through the frame: the capture builds the pyramid FrameOptions::pyramid asks for, an hssr
+// tracer of that configuration uses it (one of another configuration builds its own), and the
+// next view reuses its memory.
+TEST(Capture, TheFramesPyramidIsBuiltByTheCaptureAndReused) {
+  Frame f;
+  f.scene = tieSoup(test::testSeed() + 9);
+  CameraDesc view = test::originCamera(60.0f, 0.3f, 40.0f);
+  f.camera = Camera(view, 203, 117);
+  f.thickness = 0.05f;
+  FrameOptions o;
+  o.width = 203, o.height = 117, o.thickness = 0.05f;
+  o.pyramid = PyramidConfig{5, 25.0f};
+  rasterizeFrame(o, f);
+  ASSERT_TRUE(f.pyramid);
+  EXPECT_TRUE(samePyramid(*f.pyramid, buildIntervalPyramid(f.layers, f.camera, *o.pyramid)));
+  EXPECT_EQ(f.pyramidFor(*o.pyramid), f.pyramid);
+  EXPECT_EQ(f.pyramidFor(PyramidConfig{5, 10.0f}), nullptr);
+  EXPECT_EQ(f.pyramidFor(PyramidConfig{4, 25.0f}), nullptr);
+  TracerOptions to;
+  to.pyramid = *o.pyramid;
+  EXPECT_EQ(buildTracer("hssr", f, to).pyramid, f.pyramid);
+  to.pyramid.tau = 10.0f;
+  EXPECT_NE(buildTracer("hssr", f, to).pyramid, f.pyramid);
+  const void* cells = f.pyramid->levels[1].cells.data();
+  const void* intervals = f.level0()->slots.data();
+  view.eye = {-0.4f, 0.1f, 0.2f};
+  f.camera = Camera(view, 203, 117);
+  rasterizeFrame(o, f);
+  EXPECT_EQ(f.pyramid->levels[1].cells.data(), cells);
+  EXPECT_EQ(f.level0()->slots.data(), intervals);
+  EXPECT_TRUE(samePyramid(*f.pyramid, buildIntervalPyramid(f.layers, f.camera, *o.pyramid)));
+  // A tracer still holding the pyramid keeps it: the next capture builds another.
+  const BuiltTracer held = buildTracer("hssr", f, TracerOptions{});
+  const std::shared_ptr<IntervalPyramid> before = f.pyramid;
+  rasterizeFrame(o, f);
+  EXPECT_NE(f.pyramid, before);
+  EXPECT_EQ(held.pyramid, before);
+  // Whole-list rules rewrite the layers after the pass: no pyramid from the tiles then.
+  o.adaptiveThickness = true;
+  rasterizeFrame(o, f);
+  EXPECT_EQ(f.pyramid, nullptr);
 }
 
 TEST(Capture, OptionsThatNeedWholeListsAreRefused) {

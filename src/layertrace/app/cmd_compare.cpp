@@ -1,3 +1,4 @@
+#include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <filesystem>
@@ -44,7 +45,9 @@ int runCompare(const CompareOptions& o) {
     if (!isKnownTracer(t)) inputError("--tracers ", t, ": unknown (use ", kTracerNames, ")");
   validateTracerOptions(o.options);
   validateEffectConfig(o.effect);
-  Frame frame = buildFrame(o.run.frame);
+  FrameOptions fo = o.run.frame;
+  if (std::find(o.tracers.begin(), o.tracers.end(), "hssr") != o.tracers.end()) fo.pyramid = o.options.pyramid;  // built by the capture
+  Frame frame = buildFrame(fo);
   EffectConfig ec = o.effect;
   ec.seed = o.run.seed;
   ec.progress = !o.run.quiet;

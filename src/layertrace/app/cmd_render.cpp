@@ -174,7 +174,9 @@ int runRender(const RenderOptions& o) {
   validateTracerOptions(o.tracers);
   validateEffectConfig(o.effect);
   const auto t0 = std::chrono::steady_clock::now();
-  Frame frame = buildFrame(o.run.frame);
+  FrameOptions fo = o.run.frame;
+  if (o.tracer == "hssr") fo.pyramid = o.tracers.pyramid;  // built during the capture, tile by tile
+  Frame frame = buildFrame(fo);
   const BuiltTracer built = buildTracer(o.tracer, frame, o.tracers);
   BuiltTracer oracle;
   std::optional<MismatchObserver> exhaustive;

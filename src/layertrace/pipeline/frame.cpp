@@ -1,10 +1,12 @@
 #include "layertrace/pipeline/frame.h"
 
+#include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <fstream>
 
 #include <glm/geometric.hpp>
+#include <tbb/task_arena.h>
 
 #include "layertrace/scene/load.h"
 #include "layertrace/util/error.h"
@@ -104,10 +106,26 @@ void rasterizeFrame(const FrameOptions& o, Frame& frame) {
     // Level 0 of the interval pyramid, written from each finished tile (reused unless a
     // pyramid of the previous frame still holds it).
     validateLayerConfig(lc);  // before anything is sized by k
+    // The frame's own pyramid lets go of the old level 0 (so that it is reused); one that a
+    // tracer of the previous frame still holds is left to it.
+    if (frame.pyramid && frame.pyramid.use_count() == 1) frame.pyramid->base.reset();
+    else frame.pyramid.reset();
     if (!frame.intervals || frame.intervals.use_count() > 1) frame.intervals = std::make_shared<IntervalLayers>();
     IntervalLayers& level0 = *frame.intervals;
     sizeIntervalLayers(frame.camera.width(), frame.camera.height(), lc.k, level0);
-    const TileDone writeLevel0 = [&](int x0, int y0, int x1, int y1) { writeIntervals(frame.layers, x0, y0, x1, y1, level0); };
+    // Levels 1… per tile too, unless a whole-list rule rewrites the layers after the pass.
+    const bool tilePyramid = o.pyramid && !lc.adaptiveThickness && !(lc.minSeparation > 0.0f);
+    if (tilePyramid) {
+      if (!frame.pyramid) frame.pyramid = std::make_shared<IntervalPyramid>();
+      frame.pyramidTiles.begin(frame.intervals, frame.camera, *o.pyramid, rc.tileSize, *frame.pyramid);
+      frame.pyramidConfig = *o.pyramid;
+    } else {
+      frame.pyramid.reset();
+    }
+    const TileDone writeLevel0 = [&](int x0, int y0, int x1, int y1) {
+      writeIntervals(frame.layers, x0, y0, x1, y1, level0);
+      if (tilePyramid) frame.pyramidTiles.tile(x0, y0, x1, y1);
+    };
     if (!needsFragmentLists(o)) {
       lists.head = {}, lists.nodes = {}, lists.triangle = {};
       frame.capture.capture(frame.scene, frame.camera, rc, lc, frame.layers, lists.complexity, &cs, &writeLevel0);
@@ -129,11 +147,18 @@ void rasterizeFrame(const FrameOptions& o, Frame& frame) {
     }
     frame.raster = RasterStats{cs.ms(), 0, 1, cs.subTriangles};
     frame.rasterMs = cs.ms();  // rasterize and sort to k are one pass: the sort is inside
+    if (tilePyramid) {
+      // The pyramid's time (its tiles' merges over the threads, and the layout in cell order)
+      // is reported as the hierarchy's (IntervalPyramid::buildMs), not as raster time.
+      frame.pyramidTiles.finish(tbb::this_task_arena::max_concurrency());
+      frame.rasterMs = std::max(0.0, frame.rasterMs - (frame.pyramid->buildMs - frame.pyramidTiles.finishMs()));
+    }
     return;
   }
   // The reference pipeline: a pool (fixed by --pool N, overflow counted exactly; or 8 fragments
   // per pixel, grown once when it overflows), then sortAndTruncate.
   frame.capturePipeline = "reference";
+  frame.pyramid.reset();
   frame.lists = rasterize(frame.scene, frame.camera, rc, &frame.raster);
   frame.rasterMs = frame.raster.ms;
   if (frame.lists.lost() > 0)

@@ -21,6 +21,7 @@
 #include "layertrace/scene/camera.h"
 #include "layertrace/scene/scene.h"
 #include "layertrace/screen/interval_layers.h"
+#include "layertrace/screen/interval_pyramid.h"
 #include "layertrace/util/memory.h"
 
 namespace lt {
@@ -52,6 +53,10 @@ struct FrameOptions {
   /// into lists in a pool through an atomic counter, then sorted): what `--pool` selects, and
   /// what tests and `bench --experiment capture` compare the tile-local capture with.
   bool referenceCapture = false;
+  /// Build this interval pyramid during the tile-local capture, tile by tile while each tile is
+  /// in cache (issue 13 §2); an hssr tracer with the same configuration uses it instead of
+  /// building its own. Set by the commands whose tracers read it; unset, nothing is built.
+  std::optional<PyramidConfig> pyramid;
   std::vector<glm::vec4> lights;       ///< --light x,y,z[,intensity] (repeatable)
 };
 
@@ -69,12 +74,21 @@ struct Frame {
   /// pyramid built for this frame shares it (tracer_factory.cpp). level0() checks it still
   /// matches `layers`.
   std::shared_ptr<IntervalLayers> intervals;
+  /// The interval pyramid over `intervals` built by the capture (FrameOptions::pyramid), or null.
+  std::shared_ptr<IntervalPyramid> pyramid;
+  PyramidTileBuilder pyramidTiles;  ///< its per-tile storage, reused frame to frame
   float thickness = 0.0f;          ///< fixed part of the z-thickness (scene units)
   float thicknessPerDepth = 0.0f;  ///< plus this per unit depth (--thickness-px / focal)
   bool frontFacesOnly = false;     ///< captured with --front-faces-only
   double loadMs = 0.0, rasterMs = 0.0, sortMs = 0.0;
   RasterStats raster;
   std::string capturePipeline;  ///< "tiles", "tiles+lists" or "reference" (stats key capture_pipeline)
+  /// The capture's pyramid when it was built with `config` over the current level 0, else null.
+  std::shared_ptr<IntervalPyramid> pyramidFor(const PyramidConfig& config) const {
+    const std::shared_ptr<IntervalLayers> l0 = level0();
+    return pyramid && l0 && pyramid->base == l0 && pyramid->levelCount() == config.levels && pyramidConfig == config ? pyramid : nullptr;
+  }
+  PyramidConfig pyramidConfig;  ///< what `pyramid` was built with
   std::shared_ptr<IntervalLayers> level0() const {
     return intervals && intervals->width == layers.width && intervals->height == layers.height && intervals->k == layers.k ? intervals
                                                                                                                         : nullptr;

@@ -26,8 +26,9 @@ void validateTracerOptions(const TracerOptions& o) {
 
 namespace {
 /// The frame's pyramid: over the level 0 the capture wrote, or from the k-layer arrays.
-std::unique_ptr<IntervalPyramid> makePyramid(const Frame& frame, const PyramidConfig& config) {
-  auto p = std::make_unique<IntervalPyramid>();
+std::shared_ptr<IntervalPyramid> makePyramid(const Frame& frame, const PyramidConfig& config) {
+  if (std::shared_ptr<IntervalPyramid> built = frame.pyramidFor(config)) return built;  // built by the capture, tile by tile
+  auto p = std::make_shared<IntervalPyramid>();
   if (std::shared_ptr<IntervalLayers> level0 = frame.level0()) buildIntervalPyramid(std::move(level0), frame.camera, config, *p);
   else buildIntervalPyramid(frame.layers, frame.camera, config, *p);
   return p;

@@ -47,7 +47,7 @@ bool isKnownTracer(const std::string& name);
 
 struct BuiltTracer {
   std::unique_ptr<Tracer> tracer;
-  std::unique_ptr<IntervalPyramid> pyramid;  ///< hssr, hiz
+  std::shared_ptr<IntervalPyramid> pyramid;  ///< hssr, hiz (hssr: may be the frame's, Frame::pyramid)
   std::unique_ptr<Quadtree> quadtree;        ///< quadtree
   std::unique_ptr<LayeredDepthCube> ldc;     ///< ldc
   std::unique_ptr<EmbreeScene> embree;       ///< embree

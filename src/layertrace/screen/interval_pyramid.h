@@ -22,6 +22,7 @@ struct PyramidConfig {
   /// τ as a multiple of the projected pixel footprint at the interval's start depth, for a
   /// level-L cell 2^L pixels wide (seed 000 §4.3: "25 times the projected pixel-footprint").
   float tau = 25.0f;
+  bool operator==(const PyramidConfig&) const = default;
 };
 
 /// A coarse cell in the form the march reads (hssr_march.h): its intervals as inverse depths
@@ -72,6 +73,43 @@ void buildIntervalPyramid(const LayerArrays& layers, const Camera& camera, const
 /// makeIntervalLayers and the capture write it — shared, not copied; into `out`'s memory.
 void buildIntervalPyramid(std::shared_ptr<IntervalLayers> level0, const Camera& camera, const PyramidConfig& config,
                           IntervalPyramid& out);
+/// Levels 1… built tile by tile by the capture (issue 13 §2): a capture tile of T pixels, T a
+/// multiple of 2^L, holds whole cells of level L, so as soon as a tile's level 0 is written its
+/// cells of levels 1..tileLevels() are merged while its pixels are still in cache. Each tile
+/// keeps its intervals in its own storage (no shared counter); finish() lays them out in cell
+/// order — the CSR `offset`/`intervals` of the global build — and builds any level above
+/// tileLevels() the global way. The result is bit-identical to buildIntervalPyramid over the same
+/// level 0 (the same children in the same order through the same merge; tested). The object
+/// keeps its per-tile storage: the next frame of the same size allocates nothing.
+class PyramidTileBuilder {
+ public:
+  /// Sizes `out` over `level0` (which the tiles will fill) for tiles of `tileSize` pixels whose
+  /// origins are multiples of it. `out` must outlive finish().
+  void begin(std::shared_ptr<IntervalLayers> level0, const Camera& camera, const PyramidConfig& config, int tileSize,
+             IntervalPyramid& out);
+  /// Levels built per tile: min(levels − 1, log2 of the largest power of two dividing tileSize).
+  int tileLevels() const { return tileLevels_; }
+  /// The cells of levels 1..tileLevels() over the pixels [x0, x1] × [y0, y1] (inclusive; one
+  /// tile of begin's grid, whose level 0 is final). Concurrent calls for different tiles are safe.
+  void tile(int x0, int y0, int x1, int y1);
+  /// Lays out the tile-built levels in cell order and builds the levels above; sets buildMs to
+  /// the time of this call plus the tiles' merge time divided by `threads`.
+  void finish(int threads);
+  /// Bytes of per-tile storage kept between frames.
+  size_t scratchBytes() const;
+  /// The wall time of the last finish() (the rest of buildMs is the tiles' share).
+  double finishMs() const { return finishMs_; }
+
+ private:
+  IntervalPyramid* out_ = nullptr;
+  const Camera* camera_ = nullptr;
+  PyramidConfig config_;
+  int tileSize_ = 0, tilesX_ = 0, tilesY_ = 0, tileLevels_ = 0;
+  std::vector<std::vector<Interval>> tileIntervals_;  ///< [tile × tileLevels + L − 1], cell order within the tile
+  std::vector<double> tileMs_;                        ///< per tile: time of its merges
+  double finishMs_ = 0.0;
+};
+
 /// The same over level-0 intervals that need not come from fragments (known_space.h).
 IntervalPyramid buildIntervalPyramid(IntervalLayers base, const Camera& camera, const PyramidConfig& config);
 

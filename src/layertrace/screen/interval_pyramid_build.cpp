@@ -1,4 +1,5 @@
 #include <algorithm>
+#include <bit>
 #include <chrono>
 #include <limits>
 #include <utility>
@@ -89,73 +90,104 @@ void validate(const PyramidConfig& config) {
   if (!(config.tau > 0.0f)) inputError("--tau ", config.tau, ": must be positive");
 }
 
-/// Levels 1..levels-1 over p.base (seed 000 §4.3), into p's existing memory where it fits.
-void buildLevels(IntervalPyramid& p, const Camera& camera, const PyramidConfig& config) {
+/// τ per unit depth for level L: the factor × the footprint of a 2^L-pixel cell (seed 000 §4.3).
+float tauPerDepth(const Camera& camera, const PyramidConfig& config, int L) {
+  return config.tau * camera.pixelFootprint(1.0f) * float(1 << L);
+}
+
+/// Sizes p.levels for config over p.base (levels[0] records level 0's size).
+void sizeLevels(IntervalPyramid& p, const PyramidConfig& config) {
   LT_CHECK(p.base->k >= 1 && p.base->k <= 16, p.base->k);  // level 1 gathers ≤ 4 × 16 children on the stack
   p.levels.resize(size_t(config.levels));
   p.levels[0].width = p.base->width;
   p.levels[0].height = p.base->height;
   for (int L = 1; L < config.levels; ++L) {
-    const PyramidLevel& child = p.levels[size_t(L - 1)];
-    PyramidLevel& lvl = p.levels[size_t(L)];
-    lvl.width = (child.width + 1) / 2;
-    lvl.height = (child.height + 1) / 2;
-    // τ for this level: factor × footprint of a 2^L-pixel cell per unit depth.
-    const float tauPerDepth = config.tau * camera.pixelFootprint(1.0f) * float(1 << L);
-    std::vector<std::vector<Interval>>& rows = p.scratchRows;
-    std::vector<std::vector<uint32_t>>& rowCounts = p.scratchCounts;
-    rows.resize(size_t(lvl.height));
-    rowCounts.resize(size_t(lvl.height));
-    parallelFor(tbb::blocked_range<int>(0, lvl.height, 4), [&](const tbb::blocked_range<int>& r) {
-      std::vector<Interval> children;
-      for (int y = r.begin(); y != r.end(); ++y) {
-        std::vector<Interval>& row = rows[size_t(y)];
-        row.clear();
-        row.reserve(size_t(lvl.width) * 2);
-        rowCounts[size_t(y)].resize(size_t(lvl.width));
-        for (int x = 0; x < lvl.width; ++x) {
-          // Gather the 2×2 children's intervals: level 1 reads at most 4k ≤ 64 of them from
-          // level 0 into a fixed array (short copies, no library calls); above, CSR ranges.
-          Interval small[4 * 16];
-          size_t n = 0;
-          children.clear();
-          for (int cy = 2 * y; cy < std::min(2 * y + 2, child.height); ++cy)
-            for (int cx = 2 * x; cx < std::min(2 * x + 2, child.width); ++cx) {
-              if (L == 1) {
-                const Interval* f = p.base->pixel(cx, cy);
-                for (int i = 0, m = p.base->countAt(cx, cy); i < m; ++i) small[n++] = f[i];
-              } else {
-                const size_t c = child.cellIndex(cx, cy);
-                children.insert(children.end(), child.intervals.begin() + child.offset[c], child.intervals.begin() + child.offset[c + 1]);
-              }
-            }
-          const size_t before = row.size();
-          if (L == 1) mergeChildren(small, n, tauPerDepth, row);
-          else mergeChildren(children.data(), children.size(), tauPerDepth, row);
-          rowCounts[size_t(y)][size_t(x)] = uint32_t(row.size() - before);
-        }
-      }
-    });
-    size_t intervals = 0;
-    for (int y = 0; y < lvl.height; ++y) intervals += rows[size_t(y)].size();
-    if (intervals > 0xFFFFFFFFull) inputError("interval pyramid level ", L, ": ", intervals, " intervals exceed the 32-bit offsets");
-    if (intervals > lvl.intervals.capacity() || size_t(lvl.width) * size_t(lvl.height) > lvl.cells.capacity())
-      checkAllocation(cat("interval pyramid level ", L),
-                      intervals * sizeof(Interval) + (size_t(lvl.width) * size_t(lvl.height) + 1) * (sizeof(uint32_t) + sizeof(CoarseCell)));
-    lvl.offset.resize(size_t(lvl.width) * size_t(lvl.height) + 1);
-    uint32_t total = 0;
-    for (int y = 0; y < lvl.height; ++y)
-      for (int x = 0; x < lvl.width; ++x) {
-        lvl.offset[lvl.cellIndex(x, y)] = total;
-        total += rowCounts[size_t(y)][size_t(x)];
-      }
-    lvl.offset.back() = total;
-    lvl.intervals.resize(total);
-    parallelFor(0, lvl.height, [&](int y) {
-      std::copy(rows[size_t(y)].begin(), rows[size_t(y)].end(), lvl.intervals.begin() + lvl.offset[lvl.cellIndex(0, y)]);
-    });
-    buildCoarseCells(lvl);
+    p.levels[size_t(L)].width = (p.levels[size_t(L - 1)].width + 1) / 2;
+    p.levels[size_t(L)].height = (p.levels[size_t(L - 1)].height + 1) / 2;
   }
+}
+
+/// Gathers the intervals of cell (x, y)'s 2×2 children at level L into `small` (level 1: at
+/// most 4k ≤ 64 from level 0, short copies, no library calls) or `children` (above: the child
+/// level's CSR ranges, read through `childCell(cx, cy)` → [first, last)), then merges them.
+template <class ChildRange>
+void mergeCell(const IntervalPyramid& p, int L, int x, int y, float tau, ChildRange&& childRange, std::vector<Interval>& children,
+               std::vector<Interval>& out) {
+  const PyramidLevel& child = p.levels[size_t(L - 1)];
+  Interval small[4 * 16];
+  size_t n = 0;
+  children.clear();
+  for (int cy = 2 * y; cy < std::min(2 * y + 2, child.height); ++cy)
+    for (int cx = 2 * x; cx < std::min(2 * x + 2, child.width); ++cx) {
+      if (L == 1) {
+        const Interval* f = p.base->pixel(cx, cy);
+        for (int i = 0, m = p.base->countAt(cx, cy); i < m; ++i) small[n++] = f[i];
+      } else {
+        const auto [first, last] = childRange(cx, cy);
+        children.insert(children.end(), first, last);
+      }
+    }
+  if (L == 1) mergeChildren(small, n, tau, out);
+  else mergeChildren(children.data(), children.size(), tau, out);
+}
+
+/// Checks the memory a level of `intervals` intervals needs before it grows.
+void checkLevelMemory(const PyramidLevel& lvl, int L, size_t intervals) {
+  if (intervals > 0xFFFFFFFFull) inputError("interval pyramid level ", L, ": ", intervals, " intervals exceed the 32-bit offsets");
+  if (intervals > lvl.intervals.capacity() || size_t(lvl.width) * size_t(lvl.height) > lvl.cells.capacity())
+    checkAllocation(cat("interval pyramid level ", L),
+                    intervals * sizeof(Interval) + (size_t(lvl.width) * size_t(lvl.height) + 1) * (sizeof(uint32_t) + sizeof(CoarseCell)));
+}
+
+/// Level L ≥ 1 of p (sized by sizeLevels) from level L − 1, parallel over rows of cells.
+void buildLevel(IntervalPyramid& p, const Camera& camera, const PyramidConfig& config, int L) {
+  const PyramidLevel& child = p.levels[size_t(L - 1)];
+  PyramidLevel& lvl = p.levels[size_t(L)];
+  const float tau = tauPerDepth(camera, config, L);
+  std::vector<std::vector<Interval>>& rows = p.scratchRows;
+  std::vector<std::vector<uint32_t>>& rowCounts = p.scratchCounts;
+  rows.resize(size_t(lvl.height));
+  rowCounts.resize(size_t(lvl.height));
+  auto childRange = [&](int cx, int cy) {
+    const size_t c = child.cellIndex(cx, cy);
+    return std::pair{child.intervals.begin() + child.offset[c], child.intervals.begin() + child.offset[c + 1]};
+  };
+  parallelFor(tbb::blocked_range<int>(0, lvl.height, 4), [&](const tbb::blocked_range<int>& r) {
+    std::vector<Interval> children;
+    for (int y = r.begin(); y != r.end(); ++y) {
+      std::vector<Interval>& row = rows[size_t(y)];
+      row.clear();
+      row.reserve(size_t(lvl.width) * 2);
+      rowCounts[size_t(y)].resize(size_t(lvl.width));
+      for (int x = 0; x < lvl.width; ++x) {
+        const size_t before = row.size();
+        mergeCell(p, L, x, y, tau, childRange, children, row);
+        rowCounts[size_t(y)][size_t(x)] = uint32_t(row.size() - before);
+      }
+    }
+  });
+  size_t intervals = 0;
+  for (int y = 0; y < lvl.height; ++y) intervals += rows[size_t(y)].size();
+  checkLevelMemory(lvl, L, intervals);
+  lvl.offset.resize(size_t(lvl.width) * size_t(lvl.height) + 1);
+  uint32_t total = 0;
+  for (int y = 0; y < lvl.height; ++y)
+    for (int x = 0; x < lvl.width; ++x) {
+      lvl.offset[lvl.cellIndex(x, y)] = total;
+      total += rowCounts[size_t(y)][size_t(x)];
+    }
+  lvl.offset.back() = total;
+  lvl.intervals.resize(total);
+  parallelFor(0, lvl.height, [&](int y) {
+    std::copy(rows[size_t(y)].begin(), rows[size_t(y)].end(), lvl.intervals.begin() + lvl.offset[lvl.cellIndex(0, y)]);
+  });
+  buildCoarseCells(lvl);
+}
+
+/// Levels 1..levels-1 over p.base (seed 000 §4.3), into p's existing memory where it fits.
+void buildLevels(IntervalPyramid& p, const Camera& camera, const PyramidConfig& config) {
+  sizeLevels(p, config);
+  for (int L = 1; L < config.levels; ++L) buildLevel(p, camera, config, L);
 }
 
 }  // namespace
@@ -183,6 +215,110 @@ void buildIntervalPyramid(std::shared_ptr<IntervalLayers> level0, const Camera& 
   out.base = std::move(level0);
   buildLevels(out, camera, config);
   out.buildMs = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
+}
+
+void PyramidTileBuilder::begin(std::shared_ptr<IntervalLayers> level0, const Camera& camera, const PyramidConfig& config, int tileSize,
+                               IntervalPyramid& out) {
+  validate(config);
+  LT_CHECK(level0 != nullptr && tileSize >= 1, tileSize);
+  out_ = &out, camera_ = &camera, config_ = config, tileSize_ = tileSize;
+  out.base = std::move(level0);
+  sizeLevels(out, config);
+  tileLevels_ = std::min(config.levels - 1, std::countr_zero(unsigned(tileSize)));
+  tilesX_ = (out.base->width + tileSize - 1) / tileSize;
+  tilesY_ = (out.base->height + tileSize - 1) / tileSize;
+  const size_t tiles = size_t(tilesX_) * size_t(tilesY_);
+  tileIntervals_.resize(tiles * size_t(tileLevels_));
+  tileMs_.assign(tiles, 0.0);
+  for (int L = 1; L <= tileLevels_; ++L) {
+    PyramidLevel& lvl = out.levels[size_t(L)];
+    const size_t cells = size_t(lvl.width) * size_t(lvl.height);
+    checkLevelMemory(lvl, L, lvl.intervals.size());
+    lvl.offset.resize(cells + 1);  // per-cell counts until finish() turns them into offsets
+    lvl.cells.resize(cells);
+  }
+}
+
+void PyramidTileBuilder::tile(int x0, int y0, int x1, int y1) {
+  LT_CHECK(x0 % tileSize_ == 0 && y0 % tileSize_ == 0, x0, y0);
+  const auto start = std::chrono::steady_clock::now();
+  const IntervalPyramid& p = *out_;
+  const size_t t = size_t(y0 / tileSize_) * size_t(tilesX_) + size_t(x0 / tileSize_);
+  // Per level, the offset of each of the tile's cells in its tile storage (cell order within the
+  // tile), so that the level above finds its children's intervals.
+  thread_local std::vector<uint32_t> local[2];
+  thread_local std::vector<Interval> children, scratch;
+  static const std::vector<Interval> none;
+  int childX0 = x0, childX1 = x1, childY0 = y0;
+  for (int L = 1; L <= tileLevels_; ++L) {
+    PyramidLevel& lvl = out_->levels[size_t(L)];
+    const int cx0 = x0 >> L, cx1 = x1 >> L, cy0 = y0 >> L, cy1 = y1 >> L;
+    const int childW = childX1 - childX0 + 1;
+    const std::vector<Interval>& below = L > 1 ? tileIntervals_[t * size_t(tileLevels_) + size_t(L - 2)] : none;
+    const std::vector<uint32_t>& belowOffset = local[(L + 1) & 1];
+    std::vector<uint32_t>& offset = local[L & 1];
+    std::vector<Interval>& mine = tileIntervals_[t * size_t(tileLevels_) + size_t(L - 1)];
+    mine.clear();
+    offset.clear();
+    auto childRange = [&](int cx, int cy) {
+      const size_t c = size_t(cy - childY0) * size_t(childW) + size_t(cx - childX0);
+      return std::pair{below.begin() + belowOffset[c], below.begin() + belowOffset[c + 1]};
+    };
+    const float tau = tauPerDepth(*camera_, config_, L);
+    for (int y = cy0; y <= cy1; ++y)
+      for (int x = cx0; x <= cx1; ++x) {
+        const size_t before = mine.size();
+        offset.push_back(uint32_t(before));
+        mergeCell(p, L, x, y, tau, childRange, children, mine);
+        lvl.offset[lvl.cellIndex(x, y)] = uint32_t(mine.size() - before);
+        lvl.cells[lvl.cellIndex(x, y)] = toCoarseCell(mine.data() + before, mine.data() + mine.size(), scratch);
+      }
+    offset.push_back(uint32_t(mine.size()));
+    childX0 = cx0, childX1 = cx1, childY0 = cy0;
+  }
+  tileMs_[t] = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
+}
+
+void PyramidTileBuilder::finish(int threads) {
+  const auto start = std::chrono::steady_clock::now();
+  IntervalPyramid& p = *out_;
+  for (int L = 1; L <= tileLevels_; ++L) {
+    PyramidLevel& lvl = p.levels[size_t(L)];
+    // Counts → offsets in cell order (the CSR of the global build).
+    size_t total = 0;
+    for (size_t c = 0, cells = lvl.offset.size() - 1; c < cells; ++c) {
+      const uint32_t n = lvl.offset[c];
+      lvl.offset[c] = uint32_t(total);
+      total += n;
+    }
+    checkLevelMemory(lvl, L, total);
+    lvl.offset.back() = uint32_t(total);
+    lvl.intervals.resize(total);
+    // Each tile's intervals, already in cell order within the tile, to their cells' places.
+    parallelFor(size_t(0), size_t(tilesX_) * size_t(tilesY_), [&](size_t t) {
+      const int x0 = int(t % size_t(tilesX_)) * tileSize_, y0 = int(t / size_t(tilesX_)) * tileSize_;
+      const int cx0 = x0 >> L, cy0 = y0 >> L;
+      const int cx1 = (std::min(x0 + tileSize_, p.base->width) - 1) >> L, cy1 = (std::min(y0 + tileSize_, p.base->height) - 1) >> L;
+      const Interval* from = tileIntervals_[t * size_t(tileLevels_) + size_t(L - 1)].data();
+      for (int y = cy0; y <= cy1; ++y) {
+        const size_t first = lvl.offset[lvl.cellIndex(cx0, y)], last = lvl.offset[lvl.cellIndex(cx1, y) + 1];
+        std::copy(from, from + (last - first), lvl.intervals.begin() + std::ptrdiff_t(first));
+        from += last - first;
+      }
+    });
+  }
+  for (int L = tileLevels_ + 1; L < config_.levels; ++L) buildLevel(p, *camera_, config_, L);
+  double tilesMs = 0.0;
+  for (double ms : tileMs_) tilesMs += ms;
+  finishMs_ = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
+  p.buildMs = finishMs_ + tilesMs / std::max(1, threads);
+  out_ = nullptr, camera_ = nullptr;  // the frame may move; begin() points them again
+}
+
+size_t PyramidTileBuilder::scratchBytes() const {
+  size_t bytes = tileMs_.capacity() * sizeof(double);
+  for (const auto& v : tileIntervals_) bytes += v.capacity() * sizeof(Interval);
+  return bytes;
 }
 
 IntervalPyramid buildIntervalPyramid(IntervalLayers base, const Camera& camera, const PyramidConfig& config) {
