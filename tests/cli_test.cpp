@@ -308,7 +308,14 @@ TEST(CliGeobench, StatsKeysAndAgreement) {
         EXPECT_GE(j["geobench"][t][k].get<double>(), 0.9999) << t << " " << k;
       }
     }
-  EXPECT_TRUE(fs::exists(dir / "g/geobench_sweep.csv"));
+  // Every λ setting of the sweep answers like Embree (the speed is the README's to compare).
+  std::ifstream sweep(dir / "g/geobench_sweep.csv");
+  std::string line;
+  ASSERT_TRUE(std::getline(sweep, line));
+  EXPECT_EQ(line.substr(line.rfind(',') + 1), "agreement_min");
+  int settings = 0;
+  for (; std::getline(sweep, line); ++settings) EXPECT_GE(std::stod(line.substr(line.rfind(',') + 1)), 0.9999) << line;
+  EXPECT_EQ(settings, 7 * 4);
   test::TempDir clean;
   expectRejected({"geobench " + kDefault + " --lambda1 0", "--lambda1 0"}, clean);
 }
