@@ -388,6 +388,28 @@ TEST(Capture, TheFramesPyramidIsBuiltByTheCaptureAndReused) {
   EXPECT_EQ(f.pyramid, nullptr);
 }
 
+// The prefix sums that place list nodes and pyramid intervals run in parallel blocks: they equal
+// the serial loop for any length (block edges included), in place or not, capped or not.
+TEST(Capture, ParallelPrefixSumEqualsTheSerialOne) {
+  std::mt19937_64 rng(test::testSeed() + 10);
+  for (size_t n : {size_t(0), size_t(1), size_t(65535), size_t(65536), size_t(65537), size_t(300001)})
+    for (uint64_t cap : {uint64_t(0xFFFFFFFFu), uint64_t(1000000)}) {
+      std::vector<uint32_t> in(n);
+      for (uint32_t& v : in) v = uint32_t(rng() % 40);
+      std::vector<uint32_t> want(n);
+      uint64_t total = 0;
+      for (size_t i = 0; i < n; ++i) want[i] = uint32_t(std::min(total, cap)), total += in[i];
+      std::vector<uint32_t> out(n, 7);
+      EXPECT_EQ(parallelExclusiveScan(in.data(), out.data(), n, cap), total) << n;
+      EXPECT_EQ(out, want) << n << " cap " << cap;
+      EXPECT_EQ(parallelExclusiveScan(in.data(), in.data(), n, cap), total) << n;  // in place
+      EXPECT_EQ(in, want) << n << " cap " << cap << " in place";
+      if (n == 300001) {
+        EXPECT_GT(total, cap == 1000000 ? cap : 0) << "the cap must be reached to be tested";
+      }
+    }
+}
+
 TEST(Capture, OptionsThatNeedWholeListsAreRefused) {
   const Scene s = tieSoup(1);
   const Camera cam(test::originCamera(), 32, 32);

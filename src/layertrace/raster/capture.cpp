@@ -224,11 +224,7 @@ void LayerCapture::captureWithLists(const Scene& scene, const Camera& camera, co
   // Exact-size storage: pixel p's nodes start at the prefix sum of the counts before it.
   std::vector<uint32_t>& offset = setup.listOffset;
   offset.resize(pixels);
-  uint64_t total = 0;
-  for (size_t p = 0; p < pixels; ++p) {
-    offset[p] = uint32_t(std::min<uint64_t>(total, kMaxPoolFragments));
-    total += lists.complexity[p];
-  }
+  const uint64_t total = parallelExclusiveScan(lists.complexity.data(), offset.data(), pixels, kMaxPoolFragments);
   if (total > kMaxPoolFragments)
     inputError("scene ", scene.name, ": ", total, " fragments exceed the 32-bit index limit of ", kMaxPoolFragments);
   if (total > lists.nodes.capacity())

@@ -306,13 +306,8 @@ void PyramidTileBuilder::finish(int threads) {
   IntervalPyramid& p = *out_;
   for (int L = 1; L <= tileLevels_; ++L) {
     PyramidLevel& lvl = p.levels[size_t(L)];
-    // Counts → offsets in cell order (the CSR of the global build).
-    size_t total = 0;
-    for (size_t c = 0, cells = lvl.offset.size() - 1; c < cells; ++c) {
-      const uint32_t n = lvl.offset[c];
-      lvl.offset[c] = uint32_t(total);
-      total += n;
-    }
+    // Counts → offsets in cell order (the CSR of the global build), in place.
+    const size_t total = parallelExclusiveScan(lvl.offset.data(), lvl.offset.data(), lvl.offset.size() - 1, 0xFFFFFFFFull);
     checkLevelMemory(lvl, L, total);
     lvl.offset.back() = uint32_t(total);
     lvl.intervals.resize(total);

@@ -8,7 +8,10 @@
 // other, so a race between two iterations is still reported. Elsewhere they are tbb::parallel_for.
 #pragma once
 
+#include <algorithm>
 #include <cstddef>
+#include <cstdint>
+#include <vector>
 
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>
@@ -67,6 +70,32 @@ void parallelFor(Index first, Index last, const Body& body) {
     detail::bodyEnd();
   });
   detail::loopEnd();
+}
+
+/// Exclusive prefix sum in parallel: out[i] = min(Σ_{j<i} in[j], cap) for i in [0, n); returns
+/// the whole sum (not capped). `out` may be `in` (each element is read before it is written).
+/// Two passes over blocks — their sums in parallel, a short serial scan over the block sums, then
+/// each block's own scan in parallel — with the serial loop's result, bit for bit.
+template <class In, class Out>
+uint64_t parallelExclusiveScan(const In* in, Out* out, size_t n, uint64_t cap) {
+  constexpr size_t kBlock = size_t(1) << 16;
+  const size_t blocks = (n + kBlock - 1) / kBlock;
+  std::vector<uint64_t> start(blocks + 1, 0);
+  parallelFor(size_t(0), blocks, [&](size_t b) {
+    uint64_t sum = 0;
+    for (size_t i = b * kBlock, end = std::min(n, (b + 1) * kBlock); i < end; ++i) sum += uint64_t(in[i]);
+    start[b + 1] = sum;
+  });
+  for (size_t b = 0; b < blocks; ++b) start[b + 1] += start[b];
+  parallelFor(size_t(0), blocks, [&](size_t b) {
+    uint64_t total = start[b];
+    for (size_t i = b * kBlock, end = std::min(n, (b + 1) * kBlock); i < end; ++i) {
+      const uint64_t v = uint64_t(in[i]);
+      out[i] = Out(std::min(total, cap));
+      total += v;
+    }
+  });
+  return start[blocks];
 }
 
 }  // namespace lt
