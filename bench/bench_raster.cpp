@@ -85,6 +85,23 @@ void BM_Pyramid(benchmark::State& state) {
   }
 }
 
+// The frame's capture as the commands run it (level 0 written per tile), without (0) and with (1)
+// levels 1… merged per tile (FrameOptions::pyramid, what hssr reads): the difference of the two
+// is the per-tile pyramid's wall time, and its scaling from 1 to 2 threads.
+void BM_FrameCapture(benchmark::State& state) {
+  tbb::global_control gc(tbb::global_control::max_allowed_parallelism, size_t(state.range(0)));
+  lt::Frame& f = fzk();
+  lt::FrameOptions o;
+  o.width = f.camera.width(), o.height = f.camera.height();
+  if (state.range(1)) o.pyramid = lt::PyramidConfig{};
+  lt::rasterizeFrame(o, f);  // warm-up: sizes every buffer
+  for (auto _ : state) {
+    lt::rasterizeFrame(o, f);
+    benchmark::DoNotOptimize(f.layers.count.data());
+  }
+  if (f.pyramid) state.counters["pyramid_ms"] = f.pyramid->buildMs;
+}
+
 void BM_EmbreeAllHits(benchmark::State& state) {
   tbb::global_control gc(tbb::global_control::max_allowed_parallelism, size_t(state.range(0)));
   lt::Frame& f = fzk();
@@ -111,6 +128,7 @@ void BM_EmbreeAllHits(benchmark::State& state) {
 BENCHMARK(BM_RasterSort)->Arg(1)->Arg(2)->Unit(benchmark::kMillisecond)->UseRealTime()->MinTime(1.0);
 BENCHMARK(BM_TileCapture)->Arg(1)->Arg(2)->Unit(benchmark::kMillisecond)->UseRealTime()->MinTime(1.0);
 BENCHMARK(BM_Pyramid)->Arg(1)->Arg(2)->Unit(benchmark::kMillisecond)->UseRealTime()->MinTime(1.0);
+BENCHMARK(BM_FrameCapture)->Args({1, 0})->Args({1, 1})->Args({2, 0})->Args({2, 1})->Unit(benchmark::kMillisecond)->UseRealTime()->MinTime(1.0);
 BENCHMARK(BM_EmbreeAllHits)->Arg(1)->Arg(2)->Unit(benchmark::kMillisecond)->UseRealTime()->MinTime(1.0);
 
 }  // namespace

@@ -345,47 +345,59 @@ TEST(Capture, APyramidBuiltPerTileEqualsTheGlobalBuild) {
   }
 }
 
-// Through the frame: the capture builds the pyramid FrameOptions::pyramid asks for, an hssr
-// tracer of that configuration uses it (one of another configuration builds its own), and the
-// next view reuses its memory.
+// Through the frame: the capture builds the pyramid FrameOptions::pyramid asks for — after the
+// pass or per tile — an hssr tracer of that configuration uses it (one of another configuration
+// builds its own), and the next view reuses its memory.
 TEST(Capture, TheFramesPyramidIsBuiltByTheCaptureAndReused) {
-  Frame f;
-  f.scene = tieSoup(test::testSeed() + 9);
-  CameraDesc view = test::originCamera(60.0f, 0.3f, 40.0f);
-  f.camera = Camera(view, 203, 117);
-  f.thickness = 0.05f;
-  FrameOptions o;
-  o.width = 203, o.height = 117, o.thickness = 0.05f;
-  o.pyramid = PyramidConfig{5, 25.0f};
-  rasterizeFrame(o, f);
-  ASSERT_TRUE(f.pyramid);
-  EXPECT_TRUE(samePyramid(*f.pyramid, buildIntervalPyramid(f.layers, f.camera, *o.pyramid)));
-  EXPECT_EQ(f.pyramidFor(*o.pyramid), f.pyramid);
-  EXPECT_EQ(f.pyramidFor(PyramidConfig{5, 10.0f}), nullptr);
-  EXPECT_EQ(f.pyramidFor(PyramidConfig{4, 25.0f}), nullptr);
-  TracerOptions to;
-  to.pyramid = *o.pyramid;
-  EXPECT_EQ(buildTracer("hssr", f, to).pyramid, f.pyramid);
-  to.pyramid.tau = 10.0f;
-  EXPECT_NE(buildTracer("hssr", f, to).pyramid, f.pyramid);
-  const void* cells = f.pyramid->levels[1].cells.data();
-  const void* intervals = f.level0()->slots.data();
-  view.eye = {-0.4f, 0.1f, 0.2f};
-  f.camera = Camera(view, 203, 117);
-  rasterizeFrame(o, f);
-  EXPECT_EQ(f.pyramid->levels[1].cells.data(), cells);
-  EXPECT_EQ(f.level0()->slots.data(), intervals);
-  EXPECT_TRUE(samePyramid(*f.pyramid, buildIntervalPyramid(f.layers, f.camera, *o.pyramid)));
-  // A tracer still holding the pyramid keeps it: the next capture builds another.
-  const BuiltTracer held = buildTracer("hssr", f, TracerOptions{});
-  const std::shared_ptr<IntervalPyramid> before = f.pyramid;
-  rasterizeFrame(o, f);
-  EXPECT_NE(f.pyramid, before);
-  EXPECT_EQ(held.pyramid, before);
-  // Whole-list rules rewrite the layers after the pass: no pyramid from the tiles then.
-  o.adaptiveThickness = true;
-  rasterizeFrame(o, f);
-  EXPECT_EQ(f.pyramid, nullptr);
+  for (bool perTile : {false, true}) {
+    Frame f;
+    f.scene = tieSoup(test::testSeed() + 9);
+    CameraDesc view = test::originCamera(60.0f, 0.3f, 40.0f);
+    f.camera = Camera(view, 203, 117);
+    f.thickness = 0.05f;
+    FrameOptions o;
+    o.width = 203, o.height = 117, o.thickness = 0.05f;
+    o.pyramid = PyramidConfig{5, 25.0f};
+    o.pyramidPerTile = perTile;
+    rasterizeFrame(o, f);
+    ASSERT_TRUE(f.pyramid);
+    EXPECT_TRUE(samePyramid(*f.pyramid, buildIntervalPyramid(f.layers, f.camera, *o.pyramid))) << perTile;
+    EXPECT_EQ(f.pyramidFor(*o.pyramid), f.pyramid);
+    EXPECT_EQ(f.pyramidFor(PyramidConfig{5, 10.0f}), nullptr);
+    EXPECT_EQ(f.pyramidFor(PyramidConfig{4, 25.0f}), nullptr);
+    TracerOptions to;
+    to.pyramid = *o.pyramid;
+    EXPECT_EQ(buildTracer("hssr", f, to).pyramid, f.pyramid);
+    to.pyramid.tau = 10.0f;
+    EXPECT_NE(buildTracer("hssr", f, to).pyramid, f.pyramid);
+    const void* cells = f.pyramid->levels[1].cells.data();
+    const void* intervals = f.level0()->slots.data();
+    view.eye = {-0.4f, 0.1f, 0.2f};
+    f.camera = Camera(view, 203, 117);
+    rasterizeFrame(o, f);
+    EXPECT_EQ(f.pyramid->levels[1].cells.data(), cells) << perTile;
+    EXPECT_EQ(f.level0()->slots.data(), intervals) << perTile;
+    EXPECT_TRUE(samePyramid(*f.pyramid, buildIntervalPyramid(f.layers, f.camera, *o.pyramid))) << perTile;
+    // A tracer still holding the pyramid keeps it: the next capture builds another.
+    const BuiltTracer held = buildTracer("hssr", f, TracerOptions{});
+    const std::shared_ptr<IntervalPyramid> before = f.pyramid;
+    rasterizeFrame(o, f);
+    EXPECT_NE(f.pyramid, before);
+    EXPECT_EQ(held.pyramid, before);
+    // Whole-list rules rewrite the layers after the pass: the pyramid follows them.
+    o.adaptiveThickness = true;
+    rasterizeFrame(o, f);
+    ASSERT_TRUE(f.pyramid);
+    EXPECT_TRUE(samePyramid(*f.pyramid, buildIntervalPyramid(f.layers, f.camera, *o.pyramid))) << perTile;
+    // The reference pipeline too.
+    o.adaptiveThickness = false, o.referenceCapture = true;
+    rasterizeFrame(o, f);
+    ASSERT_TRUE(f.pyramid);
+    EXPECT_TRUE(samePyramid(*f.pyramid, buildIntervalPyramid(f.layers, f.camera, *o.pyramid))) << perTile;
+    o.pyramid.reset();
+    rasterizeFrame(o, f);
+    EXPECT_EQ(f.pyramid, nullptr);
+  }
 }
 
 // The prefix sums that place list nodes and pyramid intervals run in parallel blocks: they equal

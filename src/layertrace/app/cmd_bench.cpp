@@ -278,7 +278,7 @@ int runBench(const BenchOptions& o) {
     // the default), "tiles+lists" (the same pass also writing exact-size lists, as --verify
     // needs) and "reference" (every fragment linked into lists in a pool, then sorted). Each
     // row: warm-up discarded, medians of --repeat.
-    t.columns = {"pipeline", "threads", "raster_ms", "sort_ms", "capture_ms", "pyramid_ms", "fragments", "mfragments_per_s",
+    t.columns = {"pipeline", "threads", "raster_ms", "sort_ms", "capture_ms", "pyramid_ms", "pyramid_per_tile_ms", "fragments", "mfragments_per_s",
                  "embree_allhit_ms", "embree_hits", "capture_speedup_vs_embree", "lists_bytes", "arrays_bytes", "pyramid_bytes",
                  "scratch_bytes"};
     const EmbreeScene embree(frame.scene, EmbreeScene::Mode::Capture);
@@ -294,34 +294,32 @@ int runBench(const BenchOptions& o) {
         FrameOptions fo = o.run.frame;
         fo.captureLists = std::string(pipeline) == "tiles+lists";
         fo.referenceCapture = std::string(pipeline) == "reference";
-        std::vector<double> rs, ss;
+        const bool tiles = std::string(pipeline) == "tiles";
+        // "tiles" also runs alternately with the pass merging levels 1… per tile
+        // (FrameOptions::pyramidPerTile); that pyramid's cost is the difference of the two
+        // medians — its marginal wall time. (IntervalPyramid::buildMs, the merges' own time,
+        // misses that the merges and the rasterizer evict each other's cache lines: at one
+        // thread it said 8.6 ms where the pass grew by 16.5 ms on FZK-Haus.)
+        FrameOptions perTile = fo;
+        perTile.pyramid = o.options.pyramid, perTile.pyramidPerTile = true;
+        std::vector<double> rs, ss, ps;
         rasterizeFrame(fo, frame);  // warm-up, discarded
-        for (int i = 0; i < o.repeat; ++i) rasterizeFrame(fo, frame), rs.push_back(frame.rasterMs), ss.push_back(frame.sortMs);
-        const double capture = median(rs) + median(ss);
-        double pyramid = 0.0;
-        size_t pyramidBytes = 0, scratchBytes = frame.capture.scratchBytes();
-        if (std::string(pipeline) == "tiles") {
-          // The tile pass also merging levels 1… per tile (FrameOptions::pyramid, what hssr
-          // runs on): the pyramid's time is its tiles' merge time over the threads plus the
-          // layout in cell order (IntervalPyramid::buildMs; the difference of two captures'
-          // medians, with and without, was tried and drowned in this machine's noise).
-          FrameOptions withPyramid = fo;
-          withPyramid.pyramid = o.options.pyramid;
-          std::vector<double> ps;
-          rasterizeFrame(withPyramid, frame);  // warm-up, discarded
-          for (int i = 0; i < o.repeat; ++i) rasterizeFrame(withPyramid, frame), ps.push_back(frame.pyramid->buildMs);
-          pyramid = median(ps);
-          pyramidBytes = frame.pyramid->memoryBytes();
-          scratchBytes += frame.pyramidTiles.scratchBytes();
-        } else {
-          // Levels 1… over the level 0 the capture wrote (inside capture_ms), rebuilt into the
-          // same memory, as frame after frame.
-          IntervalPyramid pyr;
-          buildIntervalPyramid(frame.level0(), frame.camera, o.options.pyramid, pyr);  // warm-up, discarded
-          pyramid = medianMs(o.repeat, [&] { buildIntervalPyramid(frame.level0(), frame.camera, o.options.pyramid, pyr); });
-          pyramidBytes = pyr.memoryBytes();
+        if (tiles) rasterizeFrame(perTile, frame);
+        for (int i = 0; i < o.repeat; ++i) {
+          rasterizeFrame(fo, frame), rs.push_back(frame.rasterMs), ss.push_back(frame.sortMs);
+          if (tiles) rasterizeFrame(perTile, frame), ps.push_back(frame.rasterMs + frame.pyramid->buildMs);
         }
-        t.rows.push_back({pipeline, n, median(rs), median(ss), capture, pyramid, frame.lists.generated,
+        const double capture = median(rs) + median(ss);
+        const double pyramidPerTile = tiles ? std::max(0.0, median(ps) - median(rs)) : 0.0;
+        size_t scratchBytes = frame.capture.scratchBytes() + (tiles ? frame.pyramidTiles.scratchBytes() : 0);
+        // The pyramid as the commands build it by default: levels 1… over the level 0 the
+        // capture wrote (inside capture_ms), rebuilt into the same memory, as frame after frame.
+        rasterizeFrame(fo, frame);
+        IntervalPyramid pyr;
+        buildIntervalPyramid(frame.level0(), frame.camera, o.options.pyramid, pyr);  // warm-up, discarded
+        const double pyramid = medianMs(o.repeat, [&] { buildIntervalPyramid(frame.level0(), frame.camera, o.options.pyramid, pyr); });
+        const size_t pyramidBytes = pyr.memoryBytes();
+        t.rows.push_back({pipeline, n, median(rs), median(ss), capture, pyramid, pyramidPerTile, frame.lists.generated,
                           double(frame.lists.generated) / capture * 1e-3, allHit, hits, allHit / capture, frame.lists.memoryBytes(),
                           frame.layers.memoryBytes(), pyramidBytes, scratchBytes});
       }

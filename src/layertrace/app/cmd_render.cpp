@@ -175,7 +175,7 @@ int runRender(const RenderOptions& o) {
   validateEffectConfig(o.effect);
   const auto t0 = std::chrono::steady_clock::now();
   FrameOptions fo = o.run.frame;
-  if (o.tracer == "hssr") fo.pyramid = o.tracers.pyramid;  // built during the capture, tile by tile
+  if (o.tracer == "hssr") fo.pyramid = o.tracers.pyramid;  // built with the capture (Frame::pyramid)
   Frame frame = buildFrame(fo);
   const BuiltTracer built = buildTracer(o.tracer, frame, o.tracers);
   BuiltTracer oracle;

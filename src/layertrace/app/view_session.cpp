@@ -84,7 +84,7 @@ ViewResult ViewSession::render(const ViewRequest& q) {
     fo.height = std::max(1, q.height / out.scale);
     fo.layers = q.layers;
     if (!options_.run.frame.thickness) fo.thicknessPx = q.thicknessPx;
-    if (q.tracer == "hssr") fo.pyramid = q.tracers.pyramid;  // levels 1… per tile, reused frame to frame
+    if (q.tracer == "hssr") fo.pyramid = q.tracers.pyramid;  // built with the capture into memory reused frame to frame
     validateFrameOptions(fo);
     setFrameView(fo, q.camera, frame_);
     rasterizeFrame(fo, frame_);

@@ -83,6 +83,19 @@ void setFrameView(const FrameOptions& o, const CameraDesc& desc, Frame& frame) {
   frame.thicknessPerDepth = o.thickness ? 0.0f : o.thicknessPx.value_or(kDefaultThicknessPx) / frame.camera.focal();
 }
 
+namespace {
+/// FrameOptions::pyramid built after the capture over the frame's level 0, into the frame's own
+/// pyramid (its memory reused from frame to frame), or none.
+void finishPyramid(const FrameOptions& o, Frame& frame) {
+  if (!o.pyramid) {
+    frame.pyramid.reset();
+    return;
+  }
+  buildIntervalPyramid(frame.intervals, frame.camera, *o.pyramid, *frame.pyramid);
+  frame.pyramidConfig = *o.pyramid;
+}
+}  // namespace
+
 bool needsFragmentLists(const FrameOptions& o) {
   return o.captureLists || o.referenceCapture || o.pool != 0 || o.adaptiveThickness || o.minSeparation > 0.0f;
 }
@@ -113,15 +126,12 @@ void rasterizeFrame(const FrameOptions& o, Frame& frame) {
     if (!frame.intervals || frame.intervals.use_count() > 1) frame.intervals = std::make_shared<IntervalLayers>();
     IntervalLayers& level0 = *frame.intervals;
     sizeIntervalLayers(frame.camera.width(), frame.camera.height(), lc.k, level0);
-    // Levels 1… per tile too, unless a whole-list rule rewrites the layers after the pass.
-    const bool tilePyramid = o.pyramid && !lc.adaptiveThickness && !(lc.minSeparation > 0.0f);
-    if (tilePyramid) {
-      if (!frame.pyramid) frame.pyramid = std::make_shared<IntervalPyramid>();
-      frame.pyramidTiles.begin(frame.intervals, frame.camera, *o.pyramid, rc.tileSize, *frame.pyramid);
-      frame.pyramidConfig = *o.pyramid;
-    } else {
-      frame.pyramid.reset();
-    }
+    // Levels 1… per tile too when asked, unless a whole-list rule rewrites the layers after
+    // the pass (then, as by default, they are built after it: finishPyramid).
+    const bool tilePyramid = o.pyramid && o.pyramidPerTile && !lc.adaptiveThickness && !(lc.minSeparation > 0.0f);
+    if (o.pyramid && !frame.pyramid) frame.pyramid = std::make_shared<IntervalPyramid>();
+    if (!o.pyramid) frame.pyramid.reset();
+    if (tilePyramid) frame.pyramidTiles.begin(frame.intervals, frame.camera, *o.pyramid, rc.tileSize, *frame.pyramid);
     const TileDone writeLevel0 = [&](int x0, int y0, int x1, int y1) {
       writeIntervals(frame.layers, x0, y0, x1, y1, level0);
       if (tilePyramid) frame.pyramidTiles.tile(x0, y0, x1, y1);
@@ -152,13 +162,17 @@ void rasterizeFrame(const FrameOptions& o, Frame& frame) {
       // is reported as the hierarchy's (IntervalPyramid::buildMs), not as raster time.
       frame.pyramidTiles.finish(tbb::this_task_arena::max_concurrency());
       frame.rasterMs = std::max(0.0, frame.rasterMs - (frame.pyramid->buildMs - frame.pyramidTiles.finishMs()));
+      frame.pyramidConfig = *o.pyramid;
+    } else {
+      finishPyramid(o, frame);
     }
     return;
   }
   // The reference pipeline: a pool (fixed by --pool N, overflow counted exactly; or 8 fragments
   // per pixel, grown once when it overflows), then sortAndTruncate.
   frame.capturePipeline = "reference";
-  frame.pyramid.reset();
+  if (frame.pyramid && frame.pyramid.use_count() == 1) frame.pyramid->base.reset();
+  else frame.pyramid.reset();
   frame.lists = rasterize(frame.scene, frame.camera, rc, &frame.raster);
   frame.rasterMs = frame.raster.ms;
   if (frame.lists.lost() > 0)
@@ -169,6 +183,8 @@ void rasterizeFrame(const FrameOptions& o, Frame& frame) {
   frame.layers = sortAndTruncate(frame.lists, lc);
   frame.intervals = std::make_shared<IntervalLayers>(makeIntervalLayers(frame.layers, frame.layers.k));
   frame.sortMs = msSince(t0);
+  if (o.pyramid && !frame.pyramid) frame.pyramid = std::make_shared<IntervalPyramid>();
+  finishPyramid(o, frame);
 }
 
 Frame buildFrame(const FrameOptions& o) {

@@ -53,10 +53,15 @@ struct FrameOptions {
   /// into lists in a pool through an atomic counter, then sorted): what `--pool` selects, and
   /// what tests and `bench --experiment capture` compare the tile-local capture with.
   bool referenceCapture = false;
-  /// Build this interval pyramid during the tile-local capture, tile by tile while each tile is
-  /// in cache (issue 13 §2); an hssr tracer with the same configuration uses it instead of
-  /// building its own. Set by the commands whose tracers read it; unset, nothing is built.
+  /// Build this interval pyramid with the capture, into memory the frame keeps from frame to
+  /// frame; an hssr tracer with the same configuration uses it instead of building its own. Set
+  /// by the commands whose tracers read it; unset, nothing is built.
   std::optional<PyramidConfig> pyramid;
+  /// Merge its levels 1… inside the tile pass, tile by tile while each tile is in cache
+  /// (PyramidTileBuilder, issue 13 §2), instead of over the whole level 0 after it. Off by
+  /// default: measured, it costs the same wall time at two threads and 30–60 % more at one
+  /// (README "Capture: two pipelines, the same bytes"). Tile-local capture only.
+  bool pyramidPerTile = false;
   std::vector<glm::vec4> lights;       ///< --light x,y,z[,intensity] (repeatable)
 };
 
