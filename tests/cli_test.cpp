@@ -260,6 +260,9 @@ TEST(CliCompare, WritesTheCompareSchemaImagesAndReport) {
       EXPECT_TRUE(c.contains(k)) << t << " " << k;
   }
   EXPECT_EQ(j["compare"]["hssr"]["exhaustive_mismatch"], 0);
+  // Embree in 16-wide packets traced the same rays with the same answers (issue 14 §4).
+  EXPECT_GT(j["reference"]["packet16_trace_ms"].get<double>(), 0.0);
+  EXPECT_EQ(j["reference"]["packet16_traced_rmse"].get<double>(), 0.0);
   EXPECT_GT(j["compare"]["ssr"]["iterations_mean"].get<double>(), j["compare"]["hssr"]["iterations_mean"].get<double>());
   for (const char* f : {"reference.png", "ssr.png", "hssr_classes.png", "side_by_side.png"}) EXPECT_TRUE(fs::exists(dir / ("c/" + std::string(f)))) << f;
   const std::string html = slurp(dir / "r/index.html");

@@ -66,6 +66,30 @@ TEST(TraceInterface, BatchPathsAnswerAsTheOneRayPathBitForBit) {
   }
 }
 
+// Issue 14 §4: plain Embree in 16-wide packets (compare's packet baseline) answers the same rays
+// as one rtcIntersect1 per ray, batches of any length (partial packets) included.
+TEST(TraceInterface, EmbreePacketsAnswerAsSingleRays) {
+  const Frame f = defaultFrame();
+  std::vector<Ray> rays = test::sampleRays(f, 3000, test::testSeed() + 1);
+  for (size_t i = 0; i < rays.size(); i += 3) rays[i].maxDistance *= 0.05f;  // each ray its own tfar
+  const BuiltTracer single = buildTracer("embree", f, TracerOptions{});
+  const EmbreePacketTracer packets(f.scene, f.camera, *single.embree);
+  std::vector<TraceHit> batch(rays.size());
+  for (size_t b = 0; b < rays.size(); b += 37) {
+    const size_t n = std::min<size_t>(37, rays.size() - b);
+    packets.traceBatch(std::span<const Ray>(&rays[b], n), std::span<TraceHit>(&batch[b], n), {});
+  }
+  size_t hits = 0, differ = 0;
+  for (size_t i = 0; i < rays.size(); ++i) {
+    RayCounters c;
+    const TraceHit one = single.tracer->trace(rays[i], c);
+    hits += one.hit;
+    differ += !sameHit(one, batch[i]);
+  }
+  EXPECT_GT(hits, rays.size() / 4);
+  EXPECT_EQ(differ, 0u) << "of " << rays.size() << " rays";
+}
+
 /// Records every event, and re-traces its ray with the one-ray path to check the answer.
 class RecordingObserver : public RayObserver {
  public:

@@ -159,7 +159,7 @@ namespace {
 
 /// rtcIntersect4/8/16 on one packet of N rays.
 template <int N, class RayHitN>
-void intersectPacket(RTCScene scene, const glm::vec3* o, const glm::vec3* d, int n, float tnear, float tfar, GeoHit* out) {
+void intersectPacket(RTCScene scene, const glm::vec3* o, const glm::vec3* d, int n, const float* tnear, const float* tfar, GeoHit* out) {
   alignas(64) int valid[N];
   alignas(64) RayHitN rh{};
   for (int i = 0; i < N; ++i) {
@@ -167,7 +167,7 @@ void intersectPacket(RTCScene scene, const glm::vec3* o, const glm::vec3* d, int
     valid[i] = i < n ? -1 : 0;
     rh.ray.org_x[i] = o[j].x, rh.ray.org_y[i] = o[j].y, rh.ray.org_z[i] = o[j].z;
     rh.ray.dir_x[i] = d[j].x, rh.ray.dir_y[i] = d[j].y, rh.ray.dir_z[i] = d[j].z;
-    rh.ray.tnear[i] = tnear, rh.ray.tfar[i] = tfar;
+    rh.ray.tnear[i] = tnear[j], rh.ray.tfar[i] = tfar[j];
     rh.ray.mask[i] = 0xFFFFFFFFu, rh.ray.flags[i] = 0;
     rh.hit.geomID[i] = RTC_INVALID_GEOMETRY_ID;
   }
@@ -189,13 +189,23 @@ void intersectPacket(RTCScene scene, const glm::vec3* o, const glm::vec3* d, int
 
 void EmbreeScene::intersectPackets(const glm::vec3* o, const glm::vec3* d, size_t n, float tnear, float tfar, int width,
                                    GeoHit* out) const {
+  float nears[16], fars[16];
+  std::fill(nears, nears + 16, tnear);
+  std::fill(fars, fars + 16, tfar);
   const FlushDenormalsScope denormals;
   for (size_t b = 0; b < n; b += size_t(width)) {
     const int m = int(std::min<size_t>(size_t(width), n - b));
-    if (width == 4) intersectPacket<4, RTCRayHit4>(impl_->scene, o + b, d + b, m, tnear, tfar, out + b);
-    else if (width == 8) intersectPacket<8, RTCRayHit8>(impl_->scene, o + b, d + b, m, tnear, tfar, out + b);
-    else intersectPacket<16, RTCRayHit16>(impl_->scene, o + b, d + b, m, tnear, tfar, out + b);
+    if (width == 4) intersectPacket<4, RTCRayHit4>(impl_->scene, o + b, d + b, m, nears, fars, out + b);
+    else if (width == 8) intersectPacket<8, RTCRayHit8>(impl_->scene, o + b, d + b, m, nears, fars, out + b);
+    else intersectPacket<16, RTCRayHit16>(impl_->scene, o + b, d + b, m, nears, fars, out + b);
   }
+}
+
+void EmbreeScene::intersectPackets(const glm::vec3* o, const glm::vec3* d, const float* tnear, const float* tfar, size_t n,
+                                   GeoHit* out) const {
+  const FlushDenormalsScope denormals;
+  for (size_t b = 0; b < n; b += 16)
+    intersectPacket<16, RTCRayHit16>(impl_->scene, o + b, d + b, int(std::min<size_t>(16, n - b)), tnear + b, tfar + b, out + b);
 }
 
 void EmbreeScene::allHits(glm::vec3 o, glm::vec3 d, float tnear, float tfar, std::vector<GeoHit>& out) const {

@@ -51,6 +51,9 @@ class EmbreeScene {
   /// rtcIntersect4/8/16 (the last packet masked) — the packet baseline of geobench.
   void intersectPackets(const glm::vec3* origins, const glm::vec3* dirs, size_t n, float tnear, float tfar, int width,
                         GeoHit* out) const;
+  /// The same with each ray's own [tnear, tfar], 16 at a time (rtcIntersect16).
+  void intersectPackets(const glm::vec3* origins, const glm::vec3* dirs, const float* tnear, const float* tfar, size_t n,
+                        GeoHit* out) const;
   /// Every hit along the ray with t in [tnear, tfar], sorted by t, each triangle once (with
   /// HIGH build quality Embree may report a triangle twice). Robust and Capture modes.
   void allHits(glm::vec3 origin, glm::vec3 dir, float tnear, float tfar, std::vector<GeoHit>& out) const;

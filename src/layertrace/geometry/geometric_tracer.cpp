@@ -42,4 +42,22 @@ TraceHit GeometricHits::makeHit(const Ray& ray, const GeoHit& g) const {
   return h;
 }
 
+void EmbreePacketTracer::traceBatch(std::span<const Ray> rays, std::span<TraceHit> hits, std::span<RayCounters> counters) const {
+  if (kCountersCompiled && !counters.empty()) return TracerImpl::traceBatch(rays, hits, counters);
+  const Camera& cam = hits_.camera();
+  for (size_t b = 0; b < rays.size(); b += 16) {
+    const size_t n = std::min<size_t>(16, rays.size() - b);
+    glm::vec3 o[16], d[16];
+    float tnear[16], tfar[16];
+    GeoHit g[16];
+    for (size_t i = 0; i < n; ++i) {
+      const Ray& r = rays[b + i];
+      o[i] = cam.toWorld(r.origin), d[i] = cam.dirToWorld(r.dir);
+      tnear[i] = GeometricHits::originOffset(r), tfar[i] = r.maxDistance;
+    }
+    embree_.intersectPackets(o, d, tnear, tfar, n, g);
+    for (size_t i = 0; i < n; ++i) hits[b + i] = hits_.makeHit(rays[b + i], g[i]);
+  }
+}
+
 }  // namespace lt

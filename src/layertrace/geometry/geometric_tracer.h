@@ -73,6 +73,31 @@ class GeometricTracer : public TracerImpl<GeometricTracer<Accel>> {
 using EmbreeTracer = GeometricTracer<EmbreeScene>;
 using GridTracer = GeometricTracer<IrregularGrid>;
 
+/// Plain Embree with 16-wide packets (rtcIntersect16) for closest hits: each traceBatch is cut
+/// into packets of 16 consecutive rays — the packet baseline `compare` reports beside single-ray
+/// Embree on the same rays (issue 14 §4). Counted runs and any-hit queries trace one ray at a
+/// time. Answers are Embree's, packet or not (geobench checks the two agree).
+class EmbreePacketTracer : public TracerImpl<EmbreePacketTracer> {
+ public:
+  EmbreePacketTracer(const Scene& scene, const Camera& camera, const EmbreeScene& embree)
+      : single_("embree-packet16", scene, camera, embree), hits_(scene, camera), embree_(embree) {}
+  const char* name() const override { return "embree-packet16"; }
+  template <class C>
+  TraceHit traceImpl(const Ray& ray, C& c) const {
+    return single_.traceImpl(ray, c);
+  }
+  template <class C>
+  TraceHit occludedImpl(const Ray& ray, C& c) const {
+    return single_.occludedImpl(ray, c);
+  }
+  void traceBatch(std::span<const Ray> rays, std::span<TraceHit> hits, std::span<RayCounters> counters) const override;
+
+ private:
+  EmbreeTracer single_;
+  GeometricHits hits_;
+  const EmbreeScene& embree_;
+};
+
 inline std::unique_ptr<Tracer> makeEmbreeTracer(const Scene& scene, const Camera& camera, const EmbreeScene& embree) {
   return std::make_unique<EmbreeTracer>("embree", scene, camera, embree);
 }
