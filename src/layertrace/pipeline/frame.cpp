@@ -84,14 +84,24 @@ void setFrameView(const FrameOptions& o, const CameraDesc& desc, Frame& frame) {
 }
 
 namespace {
-/// FrameOptions::pyramid built after the capture over the frame's level 0, into the frame's own
-/// pyramid (its memory reused from frame to frame), or none.
+/// Before a capture: the frame's own pyramid lets go of the old level 0 (so that level 0 is
+/// reused); a pyramid a tracer of the previous frame still holds is left to that tracer.
+void releasePyramid(Frame& frame) {
+  if (frame.pyramid && frame.pyramid.use_count() == 1) frame.pyramid->base.reset();
+  else frame.pyramid.reset();
+}
+/// The frame's pyramid to build into (its memory reused from frame to frame), made if none.
+IntervalPyramid& ownPyramid(Frame& frame) {
+  if (!frame.pyramid) frame.pyramid = std::make_shared<IntervalPyramid>();
+  return *frame.pyramid;
+}
+/// FrameOptions::pyramid built after the capture over the frame's level 0, or none.
 void finishPyramid(const FrameOptions& o, Frame& frame) {
   if (!o.pyramid) {
     frame.pyramid.reset();
     return;
   }
-  buildIntervalPyramid(frame.intervals, frame.camera, *o.pyramid, *frame.pyramid);
+  buildIntervalPyramid(frame.intervals, frame.camera, *o.pyramid, ownPyramid(frame));
   frame.pyramidConfig = *o.pyramid;
 }
 }  // namespace
@@ -119,19 +129,14 @@ void rasterizeFrame(const FrameOptions& o, Frame& frame) {
     // Level 0 of the interval pyramid, written from each finished tile (reused unless a
     // pyramid of the previous frame still holds it).
     validateLayerConfig(lc);  // before anything is sized by k
-    // The frame's own pyramid lets go of the old level 0 (so that it is reused); one that a
-    // tracer of the previous frame still holds is left to it.
-    if (frame.pyramid && frame.pyramid.use_count() == 1) frame.pyramid->base.reset();
-    else frame.pyramid.reset();
+    releasePyramid(frame);
     if (!frame.intervals || frame.intervals.use_count() > 1) frame.intervals = std::make_shared<IntervalLayers>();
     IntervalLayers& level0 = *frame.intervals;
     sizeIntervalLayers(frame.camera.width(), frame.camera.height(), lc.k, level0);
     // Levels 1… per tile too when asked, unless a whole-list rule rewrites the layers after
     // the pass (then, as by default, they are built after it: finishPyramid).
     const bool tilePyramid = o.pyramid && o.pyramidPerTile && !lc.adaptiveThickness && !(lc.minSeparation > 0.0f);
-    if (o.pyramid && !frame.pyramid) frame.pyramid = std::make_shared<IntervalPyramid>();
-    if (!o.pyramid) frame.pyramid.reset();
-    if (tilePyramid) frame.pyramidTiles.begin(frame.intervals, frame.camera, *o.pyramid, rc.tileSize, *frame.pyramid);
+    if (tilePyramid) frame.pyramidTiles.begin(frame.intervals, frame.camera, *o.pyramid, rc.tileSize, ownPyramid(frame));
     const TileDone writeLevel0 = [&](int x0, int y0, int x1, int y1) {
       writeIntervals(frame.layers, x0, y0, x1, y1, level0);
       if (tilePyramid) frame.pyramidTiles.tile(x0, y0, x1, y1);
@@ -171,8 +176,7 @@ void rasterizeFrame(const FrameOptions& o, Frame& frame) {
   // The reference pipeline: a pool (fixed by --pool N, overflow counted exactly; or 8 fragments
   // per pixel, grown once when it overflows), then sortAndTruncate.
   frame.capturePipeline = "reference";
-  if (frame.pyramid && frame.pyramid.use_count() == 1) frame.pyramid->base.reset();
-  else frame.pyramid.reset();
+  releasePyramid(frame);
   frame.lists = rasterize(frame.scene, frame.camera, rc, &frame.raster);
   frame.rasterMs = frame.raster.ms;
   if (frame.lists.lost() > 0)
@@ -183,7 +187,6 @@ void rasterizeFrame(const FrameOptions& o, Frame& frame) {
   frame.layers = sortAndTruncate(frame.lists, lc);
   frame.intervals = std::make_shared<IntervalLayers>(makeIntervalLayers(frame.layers, frame.layers.k));
   frame.sortMs = msSince(t0);
-  if (o.pyramid && !frame.pyramid) frame.pyramid = std::make_shared<IntervalPyramid>();
   finishPyramid(o, frame);
 }
 
