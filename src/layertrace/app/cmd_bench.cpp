@@ -5,7 +5,8 @@
 //   tau         hierarchy build and trace time for τ from 1 to 128 (Figure 14)
 //   resolution  cost from 640×360 to 3840×2160
 //   threads     scaling from 1 thread to all cores
-//   capture     raster, sort, pyramid per thread count against Embree all-hit capture of the same
+//   capture     raster, sort, pyramid (after the pass, and merged per tile) per thread count
+//               against Embree all-hit capture of the same
 //               pixel-centre rays (Embree with plain scene flags and a geometry filter)
 //   warp        view synthesis (seed 002): holes and PSNR against the second camera's own view for
 //               offsets of 0–20 % of the eye–target distance × k ∈ {1, 2, 4} × every screen tracer
