@@ -79,15 +79,6 @@ CoarseCell toCoarseCell(const Interval* first, const Interval* last, std::vector
   return c;
 }
 
-void buildCoarseCells(PyramidLevel& lvl) {
-  lvl.cells.resize(size_t(lvl.width) * size_t(lvl.height));
-  parallelFor(tbb::blocked_range<size_t>(0, lvl.cells.size(), 4096), [&](const tbb::blocked_range<size_t>& r) {
-    std::vector<Interval> scratch;
-    for (size_t c = r.begin(); c != r.end(); ++c)
-      lvl.cells[c] = toCoarseCell(lvl.intervals.data() + lvl.offset[c], lvl.intervals.data() + lvl.offset[c + 1], scratch);
-  });
-}
-
 void validate(const PyramidConfig& config) {
   if (config.levels < 1 || config.levels > 16) inputError("--levels ", config.levels, ": must be between 1 and 16");
   if (!(config.tau > 0.0f)) inputError("--tau ", config.tau, ": must be positive");
@@ -188,22 +179,27 @@ void buildLevel(IntervalPyramid& p, const Camera& camera, const PyramidConfig& c
       }
     }
   });
-  size_t intervals = 0;
-  for (int y = 0; y < lvl.height; ++y) intervals += rows[size_t(y)].size();
+  // Rows in order: a short serial scan over the rows' sizes, then each row — its intervals, its
+  // cells' offsets and fixed-slot κ cells — in parallel (no serial pass over the cells).
+  std::vector<size_t> rowStart(size_t(lvl.height) + 1, 0);
+  for (int y = 0; y < lvl.height; ++y) rowStart[size_t(y) + 1] = rowStart[size_t(y)] + rows[size_t(y)].size();
+  const size_t intervals = rowStart.back();
   checkLevelMemory(lvl, L, intervals);
   lvl.offset.resize(size_t(lvl.width) * size_t(lvl.height) + 1);
-  uint32_t total = 0;
-  for (int y = 0; y < lvl.height; ++y)
-    for (int x = 0; x < lvl.width; ++x) {
-      lvl.offset[lvl.cellIndex(x, y)] = total;
-      total += rowCounts[size_t(y)][size_t(x)];
-    }
-  lvl.offset.back() = total;
-  lvl.intervals.resize(total);
+  lvl.offset.back() = uint32_t(intervals);
+  lvl.intervals.resize(intervals);
+  lvl.cells.resize(size_t(lvl.width) * size_t(lvl.height));
   parallelFor(0, lvl.height, [&](int y) {
-    std::copy(rows[size_t(y)].begin(), rows[size_t(y)].end(), lvl.intervals.begin() + lvl.offset[lvl.cellIndex(0, y)]);
+    std::vector<Interval> scratch;  // toCoarseCell's, for the rare cell of more than kSlots intervals
+    size_t at = rowStart[size_t(y)];
+    std::copy(rows[size_t(y)].begin(), rows[size_t(y)].end(), lvl.intervals.begin() + std::ptrdiff_t(at));
+    for (int x = 0; x < lvl.width; ++x) {
+      const size_t c = lvl.cellIndex(x, y), n = rowCounts[size_t(y)][size_t(x)];
+      lvl.offset[c] = uint32_t(at);
+      lvl.cells[c] = toCoarseCell(lvl.intervals.data() + at, lvl.intervals.data() + at + n, scratch);
+      at += n;
+    }
   });
-  buildCoarseCells(lvl);
 }
 
 /// Levels 1..levels-1 over p.base (seed 000 §4.3), into p's existing memory where it fits.
