@@ -44,7 +44,8 @@ TraceHit GeometricHits::makeHit(const Ray& ray, const GeoHit& g) const {
 
 void EmbreePacketTracer::traceBatch(std::span<const Ray> rays, std::span<TraceHit> hits, std::span<RayCounters> counters) const {
   if (kCountersCompiled && !counters.empty()) return TracerImpl::traceBatch(rays, hits, counters);
-  const Camera& cam = hits_.camera();
+  const GeometricHits& h = single_.hits();
+  const Camera& cam = h.camera();
   for (size_t b = 0; b < rays.size(); b += 16) {
     const size_t n = std::min<size_t>(16, rays.size() - b);
     glm::vec3 o[16], d[16];
@@ -56,7 +57,7 @@ void EmbreePacketTracer::traceBatch(std::span<const Ray> rays, std::span<TraceHi
       tnear[i] = GeometricHits::originOffset(r), tfar[i] = r.maxDistance;
     }
     embree_.intersectPackets(o, d, tnear, tfar, n, g);
-    for (size_t i = 0; i < n; ++i) hits[b + i] = hits_.makeHit(rays[b + i], g[i]);
+    for (size_t i = 0; i < n; ++i) hits[b + i] = h.makeHit(rays[b + i], g[i]);
   }
 }
 

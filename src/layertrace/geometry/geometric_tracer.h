@@ -46,6 +46,7 @@ class GeometricTracer : public TracerImpl<GeometricTracer<Accel>> {
   GeometricTracer(const char* name, const Scene& scene, const Camera& camera, const Accel& accel)
       : name_(name), hits_(scene, camera), accel_(accel) {}
   const char* name() const override { return name_; }
+  const GeometricHits& hits() const { return hits_; }
   template <class C>
   TraceHit traceImpl(const Ray& ray, C& c) const {
     return hits_.makeHit(ray, query(ray, c, [this](auto... a) { return accel_.intersect(a...); }));
@@ -80,7 +81,7 @@ using GridTracer = GeometricTracer<IrregularGrid>;
 class EmbreePacketTracer : public TracerImpl<EmbreePacketTracer> {
  public:
   EmbreePacketTracer(const Scene& scene, const Camera& camera, const EmbreeScene& embree)
-      : single_("embree-packet16", scene, camera, embree), hits_(scene, camera), embree_(embree) {}
+      : single_("embree-packet16", scene, camera, embree), embree_(embree) {}
   const char* name() const override { return "embree-packet16"; }
   template <class C>
   TraceHit traceImpl(const Ray& ray, C& c) const {
@@ -93,8 +94,7 @@ class EmbreePacketTracer : public TracerImpl<EmbreePacketTracer> {
   void traceBatch(std::span<const Ray> rays, std::span<TraceHit> hits, std::span<RayCounters> counters) const override;
 
  private:
-  EmbreeTracer single_;
-  GeometricHits hits_;
+  EmbreeTracer single_;  ///< the one-ray path, and the hit construction the packets share
   const EmbreeScene& embree_;
 };
 

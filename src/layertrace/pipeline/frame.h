@@ -91,7 +91,7 @@ struct Frame {
   /// The capture's pyramid when it was built with `config` over the current level 0, else null.
   std::shared_ptr<IntervalPyramid> pyramidFor(const PyramidConfig& config) const {
     const std::shared_ptr<IntervalLayers> l0 = level0();
-    return pyramid && l0 && pyramid->base == l0 && pyramid->levelCount() == config.levels && pyramidConfig == config ? pyramid : nullptr;
+    return pyramid && l0 && pyramid->base == l0 && pyramidConfig == config ? pyramid : nullptr;
   }
   PyramidConfig pyramidConfig;  ///< what `pyramid` was built with
   std::shared_ptr<IntervalLayers> level0() const {
