@@ -62,13 +62,14 @@ Agreement compareWithEmbree(const Scene& scene, const CameraDesc& cd, const Irre
   return a;
 }
 
-/// The traversal as first written (irregular_grid_traverse.cpp before the packed copies): over
-/// the builder's cells (56-byte GridCell) and triangles read from the scene. The packed
-/// traversal must answer exactly as this one.
+/// The traversal as first written (irregular_grid_traverse.cpp before the packed copies), one
+/// reference at a time: over the builder's cells (56-byte GridCell), its reference lists and
+/// triangles read from the scene, with the scalar watertight test. The packed traversal (cells
+/// of 32 bytes, 4-lane triangle blocks) must answer exactly as this one.
 GeoHit referenceTraverse(const IrregularGrid& g, const Scene& scene, glm::vec3 o, glm::vec3 d, float tnear, float tfar, bool anyHit) {
   GeoHit best;
   float t0 = tnear, t1 = tfar;
-  const glm::vec3 inv = 1.0f / d, lo = g.origin(), hi = g.boxMax(), voxel = g.voxelSize();
+  const glm::vec3 inv = 1.0f / d, lo = g.origin(), hi = g.boxMax(), voxel = g.voxelSize(), invVoxel = g.inverseVoxelSize();
   for (int i = 0; i < 3; ++i) {
     float a = (lo[i] - o[i]) * inv[i], b = (hi[i] - o[i]) * inv[i];
     if (a > b) std::swap(a, b);
@@ -79,18 +80,18 @@ GeoHit referenceTraverse(const IrregularGrid& g, const Scene& scene, glm::vec3 o
   }
   if (t0 > t1) return best;
   int v[3];
-  const glm::vec3 p = (o + d * t0 - lo) / voxel;
+  const glm::vec3 p = (o + d * t0 - lo) * invVoxel;
   for (int i = 0; i < 3; ++i) v[i] = std::clamp(int(std::floor(p[i])), 0, g.virtualResolution(i) - 1);
   float bestT = tfar;
+  const WatertightRay ray(o, d);
   const int maxSteps = 4 * (g.virtualResolution(0) + g.virtualResolution(1) + g.virtualResolution(2)) + 16;
   for (int step = 0; step < maxSteps; ++step) {
     const GridCell& c = g.cells()[g.cellAt(v)];
     for (uint32_t r = c.refBegin; r < c.refEnd; ++r) {
       const uint32_t tri = g.refs()[r];
       const glm::uvec3 ix = scene.triangles[tri];
-      const glm::vec3 v0 = scene.positions[ix.x];
       float t;
-      if (hitTriangle(o, d, v0, scene.positions[ix.y] - v0, scene.positions[ix.z] - v0, tnear, bestT, t)) {
+      if (hitTriangleWatertight(ray, scene.positions[ix.x], scene.positions[ix.y], scene.positions[ix.z], tnear, bestT, t)) {
         if (anyHit) {
           best.t = t, best.triangle = tri;
           return best;
@@ -108,9 +109,15 @@ GeoHit referenceTraverse(const IrregularGrid& g, const Scene& scene, glm::vec3 o
     }
     if (best.hit() && bestT <= tExit) break;
     if (tExit >= t1) break;
-    const glm::vec3 q = (o + d * tExit - lo) / voxel;
-    for (int i = 0; i < 3; ++i)
-      v[i] = i == axis ? (d[i] > 0.0f ? c.ehi[i] : c.elo[i] - 1) : std::clamp(int(std::floor(q[i])), c.elo[i], c.ehi[i] - 1);
+    const glm::vec3 q = (o + d * tExit - lo) * invVoxel;
+    for (int i = 0; i < 3; ++i) {
+      if (i == axis) {
+        v[i] = d[i] > 0.0f ? c.ehi[i] : c.elo[i] - 1;
+        continue;
+      }
+      const int face = std::clamp(int(std::floor(q[i])), c.elo[i], c.ehi[i] - 1);
+      v[i] = d[i] > 0.0f ? std::max(face, v[i]) : d[i] < 0.0f ? std::min(face, v[i]) : face;  // never backwards
+    }
     if (v[axis] < 0 || v[axis] >= g.virtualResolution(axis)) break;
   }
   return best;
@@ -236,6 +243,42 @@ TEST(Grid, AgreesWithEmbreeOnTheDefaultScene) {
 namespace lt {
 namespace {
 
+// The watertight test alone: from points inside a closed mesh, rays aimed at its vertices and
+// at points of its edges must hit some triangle — no crack between triangles sharing an edge,
+// without any epsilon — and no ray may hit a triangle whose edge functions disagree in sign.
+TEST(Grid, WatertightTestLeavesNoCrackAtSharedEdges) {
+  Scene s = makeSphere({0.1f, -0.2f, 0.3f}, 1.0f, 17);
+  s.finalize("sphere");
+  std::mt19937_64 rng(test::testSeed());
+  std::uniform_real_distribution<float> u(-0.4f, 0.4f), w(0.0f, 1.0f);
+  size_t rays = 0, missed = 0;
+  for (const glm::uvec3& t : s.triangles) {
+    const glm::vec3 a = s.positions[t.x], b = s.positions[t.y];
+    const float f = w(rng);
+    for (const glm::vec3& target : {a, b, a + (b - a) * f, a + (b - a) * 0.5f}) {
+      const glm::vec3 from = glm::vec3(0.1f, -0.2f, 0.3f) + glm::vec3(u(rng), u(rng), u(rng));
+      const glm::vec3 d = glm::normalize(target - from);
+      const WatertightRay ray(from, d);
+      bool any = false;
+      for (const glm::uvec3& k : s.triangles) {
+        float th;
+        any |= hitTriangleWatertight(ray, s.positions[k.x], s.positions[k.y], s.positions[k.z], 0.0f, 1e30f, th);
+      }
+      ++rays;
+      missed += !any;
+    }
+  }
+  EXPECT_GT(rays, 1000u);
+  EXPECT_EQ(missed, 0u) << "of " << rays << " rays";
+  // A ray beside a triangle misses it; through its interior, it hits at the plane's distance.
+  const WatertightRay r({0.25f, 0.25f, -1.0f}, {0.0f, 0.0f, 1.0f});
+  float t = 0.0f;
+  EXPECT_TRUE(hitTriangleWatertight(r, {0, 0, 2}, {1, 0, 2}, {0, 1, 2}, 0.0f, 10.0f, t));
+  EXPECT_EQ(t, 3.0f);
+  EXPECT_FALSE(hitTriangleWatertight(WatertightRay({0.75f, 0.75f, -1.0f}, {0, 0, 1}), {0, 0, 2}, {1, 0, 2}, {0, 1, 2}, 0.0f, 10.0f, t));
+  EXPECT_FALSE(hitTriangleWatertight(r, {0, 0, 2}, {1, 0, 2}, {0, 1, 2}, 0.0f, 2.5f, t));  // beyond tmax
+}
+
 // Rays aimed exactly at vertices and edge midpoints of a closed mesh, arriving from outside
 // roughly along the surface normal (so they truly enter it, not graze a silhouette): both
 // tracers must report a hit at the same distance.
@@ -302,6 +345,46 @@ TEST_P(RealSceneGrid, PackedTraversalEqualsReference) {
   });
   EXPECT_GT(hits.load(), rays.load() / 6);
   EXPECT_EQ(differ.load(), 0u) << "of " << rays.load() << " rays";
+}
+
+// Rays aimed at the edges of the virtual grid (two coordinates on voxel planes, to the float)
+// pass within rounding through the corners where cells' faces meet — where a ray's rounded
+// exit from one cell can fall a hair before its entry into the next. Every such ray must end
+// (no step cap: before the monotone step rule, two cells handed a ray on engine back and forth
+// until the cap and it missed a triangle 52 units away) and agree with robust Embree.
+TEST_P(RealSceneGrid, RaysThroughVoxelEdgesEndAndAgreeWithEmbree) {
+  ASSERT_TRUE(test::haveFetchedScenes()) << "run scripts/fetch-scenes.sh";
+  const FrameOptions o = test::realSceneOptions(GetParam().first, GetParam().second);
+  Frame f;
+  loadFrameScene(o, f);
+  const IrregularGrid grid(f.scene);
+  const EmbreeScene embree(f.scene);
+  const glm::vec3 lo = grid.origin(), voxel = grid.voxelSize();
+  const int rows = 64, perRow = 4096;
+  std::atomic<size_t> giveUps{0}, disagree{0}, hits{0};
+  parallelFor(0, rows, [&](int row) {
+    std::mt19937_64 rng(test::testSeed() + uint64_t(row));
+    std::uniform_real_distribution<float> u(0.0f, 1.0f);
+    for (int k = 0; k < perRow; ++k) {
+      const int a = k % 3, b = (a + 1) % 3, c = (a + 2) % 3;  // a, b on voxel planes, c anywhere
+      glm::vec3 target;
+      target[a] = lo[a] + float(int(u(rng) * float(grid.virtualResolution(a)))) * voxel[a];
+      target[b] = lo[b] + float(int(u(rng) * float(grid.virtualResolution(b)))) * voxel[b];
+      target[c] = lo[c] + u(rng) * float(grid.virtualResolution(c)) * voxel[c];
+      const glm::vec3 from = lo + glm::vec3(u(rng), u(rng), u(rng)) * (grid.boxMax() - lo);
+      const glm::vec3 d = glm::normalize(target - from);
+      if (!(glm::length(target - from) > 0.0f)) continue;
+      TraversalCounts counts;
+      const GeoHit g = grid.intersect(from, d, 0.0f, 1e30f, &counts), e = embree.intersect(from, d, 0.0f, 1e30f);
+      giveUps += counts.giveUps;
+      hits += e.hit();
+      disagree += !sameHit(g, e);
+    }
+  });
+  const size_t rays = size_t(rows) * perRow;
+  EXPECT_EQ(giveUps.load(), 0u) << "of " << rays << " rays";
+  EXPECT_GT(hits.load(), rays / 4);
+  EXPECT_LE(disagree.load(), rays / 100000) << "of " << rays << " rays";
 }
 
 TEST_P(RealSceneGrid, AgreesWithEmbree) {

@@ -353,22 +353,38 @@ IrregularGrid::IrregularGrid(const Scene& scene, const GridConfig& config) : sce
 }
 
 void IrregularGrid::packForTraversal() {
+  invVoxel_ = 1.0f / voxel_;
   hot_.resize(cells_.size());
+  uint64_t blockCount = 0;
+  for (const GridCell& g : cells_) blockCount += (g.refEnd - g.refBegin + kLanes - 1) / kLanes;
+  if (blockCount > 0xFFFFFFFFull) inputError("irregular grid: ", blockCount, " triangle blocks exceed the 32-bit block index");
+  checkAllocation(cat("the irregular grid's triangle blocks (", blockCount, ")"), blockCount * sizeof(TriangleBlock));
+  blocks_.resize(blockCount);
+  uint32_t next = 0;
   for (size_t c = 0; c < cells_.size(); ++c) {
     const GridCell& g = cells_[c];
-    hot_[c] = {{g.elo[0], g.elo[1], g.elo[2]}, {g.ehi[0], g.ehi[1], g.ehi[2]}, g.refBegin, g.refEnd};
+    const uint32_t n = g.refEnd - g.refBegin, begin = next;
+    next += (n + kLanes - 1) / kLanes;
+    hot_[c] = {{g.elo[0], g.elo[1], g.elo[2]}, {g.ehi[0], g.ehi[1], g.ehi[2]}, begin, next};
   }
-  tris_.resize(scene_->triangleCount());
-  for (size_t tri = 0; tri < tris_.size(); ++tri) {
-    const glm::uvec3 i = scene_->triangles[tri];
-    const glm::vec3 v0 = scene_->positions[i.x];
-    tris_[tri] = {v0, scene_->positions[i.y] - v0, scene_->positions[i.z] - v0};
-  }
+  parallelFor(0, int(cells_.size()), [&](int c) {
+    const GridCell& g = cells_[size_t(c)];
+    const uint32_t n = g.refEnd - g.refBegin;
+    for (uint32_t r = 0; r < (n + kLanes - 1) / kLanes * kLanes; ++r) {
+      const uint32_t tri = refs_[g.refBegin + std::min(r, n - 1)];  // spare lanes: the last triangle again
+      TriangleBlock& b = blocks_[hot_[size_t(c)].blockBegin + r / kLanes];
+      const glm::uvec3 ix = scene_->triangles[tri];
+      const glm::vec3 p[3] = {scene_->positions[ix.x], scene_->positions[ix.y], scene_->positions[ix.z]};
+      for (int vtx = 0; vtx < 3; ++vtx)
+        for (int axis = 0; axis < 3; ++axis) b.v[vtx][axis][r % kLanes] = p[vtx][axis];
+      b.id[r % kLanes] = tri;
+    }
+  });
 }
 
 size_t IrregularGrid::memoryBytes() const {
   return topDepth_.size() + topOffset_.size() * 4 + leaf_.size() * 4 + cells_.size() * sizeof(GridCell) + refs_.size() * 4 +
-         topCells_.size() * sizeof(TopCell) + hot_.size() * sizeof(TraversalCell) + tris_.size() * sizeof(Triangle);
+         topCells_.size() * sizeof(TopCell) + hot_.size() * sizeof(TraversalCell) + blocks_.size() * sizeof(TriangleBlock);
 }
 
 }  // namespace lt

@@ -3,6 +3,7 @@
 // ordered; the next cell is found in the voxel map from integer virtual-grid coordinates on the
 // far side of the exit face, so rounding can never step back or skip a cell along the ray.
 #include <algorithm>
+#include <cstring>
 #include <cmath>
 #include <limits>
 
@@ -13,6 +14,47 @@
 #include "layertrace/util/cpu_dispatch.h"
 
 namespace lt {
+namespace {
+
+// Four lanes with GCC/Clang vector extensions: the compiler emits SSE for the portable copy and
+// VEX-encoded code for the dispatched ones, and lane-wise IEEE operations in the order of
+// hitTriangleWatertight give its results bit for bit (-ffp-contract=off: no fused multiply-adds).
+using Float4 = float __attribute__((vector_size(16)));
+using Mask4 = int32_t __attribute__((vector_size(16)));
+static_assert(sizeof(Float4) == 4 * sizeof(float));
+
+inline Float4 load4(const float* p) {
+  Float4 v;
+  std::memcpy(&v, p, sizeof v);
+  return v;
+}
+
+/// hitTriangleWatertight for the four triangles of a block: lane i of `t` is the hit distance
+/// where lane i of the returned mask is set (all ones), with t in [tmin, tmax].
+template <class Block>
+inline Mask4 hitBlock(const WatertightRay& r, const Block& b, float tmin, float tmax, Float4& t) {
+  const Float4 ox = Float4{} + r.o[r.kx], oy = Float4{} + r.o[r.ky], oz = Float4{} + r.o[r.kz];
+  const Float4 sx = Float4{} + r.sx, sy = Float4{} + r.sy, sz = Float4{} + r.sz;
+  Float4 px[3], py[3], pz[3];  // vertex − origin along kx, ky, kz
+  for (int v = 0; v < 3; ++v) {
+    px[v] = load4(b.v[v][r.kx]) - ox;
+    py[v] = load4(b.v[v][r.ky]) - oy;
+    pz[v] = load4(b.v[v][r.kz]) - oz;
+  }
+  const Float4 ax = px[0] - sx * pz[0], ay = py[0] - sy * pz[0];
+  const Float4 bx = px[1] - sx * pz[1], by = py[1] - sy * pz[1];
+  const Float4 cx = px[2] - sx * pz[2], cy = py[2] - sy * pz[2];
+  const Float4 u = cx * by - cy * bx, v = ax * cy - ay * cx, w = bx * ay - by * ax;
+  const Float4 zero{};
+  const Mask4 outside = ((u < zero) | (v < zero) | (w < zero)) & ((u > zero) | (v > zero) | (w > zero));
+  const Float4 det = u + v + w;
+  t = (u * (sz * pz[0]) + v * (sz * pz[1]) + w * (sz * pz[2])) / det;  // masked where det = 0
+  return ~outside & (det != zero) & (t >= Float4{} + tmin) & (t <= Float4{} + tmax);
+}
+
+inline bool any(Mask4 m) { return (m[0] | m[1] | m[2] | m[3]) != 0; }
+
+}  // namespace
 
 template <bool AnyHit>
 GeoHit IrregularGrid::traverse(glm::vec3 o, glm::vec3 d, float tnear, float tfar, TraversalCounts* counts) const {
@@ -31,24 +73,29 @@ GeoHit IrregularGrid::traverse(glm::vec3 o, glm::vec3 d, float tnear, float tfar
   if (t0 > t1) return best;
   // Locate the origin's (entry point's) voxel.
   int v[3];
-  const glm::vec3 p = (o + d * t0 - lo_) / voxel_;
+  const glm::vec3 p = (o + d * t0 - lo_) * invVoxel_;
   for (int i = 0; i < 3; ++i) v[i] = std::clamp(int(std::floor(p[i])), 0, virt_[i] - 1);
   float bestT = tfar;
+  const WatertightRay ray(o, d);
   const int maxSteps = 4 * (virt_[0] + virt_[1] + virt_[2]) + 16;
   int step = 0;
   for (; step < maxSteps; ++step) {
-    const TraversalCell& c = hot_[cellAt(v)];
-    if (counts) ++counts->steps, counts->tests += c.refEnd - c.refBegin;
-    for (uint32_t r = c.refBegin; r < c.refEnd; ++r) {
-      const uint32_t tri = refs_[r];
-      float t;
-      const Triangle& T = tris_[tri];
-      if (hitTriangle(o, d, T.v0, T.e1, T.e2, tnear, bestT, t)) {
+    const uint32_t cellId = cellAt(v);
+    const TraversalCell& c = hot_[cellId];
+    if (counts) ++counts->steps, counts->tests += cells_[cellId].refEnd - cells_[cellId].refBegin;
+    for (uint32_t k = c.blockBegin; k < c.blockEnd; ++k) {
+      const TriangleBlock& b = blocks_[k];
+      Float4 t;
+      const Mask4 hit = hitBlock(ray, b, tnear, bestT, t);
+      if (!any(hit)) continue;
+      for (int l = 0; l < kLanes; ++l) {
+        if (!hit[l]) continue;
+        const uint32_t tri = b.id[l];
         if (AnyHit) {
-          best.t = t, best.triangle = tri;
+          best.t = t[l], best.triangle = tri;
           return best;
         }
-        if (t < bestT || (t == bestT && tri < best.triangle)) bestT = t, best.t = t, best.triangle = tri;
+        if (t[l] < bestT || (t[l] == bestT && tri < best.triangle)) bestT = t[l], best.t = t[l], best.triangle = tri;
       }
     }
     // Exit of the expanded box.
@@ -62,18 +109,26 @@ GeoHit IrregularGrid::traverse(glm::vec3 o, glm::vec3 d, float tnear, float tfar
     }
     if (best.hit() && bestT <= tExit) break;  // the closest hit lies inside this cell
     if (tExit >= t1) break;
-    // The voxel beyond the exit face: integer on the exit axis, clamped to the face elsewhere.
-    const glm::vec3 q = (o + d * tExit - lo_) / voxel_;
+    // The voxel beyond the exit face: integer on the exit axis, clamped to the face elsewhere,
+    // and never behind the current voxel along the ray. The last rule matters where the ray
+    // passes (within rounding) through an edge of two cells' faces: the rounded exit point of
+    // the second cell can lie a hair before its entry, on the first cell's side of the shared
+    // plane, and the two cells would hand the ray back and forth until the step cap (seen on
+    // engine: 1 diffuse ray in 921 600). A ray's voxel coordinates are monotone along it, so
+    // each step now moves forward on the exit axis and not back on the others: the traversal
+    // ends after at most the virtual grid's width + height + depth steps.
+    const glm::vec3 q = (o + d * tExit - lo_) * invVoxel_;
     for (int i = 0; i < 3; ++i) {
       if (i == axis) {
         v[i] = d[i] > 0.0f ? c.ehi[i] : c.elo[i] - 1;
       } else {
-        v[i] = std::clamp(int(std::floor(q[i])), c.elo[i], c.ehi[i] - 1);
+        const int face = std::clamp(int(std::floor(q[i])), c.elo[i], c.ehi[i] - 1);
+        v[i] = d[i] > 0.0f ? std::max(face, v[i]) : d[i] < 0.0f ? std::min(face, v[i]) : face;
       }
     }
     if (v[axis] < 0 || v[axis] >= virt_[axis]) break;
   }
-  if (step == maxSteps && counts) ++counts->giveUps;  // never seen: the grid's steps are finite
+  if (step == maxSteps && counts) ++counts->giveUps;  // a safety net: the steps move forward (above)
   if (best.hit()) {
     const glm::uvec3 i = scene_->triangles[best.triangle];
     best.ng = glm::cross(scene_->positions[i.y] - scene_->positions[i.x], scene_->positions[i.z] - scene_->positions[i.x]);

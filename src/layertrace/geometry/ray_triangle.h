@@ -1,5 +1,9 @@
-// One ray against one triangle: the test the irregular grid and the hybrid's local checks share.
+// One ray against one triangle: Möller–Trumbore for the hybrid's local checks, and the
+// watertight test of Woop, Benthin and Wald (JCGT 2013) for the irregular grid.
 #pragma once
+
+#include <cmath>
+#include <utility>
 
 #include <glm/geometric.hpp>
 #include <glm/vec3.hpp>
@@ -23,6 +27,52 @@ inline bool hitTriangle(glm::vec3 o, glm::vec3 d, glm::vec3 v0, glm::vec3 e1, gl
   const float v = glm::dot(d, q) * inv;
   if (v < -eps || u + v > 1.0f + eps) return false;
   t = glm::dot(e2, q) * inv;
+  return t >= tmin && t <= tmax;
+}
+
+/// A ray prepared for the watertight test (Woop, Benthin, Wald: "Watertight Ray/Triangle
+/// Intersection", JCGT 2(1), 2013, §3): the axis kz along which the direction is largest
+/// becomes the depth axis, and a shear maps the ray onto +z through the origin. A triangle's
+/// vertices are translated and sheared into that space, where the ray is the point (0, 0) and
+/// the three 2D edge functions U, V, W decide the hit. Each edge function depends only on its
+/// edge's two (transformed) vertices, and two triangles sharing an edge compute it from the same
+/// values with the operands swapped — exactly the negated float — so a ray through a shared edge
+/// or vertex cannot slip between them: no epsilon (the 1e-6 of hitTriangle) is needed.
+struct WatertightRay {
+  glm::vec3 o;
+  int kx = 0, ky = 1, kz = 2;
+  float sx = 0.0f, sy = 0.0f, sz = 1.0f;
+
+  WatertightRay(glm::vec3 origin, glm::vec3 d) : o(origin) {
+    const glm::vec3 a = glm::abs(d);
+    kz = a.x >= a.y ? (a.x >= a.z ? 0 : 2) : (a.y >= a.z ? 1 : 2);
+    kx = kz == 2 ? 0 : kz + 1;
+    ky = kx == 2 ? 0 : kx + 1;
+    if (d[kz] < 0.0f) std::swap(kx, ky);  // keep the winding: the shear's z axis points along d
+    sx = d[kx] / d[kz];
+    sy = d[ky] / d[kz];
+    sz = 1.0f / d[kz];
+  }
+};
+
+/// The watertight test of the ray against triangle (v0, v1, v2): true with t in [tmin, tmax].
+/// A point on an edge (an edge function exactly 0) belongs to both triangles sharing it; a
+/// triangle seen exactly edge-on (U + V + W = 0) is missed. Both faces hit (no culling). The
+/// paper's double-precision re-evaluation of zero edge functions is left out: it orders rays
+/// through an edge onto one side, which the closest-hit tie-break (smaller triangle id at equal
+/// t) does here. The grid's 4-lane blocks evaluate exactly these operations in this order, so
+/// they answer bit for bit like this function (tested).
+inline bool hitTriangleWatertight(const WatertightRay& r, glm::vec3 v0, glm::vec3 v1, glm::vec3 v2, float tmin, float tmax, float& t) {
+  const glm::vec3 a = v0 - r.o, b = v1 - r.o, c = v2 - r.o;
+  const float ax = a[r.kx] - r.sx * a[r.kz], ay = a[r.ky] - r.sy * a[r.kz];
+  const float bx = b[r.kx] - r.sx * b[r.kz], by = b[r.ky] - r.sy * b[r.kz];
+  const float cx = c[r.kx] - r.sx * c[r.kz], cy = c[r.ky] - r.sy * c[r.kz];
+  const float u = cx * by - cy * bx, v = ax * cy - ay * cx, w = bx * ay - by * ax;
+  if ((u < 0.0f || v < 0.0f || w < 0.0f) && (u > 0.0f || v > 0.0f || w > 0.0f)) return false;
+  const float det = u + v + w;
+  if (det == 0.0f) return false;
+  const float az = r.sz * a[r.kz], bz = r.sz * b[r.kz], cz = r.sz * c[r.kz];
+  t = (u * az + v * bz + w * cz) / det;
   return t >= tmin && t <= tmax;
 }
 
