@@ -31,28 +31,33 @@ inline Float4 load4(const float* p) {
 
 /// hitTriangleWatertight for the four triangles of a block: lane i of `t` is the hit distance
 /// where lane i of the returned mask is set (all ones), with t in [tmin, tmax].
+inline bool any(Mask4 m) { return (m[0] | m[1] | m[2] | m[3]) != 0; }
+
 template <class Block>
 inline Mask4 hitBlock(const WatertightRay& r, const Block& b, float tmin, float tmax, Float4& t) {
-  const Float4 ox = Float4{} + r.o[r.kx], oy = Float4{} + r.o[r.ky], oz = Float4{} + r.o[r.kz];
-  const Float4 sx = Float4{} + r.sx, sy = Float4{} + r.sy, sz = Float4{} + r.sz;
-  Float4 px[3], py[3], pz[3];  // vertex − origin along kx, ky, kz
-  for (int v = 0; v < 3; ++v) {
-    px[v] = load4(b.v[v][r.kx]) - ox;
-    py[v] = load4(b.v[v][r.ky]) - oy;
-    pz[v] = load4(b.v[v][r.kz]) - oz;
-  }
-  const Float4 ax = px[0] - sx * pz[0], ay = py[0] - sy * pz[0];
-  const Float4 bx = px[1] - sx * pz[1], by = py[1] - sy * pz[1];
-  const Float4 cx = px[2] - sx * pz[2], cy = py[2] - sy * pz[2];
-  const Float4 u = cx * by - cy * bx, v = ax * cy - ay * cx, w = bx * ay - by * ax;
   const Float4 zero{};
-  const Mask4 outside = ((u < zero) | (v < zero) | (w < zero)) & ((u > zero) | (v > zero) | (w > zero));
-  const Float4 det = u + v + w;
-  t = (u * (sz * pz[0]) + v * (sz * pz[1]) + w * (sz * pz[2])) / det;  // masked where det = 0
-  return ~outside & (det != zero) & (t >= Float4{} + tmin) & (t <= Float4{} + tmax);
+  const Float4 sx = zero + r.sx, sy = zero + r.sy;
+  Float4 p[3][3];  // p[vertex][axis] = vertex − origin
+  for (int v = 0; v < 3; ++v)
+    for (int axis = 0; axis < 3; ++axis) p[v][axis] = load4(b.v[v][axis]) - r.o[axis];
+  const Float4 ax = p[0][r.kx] - sx * p[0][r.kz], ay = p[0][r.ky] - sy * p[0][r.kz];
+  const Float4 bx = p[1][r.kx] - sx * p[1][r.kz], by = p[1][r.ky] - sy * p[1][r.kz];
+  const Float4 cx = p[2][r.kx] - sx * p[2][r.kz], cy = p[2][r.ky] - sy * p[2][r.kz];
+  const Float4 u = cx * by - cy * bx, v = ax * cy - ay * cx, w = bx * ay - by * ax;
+  const Mask4 inside = ~(((u < zero) | (v < zero) | (w < zero)) & ((u > zero) | (v > zero) | (w > zero))) & (u + v + w != zero);
+  if (!any(inside)) return inside;  // most blocks: the ray passes beside all four triangles
+  // The plane's distance (see hitTriangleWatertight), from the stored vertices.
+  Float4 e1[3], e2[3];
+  for (int axis = 0; axis < 3; ++axis) {
+    const Float4 v0 = load4(b.v[0][axis]);
+    e1[axis] = load4(b.v[1][axis]) - v0;
+    e2[axis] = load4(b.v[2][axis]) - v0;
+  }
+  const Float4 nx = e1[1] * e2[2] - e1[2] * e2[1], ny = e1[2] * e2[0] - e1[0] * e2[2], nz = e1[0] * e2[1] - e1[1] * e2[0];
+  const Float4 den = nx * r.d.x + ny * r.d.y + nz * r.d.z;
+  t = (nx * p[0][0] + ny * p[0][1] + nz * p[0][2]) / den;  // masked where den = 0
+  return inside & (den != zero) & (t >= zero + tmin) & (t <= zero + tmax);
 }
-
-inline bool any(Mask4 m) { return (m[0] | m[1] | m[2] | m[3]) != 0; }
 
 }  // namespace
 

@@ -39,11 +39,11 @@ inline bool hitTriangle(glm::vec3 o, glm::vec3 d, glm::vec3 v0, glm::vec3 e1, gl
 /// values with the operands swapped — exactly the negated float — so a ray through a shared edge
 /// or vertex cannot slip between them: no epsilon (the 1e-6 of hitTriangle) is needed.
 struct WatertightRay {
-  glm::vec3 o;
+  glm::vec3 o, d;
   int kx = 0, ky = 1, kz = 2;
-  float sx = 0.0f, sy = 0.0f, sz = 1.0f;
+  float sx = 0.0f, sy = 0.0f;
 
-  WatertightRay(glm::vec3 origin, glm::vec3 d) : o(origin) {
+  WatertightRay(glm::vec3 origin, glm::vec3 dir) : o(origin), d(dir) {
     const glm::vec3 a = glm::abs(d);
     kz = a.x >= a.y ? (a.x >= a.z ? 0 : 2) : (a.y >= a.z ? 1 : 2);
     kx = kz == 2 ? 0 : kz + 1;
@@ -51,7 +51,6 @@ struct WatertightRay {
     if (d[kz] < 0.0f) std::swap(kx, ky);  // keep the winding: the shear's z axis points along d
     sx = d[kx] / d[kz];
     sy = d[ky] / d[kz];
-    sz = 1.0f / d[kz];
   }
 };
 
@@ -60,8 +59,14 @@ struct WatertightRay {
 /// triangle seen exactly edge-on (U + V + W = 0) is missed. Both faces hit (no culling). The
 /// paper's double-precision re-evaluation of zero edge functions is left out: it orders rays
 /// through an edge onto one side, which the closest-hit tie-break (smaller triangle id at equal
-/// t) does here. The grid's 4-lane blocks evaluate exactly these operations in this order, so
-/// they answer bit for bit like this function (tested).
+/// t) does here.
+///
+/// The distance is not the paper's interpolation of the sheared z (U Az + V Bz + W Cz) / det:
+/// on a large triangle seen from close by, its three terms are large and cancel, and on engine
+/// it moved 13 of 921 600 diffuse hits by more than 1e-4 relative from Embree's. Like Embree's
+/// triangle intersectors, t is the plane's: (n · (v0 − o)) / (n · d), n = (v1 − v0) × (v2 − v0).
+/// The grid's 4-lane blocks evaluate exactly these operations in this order, so they answer bit
+/// for bit like this function (tested).
 inline bool hitTriangleWatertight(const WatertightRay& r, glm::vec3 v0, glm::vec3 v1, glm::vec3 v2, float tmin, float tmax, float& t) {
   const glm::vec3 a = v0 - r.o, b = v1 - r.o, c = v2 - r.o;
   const float ax = a[r.kx] - r.sx * a[r.kz], ay = a[r.ky] - r.sy * a[r.kz];
@@ -69,10 +74,12 @@ inline bool hitTriangleWatertight(const WatertightRay& r, glm::vec3 v0, glm::vec
   const float cx = c[r.kx] - r.sx * c[r.kz], cy = c[r.ky] - r.sy * c[r.kz];
   const float u = cx * by - cy * bx, v = ax * cy - ay * cx, w = bx * ay - by * ax;
   if ((u < 0.0f || v < 0.0f || w < 0.0f) && (u > 0.0f || v > 0.0f || w > 0.0f)) return false;
-  const float det = u + v + w;
-  if (det == 0.0f) return false;
-  const float az = r.sz * a[r.kz], bz = r.sz * b[r.kz], cz = r.sz * c[r.kz];
-  t = (u * az + v * bz + w * cz) / det;
+  if (u + v + w == 0.0f) return false;
+  const glm::vec3 e1 = v1 - v0, e2 = v2 - v0;
+  const float nx = e1.y * e2.z - e1.z * e2.y, ny = e1.z * e2.x - e1.x * e2.z, nz = e1.x * e2.y - e1.y * e2.x;
+  const float den = nx * r.d.x + ny * r.d.y + nz * r.d.z;
+  if (den == 0.0f) return false;
+  t = (nx * a.x + ny * a.y + nz * a.z) / den;
   return t >= tmin && t <= tmax;
 }
 
