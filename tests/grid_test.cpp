@@ -139,6 +139,29 @@ void forEachExpandedVoxel(const IrregularGrid& grid, size_t stride, F&& f) {
   }
 }
 
+/// The parallel merge builds exactly the cells, references and voxel map of the serial one.
+void expectParallelMergeEqualsSerial(const Scene& scene) {
+  GridConfig serial;
+  serial.parallelMerge = false;
+  const IrregularGrid a(scene), b(scene, serial);
+  ASSERT_EQ(a.cells().size(), b.cells().size());
+  ASSERT_GT(a.stats().cellsInitial, a.cells().size());  // merging did something
+  EXPECT_EQ(a.refs(), b.refs());
+  size_t differ = 0;
+  for (size_t c = 0; c < a.cells().size(); ++c) {
+    const GridCell &x = a.cells()[c], &y = b.cells()[c];
+    for (int i = 0; i < 3; ++i) differ += x.lo[i] != y.lo[i] || x.hi[i] != y.hi[i] || x.elo[i] != y.elo[i] || x.ehi[i] != y.ehi[i];
+    differ += x.refBegin != y.refBegin || x.refEnd != y.refEnd;
+  }
+  EXPECT_EQ(differ, 0u);
+  std::mt19937_64 rng(test::testSeed());
+  for (int k = 0; k < 100000; ++k) {
+    const int v[3] = {int(rng() % uint64_t(a.virtualResolution(0))), int(rng() % uint64_t(a.virtualResolution(1))),
+                      int(rng() % uint64_t(a.virtualResolution(2)))};
+    ASSERT_EQ(a.cellAt(v), b.cellAt(v)) << v[0] << "," << v[1] << "," << v[2];
+  }
+}
+
 TEST(Grid, TriangleBoxOverlapMatchesSampling) {
   std::mt19937_64 rng(test::testSeed());
   std::uniform_real_distribution<float> u(-1.0f, 1.0f);
@@ -214,6 +237,14 @@ TEST(Grid, PartialExpansionReferencesEveryPrimitiveOfTheSweptVoxels) {
     }
   });
   EXPECT_GT(checked, 1000u);
+}
+
+TEST(Grid, ParallelMergeEqualsSerialOnTheDefaultScene) {
+  FrameOptions o;
+  o.scenePath = test::sourceDir() + "/scenes/default.json";
+  Frame f;
+  loadFrameScene(o, f);
+  expectParallelMergeEqualsSerial(f.scene);
 }
 
 TEST(Grid, AgreesWithEmbreeOnTheDefaultScene) {
@@ -385,6 +416,13 @@ TEST_P(RealSceneGrid, RaysThroughVoxelEdgesEndAndAgreeWithEmbree) {
   EXPECT_EQ(giveUps.load(), 0u) << "of " << rays << " rays";
   EXPECT_GT(hits.load(), rays / 4);
   EXPECT_LE(disagree.load(), rays / 100000) << "of " << rays << " rays";
+}
+
+TEST_P(RealSceneGrid, ParallelMergeEqualsSerial) {
+  ASSERT_TRUE(test::haveFetchedScenes()) << "run scripts/fetch-scenes.sh";
+  Frame f;
+  loadFrameScene(test::realSceneOptions(GetParam().first, GetParam().second), f);
+  expectParallelMergeEqualsSerial(f.scene);
 }
 
 TEST_P(RealSceneGrid, AgreesWithEmbree) {

@@ -36,6 +36,9 @@ struct GridConfig {
   float lambda2 = 2.4f;       ///< second-level density (seed 003: λ2 = 2.4; the sweep agrees)
   int maxDepth = 6;           ///< cap on the per-cell octree depth (2^6 = 64 leaves per axis)
   bool merge = true;          ///< cell merging
+  /// Merge passes find their candidates and join the chosen pairs in parallel; false runs the
+  /// serial greedy pass they reproduce exactly (the tests' reference).
+  bool parallelMerge = true;
   float alpha = 0.995f;       ///< stop merging when N_after ≥ α N_before
   /// Cost of one traversal step relative to one intersection, in the SAH merge test:
   /// merge A, B when SA(A∪B)(C_t + |R(A∪B)|) ≤ SA(A)(C_t + |R(A)|) + SA(B)(C_t + |R(B)|).

@@ -185,38 +185,88 @@ struct GridBuilder {
     return std::includes(big.begin(), big.end(), small.begin(), small.end());
   }
 
-  /// seed 003 cell merging: one pass along `axis`; returns the number of merges.
-  size_t mergePass(int axis) {
+  /// The cell that a merge along `axis` would join to live cell a (its neighbour beyond A's
+  /// upper face, when that neighbour has exactly A's extent across the axis), and whether the
+  /// SAH criterion accepts the union; 0xFFFFFFFF when there is no such merge.
+  uint32_t mergeCandidate(uint32_t a, int axis) const {
+    constexpr uint32_t none = 0xFFFFFFFFu;
     const int u = (axis + 1) % 3, w = (axis + 2) % 3;
-    std::vector<uint8_t> touched(g.cells_.size(), 0);
-    size_t merges = 0;
-    std::vector<uint32_t> uni;
-    for (uint32_t a = 0; a < g.cells_.size(); ++a) {
-      if (forward[a] != a || touched[a]) continue;
-      GridCell& A = g.cells_[a];
-      if (A.hi[axis] >= g.virt_[axis]) continue;
-      int probe[3];
-      probe[axis] = A.hi[axis], probe[u] = A.lo[u], probe[w] = A.lo[w];
-      const uint32_t b = at(probe);
-      if (b == a || touched[b]) continue;
-      const GridCell& B = g.cells_[b];
-      if (B.lo[axis] != A.hi[axis] || B.lo[u] != A.lo[u] || B.hi[u] != A.hi[u] || B.lo[w] != A.lo[w] || B.hi[w] != A.hi[w]) continue;
-      uni.clear();
-      std::set_union(cellRefs[a].begin(), cellRefs[a].end(), cellRefs[b].begin(), cellRefs[b].end(), std::back_inserter(uni));
-      int lo[3] = {A.lo[0], A.lo[1], A.lo[2]}, hi[3] = {A.hi[0], A.hi[1], A.hi[2]};
-      hi[axis] = B.hi[axis];
-      const float ct = cfg.traversalCost;
-      const float before = area(A.lo, A.hi) * (ct + float(cellRefs[a].size())) + area(B.lo, B.hi) * (ct + float(cellRefs[b].size()));
-      const float after = area(lo, hi) * (ct + float(uni.size()));
-      if (after > before) continue;
-      A.hi[axis] = A.ehi[axis] = B.hi[axis];
-      cellRefs[a].swap(uni);
-      std::vector<uint32_t>().swap(cellRefs[b]);
-      forward[b] = a;
-      touched[a] = touched[b] = 1;
-      ++merges;
+    const GridCell& A = g.cells_[a];
+    if (A.hi[axis] >= g.virt_[axis]) return none;
+    int probe[3];
+    probe[axis] = A.hi[axis], probe[u] = A.lo[u], probe[w] = A.lo[w];
+    const uint32_t b = at(probe);
+    if (b == a) return none;
+    const GridCell& B = g.cells_[b];
+    if (B.lo[axis] != A.hi[axis] || B.lo[u] != A.lo[u] || B.hi[u] != A.hi[u] || B.lo[w] != A.lo[w] || B.hi[w] != A.hi[w]) return none;
+    // |R(A) ∪ R(B)| of the two sorted lists, without building the union.
+    const std::vector<uint32_t>&ra = cellRefs[a], &rb = cellRefs[b];
+    size_t i = 0, j = 0, n = 0;
+    while (i < ra.size() && j < rb.size()) {
+      const uint32_t x = ra[i], y = rb[j];
+      i += x <= y, j += y <= x, ++n;
     }
-    return merges;
+    n += (ra.size() - i) + (rb.size() - j);
+    int lo[3] = {A.lo[0], A.lo[1], A.lo[2]}, hi[3] = {A.hi[0], A.hi[1], A.hi[2]};
+    hi[axis] = B.hi[axis];
+    const float ct = cfg.traversalCost;
+    const float before = area(A.lo, A.hi) * (ct + float(ra.size())) + area(B.lo, B.hi) * (ct + float(rb.size()));
+    const float after = area(lo, hi) * (ct + float(n));
+    return after > before ? none : b;
+  }
+
+  /// Joins live cell b into a along `axis`.
+  void join(uint32_t a, uint32_t b, int axis) {
+    GridCell& A = g.cells_[a];
+    A.hi[axis] = A.ehi[axis] = g.cells_[b].hi[axis];
+    std::vector<uint32_t> uni;
+    uni.reserve(cellRefs[a].size() + cellRefs[b].size());
+    std::set_union(cellRefs[a].begin(), cellRefs[a].end(), cellRefs[b].begin(), cellRefs[b].end(), std::back_inserter(uni));
+    cellRefs[a].swap(uni);
+    std::vector<uint32_t>().swap(cellRefs[b]);
+    forward[b] = a;
+  }
+
+  /// seed 003 cell merging: one pass along `axis`; returns the number of merges. A greedy pass
+  /// in cell order: a cell not yet merged in this pass joins its candidate neighbour when that
+  /// one has not been merged in this pass either.
+  ///
+  /// Parallel (issue 14 §3) and the same cells as that serial pass: a cell's candidate and the
+  /// SAH decision depend only on the two cells' state before the pass — a cell's box and
+  /// references change only when it is merged, and a merged cell is out for the rest of the
+  /// pass — so the candidates are found in parallel, the greedy choice runs serially over them
+  /// (a byte per cell), and the chosen pairs, disjoint, are joined in parallel. The serial pass
+  /// (GridConfig::parallelMerge = false) stays as the reference the tests compare with.
+  size_t mergePass(int axis) {
+    constexpr uint32_t none = 0xFFFFFFFFu;
+    const uint32_t n = uint32_t(g.cells_.size());
+    std::vector<uint8_t> touched(n, 0);
+    if (!cfg.parallelMerge) {
+      size_t merges = 0;
+      for (uint32_t a = 0; a < n; ++a) {
+        if (forward[a] != a || touched[a]) continue;
+        const uint32_t b = mergeCandidate(a, axis);
+        if (b == none || touched[b]) continue;
+        join(a, b, axis);
+        touched[a] = touched[b] = 1;
+        ++merges;
+      }
+      return merges;
+    }
+    std::vector<uint32_t> candidate(n, none);
+    parallelFor(tbb::blocked_range<uint32_t>(0, n, 512), [&](const tbb::blocked_range<uint32_t>& r) {
+      for (uint32_t a = r.begin(); a != r.end(); ++a)
+        if (forward[a] == a) candidate[a] = mergeCandidate(a, axis);
+    });
+    std::vector<std::pair<uint32_t, uint32_t>> pairs;
+    for (uint32_t a = 0; a < n; ++a) {
+      const uint32_t b = candidate[a];
+      if (b == none || touched[a] || touched[b]) continue;
+      touched[a] = touched[b] = 1;
+      pairs.emplace_back(a, b);
+    }
+    parallelFor(size_t(0), pairs.size(), [&](size_t k) { join(pairs[k].first, pairs[k].second, axis); });
+    return pairs.size();
   }
 
   void merge() {
