@@ -84,10 +84,47 @@ GeoHit IrregularGrid::traverse(glm::vec3 o, glm::vec3 d, float tnear, float tfar
   const WatertightRay ray(o, d);
   const int maxSteps = 4 * (virt_[0] + virt_[1] + virt_[2]) + 16;
   int step = 0;
+  uint32_t cellId = cellAt(v);
   for (; step < maxSteps; ++step) {
-    const uint32_t cellId = cellAt(v);
     const TraversalCell& c = hot_[cellId];
     if (counts) ++counts->steps, counts->tests += cells_[cellId].refEnd - cells_[cellId].refBegin;
+    // Exit of the expanded box, and the next cell, before this cell's triangles are tested:
+    // neither depends on the tests, and the next cell's chain of loads (top cell, leaf, cell)
+    // then runs while the tests do instead of after them.
+    float tExit = std::numeric_limits<float>::infinity();
+    int axis = 0;
+    for (int i = 0; i < 3; ++i) {
+      if (d[i] == 0.0f) continue;
+      const float bound = lo_[i] + float(d[i] > 0.0f ? c.ehi[i] : c.elo[i]) * voxel_[i];
+      const float t = (bound - o[i]) * inv[i];
+      if (t < tExit) tExit = t, axis = i;
+    }
+    bool more = tExit < t1;
+    uint32_t nextId = cellId;
+    if (more) {
+      // The voxel beyond the exit face: integer on the exit axis, clamped to the face
+      // elsewhere, and never behind the current voxel along the ray. The last rule matters
+      // where the ray passes (within rounding) through an edge of two cells' faces: the rounded
+      // exit point of the second cell can lie a hair before its entry, on the first cell's side
+      // of the shared plane, and the two cells would hand the ray back and forth until the step
+      // cap (seen on engine: 1 diffuse ray in 921 600). A ray's voxel coordinates are monotone
+      // along it, so each step now moves forward on the exit axis and not back on the others:
+      // the traversal ends after at most the virtual grid's width + height + depth steps.
+      const glm::vec3 q = (o + d * tExit - lo_) * invVoxel_;
+      for (int i = 0; i < 3; ++i) {
+        if (i == axis) {
+          v[i] = d[i] > 0.0f ? c.ehi[i] : c.elo[i] - 1;
+        } else {
+          const int face = std::clamp(int(std::floor(q[i])), c.elo[i], c.ehi[i] - 1);
+          v[i] = d[i] > 0.0f ? std::max(face, v[i]) : d[i] < 0.0f ? std::min(face, v[i]) : face;
+        }
+      }
+      more = v[axis] >= 0 && v[axis] < virt_[axis];
+      if (more) {
+        nextId = cellAt(v);
+        __builtin_prefetch(&hot_[nextId]);
+      }
+    }
     for (uint32_t k = c.blockBegin; k < c.blockEnd; ++k) {
       const TriangleBlock& b = blocks_[k];
       Float4 t;
@@ -103,35 +140,9 @@ GeoHit IrregularGrid::traverse(glm::vec3 o, glm::vec3 d, float tnear, float tfar
         if (t[l] < bestT || (t[l] == bestT && tri < best.triangle)) bestT = t[l], best.t = t[l], best.triangle = tri;
       }
     }
-    // Exit of the expanded box.
-    float tExit = std::numeric_limits<float>::infinity();
-    int axis = 0;
-    for (int i = 0; i < 3; ++i) {
-      if (d[i] == 0.0f) continue;
-      const float bound = lo_[i] + float(d[i] > 0.0f ? c.ehi[i] : c.elo[i]) * voxel_[i];
-      const float t = (bound - o[i]) * inv[i];
-      if (t < tExit) tExit = t, axis = i;
-    }
     if (best.hit() && bestT <= tExit) break;  // the closest hit lies inside this cell
-    if (tExit >= t1) break;
-    // The voxel beyond the exit face: integer on the exit axis, clamped to the face elsewhere,
-    // and never behind the current voxel along the ray. The last rule matters where the ray
-    // passes (within rounding) through an edge of two cells' faces: the rounded exit point of
-    // the second cell can lie a hair before its entry, on the first cell's side of the shared
-    // plane, and the two cells would hand the ray back and forth until the step cap (seen on
-    // engine: 1 diffuse ray in 921 600). A ray's voxel coordinates are monotone along it, so
-    // each step now moves forward on the exit axis and not back on the others: the traversal
-    // ends after at most the virtual grid's width + height + depth steps.
-    const glm::vec3 q = (o + d * tExit - lo_) * invVoxel_;
-    for (int i = 0; i < 3; ++i) {
-      if (i == axis) {
-        v[i] = d[i] > 0.0f ? c.ehi[i] : c.elo[i] - 1;
-      } else {
-        const int face = std::clamp(int(std::floor(q[i])), c.elo[i], c.ehi[i] - 1);
-        v[i] = d[i] > 0.0f ? std::max(face, v[i]) : d[i] < 0.0f ? std::min(face, v[i]) : face;
-      }
-    }
-    if (v[axis] < 0 || v[axis] >= virt_[axis]) break;
+    if (!more) break;
+    cellId = nextId;
   }
   if (step == maxSteps && counts) ++counts->giveUps;  // a safety net: the steps move forward (above)
   if (best.hit()) {
