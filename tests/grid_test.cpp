@@ -341,14 +341,18 @@ TEST(Grid, RaysThroughSharedEdgesAndVerticesAgreeWithEmbree) {
 
 class RealSceneGrid : public ::testing::TestWithParam<std::pair<const char*, const char*>> {};
 
+/// The parameter's scene file and camera, loaded into f.
+void loadParamScene(const std::pair<const char*, const char*>& scene, Frame& f) {
+  loadFrameScene(test::realSceneOptions(scene.first, scene.second), f);
+}
+
 // Issue 6 §4: primary, diffuse-bounce and AO rays agree with Embree for ≥ 99.99 % of rays.
 // The packed, dispatched traversal against the reference traversal, bit for bit: primary rays
 // and random rays from their hits, closest and any hit.
 TEST_P(RealSceneGrid, PackedTraversalEqualsReference) {
   ASSERT_TRUE(test::haveFetchedScenes()) << "run scripts/fetch-scenes.sh";
-  const FrameOptions o = test::realSceneOptions(GetParam().first, GetParam().second);
   Frame f;
-  loadFrameScene(o, f);
+  loadParamScene(GetParam(), f);
   const IrregularGrid grid(f.scene);
   const Camera cam(withClipPlanes(f.camera.desc(), f.scene), 320, 180);
   const float diag = f.scene.bounds().diagonal();
@@ -385,9 +389,8 @@ TEST_P(RealSceneGrid, PackedTraversalEqualsReference) {
 // until the cap and it missed a triangle 52 units away) and agree with robust Embree.
 TEST_P(RealSceneGrid, RaysThroughVoxelEdgesEndAndAgreeWithEmbree) {
   ASSERT_TRUE(test::haveFetchedScenes()) << "run scripts/fetch-scenes.sh";
-  const FrameOptions o = test::realSceneOptions(GetParam().first, GetParam().second);
   Frame f;
-  loadFrameScene(o, f);
+  loadParamScene(GetParam(), f);
   const IrregularGrid grid(f.scene);
   const EmbreeScene embree(f.scene);
   const glm::vec3 lo = grid.origin(), voxel = grid.voxelSize();
@@ -421,15 +424,14 @@ TEST_P(RealSceneGrid, RaysThroughVoxelEdgesEndAndAgreeWithEmbree) {
 TEST_P(RealSceneGrid, ParallelMergeEqualsSerial) {
   ASSERT_TRUE(test::haveFetchedScenes()) << "run scripts/fetch-scenes.sh";
   Frame f;
-  loadFrameScene(test::realSceneOptions(GetParam().first, GetParam().second), f);
+  loadParamScene(GetParam(), f);
   expectParallelMergeEqualsSerial(f.scene);
 }
 
 TEST_P(RealSceneGrid, AgreesWithEmbree) {
   ASSERT_TRUE(test::haveFetchedScenes()) << "run scripts/fetch-scenes.sh";
-  const FrameOptions o = test::realSceneOptions(GetParam().first, GetParam().second);
   Frame f;
-  loadFrameScene(o, f);
+  loadParamScene(GetParam(), f);
   for (bool partial : {false, true}) {
     GridConfig gc;
     gc.partialExpansion = partial;
