@@ -11,9 +11,9 @@
 //   4. cell expansion: each cell's exit boundaries grow over neighbours whose references are a
 //      subset of its own (traversal stays correct: every primitive of the skipped region was
 //      already tested), a fixed number of passes (3 for static scenes); optionally partial.
-// Traversal (grid_tracer.cpp): stackless and ordered — locate the origin's cell in the voxel
-// map, intersect its primitives, stop when the closest hit lies inside the (expanded) cell,
-// otherwise move to the cell beyond the exit point.
+// Traversal (irregular_grid_traverse.cpp): stackless and ordered — locate the origin's cell in
+// the voxel map, intersect its primitives (four at a time, watertight), stop when the closest
+// hit lies inside the (expanded) cell, otherwise move to the cell beyond the exit point.
 #pragma once
 
 #include <cstdint>

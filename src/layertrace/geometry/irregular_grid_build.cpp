@@ -185,9 +185,9 @@ struct GridBuilder {
     return std::includes(big.begin(), big.end(), small.begin(), small.end());
   }
 
-  /// The cell that a merge along `axis` would join to live cell a (its neighbour beyond A's
-  /// upper face, when that neighbour has exactly A's extent across the axis), and whether the
-  /// SAH criterion accepts the union; 0xFFFFFFFF when there is no such merge.
+  /// The cell a merge along `axis` would join to live cell a — its neighbour beyond A's upper
+  /// face, if that neighbour has exactly A's extent across the axis and the SAH criterion
+  /// accepts the union — or 0xFFFFFFFF when there is no such merge.
   uint32_t mergeCandidate(uint32_t a, int axis) const {
     constexpr uint32_t none = 0xFFFFFFFFu;
     const int u = (axis + 1) % 3, w = (axis + 2) % 3;
@@ -200,7 +200,8 @@ struct GridBuilder {
     const GridCell& B = g.cells_[b];
     if (B.lo[axis] != A.hi[axis] || B.lo[u] != A.lo[u] || B.hi[u] != A.hi[u] || B.lo[w] != A.lo[w] || B.hi[w] != A.hi[w]) return none;
     // |R(A) ∪ R(B)| of the two sorted lists, without building the union.
-    const std::vector<uint32_t>&ra = cellRefs[a], &rb = cellRefs[b];
+    const std::vector<uint32_t>& ra = cellRefs[a];
+    const std::vector<uint32_t>& rb = cellRefs[b];
     size_t i = 0, j = 0, n = 0;
     while (i < ra.size() && j < rb.size()) {
       const uint32_t x = ra[i], y = rb[j];

@@ -29,10 +29,11 @@ inline Float4 load4(const float* p) {
   return v;
 }
 
-/// hitTriangleWatertight for the four triangles of a block: lane i of `t` is the hit distance
-/// where lane i of the returned mask is set (all ones), with t in [tmin, tmax].
 inline bool any(Mask4 m) { return (m[0] | m[1] | m[2] | m[3]) != 0; }
 
+/// hitTriangleWatertight for the four triangles of a block: lane i of `t` is the hit distance
+/// where lane i of the returned mask is set (all ones), with t in [tmin, tmax]. (A template so
+/// that it need not name IrregularGrid's private TriangleBlock.)
 template <class Block>
 inline Mask4 hitBlock(const WatertightRay& r, const Block& b, float tmin, float tmax, Float4& t) {
   const Float4 zero{};
