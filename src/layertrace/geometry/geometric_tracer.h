@@ -77,7 +77,8 @@ using GridTracer = GeometricTracer<IrregularGrid>;
 /// Plain Embree with 16-wide packets (rtcIntersect16) for closest hits: each traceBatch is cut
 /// into packets of 16 consecutive rays — the packet baseline `compare` reports beside single-ray
 /// Embree on the same rays (issue 14 §4). Counted runs and any-hit queries trace one ray at a
-/// time. Answers are Embree's, packet or not (geobench checks the two agree).
+/// time. Answers are Embree's, packet or not (TraceInterface.EmbreePacketsAnswerAsSingleRays,
+/// bit for bit; geobench and compare report the agreement too).
 class EmbreePacketTracer : public TracerImpl<EmbreePacketTracer> {
  public:
   EmbreePacketTracer(const Scene& scene, const Camera& camera, const EmbreeScene& embree)

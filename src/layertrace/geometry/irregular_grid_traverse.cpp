@@ -36,6 +36,7 @@ inline bool any(Mask4 m) { return (m[0] | m[1] | m[2] | m[3]) != 0; }
 /// that it need not name IrregularGrid's private TriangleBlock.)
 template <class Block>
 inline Mask4 hitBlock(const WatertightRay& r, const Block& b, float tmin, float tmax, Float4& t) {
+  static_assert(sizeof(b.id) == sizeof(Mask4), "one vector lane per triangle of a block");
   const Float4 zero{};
   const Float4 sx = zero + r.sx, sy = zero + r.sy;
   Float4 p[3][3];  // p[vertex][axis] = vertex − origin
