@@ -9,6 +9,7 @@
 
 #include "layertrace/geometry/ray_triangle.h"
 #include "layertrace/screen/screen_segment.h"
+#include "layertrace/util/error.h"
 
 namespace lt {
 
@@ -34,6 +35,13 @@ HybridTracer::HybridTracer(const Scene& scene, const Camera& camera, const Layer
       geo_(geo),
       hits_(scene, camera),
       bounds_(scene.bounds()) {}
+
+HybridTracer::HybridTracer(const Scene& scene, const Camera& camera, const LayerArrays& layers, const KnownSpace& known,
+                           const Tracer& screen, const Tracer& geo, float worldMargin)
+    : HybridTracer(scene, camera, layers, known, screen, geo) {
+  LT_CHECK(worldMargin > 0.0f, worldMargin);
+  worldMargin_ = worldMargin;
+}
 
 TraceHit HybridTracer::trace(const Ray& ray, RayCounters& counters) const {
   TraceHit h;
@@ -113,7 +121,8 @@ void HybridTracer::run(Query q, std::span<const Ray> rays, std::span<TraceHit> h
   s.from.resize(n);
   s.best.assign(n, GeoHit{});
   NoCounters none;
-  for (size_t i = 0; i < n; ++i) {
+  for (size_t i = 0; i < n && worldMargin_ > 0.0f; ++i) s.from[i] = kInf;  // world space: all known
+  for (size_t i = 0; i < n && worldMargin_ == 0.0f; ++i) {
     const KnownSpace::Boundary b = counters.empty() ? known_.boundary(rays[i], none) : known_.boundary(rays[i], counters[i]);
     s.screenRays[i].maxDistance = std::min(rays[i].maxDistance, b.knownUntil);
     s.from[i] = b.certain(rays[i]) ? kInf : b.geoFrom;
@@ -129,14 +138,29 @@ void HybridTracer::run(Query q, std::span<const Ray> rays, std::span<TraceHit> h
     const TraceHit& sh = s.screenHits[i];
     int x, y;
     const bool onScreen = r.startsOnSurface && camera_.pixelOf(r.origin, x, y);
-    if (!onScreen && !sh.hit) continue;
+    const bool world = worldMargin_ > 0.0f;
+    if (!onScreen && !sh.hit && !(world && r.startsOnSurface)) continue;
     const ScreenSegment seg = makeScreenSegment(camera_, r);
-    if (onScreen) {
-      // 6: the ray's own pixel, which screen tracers skip, up to two pixels past it.
-      s.geoRays.push_back(segment(r, 0.0f, rayParamsAroundPixel(camera_, r, seg, x, y, kPixelMargin).after));
+    if (onScreen || (world && r.startsOnSurface)) {
+      // 6: the ray's own pixel, which screen tracers skip, up to two pixels past it (a world
+      // tracer: at least worldMargin, past the texel it skips).
+      const float after = onScreen ? rayParamsAroundPixel(camera_, r, seg, x, y, kPixelMargin).after : 0.0f;
+      s.geoRays.push_back(segment(r, 0.0f, std::max(after, worldMargin_)));
       s.geoIndex.push_back(uint32_t(i));
     }
     if (!sh.hit) continue;
+    if (world) {
+      // A world-space hit lies on its sample's triangle plane within the sample's widened
+      // texel: geometry over worldMargin either side of it finds that surface, or a neighbour
+      // the texels missed, with the geometric tracer's own rules (a ray sliding in a wall's
+      // plane crosses it for the texels, not for Embree). A window that finds nothing rejects
+      // the hit, and geometry answers the ray from its origin.
+      const float tScreen = glm::dot(sh.point - r.origin, r.dir);
+      s.from[i] = 0.0f;
+      s.geoRays.push_back(segment(r, std::max(0.0f, tScreen - worldMargin_), std::min(tScreen + worldMargin_, r.maxDistance)));
+      s.geoIndex.push_back(uint32_t(i));
+      continue;
+    }
     // 3: the ray against the triangles of the hit pixel's layers up to the hit one, anywhere
     // up to two pixels past the hit pixel (a grazing ray meets the surface a few pixels before
     // its samples say so).
@@ -179,6 +203,7 @@ void HybridTracer::run(Query q, std::span<const Ray> rays, std::span<TraceHit> h
     const float t = glm::dot(g.point - rays[i].origin, rays[i].dir);
     if (!b.hit() || t <= b.t) b.t = t, b.triangle = g.triangle;
   }
+  for (size_t i = 0; i < n && worldMargin_ > 0.0f; ++i) rejected += s.screenHits[i].hit && s.from[i] == 0.0f;
   // 4–5: certain misses are answered; the rest goes to geometry from where knowledge ended.
   s.geoRays.clear();
   s.geoIndex.clear();

@@ -74,6 +74,13 @@ class HybridTracer : public Tracer {
   /// borrowed and must outlive the tracer.
   HybridTracer(const Scene& scene, const Camera& camera, const LayerArrays& layers, const KnownSpace& known, const Tracer& screen,
                const Tracer& geo);
+  /// With a world-space screen tracer (the layered depth cube): it samples every surface in
+  /// the scene box from three axes, so no ray leaves its knowledge (`known` is not asked). Its
+  /// hits (layer −1) are checked against their own triangle up to `worldMargin` past the hit
+  /// and certified by a window reaching `worldMargin` before it; `worldMargin` also bounds the
+  /// origin's window, where the tracer ignores its own surface (ldc.h: one texel).
+  HybridTracer(const Scene& scene, const Camera& camera, const LayerArrays& layers, const KnownSpace& known, const Tracer& screen,
+               const Tracer& geo, float worldMargin);
   const char* name() const override { return "hybrid"; }
   TraceHit trace(const Ray& ray, RayCounters& counters) const override;
   void traceBatch(std::span<const Ray> rays, std::span<TraceHit> hits, std::span<RayCounters> counters) const override;
@@ -106,6 +113,7 @@ class HybridTracer : public Tracer {
   const Tracer& geo_;
   GeometricHits hits_;
   Bounds bounds_;
+  float worldMargin_ = 0.0f;  ///< > 0: the screen tracer answers in world space (see the constructor)
 
   struct Scratch {
     std::vector<Ray> screenRays, geoRays;

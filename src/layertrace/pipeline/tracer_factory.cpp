@@ -19,8 +19,8 @@ void validateTracerOptions(const TracerOptions& o) {
   if (!(o.pyramid.tau > 0.0f)) inputError("--tau ", o.pyramid.tau, ": must be positive");
   validateQuadtreeConfig(o.quadtree);
   validateLdcConfig(o.ldc);
-  if (o.hybridScreen != "hssr" && o.hybridScreen != "hiz" && o.hybridScreen != "quadtree")
-    inputError("--hybrid-screen ", o.hybridScreen, ": unknown (use hssr, hiz or quadtree)");
+  if (o.hybridScreen != "hssr" && o.hybridScreen != "hiz" && o.hybridScreen != "quadtree" && o.hybridScreen != "ldc")
+    inputError("--hybrid-screen ", o.hybridScreen, ": unknown (use hssr, hiz, quadtree or ldc)");
   if (o.hybridGeo != "embree" && o.hybridGeo != "grid") inputError("--hybrid-geo ", o.hybridGeo, ": unknown (use embree or grid)");
 }
 
@@ -100,10 +100,17 @@ BuiltTracer buildTracer(const std::string& name, const Frame& frame, const Trace
       b.parts.push_back(buildTracer(o.hybridScreen, frame, o));
     }
     b.parts.push_back(buildTracer(o.hybridGeo, frame, o));
-    b.known = std::make_unique<KnownSpace>(frame.camera, coverage, frame.scene.bounds(), pyramidScreen);
+    // The layered depth cube knows the whole scene box (the hybrid does not ask the camera's
+    // known space, so only its cheap frustum part is built).
+    const bool ldc = o.hybridScreen == "ldc";
+    b.known = std::make_unique<KnownSpace>(frame.camera, coverage, frame.scene.bounds(), pyramidScreen || ldc);
     b.buildMs = b.parts[0].buildMs + b.parts[1].buildMs + b.known->buildMs();
     b.memoryBytes = b.parts[0].memoryBytes + b.parts[1].memoryBytes + b.known->memoryBytes();
-    b.tracer = std::make_unique<HybridTracer>(frame.scene, frame.camera, frame.layers, *b.known, *b.parts[0].tracer, *b.parts[1].tracer);
+    if (ldc)  // margin: a sample's widened texel reaches (0.5 + ε)·√3 texels from its centre; 3 texels cover it
+      b.tracer = std::make_unique<HybridTracer>(frame.scene, frame.camera, frame.layers, *b.known, *b.parts[0].tracer,
+                                                *b.parts[1].tracer, 3.0f * b.parts[0].ldc->texel);
+    else
+      b.tracer = std::make_unique<HybridTracer>(frame.scene, frame.camera, frame.layers, *b.known, *b.parts[0].tracer, *b.parts[1].tracer);
   } else {
     inputError("--tracer ", name, ": unknown (use ", kTracerNames, ")");
   }

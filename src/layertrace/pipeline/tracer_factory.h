@@ -30,7 +30,7 @@ struct TracerOptions {
   GridConfig grid;
   QuadtreeConfig quadtree;
   LdcConfig ldc;
-  std::string hybridScreen = "hssr";  ///< --hybrid-screen: hssr, hiz or quadtree
+  std::string hybridScreen = "hssr";  ///< --hybrid-screen: hssr, hiz, quadtree or ldc
   std::string hybridGeo = "embree";   ///< --hybrid-geo: embree or grid
 };
 
