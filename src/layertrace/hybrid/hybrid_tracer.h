@@ -75,10 +75,10 @@ class HybridTracer : public Tracer {
   HybridTracer(const Scene& scene, const Camera& camera, const LayerArrays& layers, const KnownSpace& known, const Tracer& screen,
                const Tracer& geo);
   /// With a world-space screen tracer (the layered depth cube): it samples every surface in
-  /// the scene box from three axes, so no ray leaves its knowledge (`known` is not asked). Its
-  /// hits (layer −1) are checked against their own triangle up to `worldMargin` past the hit
-  /// and certified by a window reaching `worldMargin` before it; `worldMargin` also bounds the
-  /// origin's window, where the tracer ignores its own surface (ldc.h: one texel).
+  /// the scene box from three axes, so no ray leaves its knowledge (`known` is not asked). Each
+  /// of its hits (layer −1) is certified by a geometric window from `worldMargin` before it to
+  /// `worldMargin` past it (nothing there: rejected, geometry from the origin); `worldMargin`
+  /// also bounds the origin's window, where the tracer ignores its own surface (ldc.h: a texel).
   HybridTracer(const Scene& scene, const Camera& camera, const LayerArrays& layers, const KnownSpace& known, const Tracer& screen,
                const Tracer& geo, float worldMargin);
   const char* name() const override { return "hybrid"; }

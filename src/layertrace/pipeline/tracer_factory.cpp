@@ -2,6 +2,7 @@
 
 #include "layertrace/geometry/geometric_tracer.h"
 #include <chrono>
+#include <cmath>
 #include <limits>
 
 #include "layertrace/util/error.h"
@@ -106,9 +107,12 @@ BuiltTracer buildTracer(const std::string& name, const Frame& frame, const Trace
     b.known = std::make_unique<KnownSpace>(frame.camera, coverage, frame.scene.bounds(), pyramidScreen || ldc);
     b.buildMs = b.parts[0].buildMs + b.parts[1].buildMs + b.known->buildMs();
     b.memoryBytes = b.parts[0].memoryBytes + b.parts[1].memoryBytes + b.known->memoryBytes();
-    if (ldc)  // margin: a sample's widened texel reaches (0.5 + ε)·√3 texels from its centre; 3 texels cover it
-      b.tracer = std::make_unique<HybridTracer>(frame.scene, frame.camera, frame.layers, *b.known, *b.parts[0].tracer,
-                                                *b.parts[1].tracer, 3.0f * b.parts[0].ldc->texel);
+    // The margin is the diagonal of a sample's widened texel, (1 + 2ε)·√3 texels (2.6 at the
+    // default ε): where the ray meets the sample's plane inside it, the surface the sample stands
+    // for is crossed within that distance unless the ray grazes it (then the hit is rejected).
+    if (ldc)
+      b.tracer = std::make_unique<HybridTracer>(frame.scene, frame.camera, frame.layers, *b.known, *b.parts[0].tracer, *b.parts[1].tracer,
+                                                (1.0f + 2.0f * o.ldc.epsilon) * std::sqrt(3.0f) * b.parts[0].ldc->texel);
     else
       b.tracer = std::make_unique<HybridTracer>(frame.scene, frame.camera, frame.layers, *b.known, *b.parts[0].tracer, *b.parts[1].tracer);
   } else {
