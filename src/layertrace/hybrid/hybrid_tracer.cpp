@@ -26,7 +26,7 @@ double msBetween(std::chrono::steady_clock::time_point a, std::chrono::steady_cl
 }  // namespace
 
 HybridTracer::HybridTracer(const Scene& scene, const Camera& camera, const LayerArrays& layers, const KnownSpace& known,
-                           const Tracer& screen, const Tracer& geo)
+                           const Tracer& screen, const Tracer& geo, float worldMargin)
     : scene_(scene),
       camera_(camera),
       layers_(layers),
@@ -34,13 +34,9 @@ HybridTracer::HybridTracer(const Scene& scene, const Camera& camera, const Layer
       screen_(screen),
       geo_(geo),
       hits_(scene, camera),
-      bounds_(scene.bounds()) {}
-
-HybridTracer::HybridTracer(const Scene& scene, const Camera& camera, const LayerArrays& layers, const KnownSpace& known,
-                           const Tracer& screen, const Tracer& geo, float worldMargin)
-    : HybridTracer(scene, camera, layers, known, screen, geo) {
-  LT_CHECK(worldMargin > 0.0f, worldMargin);
-  worldMargin_ = worldMargin;
+      bounds_(scene.bounds()),
+      worldMargin_(worldMargin) {
+  LT_CHECK(worldMargin >= 0.0f, worldMargin);
 }
 
 TraceHit HybridTracer::trace(const Ray& ray, RayCounters& counters) const {
@@ -121,8 +117,9 @@ void HybridTracer::run(Query q, std::span<const Ray> rays, std::span<TraceHit> h
   s.from.resize(n);
   s.best.assign(n, GeoHit{});
   NoCounters none;
-  for (size_t i = 0; i < n && worldMargin_ > 0.0f; ++i) s.from[i] = kInf;  // world space: all known
-  for (size_t i = 0; i < n && worldMargin_ == 0.0f; ++i) {
+  const bool world = worldMargin_ > 0.0f;
+  if (world) std::fill(s.from.begin(), s.from.end(), kInf);  // the screen tracer knows all space
+  for (size_t i = 0; i < n && !world; ++i) {
     const KnownSpace::Boundary b = counters.empty() ? known_.boundary(rays[i], none) : known_.boundary(rays[i], counters[i]);
     s.screenRays[i].maxDistance = std::min(rays[i].maxDistance, b.knownUntil);
     s.from[i] = b.certain(rays[i]) ? kInf : b.geoFrom;
@@ -138,9 +135,9 @@ void HybridTracer::run(Query q, std::span<const Ray> rays, std::span<TraceHit> h
     const TraceHit& sh = s.screenHits[i];
     int x, y;
     const bool onScreen = r.startsOnSurface && camera_.pixelOf(r.origin, x, y);
-    const bool world = worldMargin_ > 0.0f;
     if (!onScreen && !sh.hit && !(world && r.startsOnSurface)) continue;
-    const ScreenSegment seg = makeScreenSegment(camera_, r);
+    // The ray's pixels: for the origin's pixel and a camera hit's (a world hit needs none).
+    const ScreenSegment seg = onScreen || !world ? makeScreenSegment(camera_, r) : ScreenSegment{};
     if (onScreen || (world && r.startsOnSurface)) {
       // 6: the ray's own pixel, which screen tracers skip, up to two pixels past it (a world
       // tracer: at least worldMargin, past the texel it skips).
@@ -203,7 +200,6 @@ void HybridTracer::run(Query q, std::span<const Ray> rays, std::span<TraceHit> h
     const float t = glm::dot(g.point - rays[i].origin, rays[i].dir);
     if (!b.hit() || t <= b.t) b.t = t, b.triangle = g.triangle;
   }
-  for (size_t i = 0; i < n && worldMargin_ > 0.0f; ++i) rejected += s.screenHits[i].hit && s.from[i] == 0.0f;
   // 4–5: certain misses are answered; the rest goes to geometry from where knowledge ended.
   s.geoRays.clear();
   s.geoIndex.clear();
@@ -212,6 +208,7 @@ void HybridTracer::run(Query q, std::span<const Ray> rays, std::span<TraceHit> h
   for (size_t i = 0; i < n; ++i) {
     const Ray& r = rays[i];
     const GeoHit& b = s.best[i];
+    if (world && s.screenHits[i].hit && s.from[i] == 0.0f) ++rejected;  // its window found nothing
     const float end = b.hit() ? b.t : r.maxDistance;
     // A closest-hit miss in known space returns the environment, the most visible error, and
     // the layers can miss a silhouette thinner than a pixel between two samples: geometry

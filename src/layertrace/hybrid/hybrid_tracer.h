@@ -72,15 +72,15 @@ class HybridTracer : public Tracer {
  public:
   /// `screen` traces camera-space rays through `layers`; `geo` answers the rest. All are
   /// borrowed and must outlive the tracer.
+  ///
+  /// `worldMargin` > 0 declares a world-space screen tracer (the layered depth cube): it samples
+  /// every surface in the scene box from three axes, so no ray leaves its knowledge (`known` is
+  /// not asked). Each of its hits (layer −1) is certified by a geometric window from
+  /// `worldMargin` before it to `worldMargin` past it (nothing there: rejected, geometry from the
+  /// origin); `worldMargin` also bounds the origin's window, where the tracer ignores its own
+  /// surface (ldc.h: a texel).
   HybridTracer(const Scene& scene, const Camera& camera, const LayerArrays& layers, const KnownSpace& known, const Tracer& screen,
-               const Tracer& geo);
-  /// With a world-space screen tracer (the layered depth cube): it samples every surface in
-  /// the scene box from three axes, so no ray leaves its knowledge (`known` is not asked). Each
-  /// of its hits (layer −1) is certified by a geometric window from `worldMargin` before it to
-  /// `worldMargin` past it (nothing there: rejected, geometry from the origin); `worldMargin`
-  /// also bounds the origin's window, where the tracer ignores its own surface (ldc.h: a texel).
-  HybridTracer(const Scene& scene, const Camera& camera, const LayerArrays& layers, const KnownSpace& known, const Tracer& screen,
-               const Tracer& geo, float worldMargin);
+               const Tracer& geo, float worldMargin = 0.0f);
   const char* name() const override { return "hybrid"; }
   TraceHit trace(const Ray& ray, RayCounters& counters) const override;
   void traceBatch(std::span<const Ray> rays, std::span<TraceHit> hits, std::span<RayCounters> counters) const override;

@@ -110,11 +110,9 @@ BuiltTracer buildTracer(const std::string& name, const Frame& frame, const Trace
     // The margin is the diagonal of a sample's widened texel, (1 + 2ε)·√3 texels (2.6 at the
     // default ε): where the ray meets the sample's plane inside it, the surface the sample stands
     // for is crossed within that distance unless the ray grazes it (then the hit is rejected).
-    if (ldc)
-      b.tracer = std::make_unique<HybridTracer>(frame.scene, frame.camera, frame.layers, *b.known, *b.parts[0].tracer, *b.parts[1].tracer,
-                                                (1.0f + 2.0f * o.ldc.epsilon) * std::sqrt(3.0f) * b.parts[0].ldc->texel);
-    else
-      b.tracer = std::make_unique<HybridTracer>(frame.scene, frame.camera, frame.layers, *b.known, *b.parts[0].tracer, *b.parts[1].tracer);
+    const float worldMargin = ldc ? (1.0f + 2.0f * o.ldc.epsilon) * std::sqrt(3.0f) * b.parts[0].ldc->texel : 0.0f;
+    b.tracer = std::make_unique<HybridTracer>(frame.scene, frame.camera, frame.layers, *b.known, *b.parts[0].tracer, *b.parts[1].tracer,
+                                              worldMargin);
   } else {
     inputError("--tracer ", name, ": unknown (use ", kTracerNames, ")");
   }
