@@ -3,6 +3,7 @@
 // and n_up. Rays: mirror reflections from random covered pixels, and random directions.
 #include <atomic>
 #include <bit>
+#include <cstdio>
 #include <random>
 
 #include <tbb/parallel_for.h>
@@ -11,6 +12,7 @@
 
 #include "layertrace/pipeline/frame.h"
 #include "layertrace/screen/hssr_march.h"
+#include "layertrace/screen/hssr_march_lanes.h"
 #include "layertrace/screen/hssr_march_reference.h"
 #include "layertrace/screen/hssr_tracer.h"
 #include "layertrace/screen/interval_pyramid.h"
@@ -69,6 +71,35 @@ void expectExact(const Frame& f, size_t count) {
     }
 }
 
+/// The lane march (hssr_march_lanes.h: sixteen rays at a time with lane refill, AVX-512)
+/// against hssrMarch one ray at a time: the same pixel, interval and entry parameter bit for
+/// bit, in batches of several sizes (a batch shorter than the lanes, the renderer's 256, all).
+void expectLanesEqualMarch(const Frame& f, const IntervalPyramid& p, int levels, int nUp, const std::vector<Ray>& rays) {
+  const int W = f.camera.width(), H = f.camera.height();
+  std::vector<ScreenSegment> segs(rays.size());
+  for (size_t i = 0; i < rays.size(); ++i) segs[i] = makeScreenSegment(f.camera, rays[i]);
+  if (!hssrLanesAvailable(p, levels)) std::printf("[  NOTE    ] no AVX-512 lanes here: hssrMarchBatch runs hssrMarch\n");
+  for (size_t batch : {size_t(5), size_t(256), segs.size()}) {
+    std::vector<MarchHit> lanes(segs.size());
+    for (size_t b = 0; b < segs.size(); b += batch) {
+      const size_t n = std::min(batch, segs.size() - b);
+      hssrMarchBatch(p, levels, nUp, std::span(segs).subspan(b, n), W, H, std::span(lanes).subspan(b, n));
+    }
+    size_t differ = 0, first = segs.size(), hits = 0;
+    for (size_t i = 0; i < segs.size(); ++i) {
+      NoCounters c;
+      const MarchHit a = segs[i].valid ? hssrMarch(p, levels, nUp, segs[i], W, H, c) : MarchHit{}, b = lanes[i];
+      hits += a.hit();
+      if (a.x != b.x || a.y != b.y || a.interval != b.interval || std::bit_cast<uint32_t>(a.s) != std::bit_cast<uint32_t>(b.s)) {
+        ++differ;
+        first = std::min(first, i);
+      }
+    }
+    EXPECT_GT(hits, segs.size() / 10) << "too few hits to mean anything";
+    EXPECT_EQ(differ, 0u) << "levels " << levels << " n_up " << nUp << " batch " << batch << " first ray " << first;
+  }
+}
+
 /// The fast march (incremental spans, κ-domain fixed-slot coarse cells, sentinels) against the
 /// reference march it replaced: the same level-0 pixel, interval and entry parameter, bit for
 /// bit, for the oracle (1 level) and the hierarchical march, on `rays` and their mirror bounces.
@@ -94,6 +125,7 @@ void expectSameAsReference(const Frame& f, size_t count) {
       });
       EXPECT_GT(hits.load(), rays.size() / 10) << "too few hits to mean anything";
       EXPECT_EQ(mismatches.load(), 0u) << "levels " << levels << " n_up " << nUp << " first ray " << firstBad.load() << " seed " << seed;
+      expectLanesEqualMarch(f, p, levels, nUp, rays);
     }
     // The uncounted batch runs the copy compiled for this CPU (util/cpu_dispatch.h): the same
     // hits as the one-ray path.

@@ -1,11 +1,12 @@
 #include "layertrace/screen/hssr_tracer.h"
 
 #include <algorithm>
+#include <vector>
 
 #include "layertrace/screen/fragment_hit.h"
 #include "layertrace/screen/hssr_march.h"
+#include "layertrace/screen/hssr_march_lanes.h"
 #include "layertrace/screen/screen_segment.h"
-#include "layertrace/util/cpu_dispatch.h"
 #include "layertrace/util/error.h"
 
 namespace lt {
@@ -24,16 +25,20 @@ TraceHit HssrTracer::traceImpl(const Ray& ray, C& c) const {
   return m.hit() ? fragmentHit(camera_, layers_, m.x, m.y, m.interval) : TraceHit{};
 }
 
-namespace {
-LT_CPU_DISPATCH void traceUncounted(const HssrTracer& t, std::span<const Ray> rays, std::span<TraceHit> hits) {
-  NoCounters none;
-  for (size_t i = 0; i < rays.size(); ++i) hits[i] = t.traceImpl(rays[i], none);
-}
-}  // namespace
-
 void HssrTracer::traceBatch(std::span<const Ray> rays, std::span<TraceHit> hits, std::span<RayCounters> counters) const {
   if (kCountersCompiled && !counters.empty()) return TracerImpl::traceBatch(rays, hits, counters);
-  traceUncounted(*this, rays, hits);
+  // Uncounted: the batch's segments through the lane march (hssr_march_lanes.h), which runs
+  // sixteen rays at a time where the CPU has AVX-512 and hssrMarch one by one elsewhere.
+  thread_local std::vector<ScreenSegment> segs;
+  thread_local std::vector<MarchHit> marched;
+  segs.resize(rays.size());
+  marched.resize(rays.size());
+  for (size_t i = 0; i < rays.size(); ++i) segs[i] = makeScreenSegment(camera_, rays[i]);
+  hssrMarchBatch(pyramid_, levels_, config_.nUp, segs, camera_.width(), camera_.height(), marched);
+  for (size_t i = 0; i < rays.size(); ++i) {
+    const MarchHit& m = marched[i];
+    hits[i] = m.hit() ? fragmentHit(camera_, layers_, m.x, m.y, m.interval) : TraceHit{};
+  }
 }
 
 template TraceHit HssrTracer::traceImpl(const Ray&, RayCounters&) const;

@@ -1,0 +1,32 @@
+// The HSSR march (hssr_march.h) for a batch of segments, sixteen at a time in the lanes of
+// AVX-512 registers (issue 14: "SIMD over rays of a batch"). One ray's march is a chain of
+// data-dependent loads and branches that a CPU runs one cell at a time; sixteen rays' cells
+// are independent, so their loads overlap and the branches become lane masks. A lane whose ray
+// ends takes the next ray of the batch (lane refill), so the lanes stay busy however unequal
+// the rays' lengths.
+//
+// Same answers bit for bit as hssrMarch on every segment (tested on the default scene and the
+// real scenes for 1, 3, 5 and 8 levels): every lane runs hssrMarch's own operations — the same
+// float expressions in the same order, std::min/max/clamp's select rules, no FMA (the project
+// compiles with -ffp-contract=off) — and the rare cases the lanes leave out run hssrMarch
+// itself: axis-parallel lines, and a descent whose rounding left s outside every child.
+#pragma once
+
+#include <span>
+
+#include "layertrace/screen/hssr_march.h"
+
+namespace lt {
+
+/// Whether hssrMarchBatch runs in lanes for this pyramid on this CPU: x86-64 with AVX-512
+/// F/VL/BW/DQ, a GCC build (the lane code is GCC vector extensions), k ≤ 4 (a pixel's
+/// intervals are one 32-byte record, like a coarse cell) and at most 8 levels. Otherwise the
+/// batch runs hssrMarch one segment after the other.
+bool hssrLanesAvailable(const IntervalPyramid& pyramid, int levels);
+
+/// out[i] = hssrMarch(pyramid, levels, nUp, segs[i], W, H) for every valid segment, {} for an
+/// invalid one; no counters (uncounted batches only).
+void hssrMarchBatch(const IntervalPyramid& pyramid, int levels, int nUp, std::span<const ScreenSegment> segs, int W, int H,
+                    std::span<MarchHit> out);
+
+}  // namespace lt
