@@ -6,6 +6,7 @@
 // the share of rays each half answered. Hierarchy build time is
 // measured beside raster and sort.
 #include <algorithm>
+#include <chrono>
 #include <span>
 
 #include <benchmark/benchmark.h>
@@ -16,7 +17,9 @@
 #include "layertrace/geometry/geometric_tracer.h"
 #include "layertrace/pipeline/frame.h"
 #include "layertrace/pipeline/tracer_factory.h"
+#include "layertrace/screen/hssr_march_lanes.h"
 #include "layertrace/screen/hssr_tracer.h"
+#include "layertrace/screen/screen_segment.h"
 #include "layertrace/screen/ssr_tracer.h"
 
 namespace {
@@ -92,6 +95,45 @@ void BM_Hssr(benchmark::State& state) {
   traceAll(state, t, s.rays);
 }
 
+/// The HSSR march alone (segments made beforehand, no hit shading), one ray at a time
+/// (hssrMarchEach) against the AVX-512 lanes (hssrMarchBatch) on the same segments: each round
+/// times both, in alternating order; the counters are the medians and their ratio (the
+/// machine is noisy, a ratio within one round is not).
+void BM_HssrLanes(benchmark::State& state) {
+  Setup& s = setup(int(state.range(0)));
+  const lt::Frame& f = s.frame;
+  std::vector<lt::ScreenSegment> segs(s.rays.size());
+  for (size_t i = 0; i < segs.size(); ++i) segs[i] = lt::makeScreenSegment(f.camera, s.rays[i]);
+  std::vector<lt::MarchHit> out(segs.size());
+  const int W = f.camera.width(), H = f.camera.height();
+  auto pass = [&](bool lanes) {
+    const auto t0 = std::chrono::steady_clock::now();
+    tbb::parallel_for(tbb::blocked_range<size_t>(0, segs.size(), 1024), [&](const tbb::blocked_range<size_t>& r) {
+      for (size_t b = r.begin(); b < r.end(); b += 256) {
+        const size_t len = std::min<size_t>(256, r.end() - b);
+        const auto in = std::span<const lt::ScreenSegment>(&segs[b], len);
+        const auto o = std::span<lt::MarchHit>(&out[b], len);
+        if (lanes) lt::hssrMarchBatch(s.pyramid, 5, 2, in, W, H, o);
+        else lt::hssrMarchEach(s.pyramid, 5, 2, in, W, H, o);
+      }
+    });
+    return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+  };
+  std::vector<double> one, lanes;
+  for (auto _ : state) {
+    const bool lanesFirst = one.size() % 2 == 1;
+    if (lanesFirst) lanes.push_back(pass(true));
+    one.push_back(pass(false));
+    if (!lanesFirst) lanes.push_back(pass(true));
+  }
+  std::sort(one.begin(), one.end());
+  std::sort(lanes.begin(), lanes.end());
+  state.counters["one_ms"] = one[one.size() / 2];
+  state.counters["lanes_ms"] = lanes[lanes.size() / 2];
+  state.counters["speedup"] = one[one.size() / 2] / lanes[lanes.size() / 2];
+  state.counters["lanes_on"] = lt::hssrLanesAvailable(s.pyramid, 5);
+}
+
 void BM_Embree(benchmark::State& state) {
   Setup& s = setup(int(state.range(0)));
   const lt::EmbreeScene embree(s.frame.scene, lt::EmbreeScene::Mode::Fast);
@@ -121,6 +163,7 @@ void BM_HierarchyBuild(benchmark::State& state) {
 
 // Args: scene (0 = FZK-Haus, 1 = am_thornish), stride, all layers.
 BENCHMARK(BM_Hssr)->Arg(0)->Arg(1)->Unit(benchmark::kMillisecond)->UseRealTime();
+BENCHMARK(BM_HssrLanes)->Arg(0)->Arg(1)->Iterations(9)->Unit(benchmark::kMillisecond)->UseRealTime();
 BENCHMARK(BM_Embree)->Arg(0)->Arg(1)->Unit(benchmark::kMillisecond)->UseRealTime();
 BENCHMARK(BM_Hybrid)->Arg(0)->Arg(1)->Unit(benchmark::kMillisecond)->UseRealTime();
 BENCHMARK(BM_Ssr)

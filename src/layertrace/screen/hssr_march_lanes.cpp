@@ -17,22 +17,18 @@
 
 namespace lt {
 
-namespace {
-
-/// The portable path (and the one for segments the lanes leave out).
-LT_CPU_DISPATCH void marchEach(const IntervalPyramid& pyramid, int levels, int nUp, std::span<const ScreenSegment> segs, int W,
+/// The portable path (and the reference the lanes are measured against).
+LT_CPU_DISPATCH void hssrMarchEach(const IntervalPyramid& pyramid, int levels, int nUp, std::span<const ScreenSegment> segs, int W,
                                int H, std::span<MarchHit> out) {
   NoCounters none;
   for (size_t i = 0; i < segs.size(); ++i) out[i] = segs[i].valid ? hssrMarch(pyramid, levels, nUp, segs[i], W, H, none) : MarchHit{};
 }
 
-}  // namespace
-
 #if LT_HSSR_LANES
 // Everything in this region is compiled for AVX-512 and runs only where the CPU has it
 // (hssrLanesAvailable). Written with GCC vector extensions — a comparison gives a lane mask,
 // `m ? a : b` selects — and intrinsics only for what the extensions lack (gathers, table
-// lookups); the portable fallback is marchEach.
+// lookups); the portable fallback is hssrMarchEach.
 #pragma GCC push_options
 #pragma GCC target("avx512f,avx512vl,avx512bw,avx512dq")
 namespace {
@@ -55,14 +51,34 @@ inline void store(T* p, V v) {
   std::memcpy(p, &v, sizeof v);
 }
 
+/// A lane mask (one bit per lane) and the comparisons that make it: ordered and quiet like
+/// C's <, <=, >, >=, == (false on NaN), unordered for != (true on NaN).
+struct M {
+  __mmask16 bits;
+};
+inline M operator&(M a, M b) { return {__mmask16(a.bits & b.bits)}; }
+inline M operator|(M a, M b) { return {__mmask16(a.bits | b.bits)}; }
+inline M operator~(M a) { return {__mmask16(~a.bits)}; }
+inline M lt(F a, F b) { return {_mm512_cmp_ps_mask((__m512)a, (__m512)b, _CMP_LT_OQ)}; }
+inline M le(F a, F b) { return {_mm512_cmp_ps_mask((__m512)a, (__m512)b, _CMP_LE_OQ)}; }
+inline M gt(F a, F b) { return {_mm512_cmp_ps_mask((__m512)a, (__m512)b, _CMP_GT_OQ)}; }
+inline M ge(F a, F b) { return {_mm512_cmp_ps_mask((__m512)a, (__m512)b, _CMP_GE_OQ)}; }
+inline M eq(F a, F b) { return {_mm512_cmp_ps_mask((__m512)a, (__m512)b, _CMP_EQ_OQ)}; }
+inline M ne(F a, F b) { return {_mm512_cmp_ps_mask((__m512)a, (__m512)b, _CMP_NEQ_UQ)}; }
+inline M lt(I a, I b) { return {_mm512_cmplt_epi32_mask((__m512i)a, (__m512i)b)}; }
+inline M gt(I a, I b) { return {_mm512_cmpgt_epi32_mask((__m512i)a, (__m512i)b)}; }
+inline M ge(I a, I b) { return {_mm512_cmpge_epi32_mask((__m512i)a, (__m512i)b)}; }
+inline M eq(I a, I b) { return {_mm512_cmpeq_epi32_mask((__m512i)a, (__m512i)b)}; }
+inline M ne(I a, I b) { return {_mm512_cmpneq_epi32_mask((__m512i)a, (__m512i)b)}; }
+/// m ? a : b per lane.
+inline F sel(M m, F a, F b) { return (F)_mm512_mask_blend_ps(m.bits, (__m512)b, (__m512)a); }
+inline I sel(M m, I a, I b) { return (I)_mm512_mask_blend_epi32(m.bits, (__m512i)b, (__m512i)a); }
+
 /// std::max / std::min / std::clamp as libstdc++ writes them (a < b ? b : a; b < a ? b : a;
 /// min(max(v, lo), hi)): the same operand wins on ties, −0 and NaN as in hssrMarch.
-inline F vmax(F a, F b) { return a < b ? b : a; }
-inline F vmin(F a, F b) { return b < a ? b : a; }
-inline I vmax(I a, I b) { return a < b ? b : a; }
+inline F vmax(F a, F b) { return sel(lt(a, b), b, a); }
+inline F vmin(F a, F b) { return sel(lt(b, a), b, a); }
 inline F vabs(F a) { return (F)((I)a & 0x7fffffff); }
-inline bool any(I m) { return _mm512_movepi32_mask((__m512i)m) != 0; }
-inline __mmask16 kmask(I m) { return _mm512_movepi32_mask((__m512i)m); }
 inline I lookup(I index, const int32_t* table16) { return __builtin_shuffle(load<I>(table16), index); }
 inline Q lookup(Q index, const int64_t* table8) { return __builtin_shuffle(load<Q>(table8), index); }
 inline Q lowHalf(I v) { return __builtin_convertvector(__builtin_shufflevector(v, v, 0, 1, 2, 3, 4, 5, 6, 7), Q); }
@@ -76,11 +92,12 @@ struct alignas(64) Lanes {
   float xIn[kLanes], xOut[kLanes], yIn[kLanes], yOut[kLanes];
   float k0[kLanes], dk[kLanes], invDk[kLanes], invAbsDk[kLanes], pixelBackoff[kLanes], kScale[kLanes];
   float s[kLanes], sStart[kLanes], cornerLeft[kLanes], sLast[kLanes], zLast[kLanes];
-  int32_t L[kLanes], cx[kLanes], cy[kLanes], ox[kLanes], oy[kLanes], misses[kLanes], guard[kLanes], increasing[kLanes];
+  int32_t L[kLanes], cx[kLanes], cy[kLanes], ox[kLanes], oy[kLanes], misses[kLanes], guard[kLanes];
+  __mmask16 increasing;  ///< lanes whose depth grows along the ray (hssr-pitfalls §6)
   int32_t ray[kLanes];  ///< the segment's index in the batch; −1 for an empty lane
   int64_t offset[kLanes];  ///< byte offset of the lane's current record from Tables::origin
   // Written by a step for the lanes it finished:
-  int32_t outcome[kLanes];  ///< 0 going on, 1 miss, 2 hit, 3 hand to hssrMarch
+  __mmask16 hitMask, bailMask;  ///< finished with a hit / left to hssrMarch (others: a miss)
   int32_t interval[kLanes];
   float hitS[kLanes];
 };
@@ -129,23 +146,44 @@ bool start(Lanes& ln, int j, const IntervalPyramid& pyramid, const Tables& tb, c
   ln.kScale[j] = std::max(seg.k0, seg.k1) * invAbsDk;
   ln.s[j] = sStart, ln.sStart[j] = sStart, ln.cornerLeft[j] = -1.0f, ln.sLast[j] = -1.0f, ln.zLast[j] = 0.0f;
   ln.L[j] = 0, ln.cx[j] = cx, ln.cy[j] = cy, ln.ox[j] = ox, ln.oy[j] = oy, ln.misses[j] = 0, ln.guard[j] = 0;
-  ln.increasing[j] = seg.k1 <= seg.k0 ? -1 : 0;
+  ln.increasing = __mmask16((ln.increasing & ~(1u << j)) | (seg.k1 <= seg.k0 ? 1u << j : 0u));
   ln.ray[j] = i;
-  ln.offset[j] = (int64_t(cy) * tb.rowWidth[0] + cx) * tb.recordBytes[0];
+  const bool inside = cx >= 0 && cy >= 0 && cx < tb.width[0] && cy < tb.height[0];  // else any valid record
+  ln.offset[j] = inside ? (int64_t(cy) * tb.rowWidth[0] + cx) * tb.recordBytes[0] : 0;
   return true;
 }
 
-/// Gathers float f of the 32-byte records at byte offsets lo (lanes 0–7) and hi (8–15) from
-/// tb.origin, for the lanes in m (0 elsewhere).
-inline F gatherField(const Tables& tb, Q lo, Q hi, __mmask16 m, int f) {
-  const char* base = tb.origin + 4 * f;
-  const F8 a = (F8)_mm512_mask_i64gather_ps(_mm256_setzero_ps(), __mmask8(m), (__m512i)lo, base, 1);
-  const F8 b = (F8)_mm512_mask_i64gather_ps(_mm256_setzero_ps(), __mmask8(m >> 8), (__m512i)hi, base, 1);
-  return __builtin_shufflevector(a, b, 0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 14, 15);
+/// field[f] = float f of every lane's 32-byte record (at Lanes::offset, always a valid
+/// record): sixteen row loads and an 8×8 transpose done on both halves of the registers at once
+/// (unpack, shuffle, then 128-bit blocks), cheaper here than sixteen gathers.
+inline void loadRecords(const Lanes& ln, const Tables& tb, F field[8]) {
+  F r[8];
+  for (int j = 0; j < 8; ++j) {
+    F8 lo, hi;
+    std::memcpy(&lo, tb.origin + ln.offset[j], sizeof lo);
+    std::memcpy(&hi, tb.origin + ln.offset[j + 8], sizeof hi);
+    r[j] = __builtin_shufflevector(lo, hi, 0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 14, 15);
+  }
+  F u[8], v[8];
+  for (int j = 0; j < 4; ++j) {
+    u[2 * j] = __builtin_shufflevector(r[2 * j], r[2 * j + 1], 0, 16, 1, 17, 4, 20, 5, 21, 8, 24, 9, 25, 12, 28, 13, 29);
+    u[2 * j + 1] = __builtin_shufflevector(r[2 * j], r[2 * j + 1], 2, 18, 3, 19, 6, 22, 7, 23, 10, 26, 11, 27, 14, 30, 15, 31);
+  }
+  for (int j = 0; j < 2; ++j) {
+    const F &a = u[4 * j], &b = u[4 * j + 1], &c = u[4 * j + 2], &d = u[4 * j + 3];
+    v[4 * j] = __builtin_shufflevector(a, c, 0, 1, 16, 17, 4, 5, 20, 21, 8, 9, 24, 25, 12, 13, 28, 29);
+    v[4 * j + 1] = __builtin_shufflevector(a, c, 2, 3, 18, 19, 6, 7, 22, 23, 10, 11, 26, 27, 14, 15, 30, 31);
+    v[4 * j + 2] = __builtin_shufflevector(b, d, 0, 1, 16, 17, 4, 5, 20, 21, 8, 9, 24, 25, 12, 13, 28, 29);
+    v[4 * j + 3] = __builtin_shufflevector(b, d, 2, 3, 18, 19, 6, 7, 22, 23, 10, 11, 26, 27, 14, 15, 30, 31);
+  }
+  for (int f = 0; f < 4; ++f) {
+    field[f] = __builtin_shufflevector(v[f], v[f + 4], 0, 1, 2, 3, 16, 17, 18, 19, 8, 9, 10, 11, 24, 25, 26, 27);
+    field[f + 4] = __builtin_shufflevector(v[f], v[f + 4], 4, 5, 6, 7, 20, 21, 22, 23, 12, 13, 14, 15, 28, 29, 30, 31);
+  }
 }
 
 /// One iteration of hssrMarch's loop in every live lane (the comments name the scalar code's
-/// steps). Lanes that finish get `outcome` set.
+/// steps). Returns the lanes that finished; hitMask / bailMask say how.
 __attribute__((noinline)) uint32_t step(Lanes& ln, const Tables& tb) {
   constexpr float inf = std::numeric_limits<float>::infinity();
   const F p0x = load<F>(ln.p0x), p0y = load<F>(ln.p0y), invDx = load<F>(ln.invDx), invDy = load<F>(ln.invDy);
@@ -156,162 +194,161 @@ __attribute__((noinline)) uint32_t step(Lanes& ln, const Tables& tb) {
   F s = load<F>(ln.s), cornerLeft = load<F>(ln.cornerLeft), sLast = load<F>(ln.sLast), zLast = load<F>(ln.zLast);
   const F sStart = load<F>(ln.sStart);
   I L = load<I>(ln.L), cx = load<I>(ln.cx), cy = load<I>(ln.cy), misses = load<I>(ln.misses), guard = load<I>(ln.guard);
-  const I ox = load<I>(ln.ox), oy = load<I>(ln.oy), increasing = load<I>(ln.increasing);
-  const I live = load<I>(ln.ray) >= 0;
-  const I zero = I{} , one = zero + 1;
+  const I ox = load<I>(ln.ox), oy = load<I>(ln.oy);
+  const I zero = I{}, one = zero + 1;
+  const M live = ge(load<I>(ln.ray), zero), increasing{ln.increasing};
+  const M posX = gt(stepX, zero), posY = gt(stepY, zero);
 
   // The step cap (never reached by a conservative DDA) and the level's bounds.
-  I miss = live & (guard >= tb.safety);
-  I act = live & ~miss;
-  const I w = lookup(L, tb.width), h = lookup(L, tb.height);
-  const I outside = (cx < 0) | (cy < 0) | (cx >= w) | (cy >= h);
-  miss |= act & outside;
-  act &= ~outside;
+  M miss = live & ge(guard, zero + tb.safety);
+  M act = live & ~miss;
+  const M outside = lt(cx, zero) | lt(cy, zero) | ge(cx, lookup(L, tb.width)) | ge(cy, lookup(L, tb.height));
+  miss = miss | (act & outside);
+  act = act & ~outside;
   const F sIn = vmax(xIn, yIn), sOut = vmin(xOut, yOut);
-  const I level0 = L == 0;
-  const F s0 = level0 ? vmax(sIn, sStart) : vmax(sIn, s);
+  const M level0 = eq(L, zero);
+  const F s0 = sel(level0, vmax(sIn, sStart), vmax(sIn, s));
   const F s1 = vmin(sOut, F{} + 1.0f);
-  const I past = s0 > 1.0f;  // the segment ended before this cell
-  miss |= act & past;
-  act &= ~past;
+  const M past = gt(s0, F{} + 1.0f);  // the segment ended before this cell
+  miss = miss | (act & past);
+  act = act & ~past;
 
   // The cell's 32-byte record: k ≤ 4 intervals {front, back} of a pixel, or a coarse cell's
-  // four κFront then four κBack.
-  const Q offLo = load<Q>(ln.offset), offHi = load<Q>(ln.offset + 8);
-  const __mmask16 mAct = kmask(act), mCoarse = kmask(act & ~level0);
+  // four κFront then four κBack (requested at the end of the previous step).
+  const M at0 = act & level0, coarse = act & ~level0;
   F field[8];
-  for (int f = 0; f < 8; ++f) field[f] = gatherField(tb, offLo, offHi, f < 2 * tb.k ? mAct : mCoarse, f);
+  loadRecords(ln, tb, field);
 
-  // Level 0: firstMet over the pixel's intervals, the depths of the pixel's entry and exit.
-  const I at0 = act & level0;
-  const F za = s0 == sLast ? zLast : 1.0f / (k0 + s0 * dk), zb = 1.0f / (k0 + s1 * dk);
-  sLast = at0 ? s1 : sLast;
-  zLast = at0 ? zb : zLast;
+  // Level 0: firstMet over the pixel's intervals between the depths of its entry and exit.
+  const F za = sel(eq(s0, sLast), zLast, 1.0f / (k0 + s0 * dk)), zb = 1.0f / (k0 + s1 * dk);
+  sLast = sel(at0, s1, sLast);
+  zLast = sel(at0, zb, zLast);
   I found = zero - 1;
-  {
+  if (at0.bits) {
     const F zmin = vmin(za, zb), zmax = vmax(za, zb);
     F bestEntry = F{};
-    I scan = at0;
+    M scan = at0;
     for (int i = 0; i < tb.k; ++i) {
       const F front = field[2 * i], back = field[2 * i + 1];
-      scan &= ~(front > zmax);  // sorted by front: nothing further can overlap (and the sentinel)
-      const I overlap = scan & ~(back < zmin);
-      const I first = overlap & increasing;  // depth grows: the first overlap in front order
-      found = first ? zero + i : found;
-      scan &= ~first;
-      const F entry = back < zmax ? back : zmax;  // depth shrinks: the largest entry depth
-      const I later = overlap & ~increasing & ((found < 0) | (entry >= bestEntry));
-      found = later ? zero + i : found;
-      bestEntry = later ? entry : bestEntry;
+      scan = scan & ~gt(front, zmax);  // sorted by front: nothing further can overlap (nor the sentinel)
+      const M overlap = scan & ~lt(back, zmin);
+      const M first = overlap & increasing;  // depth grows: the first overlap in front order
+      found = sel(first, zero + i, found);
+      scan = scan & ~first;
+      const F entry = sel(lt(back, zmax), back, zmax);  // depth shrinks: the largest entry depth
+      const M later = overlap & ~increasing & (lt(found, zero) | ge(entry, bestEntry));
+      found = sel(later, zero + i, found);
+      bestEntry = sel(later, entry, bestEntry);
     }
   }
-  const I hit = at0 & (found >= 0);
+  const M hit = at0 & ge(found, zero);
 
   // Coarse levels: the earliest entry into an interval the ray's κ range overlaps.
-  const I coarse = act & ~level0;
   F sHit = F{} + inf;
-  {
+  if (coarse.bits) {
     const F ka = k0 + s0 * dk, kb = k0 + s1 * dk;
     const F kmin = vmin(ka, kb) * (1.0f - 4e-7f), kmax = vmax(ka, kb) * (1.0f + 4e-7f);
     constexpr float u = 1.0f / 16777216.0f;
-    I scan = coarse;
+    M scan = coarse;
     for (int i = 0; i < CoarseCell::kSlots; ++i) {
       const F kFront = field[i], kBack = field[CoarseCell::kSlots + i];
-      scan &= ~(kFront < kmin);
-      const I overlap = scan & ~(kBack > kmax);
-      const F kz = increasing ? kFront : kBack;
+      scan = scan & ~lt(kFront, kmin);
+      const M overlap = scan & ~gt(kBack, kmax);
+      const F kz = sel(increasing, kFront, kBack);
       const F p = (kz - k0) * invDk;
       const F e = p - vmax(pixelBackoff, 8.0f * u * (vmax(kScale, kz * invAbsDk) + vabs(p)));
-      const F entry = vmin(vmax(vabs(e) < inf ? e : s0, s0), s1);
-      sHit = overlap ? vmin(sHit, entry) : sHit;
+      const F entry = vmin(vmax(sel(lt(vabs(e), F{} + inf), e, s0), s0), s1);
+      sHit = sel(overlap, vmin(sHit, entry), sHit);
     }
   }
-  const I descend = coarse & (sHit != inf);
+  const M descend = coarse & ne(sHit, F{} + inf);
 
   // Descent (seed 000 §5.2): advance to the entry, choose the child holding s.
-  I bail = zero;
-  {
+  M bail{0};
+  if (descend.bits) {
     const F sNew = vmax(s, sHit);
     const I Ld = L - 1, half = one << Ld;
     const F xMid = __builtin_convertvector((2 * cx + 1) * half, F), yMid = __builtin_convertvector((2 * cy + 1) * half, F);
     const F mx = (xMid - p0x) * invDx, my = (yMid - p0y) * invDy;
-    const I posX = stepX > 0, posY = stepY > 0;
     I best = zero - 1;
     F bestOut = F{}, bxIn = F{}, bxOut = F{}, byIn = F{}, byOut = F{};
     for (int q = 0; q < 4; ++q) {
       // childSlab: the child entered first along an axis has the cell's entry on that axis.
-      const I firstX = (q & 1) ? ~posX : posX, firstY = (q >> 1) ? ~posY : posY;
-      const F cxIn = firstX ? xIn : mx, cxOut = firstX ? mx : xOut;
-      const F cyIn = firstY ? yIn : my, cyOut = firstY ? my : yOut;
+      const M firstX = (q & 1) ? ~posX : posX, firstY = (q >> 1) ? ~posY : posY;
+      const F cxIn = sel(firstX, xIn, mx), cxOut = sel(firstX, mx, xOut);
+      const F cyIn = sel(firstY, yIn, my), cyOut = sel(firstY, my, yOut);
       const F a = vmax(cxIn, cyIn), b = vmin(cxOut, cyOut);
-      I ok = (a <= sNew) & (sNew <= b) & ~((b == sNew) & (a < b));
-      ok &= ~((a == b) & ((cxOut <= cyOut) | (a == cornerLeft)));
-      const I take = ok & ((best < 0) | (b < bestOut));
-      best = take ? zero + q : best;
-      bestOut = take ? b : bestOut;
-      bxIn = take ? cxIn : bxIn, bxOut = take ? cxOut : bxOut, byIn = take ? cyIn : byIn, byOut = take ? cyOut : byOut;
+      const M ok = le(a, sNew) & le(sNew, b) & ~(eq(b, sNew) & lt(a, b)) & ~(eq(a, b) & (le(cxOut, cyOut) | eq(a, cornerLeft)));
+      const M take = ok & (lt(best, zero) | lt(b, bestOut));
+      best = sel(take, zero + q, best);
+      bestOut = sel(take, b, bestOut);
+      bxIn = sel(take, cxIn, bxIn), bxOut = sel(take, cxOut, bxOut), byIn = sel(take, cyIn, byIn), byOut = sel(take, cyOut, byOut);
     }
-    bail = descend & (best < 0);  // rounding left s outside every child: hssrMarch's fallback
-    const I d = descend & ~bail;
-    s = d ? sNew : s;
-    L = d ? Ld : L;
-    cx = d ? 2 * cx + (best & 1) : cx;
-    cy = d ? 2 * cy + (best >> 1) : cy;
-    xIn = d ? bxIn : xIn, xOut = d ? bxOut : xOut, yIn = d ? byIn : yIn, yOut = d ? byOut : yOut;
-    misses = d ? zero : misses;
+    bail = descend & lt(best, zero);  // rounding left s outside every child: hssrMarch's fallback
+    const M d = descend & ~bail;
+    s = sel(d, sNew, s);
+    L = sel(d, Ld, L);
+    cx = sel(d, 2 * cx + (best & 1), cx);
+    cy = sel(d, 2 * cy + (best >> 1), cy);
+    xIn = sel(d, bxIn, xIn), xOut = sel(d, bxOut, xOut), yIn = sel(d, byIn, yIn), yOut = sel(d, byOut, yOut);
+    misses = sel(d, zero, misses);
   }
 
   // No overlap: step to the next cell of this level, and ascend after n_up of them.
-  I move = act & ~hit & ~descend;
-  cornerLeft = move & (sIn == sOut) ? sOut : cornerLeft;
-  s = move ? vmax(s, s1) : s;
-  const I leaves = move & (sOut >= 1.0f);
-  miss |= leaves;
-  move &= ~leaves;
+  M move = act & ~hit & ~descend;
+  cornerLeft = sel(move & eq(sIn, sOut), sOut, cornerLeft);
+  s = sel(move, vmax(s, s1), s);
+  const M leaves = move & ge(sOut, F{} + 1.0f);
+  miss = miss | leaves;
+  move = move & ~leaves;
   {
     const I size = one << L;
-    const I exitX = xOut <= yOut;  // ties step in x first (hssr-pitfalls §7)
-    const I mx = move & exitX, my = move & ~exitX;
-    cx = mx ? cx + stepX : cx;
-    cy = my ? cy + stepY : cy;
-    const F nextX = (__builtin_convertvector((stepX > 0 ? cx + 1 : cx) * size, F) - p0x) * invDx;
-    const F nextY = (__builtin_convertvector((stepY > 0 ? cy + 1 : cy) * size, F) - p0y) * invDy;
-    xIn = mx ? xOut : xIn, xOut = mx ? nextX : xOut;
-    yIn = my ? yOut : yIn, yOut = my ? nextY : yOut;
-    misses = move ? misses + 1 : misses;
+    const M exitX = le(xOut, yOut);  // ties step in x first (hssr-pitfalls §7)
+    const M mx = move & exitX, my = move & ~exitX;
+    cx = sel(mx, cx + stepX, cx);
+    cy = sel(my, cy + stepY, cy);
+    const F nextX = (__builtin_convertvector(sel(posX, cx + 1, cx) * size, F) - p0x) * invDx;
+    const F nextY = (__builtin_convertvector(sel(posY, cy + 1, cy) * size, F) - p0y) * invDy;
+    xIn = sel(mx, xOut, xIn), xOut = sel(mx, nextX, xOut);
+    yIn = sel(my, yOut, yIn), yOut = sel(my, nextY, yOut);
+    misses = sel(move, misses + 1, misses);
     const I Lu = L + 1, px = cx >> 1, py = cy >> 1;
-    I up = move & (misses >= tb.nUp) & (Lu < tb.levels);
+    M up = move & ge(misses, zero + tb.nUp) & lt(Lu, zero + tb.levels);
     // seed 000 §5.2: only ascend when the coarser cell does not overlap the origin pixel.
-    up &= ((ox >> Lu) != px) | ((oy >> Lu) != py);
-    up &= (px < lookup(Lu, tb.width)) & (py < lookup(Lu, tb.height)) & (cx >= 0) & (cy >= 0);
-    L = up ? Lu : L;
-    cx = up ? px : cx, cy = up ? py : cy;
-    misses = up ? zero : misses;
-    const I sizeUp = 2 * size;
-    const F x0 = (__builtin_convertvector(px * sizeUp, F) - p0x) * invDx, x1 = (__builtin_convertvector((px + 1) * sizeUp, F) - p0x) * invDx;
-    const F y0 = (__builtin_convertvector(py * sizeUp, F) - p0y) * invDy, y1 = (__builtin_convertvector((py + 1) * sizeUp, F) - p0y) * invDy;
-    const I posX = stepX > 0, posY = stepY > 0;
-    xIn = up ? (posX ? x0 : x1) : xIn, xOut = up ? (posX ? x1 : x0) : xOut;
-    yIn = up ? (posY ? y0 : y1) : yIn, yOut = up ? (posY ? y1 : y0) : yOut;
+    up = up & (ne(ox >> Lu, px) | ne(oy >> Lu, py));
+    up = up & lt(px, lookup(Lu, tb.width)) & lt(py, lookup(Lu, tb.height)) & ge(cx, zero) & ge(cy, zero);
+    if (up.bits) {
+      L = sel(up, Lu, L);
+      cx = sel(up, px, cx), cy = sel(up, py, cy);
+      misses = sel(up, zero, misses);
+      const I sizeUp = 2 * size;
+      const F x0 = (__builtin_convertvector(px * sizeUp, F) - p0x) * invDx, x1 = (__builtin_convertvector((px + 1) * sizeUp, F) - p0x) * invDx;
+      const F y0 = (__builtin_convertvector(py * sizeUp, F) - p0y) * invDy, y1 = (__builtin_convertvector((py + 1) * sizeUp, F) - p0y) * invDy;
+      xIn = sel(up, sel(posX, x0, x1), xIn), xOut = sel(up, sel(posX, x1, x0), xOut);
+      yIn = sel(up, sel(posY, y0, y1), yIn), yOut = sel(up, sel(posY, y1, y0), yOut);
+    }
   }
 
   store(ln.xIn, xIn), store(ln.xOut, xOut), store(ln.yIn, yIn), store(ln.yOut, yOut);
   store(ln.s, s), store(ln.cornerLeft, cornerLeft), store(ln.sLast, sLast), store(ln.zLast, zLast);
   store(ln.L, L), store(ln.cx, cx), store(ln.cy, cy), store(ln.misses, misses), store(ln.guard, guard + 1);
-  store(ln.outcome, miss ? zero + 1 : hit ? zero + 2 : bail ? zero + 3 : zero);
   store(ln.interval, found);
   store(ln.hitS, s0);
+  ln.hitMask = hit.bits, ln.bailMask = bail.bits;
   // The records of the lanes' next cells, requested now so that their loads overlap whatever
   // runs before the next step (the other group's step).
   {
-    const I index = cy * lookup(L, tb.rowWidth) + cx;
+    // A cell outside its level gets record 0 of the level (any valid address: the lane stops
+    // before reading it).
+    const M inside = ge(cx, zero) & ge(cy, zero) & lt(cx, lookup(L, tb.width)) & lt(cy, lookup(L, tb.height));
+    const I index = sel(inside, cy * lookup(L, tb.rowWidth) + cx, zero);
     const Q levelLo = lowHalf(L), levelHi = highHalf(L);
     store(ln.offset, lookup(levelLo, tb.base) + lowHalf(index) * lookup(levelLo, tb.recordBytes));
     store(ln.offset + 8, lookup(levelHi, tb.base) + highHalf(index) * lookup(levelHi, tb.recordBytes));
     const uintptr_t origin = reinterpret_cast<uintptr_t>(tb.origin);
     for (int j = 0; j < kLanes; ++j) __builtin_prefetch(reinterpret_cast<const void*>(origin + uintptr_t(ln.offset[j])));
   }
-  return kmask(miss | hit | bail);
+  return (miss | hit | bail).bits;
 }
 
 /// The batch through the lanes: refill every lane that finished with the next segment.
@@ -338,12 +375,14 @@ void marchLanes(const IntervalPyramid& pyramid, int levels, int nUp, std::span<c
   int live = 0;
   auto refill = [&](Lanes& ln, int j) {
     ln.ray[j] = -1;
+    ln.offset[j] = 0;
     while (next < segs.size()) {
       const int i = int(next++);
       if (start(ln, j, pyramid, tb, segs[size_t(i)], i, W, H, out[size_t(i)])) return ++live, void();
     }
   };
   for (Lanes& ln : lanes) {
+    ln = Lanes{};
     std::fill(std::begin(ln.ray), std::end(ln.ray), -1);
     for (int j = 0; j < kLanes; ++j) refill(ln, j);
   }
@@ -355,9 +394,9 @@ void marchLanes(const IntervalPyramid& pyramid, int levels, int nUp, std::span<c
       for (uint32_t m = finished[g]; m; m &= m - 1) {
         const int j = __builtin_ctz(m);
         const size_t i = size_t(ln.ray[j]);
-        if (ln.outcome[j] == 2) {
+        if (ln.hitMask >> j & 1) {
           out[i] = MarchHit{ln.cx[j], ln.cy[j], ln.interval[j], ln.hitS[j]};
-        } else if (ln.outcome[j] == 3) {
+        } else if (ln.bailMask >> j & 1) {
           NoCounters none;
           out[i] = hssrMarch(pyramid, levels, nUp, segs[i], W, H, none);
         } else {
@@ -378,7 +417,7 @@ bool hssrLanesAvailable(const IntervalPyramid& pyramid, int levels) {
 #if LT_HSSR_LANES
   static const bool cpu = __builtin_cpu_supports("avx512f") && __builtin_cpu_supports("avx512vl") &&
                           __builtin_cpu_supports("avx512bw") && __builtin_cpu_supports("avx512dq");
-  return cpu && pyramid.base && pyramid.base->k >= 1 && pyramid.base->k <= 4 && levels >= 1 && levels <= 8 &&
+  return cpu && pyramid.base && pyramid.base->k == 4 && levels >= 1 && levels <= 8 &&
          levels <= pyramid.levelCount();
 #else
   (void)pyramid, (void)levels;
@@ -391,7 +430,7 @@ void hssrMarchBatch(const IntervalPyramid& pyramid, int levels, int nUp, std::sp
 #if LT_HSSR_LANES
   if (hssrLanesAvailable(pyramid, levels)) return marchLanes(pyramid, levels, nUp, segs, W, H, out);
 #endif
-  marchEach(pyramid, levels, nUp, segs, W, H, out);
+  hssrMarchEach(pyramid, levels, nUp, segs, W, H, out);
 }
 
 }  // namespace lt

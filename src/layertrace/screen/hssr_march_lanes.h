@@ -29,4 +29,9 @@ bool hssrLanesAvailable(const IntervalPyramid& pyramid, int levels);
 void hssrMarchBatch(const IntervalPyramid& pyramid, int levels, int nUp, std::span<const ScreenSegment> segs, int W, int H,
                     std::span<MarchHit> out);
 
+/// The same, one segment after the other (compiled for the CPU, util/cpu_dispatch.h): the
+/// fallback, and the reference bench_trace measures the lanes against.
+void hssrMarchEach(const IntervalPyramid& pyramid, int levels, int nUp, std::span<const ScreenSegment> segs, int W, int H,
+                   std::span<MarchHit> out);
+
 }  // namespace lt
