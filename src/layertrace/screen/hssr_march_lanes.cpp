@@ -56,9 +56,10 @@ inline void store(T* p, V v) {
 struct M {
   __mmask16 bits;
 };
-inline M operator&(M a, M b) { return {__mmask16(a.bits & b.bits)}; }
-inline M operator|(M a, M b) { return {__mmask16(a.bits | b.bits)}; }
-inline M operator~(M a) { return {__mmask16(~a.bits)}; }
+// (k-register operations, so that masks do not travel through general registers)
+inline M operator&(M a, M b) { return {_kand_mask16(a.bits, b.bits)}; }
+inline M operator|(M a, M b) { return {_kor_mask16(a.bits, b.bits)}; }
+inline M operator~(M a) { return {_knot_mask16(a.bits)}; }
 inline M lt(F a, F b) { return {_mm512_cmp_ps_mask((__m512)a, (__m512)b, _CMP_LT_OQ)}; }
 inline M le(F a, F b) { return {_mm512_cmp_ps_mask((__m512)a, (__m512)b, _CMP_LE_OQ)}; }
 inline M gt(F a, F b) { return {_mm512_cmp_ps_mask((__m512)a, (__m512)b, _CMP_GT_OQ)}; }
@@ -157,11 +158,14 @@ bool start(Lanes& ln, int j, const IntervalPyramid& pyramid, const Tables& tb, c
 /// record): sixteen row loads and an 8×8 transpose done on both halves of the registers at once
 /// (unpack, shuffle, then 128-bit blocks), cheaper here than sixteen gathers.
 inline void loadRecords(const Lanes& ln, const Tables& tb, F field[8]) {
+  // (offsets may point into another level's array: the address is formed as an integer)
+  const uintptr_t origin = reinterpret_cast<uintptr_t>(tb.origin);
+  auto record = [&](int j) { return reinterpret_cast<const void*>(origin + uintptr_t(ln.offset[j])); };
   F r[8];
   for (int j = 0; j < 8; ++j) {
     F8 lo, hi;
-    std::memcpy(&lo, tb.origin + ln.offset[j], sizeof lo);
-    std::memcpy(&hi, tb.origin + ln.offset[j + 8], sizeof hi);
+    std::memcpy(&lo, record(j), sizeof lo);
+    std::memcpy(&hi, record(j + 8), sizeof hi);
     r[j] = __builtin_shufflevector(lo, hi, 0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 14, 15);
   }
   F u[8], v[8];
@@ -189,12 +193,10 @@ __attribute__((noinline)) uint32_t step(Lanes& ln, const Tables& tb) {
   const F p0x = load<F>(ln.p0x), p0y = load<F>(ln.p0y), invDx = load<F>(ln.invDx), invDy = load<F>(ln.invDy);
   const I stepX = load<I>(ln.stepX), stepY = load<I>(ln.stepY);
   F xIn = load<F>(ln.xIn), xOut = load<F>(ln.xOut), yIn = load<F>(ln.yIn), yOut = load<F>(ln.yOut);
-  const F k0 = load<F>(ln.k0), dk = load<F>(ln.dk), invDk = load<F>(ln.invDk), invAbsDk = load<F>(ln.invAbsDk);
-  const F pixelBackoff = load<F>(ln.pixelBackoff), kScale = load<F>(ln.kScale);
+  // (per-ray constants used by one block only are loaded in it: fewer registers spilled)
+  const F k0 = load<F>(ln.k0), dk = load<F>(ln.dk);
   F s = load<F>(ln.s), cornerLeft = load<F>(ln.cornerLeft), sLast = load<F>(ln.sLast), zLast = load<F>(ln.zLast);
-  const F sStart = load<F>(ln.sStart);
   I L = load<I>(ln.L), cx = load<I>(ln.cx), cy = load<I>(ln.cy), misses = load<I>(ln.misses), guard = load<I>(ln.guard);
-  const I ox = load<I>(ln.ox), oy = load<I>(ln.oy);
   const I zero = I{}, one = zero + 1;
   const M live = ge(load<I>(ln.ray), zero), increasing{ln.increasing};
   const M posX = gt(stepX, zero), posY = gt(stepY, zero);
@@ -207,7 +209,7 @@ __attribute__((noinline)) uint32_t step(Lanes& ln, const Tables& tb) {
   act = act & ~outside;
   const F sIn = vmax(xIn, yIn), sOut = vmin(xOut, yOut);
   const M level0 = eq(L, zero);
-  const F s0 = sel(level0, vmax(sIn, sStart), vmax(sIn, s));
+  const F s0 = sel(level0, vmax(sIn, load<F>(ln.sStart)), vmax(sIn, s));
   const F s1 = vmin(sOut, F{} + 1.0f);
   const M past = gt(s0, F{} + 1.0f);  // the segment ended before this cell
   miss = miss | (act & past);
@@ -249,6 +251,8 @@ __attribute__((noinline)) uint32_t step(Lanes& ln, const Tables& tb) {
     const F ka = k0 + s0 * dk, kb = k0 + s1 * dk;
     const F kmin = vmin(ka, kb) * (1.0f - 4e-7f), kmax = vmax(ka, kb) * (1.0f + 4e-7f);
     constexpr float u = 1.0f / 16777216.0f;
+    const F invDk = load<F>(ln.invDk), invAbsDk = load<F>(ln.invAbsDk);
+    const F pixelBackoff = load<F>(ln.pixelBackoff), kScale = load<F>(ln.kScale);
     M scan = coarse;
     for (int i = 0; i < CoarseCell::kSlots; ++i) {
       const F kFront = field[i], kBack = field[CoarseCell::kSlots + i];
@@ -315,7 +319,7 @@ __attribute__((noinline)) uint32_t step(Lanes& ln, const Tables& tb) {
     const I Lu = L + 1, px = cx >> 1, py = cy >> 1;
     M up = move & ge(misses, zero + tb.nUp) & lt(Lu, zero + tb.levels);
     // seed 000 §5.2: only ascend when the coarser cell does not overlap the origin pixel.
-    up = up & (ne(ox >> Lu, px) | ne(oy >> Lu, py));
+    up = up & (ne(load<I>(ln.ox) >> Lu, px) | ne(load<I>(ln.oy) >> Lu, py));
     up = up & lt(px, lookup(Lu, tb.width)) & lt(py, lookup(Lu, tb.height)) & ge(cx, zero) & ge(cy, zero);
     if (up.bits) {
       L = sel(up, Lu, L);
