@@ -149,6 +149,22 @@ TEST(Hssr, FastMarchEqualsReferenceMarch) {
   expectSameAsReference(buildFrame(o), 40000);
 }
 
+/// The lanes over pyramids of fewer layers (k = 1 is the hybrid's known-space pyramid: one
+/// [u, ∞) interval per pixel), where a pixel's record is shorter than a coarse cell's.
+TEST(Hssr, LanesEqualMarchForFewerLayers) {
+  FrameOptions o;
+  o.scenePath = test::sourceDir() + "/scenes/default.json";
+  o.width = 317, o.height = 179;
+  const Frame f = buildFrame(o);
+  const std::vector<Ray> rays = test::sampleRays(f, 20000, test::testSeed() + 11);
+  for (int k : {1, 2, 3})
+    for (int levels : {1, 5}) {
+      const IntervalPyramid p = buildIntervalPyramid(makeIntervalLayers(f.layers, k), f.camera, PyramidConfig{levels, 25.0f});
+      ASSERT_EQ(p.base->k, k);
+      expectLanesEqualMarch(f, p, levels, 2, rays);
+    }
+}
+
 TEST(Hssr, MatchesExhaustiveOracleOnDefaultScene) {
   FrameOptions o;
   o.scenePath = test::sourceDir() + "/scenes/default.json";

@@ -2,6 +2,9 @@
 // (screen/known_space.h): each rule on a constructed scene, the thickness guard, geometry
 // starting where knowledge ends, exact answers on an analytic room, and the strict-class
 // correct share on the real scenes.
+#include <bit>
+#include <cstdint>
+
 #include <glm/geometric.hpp>
 
 #include "layertrace/eval/classify.h"
@@ -238,6 +241,22 @@ TEST(Hybrid, RealScenesCorrectShareAtLeast995Percent) {
     const std::vector<Ray> rays = test::sampleRays(f, 30000, test::testSeed(), false);
     std::vector<TraceHit> answers(rays.size()), reference(rays.size());
     truth.tracer->traceBatch(rays, reference, {});
+    {
+      // The batched boundaries (the rule-3 marches through the lanes, hssr_march_lanes.h)
+      // against boundary() one ray at a time, bit for bit.
+      const KnownSpace known(f.camera, CaptureCoverage{f.layers, f.lists.complexity, f.frontFacesOnly}, f.scene.bounds());
+      std::vector<KnownSpace::Boundary> batch(rays.size());
+      known.boundaries(rays, batch);
+      size_t differ = 0, unknown = 0;
+      for (size_t i = 0; i < rays.size(); ++i) {
+        const KnownSpace::Boundary one = boundaryOf(known, rays[i]);
+        unknown += !one.certain(rays[i]);
+        differ += std::bit_cast<uint32_t>(one.knownUntil) != std::bit_cast<uint32_t>(batch[i].knownUntil) ||
+                  std::bit_cast<uint32_t>(one.geoFrom) != std::bit_cast<uint32_t>(batch[i].geoFrom);
+      }
+      EXPECT_EQ(differ, 0u);
+      EXPECT_GT(unknown, rays.size() / 100) << "too few rays leave known space to mean anything";
+    }
     for (const char* screen : {"hssr", "ldc"}) {
       SCOPED_TRACE(screen);
       TracerOptions o;

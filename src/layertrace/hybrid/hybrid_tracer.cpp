@@ -116,11 +116,16 @@ void HybridTracer::run(Query q, std::span<const Ray> rays, std::span<TraceHit> h
   s.screenHits.resize(n);
   s.from.resize(n);
   s.best.assign(n, GeoHit{});
-  NoCounters none;
   const bool world = worldMargin_ > 0.0f;
   if (world) std::fill(s.from.begin(), s.from.end(), kInf);  // the screen tracer knows all space
+  if (!world) {
+    s.boundaries.resize(n);
+    if (counters.empty()) known_.boundaries(rays, s.boundaries);
+    else
+      for (size_t i = 0; i < n; ++i) s.boundaries[i] = known_.boundary(rays[i], counters[i]);
+  }
   for (size_t i = 0; i < n && !world; ++i) {
-    const KnownSpace::Boundary b = counters.empty() ? known_.boundary(rays[i], none) : known_.boundary(rays[i], counters[i]);
+    const KnownSpace::Boundary& b = s.boundaries[i];
     s.screenRays[i].maxDistance = std::min(rays[i].maxDistance, b.knownUntil);
     s.from[i] = b.certain(rays[i]) ? kInf : b.geoFrom;
   }

@@ -119,6 +119,7 @@ class HybridTracer : public Tracer {
     std::vector<Ray> screenRays, geoRays;
     std::vector<TraceHit> screenHits, geoHits;
     std::vector<float> from;  ///< per ray: where geometry must take over (+∞: answered)
+    std::vector<KnownSpace::Boundary> boundaries;
     std::vector<uint32_t> geoIndex;
     std::vector<GeoHit> best;
     std::vector<RayCounters> geoCounters;

@@ -162,11 +162,19 @@ inline void loadRecords(const Lanes& ln, const Tables& tb, F field[8]) {
   const uintptr_t origin = reinterpret_cast<uintptr_t>(tb.origin);
   auto record = [&](int j) { return reinterpret_cast<const void*>(origin + uintptr_t(ln.offset[j])); };
   F r[8];
-  for (int j = 0; j < 8; ++j) {
-    F8 lo, hi;
-    std::memcpy(&lo, record(j), sizeof lo);
-    std::memcpy(&hi, record(j + 8), sizeof hi);
-    r[j] = __builtin_shufflevector(lo, hi, 0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 14, 15);
+  if (tb.k == 4) {
+    for (int j = 0; j < 8; ++j) {
+      F8 lo, hi;
+      std::memcpy(&lo, record(j), sizeof lo);
+      std::memcpy(&hi, record(j + 8), sizeof hi);
+      r[j] = __builtin_shufflevector(lo, hi, 0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 14, 15);
+    }
+  } else {
+    // A pixel's record is 8k < 32 bytes: masked loads read its 2k floats only (the last pixel's
+    // record ends where the array does; masked-off floats are not read).
+    const __mmask8 pixel = __mmask8((1u << (2 * tb.k)) - 1);
+    auto row = [&](int j) { return (F8)_mm256_maskz_loadu_ps(ln.L[j] == 0 ? pixel : __mmask8(0xff), record(j)); };
+    for (int j = 0; j < 8; ++j) r[j] = __builtin_shufflevector(row(j), row(j + 8), 0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 14, 15);
   }
   F u[8], v[8];
   for (int j = 0; j < 4; ++j) {
@@ -421,7 +429,7 @@ bool hssrLanesAvailable(const IntervalPyramid& pyramid, int levels) {
 #if LT_HSSR_LANES
   static const bool cpu = __builtin_cpu_supports("avx512f") && __builtin_cpu_supports("avx512vl") &&
                           __builtin_cpu_supports("avx512bw") && __builtin_cpu_supports("avx512dq");
-  return cpu && pyramid.base && pyramid.base->k == 4 && levels >= 1 && levels <= 8 &&
+  return cpu && pyramid.base && pyramid.base->k >= 1 && pyramid.base->k <= 4 && levels >= 1 && levels <= 8 &&
          levels <= pyramid.levelCount();
 #else
   (void)pyramid, (void)levels;

@@ -4,10 +4,12 @@
 #include <chrono>
 #include <cmath>
 #include <limits>
+#include <vector>
 
 #include <glm/geometric.hpp>
 
 #include "layertrace/screen/hssr_march.h"
+#include "layertrace/screen/hssr_march_lanes.h"
 #include "layertrace/screen/screen_segment.h"
 #include "layertrace/util/error.h"
 #include "layertrace/util/memory.h"
@@ -97,12 +99,32 @@ template <class C>
 KnownSpace::Boundary KnownSpace::boundary(const Ray& ray, C& c) const {
   const ScreenSegment seg = makeScreenSegment(camera_, ray);
   if (!seg.valid || seg.startOutside) return {};  // rule 1
+  MarchHit m;
+  if (pyramid_.levelCount() > 0) m = hssrMarch(pyramid_, pyramid_.levelCount(), 1, seg, camera_.width(), camera_.height(), c);  // rule 3
+  return finish(ray, seg, m);
+}
+
+void KnownSpace::boundaries(std::span<const Ray> rays, std::span<Boundary> out) const {
+  thread_local std::vector<ScreenSegment> segs;
+  thread_local std::vector<MarchHit> marched;
+  segs.resize(rays.size());
+  marched.assign(rays.size(), MarchHit{});
+  for (size_t i = 0; i < rays.size(); ++i) segs[i] = makeScreenSegment(camera_, rays[i]);
+  if (pyramid_.levelCount() > 0) {
+    // Rays that start outside are answered by rule 1: an invalid segment is not marched.
+    thread_local std::vector<ScreenSegment> marchable;
+    marchable = segs;
+    for (ScreenSegment& s : marchable) s.valid = s.valid && !s.startOutside;
+    hssrMarchBatch(pyramid_, pyramid_.levelCount(), 1, marchable, camera_.width(), camera_.height(), marched);
+  }
+  for (size_t i = 0; i < rays.size(); ++i)
+    out[i] = !segs[i].valid || segs[i].startOutside ? Boundary{} : finish(rays[i], segs[i], marched[i]);
+}
+
+KnownSpace::Boundary KnownSpace::finish(const Ray& ray, const ScreenSegment& seg, const MarchHit& m) const {
   float s = 1.0f;
   bool leaves = seg.clippedEnd;  // rule 2: the near plane or the viewport's border
-  if (pyramid_.levelCount() > 0) {  // rule 3
-    const MarchHit m = hssrMarch(pyramid_, pyramid_.levelCount(), 1, seg, camera_.width(), camera_.height(), c);
-    if (m.hit()) s = m.s, leaves = true;
-  }
+  if (m.hit()) s = m.s, leaves = true;  // rule 3
   if (farLimit_ < kInf) {  // rule 2: beyond the far plane
     const float sFar = seg.paramAtDepth(farLimit_);
     if (std::max(seg.depthAt(0.0f), seg.depthAt(s)) > farLimit_ && sFar >= 0.0f && sFar < s) s = sFar, leaves = true;

@@ -25,6 +25,7 @@
 
 #include "layertrace/raster/layer_arrays.h"
 #include "layertrace/scene/camera.h"
+#include "layertrace/screen/hssr_march.h"
 #include "layertrace/screen/interval_pyramid.h"
 #include "layertrace/trace/tracer.h"
 
@@ -66,11 +67,17 @@ class KnownSpace {
   /// Counted like a tracer (one iteration per visited cell).
   template <class C>
   Boundary boundary(const Ray& ray, C& counters) const;
+  /// boundary() of every ray of a batch, uncounted: the rule-3 marches run together through
+  /// hssrMarchBatch (AVX-512 lanes where the CPU has them; the same answers bit for bit).
+  void boundaries(std::span<const Ray> rays, std::span<Boundary> out) const;
 
   size_t memoryBytes() const { return pyramid_.memoryBytes(); }
   double buildMs() const { return buildMs_; }
 
  private:
+  /// The boundary from the ray's segment and its rule-3 march (no hit when there was none).
+  Boundary finish(const Ray& ray, const ScreenSegment& seg, const MarchHit& m) const;
+
   const Camera& camera_;
   IntervalPyramid pyramid_;  ///< over [u, ∞); empty when frustumOnly
   float farLimit_;  ///< depth beyond which nothing was captured (+∞ when the far plane covers the scene)
