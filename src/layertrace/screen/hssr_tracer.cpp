@@ -35,6 +35,15 @@ void HssrTracer::traceBatch(std::span<const Ray> rays, std::span<TraceHit> hits,
   marched.resize(rays.size());
   for (size_t i = 0; i < rays.size(); ++i) segs[i] = makeScreenSegment(camera_, rays[i]);
   hssrMarchBatch(pyramid_, levels_, config_.nUp, segs, camera_.width(), camera_.height(), marched);
+  // The hit fragments are scattered over the layer arrays: ask for all of them before reading
+  // any, so that their cache misses overlap (3–5 % of HSSR's time, measured by alternating
+  // passes with and without in one run, FZK-Haus and am_thornish).
+  for (const MarchHit& m : marched)
+    if (m.hit()) {
+      const size_t slot = layers_.pixelIndex(m.x, m.y) * size_t(layers_.k) + size_t(m.interval);
+      __builtin_prefetch(&layers_.slots[slot]);
+      __builtin_prefetch(&layers_.triangle[slot]);
+    }
   for (size_t i = 0; i < rays.size(); ++i) {
     const MarchHit& m = marched[i];
     hits[i] = m.hit() ? fragmentHit(camera_, layers_, m.x, m.y, m.interval) : TraceHit{};
