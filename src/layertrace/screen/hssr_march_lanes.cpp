@@ -92,7 +92,7 @@ struct alignas(64) Lanes {
   int32_t stepX[kLanes], stepY[kLanes];
   float xIn[kLanes], xOut[kLanes], yIn[kLanes], yOut[kLanes];
   float k0[kLanes], dk[kLanes], invDk[kLanes], invAbsDk[kLanes], pixelBackoff[kLanes], kScale[kLanes];
-  float s[kLanes], sStart[kLanes], cornerLeft[kLanes], sLast[kLanes], zLast[kLanes];
+  float s[kLanes], sStart[kLanes], cornerLeft[kLanes];
   int32_t L[kLanes], cx[kLanes], cy[kLanes], ox[kLanes], oy[kLanes], misses[kLanes], guard[kLanes];
   __mmask16 increasing;  ///< lanes whose depth grows along the ray (hssr-pitfalls §6)
   int32_t ray[kLanes];  ///< the segment's index in the batch; −1 for an empty lane
@@ -145,7 +145,7 @@ bool start(Lanes& ln, int j, const IntervalPyramid& pyramid, const Tables& tb, c
   ln.k0[j] = k0, ln.dk[j] = dk, ln.invDk[j] = invDk, ln.invAbsDk[j] = invAbsDk;
   ln.pixelBackoff[j] = 1.0f / (64.0f * std::max(std::abs(line.d.x), std::abs(line.d.y)));
   ln.kScale[j] = std::max(seg.k0, seg.k1) * invAbsDk;
-  ln.s[j] = sStart, ln.sStart[j] = sStart, ln.cornerLeft[j] = -1.0f, ln.sLast[j] = -1.0f, ln.zLast[j] = 0.0f;
+  ln.s[j] = sStart, ln.sStart[j] = sStart, ln.cornerLeft[j] = -1.0f;
   ln.L[j] = 0, ln.cx[j] = cx, ln.cy[j] = cy, ln.ox[j] = ox, ln.oy[j] = oy, ln.misses[j] = 0, ln.guard[j] = 0;
   ln.increasing = __mmask16((ln.increasing & ~(1u << j)) | (seg.k1 <= seg.k0 ? 1u << j : 0u));
   ln.ray[j] = i;
@@ -203,7 +203,7 @@ __attribute__((noinline)) uint32_t step(Lanes& ln, const Tables& tb) {
   F xIn = load<F>(ln.xIn), xOut = load<F>(ln.xOut), yIn = load<F>(ln.yIn), yOut = load<F>(ln.yOut);
   // (per-ray constants used by one block only are loaded in it: fewer registers spilled)
   const F k0 = load<F>(ln.k0), dk = load<F>(ln.dk);
-  F s = load<F>(ln.s), cornerLeft = load<F>(ln.cornerLeft), sLast = load<F>(ln.sLast), zLast = load<F>(ln.zLast);
+  F s = load<F>(ln.s), cornerLeft = load<F>(ln.cornerLeft);
   I L = load<I>(ln.L), cx = load<I>(ln.cx), cy = load<I>(ln.cy), misses = load<I>(ln.misses), guard = load<I>(ln.guard);
   const I zero = I{}, one = zero + 1;
   const M live = ge(load<I>(ln.ray), zero), increasing{ln.increasing};
@@ -230,9 +230,9 @@ __attribute__((noinline)) uint32_t step(Lanes& ln, const Tables& tb) {
   loadRecords(ln, tb, field);
 
   // Level 0: firstMet over the pixel's intervals between the depths of its entry and exit.
-  const F za = sel(eq(s0, sLast), zLast, 1.0f / (k0 + s0 * dk)), zb = 1.0f / (k0 + s1 * dk);
-  sLast = sel(at0, s1, sLast);
-  zLast = sel(at0, zb, zLast);
+  // (hssrMarch reuses the previous pixel's exit depth when s0 is its exit: the same division of
+  // the same s, so dividing again gives the same bits, and the lanes divide anyway)
+  const F za = 1.0f / (k0 + s0 * dk), zb = 1.0f / (k0 + s1 * dk);
   I found = zero - 1;
   if (at0.bits) {
     const F zmin = vmin(za, zb), zmax = vmax(za, zb);
@@ -342,7 +342,7 @@ __attribute__((noinline)) uint32_t step(Lanes& ln, const Tables& tb) {
   }
 
   store(ln.xIn, xIn), store(ln.xOut, xOut), store(ln.yIn, yIn), store(ln.yOut, yOut);
-  store(ln.s, s), store(ln.cornerLeft, cornerLeft), store(ln.sLast, sLast), store(ln.zLast, zLast);
+  store(ln.s, s), store(ln.cornerLeft, cornerLeft);
   store(ln.L, L), store(ln.cx, cx), store(ln.cy, cy), store(ln.misses, misses), store(ln.guard, guard + 1);
   store(ln.interval, found);
   store(ln.hitS, s0);
