@@ -26,9 +26,9 @@ LT_CPU_DISPATCH void hssrMarchEach(const IntervalPyramid& pyramid, int levels, i
 
 #if LT_HSSR_LANES
 // Everything in this region is compiled for AVX-512 and runs only where the CPU has it
-// (hssrLanesAvailable). Written with GCC vector extensions — a comparison gives a lane mask,
-// `m ? a : b` selects — and intrinsics only for what the extensions lack (gathers, table
-// lookups); the portable fallback is hssrMarchEach.
+// (hssrLanesAvailable). Arithmetic is written with GCC vector extensions; intrinsics only for
+// what they lack (comparisons into k-register lane masks, blends, masked loads); the portable
+// fallback is hssrMarchEach.
 #pragma GCC push_options
 #pragma GCC target("avx512f,avx512vl,avx512bw,avx512dq")
 namespace {
@@ -36,7 +36,6 @@ namespace {
 constexpr int kLanes = 16;
 using F = float __attribute__((vector_size(64)));
 using I = int32_t __attribute__((vector_size(64)));
-using I8 = int32_t __attribute__((vector_size(32)));
 using Q = int64_t __attribute__((vector_size(64)));  // eight 64-bit byte offsets
 using F8 = float __attribute__((vector_size(32)));
 
@@ -379,8 +378,8 @@ void marchLanes(const IntervalPyramid& pyramid, int levels, int nUp, std::span<c
     tb.recordBytes[L] = L == 0 ? int64_t(sizeof(Interval)) * level0.k : int64_t(sizeof(CoarseCell));
   }
   // Two groups of lanes stepped in turn: each step prefetches its lanes' next records, and the
-  // other group's step hides their latency (one group: 219 ms, two: 196–200 ms, three: 214 ms on
-  // bench_trace BM_Hssr, FZK-Haus; without the prefetch 234 / 221 / 231 ms).
+  // other group's step hides their latency (bench_trace BM_HssrLanes, FZK-Haus: one group 1.16–
+  // 1.22× the one-ray march, two 1.31–1.37×, three and four no better than two).
   constexpr int kGroups = 2;
   Lanes lanes[kGroups];
   size_t next = 0;
@@ -430,7 +429,8 @@ bool hssrLanesAvailable(const IntervalPyramid& pyramid, int levels) {
   static const bool cpu = __builtin_cpu_supports("avx512f") && __builtin_cpu_supports("avx512vl") &&
                           __builtin_cpu_supports("avx512bw") && __builtin_cpu_supports("avx512dq");
   return cpu && pyramid.base && pyramid.base->k >= 1 && pyramid.base->k <= 4 && levels >= 1 && levels <= 8 &&
-         levels <= pyramid.levelCount();
+         levels <= pyramid.levelCount() && pyramid.levels[0].width == pyramid.base->width &&
+         pyramid.levels[0].height == pyramid.base->height;
 #else
   (void)pyramid, (void)levels;
   return false;

@@ -109,16 +109,12 @@ void KnownSpace::boundaries(std::span<const Ray> rays, std::span<Boundary> out) 
   thread_local std::vector<MarchHit> marched;
   segs.resize(rays.size());
   marched.assign(rays.size(), MarchHit{});
-  for (size_t i = 0; i < rays.size(); ++i) segs[i] = makeScreenSegment(camera_, rays[i]);
-  if (pyramid_.levelCount() > 0) {
-    // Rays that start outside are answered by rule 1: an invalid segment is not marched.
-    thread_local std::vector<ScreenSegment> marchable;
-    marchable = segs;
-    for (ScreenSegment& s : marchable) s.valid = s.valid && !s.startOutside;
-    hssrMarchBatch(pyramid_, pyramid_.levelCount(), 1, marchable, camera_.width(), camera_.height(), marched);
+  for (size_t i = 0; i < rays.size(); ++i) {
+    segs[i] = makeScreenSegment(camera_, rays[i]);
+    segs[i].valid = segs[i].valid && !segs[i].startOutside;  // rule 1 answers these: not marched
   }
-  for (size_t i = 0; i < rays.size(); ++i)
-    out[i] = !segs[i].valid || segs[i].startOutside ? Boundary{} : finish(rays[i], segs[i], marched[i]);
+  if (pyramid_.levelCount() > 0) hssrMarchBatch(pyramid_, pyramid_.levelCount(), 1, segs, camera_.width(), camera_.height(), marched);
+  for (size_t i = 0; i < rays.size(); ++i) out[i] = segs[i].valid ? finish(rays[i], segs[i], marched[i]) : Boundary{};
 }
 
 KnownSpace::Boundary KnownSpace::finish(const Ray& ray, const ScreenSegment& seg, const MarchHit& m) const {
