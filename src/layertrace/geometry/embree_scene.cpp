@@ -185,7 +185,31 @@ void intersectPacket(RTCScene scene, const glm::vec3* o, const glm::vec3* d, int
   }
 }
 
+/// rtcOccluded16 on one packet of n ≤ 16 rays.
+void occludedPacket(RTCScene scene, const glm::vec3* o, const glm::vec3* d, int n, const float* tnear, const float* tfar, bool* out) {
+  alignas(64) int valid[16];
+  alignas(64) RTCRay16 r{};
+  for (int i = 0; i < 16; ++i) {
+    const int j = i < n ? i : 0;
+    valid[i] = i < n ? -1 : 0;
+    r.org_x[i] = o[j].x, r.org_y[i] = o[j].y, r.org_z[i] = o[j].z;
+    r.dir_x[i] = d[j].x, r.dir_y[i] = d[j].y, r.dir_z[i] = d[j].z;
+    r.tnear[i] = tnear[j], r.tfar[i] = tfar[j];
+    r.mask[i] = 0xFFFFFFFFu, r.flags[i] = 0;
+  }
+  RTCIntersectContext ctx;
+  rtcInitIntersectContext(&ctx);
+  rtcOccluded16(valid, scene, &ctx, &r);
+  for (int i = 0; i < n; ++i) out[i] = r.tfar[i] < 0.0f;  // Embree sets tfar = -inf on occlusion
+}
+
 }  // namespace
+
+void EmbreeScene::occludedPackets(const glm::vec3* o, const glm::vec3* d, const float* tnear, const float* tfar, size_t n,
+                                  bool* out) const {
+  const FlushDenormalsScope denormals;
+  for (size_t b = 0; b < n; b += 16) occludedPacket(impl_->scene, o + b, d + b, int(std::min<size_t>(16, n - b)), tnear + b, tfar + b, out + b);
+}
 
 void EmbreeScene::intersectPackets(const glm::vec3* o, const glm::vec3* d, size_t n, float tnear, float tfar, int width,
                                    GeoHit* out) const {

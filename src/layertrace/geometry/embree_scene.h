@@ -54,6 +54,9 @@ class EmbreeScene {
   /// The same with each ray's own [tnear, tfar], 16 at a time (rtcIntersect16).
   void intersectPackets(const glm::vec3* origins, const glm::vec3* dirs, const float* tnear, const float* tfar, size_t n,
                         GeoHit* out) const;
+  /// Any hit of n rays, each with its own [tnear, tfar], 16 at a time (rtcOccluded16).
+  void occludedPackets(const glm::vec3* origins, const glm::vec3* dirs, const float* tnear, const float* tfar, size_t n,
+                       bool* out) const;
   /// Every hit along the ray with t in [tnear, tfar], sorted by t, each triangle once (with
   /// HIGH build quality Embree may report a triangle twice). Robust and Capture modes.
   void allHits(glm::vec3 origin, glm::vec3 dir, float tnear, float tfar, std::vector<GeoHit>& out) const;

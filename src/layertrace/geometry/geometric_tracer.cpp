@@ -42,23 +42,38 @@ TraceHit GeometricHits::makeHit(const Ray& ray, const GeoHit& g) const {
   return h;
 }
 
-void EmbreePacketTracer::traceBatch(std::span<const Ray> rays, std::span<TraceHit> hits, std::span<RayCounters> counters) const {
-  if (kCountersCompiled && !counters.empty()) return TracerImpl::traceBatch(rays, hits, counters);
-  const GeometricHits& h = single_.hits();
-  const Camera& cam = h.camera();
+template <class F>
+void EmbreePacketTracer::packets(std::span<const Ray> rays, F f) const {
+  const Camera& cam = single_.hits().camera();
   for (size_t b = 0; b < rays.size(); b += 16) {
     const size_t n = std::min<size_t>(16, rays.size() - b);
     glm::vec3 o[16], d[16];
     float tnear[16], tfar[16];
-    GeoHit g[16];
     for (size_t i = 0; i < n; ++i) {
       const Ray& r = rays[b + i];
       o[i] = cam.toWorld(r.origin), d[i] = cam.dirToWorld(r.dir);
       tnear[i] = GeometricHits::originOffset(r), tfar[i] = r.maxDistance;
     }
-    embree_.intersectPackets(o, d, tnear, tfar, n, g);
-    for (size_t i = 0; i < n; ++i) hits[b + i] = h.makeHit(rays[b + i], g[i]);
+    f(o, d, tnear, tfar, n, b);
   }
+}
+
+void EmbreePacketTracer::traceBatch(std::span<const Ray> rays, std::span<TraceHit> hits, std::span<RayCounters> counters) const {
+  if (kCountersCompiled && !counters.empty()) return TracerImpl::traceBatch(rays, hits, counters);
+  packets(rays, [&](const glm::vec3* o, const glm::vec3* d, const float* tnear, const float* tfar, size_t n, size_t b) {
+    GeoHit g[16];
+    embree_.intersectPackets(o, d, tnear, tfar, n, g);
+    for (size_t i = 0; i < n; ++i) hits[b + i] = single_.hits().makeHit(rays[b + i], g[i]);
+  });
+}
+
+void EmbreePacketTracer::occludedBatch(std::span<const Ray> rays, std::span<TraceHit> hits, std::span<RayCounters> counters) const {
+  if (kCountersCompiled && !counters.empty()) return TracerImpl::occludedBatch(rays, hits, counters);
+  packets(rays, [&](const glm::vec3* o, const glm::vec3* d, const float* tnear, const float* tfar, size_t n, size_t b) {
+    bool blocked[16];
+    embree_.occludedPackets(o, d, tnear, tfar, n, blocked);
+    for (size_t i = 0; i < n; ++i) hits[b + i] = GeometricHits::occludedHit(blocked[i]);
+  });
 }
 
 }  // namespace lt

@@ -74,10 +74,10 @@ class GeometricTracer : public TracerImpl<GeometricTracer<Accel>> {
 using EmbreeTracer = GeometricTracer<EmbreeScene>;
 using GridTracer = GeometricTracer<IrregularGrid>;
 
-/// Plain Embree with 16-wide packets (rtcIntersect16) for closest hits: each traceBatch is cut
-/// into packets of 16 consecutive rays — the packet baseline `compare` reports beside single-ray
-/// Embree on the same rays (issue 14 §4). Counted runs and any-hit queries trace one ray at a
-/// time. Answers are Embree's, packet or not (TraceInterface.EmbreePacketsAnswerAsSingleRays,
+/// Plain Embree with 16-wide packets (rtcIntersect16 / rtcOccluded16): each batch is cut into
+/// packets of 16 consecutive rays — the packet baseline `compare` reports beside single-ray
+/// Embree on the same rays (issue 14 §4), and the hybrid's geometric half. Counted runs trace
+/// one ray at a time. Answers are Embree's, packet or not (TraceInterface.EmbreePacketsAnswerAsSingleRays,
 /// bit for bit; geobench and compare report the agreement too).
 class EmbreePacketTracer : public TracerImpl<EmbreePacketTracer> {
  public:
@@ -93,8 +93,12 @@ class EmbreePacketTracer : public TracerImpl<EmbreePacketTracer> {
     return single_.occludedImpl(ray, c);
   }
   void traceBatch(std::span<const Ray> rays, std::span<TraceHit> hits, std::span<RayCounters> counters) const override;
+  void occludedBatch(std::span<const Ray> rays, std::span<TraceHit> hits, std::span<RayCounters> counters) const override;
 
  private:
+  /// Calls f(origins, dirs, tnear, tfar, n, offset) for each packet of up to 16 rays.
+  template <class F>
+  void packets(std::span<const Ray> rays, F f) const;
   EmbreeTracer single_;  ///< the one-ray path, and the hit construction the packets share
   const EmbreeScene& embree_;
 };

@@ -1,10 +1,10 @@
 #include "layertrace/pipeline/tracer_factory.h"
 
-#include "layertrace/geometry/geometric_tracer.h"
 #include <chrono>
 #include <cmath>
 #include <limits>
 
+#include "layertrace/geometry/geometric_tracer.h"
 #include "layertrace/util/error.h"
 
 namespace lt {
@@ -101,6 +101,12 @@ BuiltTracer buildTracer(const std::string& name, const Frame& frame, const Trace
       b.parts.push_back(buildTracer(o.hybridScreen, frame, o));
     }
     b.parts.push_back(buildTracer(o.hybridGeo, frame, o));
+    // Embree as the geometric half traces closest hits in 16-wide packets: the hybrid hands it
+    // whole batches (windows, then remainders) of rays from neighbouring pixels, and the answers
+    // are Embree's bit for bit (TraceInterface.EmbreePacketsAnswerAsSingleRays). Measured on
+    // FZK-Haus / engine one-bounce reflections: windows 1.5–2.2×, remainders 1.4–1.6× faster.
+    if (o.hybridGeo == "embree")
+      b.parts.back().tracer = std::make_unique<EmbreePacketTracer>(frame.scene, frame.camera, *b.parts.back().embree);
     // The layered depth cube knows the whole scene box (the hybrid does not ask the camera's
     // known space, so only its cheap frustum part is built).
     const bool ldc = o.hybridScreen == "ldc";
