@@ -30,6 +30,11 @@ class HssrTracer : public TracerImpl<HssrTracer> {
   /// for the CPU it runs on (util/cpu_dispatch.h): the same answers bit for bit (no FMA
   /// contraction anywhere), tested against traceImpl.
   void traceBatch(std::span<const Ray> rays, std::span<TraceHit> hits, std::span<RayCounters> counters) const override;
+  /// Any hit is the closest hit for a screen march (it meets the first surface first): the
+  /// same batch path.
+  void occludedBatch(std::span<const Ray> rays, std::span<TraceHit> hits, std::span<RayCounters> counters) const override {
+    traceBatch(rays, hits, counters);
+  }
 
  private:
   const Camera& camera_;
