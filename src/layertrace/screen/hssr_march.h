@@ -108,6 +108,47 @@ struct Line {
   }
 };
 
+/// Everything the march computes before its first cell, shared by hssrMarch and the lane march
+/// (hssr_march_lanes.cpp) so that both start from the same floats.
+struct MarchStart {
+  Line line;
+  int px, py;  ///< the pixel holding p0 (clamped to the view)
+  bool increasing;  ///< depth grows along the ray (hssr-pitfalls §6)
+  // κ along the segment, κ(s) = k0 + s dκ: the same expression depthAt divides 1 by.
+  float k0, dk, invDk, invAbsDk;
+  // Back-off for the coarse entry: the entry s = (κ_z − k0) / dκ loses accuracy as the ray turns
+  // parallel to the image plane (|dκ| ≪ κ). Step back at least 1/64 pixel (pixelBackoff), and
+  // at least 8× the error bound of the product (in units of s; 4× bounded the reference's
+  // division, the reciprocal adds 2u|s|):
+  //   |Δs| ≤ 8 u (max(k0, k1, κ_z) / |dκ| + |s|),  u = 2^-24,   kScale = max(k0, k1) / |dκ|,
+  // so rounding can never carry the entry past the pixel the level-0 scan would hit.
+  float pixelBackoff, kScale;
+  // seed 000 §5.1: skip the first pixel (no self-intersection with the origin's surface). A ray
+  // entering from outside the view starts no surface: its first pixel is tested, and no pixel
+  // is the origin pixel of the ascend rule (ox = oy = −2^29).
+  Line::Span sp;  ///< the first cell's span
+  int cx, cy, ox, oy;
+  float sStart;
+  /// An axis-parallel segment starting outside its clamped pixel's row/column (p0 on the far
+  /// border) meets no cell: the reference returns at its first cell.
+  bool meetsNoCell;
+
+  MarchStart(const ScreenSegment& seg, int W, int H) : line(seg) {
+    px = std::clamp(int(std::floor(seg.p0.x)), 0, W - 1), py = std::clamp(int(std::floor(seg.p0.y)), 0, H - 1);
+    increasing = seg.k1 <= seg.k0;
+    k0 = seg.k0, dk = seg.k1 - seg.k0;
+    invDk = 1.0f / dk, invAbsDk = std::abs(invDk);
+    pixelBackoff = 1.0f / (64.0f * std::max(std::abs(line.d.x), std::abs(line.d.y)));
+    kScale = std::max(seg.k0, seg.k1) * invAbsDk;
+    sp = line.span(px, py, 1);
+    meetsNoCell = !(sp.in() <= sp.out());
+    sStart = seg.clippedStart ? 0.0f : sp.out();
+    cx = ox = px, cy = oy = py;
+    if (seg.clippedStart) ox = oy = -(1 << 29);
+    else line.step(sp, cx, cy, 1);
+  }
+};
+
 }  // namespace hssr_detail
 
 /// seed 000 §5 over `pyramid` (its first `levels` levels) for a valid segment of a W×H view.
@@ -122,11 +163,11 @@ template <class C>
 MarchHit hssrMarch(const IntervalPyramid& pyramid, int levels, int nUp, const ScreenSegment& seg, int W, int H, C& c) {
   using hssr_detail::Line;
   constexpr float inf = std::numeric_limits<float>::infinity();
-  const Line line(seg);
+  const hssr_detail::MarchStart st(seg, W, H);
+  const Line& line = st.line;
   const IntervalLayers& level0 = *pyramid.base;
   const int k = level0.k;
-  int ox = std::clamp(int(std::floor(seg.p0.x)), 0, W - 1), oy = std::clamp(int(std::floor(seg.p0.y)), 0, H - 1);
-  const bool increasing = seg.k1 <= seg.k0;  // depth grows along the ray (hssr-pitfalls §6)
+  const bool increasing = st.increasing;
   if (line.stepX == 0 && line.stepY == 0) {
     // The ray runs along one pixel's line of sight: only a ray entering from outside the view
     // can meet something there (a ray from a surface skips its own pixel).
@@ -134,37 +175,20 @@ MarchHit hssrMarch(const IntervalPyramid& pyramid, int levels, int nUp, const Sc
     c.iteration(0);
     c.pixel();
     const float za = seg.depthAt(0.0f), zb = seg.depthAt(1.0f);
-    const int i = firstMet(level0.pixel(ox, oy), k, std::min(za, zb), std::max(za, zb), increasing, c);
-    return i >= 0 ? MarchHit{ox, oy, i, 0.0f} : MarchHit{};
+    const int i = firstMet(level0.pixel(st.px, st.py), k, std::min(za, zb), std::max(za, zb), increasing, c);
+    return i >= 0 ? MarchHit{st.px, st.py, i, 0.0f} : MarchHit{};
   }
-  // κ along the segment, κ(s) = k0 + s dκ: the same expression depthAt divides 1 by.
-  const float k0 = seg.k0, dk = seg.k1 - seg.k0;
-  const float invDk = 1.0f / dk, invAbsDk = std::abs(invDk);
-  // Back-off for the coarse entry: the entry s = (κ_z − k0) / dκ loses accuracy as the ray turns
-  // parallel to the image plane (|dκ| ≪ κ). Step back at least 1/64 pixel, and at least 8× the
-  // error bound of the product (in units of s; 4× bounded the reference's division, the
-  // reciprocal adds 2u|s|):
-  //   |Δs| ≤ 8 u (max(k0, k1, κ_z) / |dκ| + |s|),  u = 2^-24,
-  // so rounding can never carry the entry past the pixel the level-0 scan would hit.
-  const float pixelBackoff = 1.0f / (64.0f * std::max(std::abs(line.d.x), std::abs(line.d.y)));
-  const float kScale = std::max(seg.k0, seg.k1) * invAbsDk;
+  const float k0 = st.k0, dk = st.dk, invDk = st.invDk, invAbsDk = st.invAbsDk;
   auto backoff = [&](float e, float kz) {
     constexpr float u = 1.0f / 16777216.0f;
-    return std::max(pixelBackoff, 8.0f * u * (std::max(kScale, kz * invAbsDk) + std::abs(e)));
+    return std::max(st.pixelBackoff, 8.0f * u * (std::max(st.kScale, kz * invAbsDk) + std::abs(e)));
   };
-
-  // seed 000 §5.1: skip the first pixel (no self-intersection with the origin's surface). A ray
-  // entering from outside the view starts no surface: its first pixel is tested, and no pixel
-  // is the origin pixel of the ascend rule.
-  Line::Span sp = line.span(ox, oy, 1);
-  // An axis-parallel segment starting outside its clamped pixel's row/column (p0 on the far
-  // border) meets no cell: the reference returns at its first cell.
-  if (!(sp.in() <= sp.out())) return {};
-  const float sStart = seg.clippedStart ? 0.0f : sp.out();
+  if (st.meetsNoCell) return {};
+  Line::Span sp = st.sp;
+  const float sStart = st.sStart;
   float s = sStart;
-  int L = 0, cx = ox, cy = oy;
-  if (seg.clippedStart) ox = oy = -(1 << 29);
-  else line.step(sp, cx, cy, 1);
+  int L = 0, cx = st.cx, cy = st.cy;
+  const int ox = st.ox, oy = st.oy;
   int misses = 0;
   // Parameter of the last zero-length (corner) cell the DDA stepped out of: a descent at that
   // same parameter must not go back into it (the oracle visits it once).

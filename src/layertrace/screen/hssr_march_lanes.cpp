@@ -120,33 +120,26 @@ bool start(Lanes& ln, int j, const IntervalPyramid& pyramid, const Tables& tb, c
     out = {};
     return false;
   }
-  const Line line(seg);
+  const hssr_detail::MarchStart st(seg, W, H);
+  const Line& line = st.line;
   if (line.stepX == 0 || line.stepY == 0) {  // axis-parallel (and single-pixel) lines: the scalar march
     NoCounters none;
     out = hssrMarch(pyramid, tb.levels, tb.nUp, seg, W, H, none);
     return false;
   }
-  int ox = std::clamp(int(std::floor(seg.p0.x)), 0, W - 1), oy = std::clamp(int(std::floor(seg.p0.y)), 0, H - 1);
-  const float k0 = seg.k0, dk = seg.k1 - seg.k0;
-  const float invDk = 1.0f / dk, invAbsDk = std::abs(invDk);
-  Line::Span sp = line.span(ox, oy, 1);
-  if (!(sp.in() <= sp.out())) {
+  if (st.meetsNoCell) {
     out = {};
     return false;
   }
-  const float sStart = seg.clippedStart ? 0.0f : sp.out();
-  int cx = ox, cy = oy;
-  if (seg.clippedStart) ox = oy = -(1 << 29);
-  else line.step(sp, cx, cy, 1);
+  const int cx = st.cx, cy = st.cy;
   ln.p0x[j] = line.p0.x, ln.p0y[j] = line.p0.y, ln.invDx[j] = line.invDx, ln.invDy[j] = line.invDy;
   ln.stepX[j] = line.stepX, ln.stepY[j] = line.stepY;
-  ln.xIn[j] = sp.xIn, ln.xOut[j] = sp.xOut, ln.yIn[j] = sp.yIn, ln.yOut[j] = sp.yOut;
-  ln.k0[j] = k0, ln.dk[j] = dk, ln.invDk[j] = invDk, ln.invAbsDk[j] = invAbsDk;
-  ln.pixelBackoff[j] = 1.0f / (64.0f * std::max(std::abs(line.d.x), std::abs(line.d.y)));
-  ln.kScale[j] = std::max(seg.k0, seg.k1) * invAbsDk;
-  ln.s[j] = sStart, ln.sStart[j] = sStart, ln.cornerLeft[j] = -1.0f;
-  ln.L[j] = 0, ln.cx[j] = cx, ln.cy[j] = cy, ln.ox[j] = ox, ln.oy[j] = oy, ln.misses[j] = 0, ln.guard[j] = 0;
-  ln.increasing = __mmask16((ln.increasing & ~(1u << j)) | (seg.k1 <= seg.k0 ? 1u << j : 0u));
+  ln.xIn[j] = st.sp.xIn, ln.xOut[j] = st.sp.xOut, ln.yIn[j] = st.sp.yIn, ln.yOut[j] = st.sp.yOut;
+  ln.k0[j] = st.k0, ln.dk[j] = st.dk, ln.invDk[j] = st.invDk, ln.invAbsDk[j] = st.invAbsDk;
+  ln.pixelBackoff[j] = st.pixelBackoff, ln.kScale[j] = st.kScale;
+  ln.s[j] = st.sStart, ln.sStart[j] = st.sStart, ln.cornerLeft[j] = -1.0f;
+  ln.L[j] = 0, ln.cx[j] = cx, ln.cy[j] = cy, ln.ox[j] = st.ox, ln.oy[j] = st.oy, ln.misses[j] = 0, ln.guard[j] = 0;
+  ln.increasing = __mmask16((ln.increasing & ~(1u << j)) | (st.increasing ? 1u << j : 0u));
   ln.ray[j] = i;
   const bool inside = cx >= 0 && cy >= 0 && cx < tb.width[0] && cy < tb.height[0];  // else any valid record
   ln.offset[j] = inside ? (int64_t(cy) * tb.rowWidth[0] + cx) * tb.recordBytes[0] : 0;
@@ -389,7 +382,10 @@ void marchLanes(const IntervalPyramid& pyramid, int levels, int nUp, std::span<c
     ln.offset[j] = 0;
     while (next < segs.size()) {
       const int i = int(next++);
-      if (start(ln, j, pyramid, tb, segs[size_t(i)], i, W, H, out[size_t(i)])) return ++live, void();
+      if (start(ln, j, pyramid, tb, segs[size_t(i)], i, W, H, out[size_t(i)])) {
+        ++live;
+        return;
+      }
     }
   };
   for (Lanes& ln : lanes) {
