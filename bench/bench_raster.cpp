@@ -1,6 +1,7 @@
 // Issue 2 §10 and issue 13: raster + sort (list pipeline, and tile-local capture) at 1280×720, k = 4, on the FZK-Haus interior, with 1 and 2 threads,
 // beside Embree collecting the same fragments with all-hit primary rays. Reports ms per frame
 // (Google Benchmark's time) and million fragments per second (counter "Mfrag/s").
+#include <cstdlib>
 #include <filesystem>
 
 #include <benchmark/benchmark.h>
@@ -14,11 +15,19 @@
 
 namespace {
 
+/// The FZK-Haus interior, or the view named by LT_BENCH_SCENE=scene.json[:camera] (another
+/// scene's numbers from the same benchmarks).
 lt::Frame& fzk() {
   static lt::Frame frame = [] {
     lt::FrameOptions o;
     o.scenePath = std::string(LAYERTRACE_SOURCE_DIR) + "/scenes/fzk-haus.json";
     o.cameraName = "interior";
+    if (const char* view = std::getenv("LT_BENCH_SCENE")) {
+      const std::string v = view;
+      const size_t colon = v.rfind(':');
+      o.scenePath = v.substr(0, colon);
+      o.cameraName = colon == std::string::npos ? "" : v.substr(colon + 1);
+    }
     lt::Frame f;
     lt::loadFrameScene(o, f);
     return f;

@@ -13,6 +13,8 @@
 #include "layertrace/raster/layer_arrays.h"
 #include "layertrace/raster/rasterizer.h"
 #include "layertrace/screen/interval_pyramid.h"
+#include "layertrace/screen/interval_pyramid_lanes.h"
+#include "layertrace/util/simd512.h"
 #include "layertrace/util/error.h"
 #include "layertrace/util/parallel.h"
 #include "test_util.h"
@@ -304,6 +306,93 @@ TEST(Capture, PyramidEqualsThePlainMerge) {
     }
   }
 }
+
+/// Level 0 of k = 4 built to stress the level-1 merge: fronts from a few values (ties inside a
+/// pixel and across children), backs short, long (overlapping the next fronts) or +∞, 0–4
+/// intervals per pixel, sorted by front.
+IntervalLayers stressLevel0(int width, int height, uint32_t seed) {
+  std::mt19937 rng(seed);
+  IntervalLayers b;
+  b.width = width, b.height = height, b.k = 4;
+  b.slots.resize(size_t(width) * size_t(height) * 4);
+  b.count.resize(size_t(width) * size_t(height));
+  constexpr float inf = std::numeric_limits<float>::infinity();
+  for (size_t p = 0; p < b.count.size(); ++p) {
+    const int n = int(rng() % 5);
+    std::vector<Interval> iv;
+    for (int i = 0; i < n; ++i) {
+      const float front = 1.0f + float(rng() % 12) * (rng() % 2 ? 0.01f : 0.5f);
+      const uint32_t kind = rng() % 8;
+      const float back = kind == 0 ? inf : kind == 1 ? front + 3.0f : kind == 2 ? front : front + 0.002f * float(rng() % 10);
+      iv.push_back({front, back});
+    }
+    std::stable_sort(iv.begin(), iv.end(), [](const Interval& a, const Interval& c) { return a.front < c.front; });
+    for (int i = 0; i < 4; ++i) b.slots[p * 4 + size_t(i)] = i < n ? iv[size_t(i)] : Interval{inf, inf};
+    b.count[p] = uint8_t(n);
+  }
+  return b;
+}
+
+// The level-1 merge in AVX-512 lanes (sixteen cells at once) equals the plain merge on every
+// cell, on level 0s made to stress it (ties, overlaps, +∞ backs, empty pixels), for τ from 0.001
+// to ∞; the pyramid builds around it (edge cells one at a time, odd sizes) as well.
+TEST(Capture, Level1LanesEqualThePlainMerge) {
+  const Camera cam(test::originCamera(60.0f, 0.3f, 40.0f), 131, 37);  // 65 cells: 4 lane groups + 1, odd rows
+  for (uint32_t seed = 0; seed < 4; ++seed) {
+    const IntervalLayers base = stressLevel0(cam.width(), cam.height(), test::testSeed() + seed);
+    for (float tau : {0.001f, 2.0f, 25.0f, 3000.0f, std::numeric_limits<float>::infinity()}) {
+      const PyramidConfig pc{3, tau};
+      const auto want = plainPyramid(base, cam, pc);
+      const IntervalPyramid p = buildIntervalPyramid(base, cam, pc);
+      for (int L = 1; L < pc.levels; ++L) {
+        const PyramidLevel& lvl = p.levels[size_t(L)];
+        for (size_t c = 0; c < want[size_t(L)].size(); ++c) {
+          const auto& w = want[size_t(L)][c];
+          ASSERT_EQ(size_t(lvl.offset[c + 1] - lvl.offset[c]), w.size()) << "tau " << tau << " level " << L << " cell " << c;
+          ASSERT_TRUE(w.empty() || std::memcmp(w.data(), &lvl.intervals[lvl.offset[c]], w.size() * sizeof(Interval)) == 0)
+              << "tau " << tau << " level " << L << " cell " << c;
+        }
+      }
+      if (!level1LanesAvailable(4)) continue;
+      // The lanes called directly (the build above took them for cells 0–63 of rows 0–17).
+      const float tauPerDepth = tau * cam.pixelFootprint(1.0f) * 2.0f;
+      const int cw = (cam.width() + 1) / 2;
+      size_t multi = 0;
+      for (int y = 0; 2 * y + 2 <= cam.height(); ++y)
+        for (int x0 = 0; 2 * x0 + 32 <= cam.width(); x0 += 16) {
+          std::vector<Interval> got{{-1.0f, -1.0f}};  // appended after what is there
+          uint32_t counts[16];
+          mergeLevel1Lanes(base, x0, y, tauPerDepth, got, counts);
+          size_t at = 1;
+          for (int j = 0; j < 16; ++j) {
+            const auto& w = want[1][size_t(y) * size_t(cw) + size_t(x0 + j)];
+            ASSERT_EQ(counts[j], w.size()) << "tau " << tau << " cell " << x0 + j << ", " << y;
+            ASSERT_TRUE(w.empty() || std::memcmp(w.data(), &got[at], w.size() * sizeof(Interval)) == 0) << "tau " << tau << " cell " << x0 + j << ", " << y;
+            at += w.size(), multi += w.size() > 1;
+          }
+          ASSERT_EQ(at, got.size());
+          ASSERT_EQ(got[0].front, -1.0f);
+        }
+      if (tau == 2.0f) {
+        EXPECT_GT(multi, 100u) << "cells of several intervals make the sweep matter";
+      }
+    }
+  }
+}
+
+#if LT_SIMD512
+TEST(Capture, Transpose16) {
+  if (!simd512Available()) {
+    GTEST_SKIP() << "no AVX-512 on this CPU";
+  }
+  alignas(64) float m[16][16], t[16][16];
+  for (int i = 0; i < 16; ++i)
+    for (int j = 0; j < 16; ++j) m[i][j] = float(16 * i + j);
+  simd512::transpose16(&m[0][0], &t[0][0]);
+  for (int i = 0; i < 16; ++i)
+    for (int j = 0; j < 16; ++j) ASSERT_EQ(t[i][j], m[j][i]) << i << ", " << j;
+}
+#endif
 
 // Levels 1… merged tile by tile (PyramidTileBuilder: tiles in any order, concurrently) equal
 // the global build over the same level 0, for tile sizes holding whole cells of every level

@@ -7,13 +7,9 @@
 #include <limits>
 
 #include "layertrace/util/cpu_dispatch.h"
+#include "layertrace/util/simd512.h"
 
-#if defined(__GNUC__) && !defined(__clang__) && defined(__x86_64__)
-#define LT_HSSR_LANES 1
-#include <immintrin.h>
-#else
-#define LT_HSSR_LANES 0
-#endif
+#define LT_HSSR_LANES LT_SIMD512
 
 namespace lt {
 
@@ -33,51 +29,8 @@ LT_CPU_DISPATCH void hssrMarchEach(const IntervalPyramid& pyramid, int levels, i
 #pragma GCC target("avx512f,avx512vl,avx512bw,avx512dq")
 namespace {
 
-constexpr int kLanes = 16;
-using F = float __attribute__((vector_size(64)));
-using I = int32_t __attribute__((vector_size(64)));
-using Q = int64_t __attribute__((vector_size(64)));  // eight 64-bit byte offsets
-using F8 = float __attribute__((vector_size(32)));
+using namespace simd512;
 
-template <class V, class T>
-inline V load(const T* p) {
-  V v;
-  std::memcpy(&v, p, sizeof v);
-  return v;
-}
-template <class V, class T>
-inline void store(T* p, V v) {
-  std::memcpy(p, &v, sizeof v);
-}
-
-/// A lane mask (one bit per lane) and the comparisons that make it: ordered and quiet like
-/// C's <, <=, >, >=, == (false on NaN), unordered for != (true on NaN).
-struct M {
-  __mmask16 bits;
-};
-// (k-register operations, so that masks do not travel through general registers)
-inline M operator&(M a, M b) { return {_kand_mask16(a.bits, b.bits)}; }
-inline M operator|(M a, M b) { return {_kor_mask16(a.bits, b.bits)}; }
-inline M operator~(M a) { return {_knot_mask16(a.bits)}; }
-inline M lt(F a, F b) { return {_mm512_cmp_ps_mask((__m512)a, (__m512)b, _CMP_LT_OQ)}; }
-inline M le(F a, F b) { return {_mm512_cmp_ps_mask((__m512)a, (__m512)b, _CMP_LE_OQ)}; }
-inline M gt(F a, F b) { return {_mm512_cmp_ps_mask((__m512)a, (__m512)b, _CMP_GT_OQ)}; }
-inline M ge(F a, F b) { return {_mm512_cmp_ps_mask((__m512)a, (__m512)b, _CMP_GE_OQ)}; }
-inline M eq(F a, F b) { return {_mm512_cmp_ps_mask((__m512)a, (__m512)b, _CMP_EQ_OQ)}; }
-inline M ne(F a, F b) { return {_mm512_cmp_ps_mask((__m512)a, (__m512)b, _CMP_NEQ_UQ)}; }
-inline M lt(I a, I b) { return {_mm512_cmplt_epi32_mask((__m512i)a, (__m512i)b)}; }
-inline M gt(I a, I b) { return {_mm512_cmpgt_epi32_mask((__m512i)a, (__m512i)b)}; }
-inline M ge(I a, I b) { return {_mm512_cmpge_epi32_mask((__m512i)a, (__m512i)b)}; }
-inline M eq(I a, I b) { return {_mm512_cmpeq_epi32_mask((__m512i)a, (__m512i)b)}; }
-inline M ne(I a, I b) { return {_mm512_cmpneq_epi32_mask((__m512i)a, (__m512i)b)}; }
-/// m ? a : b per lane.
-inline F sel(M m, F a, F b) { return (F)_mm512_mask_blend_ps(m.bits, (__m512)b, (__m512)a); }
-inline I sel(M m, I a, I b) { return (I)_mm512_mask_blend_epi32(m.bits, (__m512i)b, (__m512i)a); }
-
-/// std::max / std::min / std::clamp as libstdc++ writes them (a < b ? b : a; b < a ? b : a;
-/// min(max(v, lo), hi)): the same operand wins on ties, −0 and NaN as in hssrMarch.
-inline F vmax(F a, F b) { return sel(lt(a, b), b, a); }
-inline F vmin(F a, F b) { return sel(lt(b, a), b, a); }
 inline F vabs(F a) { return (F)((I)a & 0x7fffffff); }
 inline I lookup(I index, const int32_t* table16) { return __builtin_shuffle(load<I>(table16), index); }
 inline Q lookup(Q index, const int64_t* table8) { return __builtin_shuffle(load<Q>(table8), index); }
@@ -422,9 +375,7 @@ void marchLanes(const IntervalPyramid& pyramid, int levels, int nUp, std::span<c
 
 bool hssrLanesAvailable(const IntervalPyramid& pyramid, int levels) {
 #if LT_HSSR_LANES
-  static const bool cpu = __builtin_cpu_supports("avx512f") && __builtin_cpu_supports("avx512vl") &&
-                          __builtin_cpu_supports("avx512bw") && __builtin_cpu_supports("avx512dq");
-  return cpu && pyramid.base && pyramid.base->k >= 1 && pyramid.base->k <= 4 && levels >= 1 && levels <= 8 &&
+  return simd512Available() && pyramid.base && pyramid.base->k >= 1 && pyramid.base->k <= 4 && levels >= 1 && levels <= 8 &&
          levels <= pyramid.levelCount() && pyramid.levels[0].width == pyramid.base->width &&
          pyramid.levels[0].height == pyramid.base->height;
 #else

@@ -9,6 +9,7 @@
 
 #include "layertrace/util/parallel.h"
 #include "layertrace/screen/interval_pyramid.h"
+#include "layertrace/screen/interval_pyramid_lanes.h"
 #include "layertrace/util/error.h"
 #include "layertrace/util/memory.h"
 
@@ -159,12 +160,17 @@ void buildLevel(IntervalPyramid& p, const Camera& camera, const PyramidConfig& c
   const float tau = tauPerDepth(camera, config, L);
   std::vector<std::vector<Interval>>& rows = p.scratchRows;
   std::vector<std::vector<uint32_t>>& rowCounts = p.scratchCounts;
-  rows.resize(size_t(lvl.height));
-  rowCounts.resize(size_t(lvl.height));
+  // (never shrunk: the rows of level 1 keep their memory through the levels above and into the
+  // next frame's build — shrinking freed them, and the next build paid malloc and page faults)
+  if (rows.size() < size_t(lvl.height)) rows.resize(size_t(lvl.height)), rowCounts.resize(size_t(lvl.height));
   auto childRange = [&](int cx, int cy) {
     const size_t c = child.cellIndex(cx, cy);
     return std::pair{child.intervals.begin() + child.offset[c], child.intervals.begin() + child.offset[c + 1]};
   };
+  // Level 1 (k = 4, AVX-512): sixteen cells at a time in lanes where all their children exist
+  // (interval_pyramid_lanes.h, the same bits); edge cells and other levels one cell at a time.
+  const bool lanes = L == 1 && level1LanesAvailable(p.base->k);
+  const int laneCells = lanes ? child.width / 2 / 16 * 16 : 0;
   parallelFor(tbb::blocked_range<int>(0, lvl.height, 4), [&](const tbb::blocked_range<int>& r) {
     std::vector<Interval> children;
     for (int y = r.begin(); y != r.end(); ++y) {
@@ -172,7 +178,10 @@ void buildLevel(IntervalPyramid& p, const Camera& camera, const PyramidConfig& c
       row.clear();
       row.reserve(size_t(lvl.width) * 2);
       rowCounts[size_t(y)].resize(size_t(lvl.width));
-      for (int x = 0; x < lvl.width; ++x) {
+      int x = 0;
+      if (2 * y + 2 <= child.height)
+        for (; x < laneCells; x += 16) mergeLevel1Lanes(*p.base, x, y, tau, row, &rowCounts[size_t(y)][size_t(x)]);
+      for (; x < lvl.width; ++x) {
         const size_t before = row.size();
         mergeCell(p, L, x, y, tau, childRange, children, row);
         rowCounts[size_t(y)][size_t(x)] = uint32_t(row.size() - before);
