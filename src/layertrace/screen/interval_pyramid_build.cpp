@@ -160,9 +160,8 @@ void buildLevel(IntervalPyramid& p, const Camera& camera, const PyramidConfig& c
   const float tau = tauPerDepth(camera, config, L);
   std::vector<std::vector<Interval>>& rows = p.scratchRows;
   std::vector<std::vector<uint32_t>>& rowCounts = p.scratchCounts;
-  // (never shrunk: the rows of level 1 keep their memory through the levels above and into the
-  // next frame's build — shrinking freed them, and the next build paid malloc and page faults)
-  if (rows.size() < size_t(lvl.height)) rows.resize(size_t(lvl.height)), rowCounts.resize(size_t(lvl.height));
+  rows.resize(size_t(lvl.height));
+  rowCounts.resize(size_t(lvl.height));
   auto childRange = [&](int cx, int cy) {
     const size_t c = child.cellIndex(cx, cy);
     return std::pair{child.intervals.begin() + child.offset[c], child.intervals.begin() + child.offset[c + 1]};
