@@ -333,17 +333,19 @@ IntervalLayers stressLevel0(int width, int height, uint32_t seed) {
   return b;
 }
 
-// The level-1 merge in AVX-512 lanes (sixteen cells at once) equals the plain merge on every
-// cell, on level 0s made to stress it (ties, overlaps, +∞ backs, empty pixels), for τ from 0.001
-// to ∞; the pyramid builds around it (edge cells one at a time, odd sizes) as well.
-TEST(Capture, Level1LanesEqualThePlainMerge) {
-  const Camera cam(test::originCamera(60.0f, 0.3f, 40.0f), 131, 37);  // 65 cells: 4 lane groups + 1, odd rows
+// The merge in AVX-512 lanes (sixteen cells at once) equals the plain merge on every cell of
+// every level, on level 0s made to stress it (ties, overlaps, +∞ backs, empty pixels), for τ
+// from 0.001 to ∞; so do the pyramids built around it (edge cells one at a time, odd sizes).
+TEST(Capture, MergeLanesEqualThePlainMerge) {
+  const Camera cam(test::originCamera(60.0f, 0.3f, 40.0f), 261, 37);  // level 1: 131 cells, 8 lane groups + 3 cells; odd rows
+  size_t groups[4] = {}, refused = 0;
   for (uint32_t seed = 0; seed < 4; ++seed) {
     const IntervalLayers base = stressLevel0(cam.width(), cam.height(), test::testSeed() + seed);
     for (float tau : {0.001f, 2.0f, 25.0f, 3000.0f, std::numeric_limits<float>::infinity()}) {
-      const PyramidConfig pc{3, tau};
+      const PyramidConfig pc{4, tau};
       const auto want = plainPyramid(base, cam, pc);
       const IntervalPyramid p = buildIntervalPyramid(base, cam, pc);
+      size_t multi = 0;
       for (int L = 1; L < pc.levels; ++L) {
         const PyramidLevel& lvl = p.levels[size_t(L)];
         for (size_t c = 0; c < want[size_t(L)].size(); ++c) {
@@ -351,32 +353,45 @@ TEST(Capture, Level1LanesEqualThePlainMerge) {
           ASSERT_EQ(size_t(lvl.offset[c + 1] - lvl.offset[c]), w.size()) << "tau " << tau << " level " << L << " cell " << c;
           ASSERT_TRUE(w.empty() || std::memcmp(w.data(), &lvl.intervals[lvl.offset[c]], w.size() * sizeof(Interval)) == 0)
               << "tau " << tau << " level " << L << " cell " << c;
+          multi += w.size() > 1;
         }
-      }
-      if (!level1LanesAvailable(4)) continue;
-      // The lanes called directly (the build above took them for cells 0–63 of rows 0–17).
-      const float tauPerDepth = tau * cam.pixelFootprint(1.0f) * 2.0f;
-      const int cw = (cam.width() + 1) / 2;
-      size_t multi = 0;
-      for (int y = 0; 2 * y + 2 <= cam.height(); ++y)
-        for (int x0 = 0; 2 * x0 + 32 <= cam.width(); x0 += 16) {
-          std::vector<Interval> got{{-1.0f, -1.0f}};  // appended after what is there
-          uint32_t counts[16];
-          mergeLevel1Lanes(base, x0, y, tauPerDepth, got, counts);
-          size_t at = 1;
-          for (int j = 0; j < 16; ++j) {
-            const auto& w = want[1][size_t(y) * size_t(cw) + size_t(x0 + j)];
-            ASSERT_EQ(counts[j], w.size()) << "tau " << tau << " cell " << x0 + j << ", " << y;
-            ASSERT_TRUE(w.empty() || std::memcmp(w.data(), &got[at], w.size() * sizeof(Interval)) == 0) << "tau " << tau << " cell " << x0 + j << ", " << y;
-            at += w.size(), multi += w.size() > 1;
+        if (!mergeLanesAvailable(p, L)) continue;
+        // The lanes called directly, on every group of sixteen cells they take.
+        const float tauPerDepth = tau * cam.pixelFootprint(1.0f) * float(1 << L);
+        const PyramidLevel& child = p.levels[size_t(L - 1)];
+        for (int y = 0; 2 * y + 2 <= child.height; ++y)
+          for (int x0 = 0; 2 * x0 + 32 <= child.width; x0 += 16) {
+            std::vector<Interval> got{{-1.0f, -1.0f}};  // appended after what is there
+            uint32_t counts[16];
+            if (!mergeCellsLanes(p, L, x0, y, tauPerDepth, got, counts)) {
+              ASSERT_GE(L, 2);
+              ASSERT_EQ(got.size(), 1u) << "refused: nothing written";
+              ++refused;
+              continue;
+            }
+            ++groups[L];
+            size_t at = 1;
+            for (int j = 0; j < 16; ++j) {
+              const auto& w = want[size_t(L)][size_t(y) * size_t(lvl.width) + size_t(x0 + j)];
+              ASSERT_EQ(counts[j], w.size()) << "tau " << tau << " level " << L << " cell " << x0 + j << ", " << y;
+              ASSERT_TRUE(w.empty() || std::memcmp(w.data(), &got[at], w.size() * sizeof(Interval)) == 0)
+                  << "tau " << tau << " level " << L << " cell " << x0 + j << ", " << y;
+              at += w.size();
+            }
+            ASSERT_EQ(at, got.size());
+            ASSERT_EQ(got[0].front, -1.0f);
           }
-          ASSERT_EQ(at, got.size());
-          ASSERT_EQ(got[0].front, -1.0f);
-        }
+      }
       if (tau == 2.0f) {
         EXPECT_GT(multi, 100u) << "cells of several intervals make the sweep matter";
       }
     }
+  }
+  if (simd512Available()) {
+    EXPECT_GT(groups[1], 100u);
+    EXPECT_GT(groups[2], 10u);
+    EXPECT_GT(groups[3], 1u);
+    EXPECT_GT(refused, 0u) << "children of more than four intervals are left to the one-cell merge";
   }
 }
 

@@ -166,10 +166,9 @@ void buildLevel(IntervalPyramid& p, const Camera& camera, const PyramidConfig& c
     const size_t c = child.cellIndex(cx, cy);
     return std::pair{child.intervals.begin() + child.offset[c], child.intervals.begin() + child.offset[c + 1]};
   };
-  // Level 1 (k = 4, AVX-512): sixteen cells at a time in lanes where all their children exist
-  // (interval_pyramid_lanes.h, the same bits); edge cells and other levels one cell at a time.
-  const bool lanes = L == 1 && level1LanesAvailable(p.base->k);
-  const int laneCells = lanes ? child.width / 2 / 16 * 16 : 0;
+  // With AVX-512: sixteen cells at a time in lanes where all their children exist and hold ≤ 4
+  // intervals (interval_pyramid_lanes.h, the same bits); the other cells one at a time.
+  const int laneCells = mergeLanesAvailable(p, L) ? child.width / 2 / 16 * 16 : 0;
   parallelFor(tbb::blocked_range<int>(0, lvl.height, 4), [&](const tbb::blocked_range<int>& r) {
     std::vector<Interval> children;
     for (int y = r.begin(); y != r.end(); ++y) {
@@ -177,10 +176,12 @@ void buildLevel(IntervalPyramid& p, const Camera& camera, const PyramidConfig& c
       row.clear();
       row.reserve(size_t(lvl.width) * 2);
       rowCounts[size_t(y)].resize(size_t(lvl.width));
-      int x = 0;
-      if (2 * y + 2 <= child.height)
-        for (; x < laneCells; x += 16) mergeLevel1Lanes(*p.base, x, y, tau, row, &rowCounts[size_t(y)][size_t(x)]);
-      for (; x < lvl.width; ++x) {
+      const int lanes = 2 * y + 2 <= child.height ? laneCells : 0;
+      for (int x = 0; x < lvl.width; ++x) {
+        if (x % 16 == 0 && x < lanes && mergeCellsLanes(p, L, x, y, tau, row, &rowCounts[size_t(y)][size_t(x)])) {
+          x += 15;
+          continue;
+        }
         const size_t before = row.size();
         mergeCell(p, L, x, y, tau, childRange, children, row);
         rowCounts[size_t(y)][size_t(x)] = uint32_t(row.size() - before);

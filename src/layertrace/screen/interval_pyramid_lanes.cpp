@@ -5,6 +5,7 @@
 #include <limits>
 #include <utility>
 
+#include "layertrace/screen/interval_pyramid.h"
 #include "layertrace/util/error.h"
 #include "layertrace/util/simd512.h"
 
@@ -52,24 +53,57 @@ inline void mergeRuns(F f[16], F b[16], std::index_sequence<C...>) {
   (exchange(f, b, kMerge[C].a, kMerge[C].b), ...);
 }
 
-void mergeLanes(const IntervalLayers& base, int x0, int y, float tauPerDepth, std::vector<Interval>& out, uint32_t counts[16]) {
-  constexpr float inf = std::numeric_limits<float>::infinity();
-  // Lane j = cell x0 + j. A cell's two children in one pixel row are 2 × 4 intervals = 16 floats
-  // in a row: sixteen row loads and a transpose put float i of every cell's row in r[i], i.e.
-  // child pixel i / 8, slot (i % 8) / 2, front or back by i's parity.
-  F f[16], b[16];
+/// Cell x0 + j's children of pixel row dy, as loaded into r[j] (two children of four intervals,
+/// 16 floats), transposed into runs: float i of every cell's row is child i / 8, slot (i % 8) / 2,
+/// front or back by i's parity; child 2·dy + dx's slots go to positions 4·child + slot.
+inline void childrenIntoRuns(F r[16], int dy, F f[16], F b[16]) {
+  transpose16(r);
+  for (int dx = 0; dx < 2; ++dx)
+    for (int s = 0; s < 4; ++s) {
+      const int child = 2 * dy + dx;
+      f[4 * child + s] = r[8 * dx + 2 * s];
+      b[4 * child + s] = r[8 * dx + 2 * s + 1];
+    }
+}
+
+/// Level 1: a cell's two children in one pixel row are 2 × 4 intervals = 16 floats in a row
+/// (sentinels included): one row load per cell and row.
+inline void loadPixels(const IntervalLayers& base, int x0, int y, F f[16], F b[16]) {
   for (int dy = 0; dy < 2; ++dy) {
     const float* row = &base.pixel(2 * x0, 2 * y + dy)->front;
     F r[16];
     for (int j = 0; j < 16; ++j) r[j] = load<F>(row + 16 * j);
-    transpose16(r);
-    for (int dx = 0; dx < 2; ++dx)
-      for (int s = 0; s < 4; ++s) {
-        const int child = 2 * dy + dx;  // four sorted runs of four: positions 4·child + slot
-        f[4 * child + s] = r[8 * dx + 2 * s];
-        b[4 * child + s] = r[8 * dx + 2 * s + 1];
-      }
+    childrenIntoRuns(r, dy, f, b);
   }
+}
+
+/// Levels ≥ 2: each child cell's CSR intervals (sorted by front, disjoint) by a masked load of
+/// its first n ≤ 4 intervals, the rest filled with the {+∞, +∞} sentinel. False (nothing
+/// loaded) when a child holds more than four.
+inline bool loadCells(const PyramidLevel& child, int x0, int y, F f[16], F b[16]) {
+  const F8 sentinel = F8{} + std::numeric_limits<float>::infinity();
+  const float* intervals = &child.intervals.data()->front;
+  for (int dy = 0; dy < 2; ++dy) {
+    const uint32_t* offset = &child.offset[child.cellIndex(2 * x0, 2 * y + dy)];
+    for (int i = 0; i < 32; ++i)
+      if (offset[i + 1] - offset[i] > 4) return false;
+    F r[16];
+    for (int j = 0; j < 16; ++j) {
+      F8 half[2];
+      for (int dx = 0; dx < 2; ++dx) {
+        const uint32_t first = offset[2 * j + dx], n = offset[2 * j + dx + 1] - first;
+        half[dx] = (F8)_mm256_mask_loadu_ps((__m256)sentinel, __mmask8((1u << (2 * n)) - 1), intervals + 2 * size_t(first));
+      }
+      r[j] = __builtin_shufflevector(half[0], half[1], 0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 14, 15);
+    }
+    childrenIntoRuns(r, dy, f, b);
+  }
+  return true;
+}
+
+/// The four runs of f/b merged (the network), then mergeChildren's sweep in every lane.
+void mergeRunsAndSweep(F f[16], F b[16], float tauPerDepth, std::vector<Interval>& out, uint32_t counts[16]) {
+  constexpr float inf = std::numeric_limits<float>::infinity();
   mergeRuns(f, b, std::make_index_sequence<kMerge.size()>{});
 
   // mergeChildren's sweep in every lane; sentinels ({+∞, +∞}: slots past a pixel's count) sort
@@ -107,21 +141,33 @@ void mergeLanes(const IntervalLayers& base, int x0, int y, float tauPerDepth, st
   }
 }
 
+bool mergeSixteen(const IntervalPyramid& p, int L, int x0, int y, float tauPerDepth, std::vector<Interval>& out, uint32_t counts[16]) {
+  F f[16], b[16];
+  if (L == 1) loadPixels(*p.base, x0, y, f, b);
+  else if (!loadCells(p.levels[size_t(L - 1)], x0, y, f, b)) return false;
+  mergeRunsAndSweep(f, b, tauPerDepth, out, counts);
+  return true;
+}
+
 }  // namespace
 #pragma GCC pop_options
 
-bool level1LanesAvailable(int k) { return k == 4 && simd512Available(); }
+bool mergeLanesAvailable(const IntervalPyramid& p, int L) { return simd512Available() && (L >= 2 || (L == 1 && p.base->k == 4)); }
 
-void mergeLevel1Lanes(const IntervalLayers& base, int x0, int y, float tauPerDepth, std::vector<Interval>& out, uint32_t counts[16]) {
-  LT_CHECK(base.k == 4 && x0 >= 0 && 2 * x0 + 32 <= base.width && y >= 0 && 2 * y + 2 <= base.height, base.k, x0, y);
-  mergeLanes(base, x0, y, tauPerDepth, out, counts);
+bool mergeCellsLanes(const IntervalPyramid& p, int L, int x0, int y, float tauPerDepth, std::vector<Interval>& out, uint32_t counts[16]) {
+  LT_CHECK(L >= 1 && size_t(L) < p.levels.size() && x0 >= 0 && y >= 0, L, x0, y);
+  const PyramidLevel& child = p.levels[size_t(L - 1)];
+  LT_CHECK(2 * x0 + 32 <= child.width && 2 * y + 2 <= child.height, x0, y, child.width, child.height);
+  if (L == 1) LT_CHECK(p.base->k == 4 && p.base->width == child.width && p.base->height == child.height, p.base->k);
+  return mergeSixteen(p, L, x0, y, tauPerDepth, out, counts);
 }
 
 #else
 
-bool level1LanesAvailable(int) { return false; }
-void mergeLevel1Lanes(const IntervalLayers&, int, int, float, std::vector<Interval>&, uint32_t[16]) {
-  LT_CHECK(false && "mergeLevel1Lanes needs LT_SIMD512");
+bool mergeLanesAvailable(const IntervalPyramid&, int) { return false; }
+bool mergeCellsLanes(const IntervalPyramid&, int, int, int, float, std::vector<Interval>&, uint32_t[16]) {
+  LT_CHECK(false && "mergeCellsLanes needs LT_SIMD512");
+  return false;
 }
 
 #endif

@@ -1,6 +1,6 @@
-// The interval pyramid's level-1 merge (seed 000 §4.3) for sixteen cells at once, in the lanes
-// of AVX-512 registers: what most of a pyramid build's time went to (perf: level 1's gather,
-// insertion sort and merge, 60 % of the build) done without a branch per interval.
+// The interval pyramid's merge (seed 000 §4.3) for sixteen cells at once, in the lanes of AVX-512
+// registers: what most of a pyramid build's time went to (perf: level 1's gather, insertion sort
+// and merge, 60 % of the build) done without a branch per interval.
 #pragma once
 #include <cstdint>
 #include <vector>
@@ -9,16 +9,21 @@
 
 namespace lt {
 
-/// Whether mergeLevel1Lanes runs here: a GCC build on a CPU with AVX-512 F/VL/BW/DQ, and level 0
-/// of k = 4 intervals per pixel (the default; other k take the one-cell merge).
-bool level1LanesAvailable(int k);
+struct IntervalPyramid;
 
-/// Level-1 cells x0 … x0 + 15 of row y, each with all four children inside `base`
-/// (2·x0 + 32 ≤ base.width, 2·y + 2 ≤ base.height, base.k = 4, every pixel's intervals sorted
-/// by front with {+∞, +∞} past its count): appends the cells' merged intervals to `out` in cell
-/// order and writes how many each cell has to counts[0 … 15]. The same intervals, bit for bit,
-/// as merging each cell alone (interval_pyramid_build.cpp: sort the children by front, then
-/// sweep with τ·d, a child that overlaps the running interval extending it).
-void mergeLevel1Lanes(const IntervalLayers& base, int x0, int y, float tauPerDepth, std::vector<Interval>& out, uint32_t counts[16]);
+/// Whether mergeCellsLanes runs here for level L of p: a GCC build on a CPU with AVX-512
+/// F/VL/BW/DQ; level 1 when level 0 holds k = 4 intervals per pixel (the default; other k take
+/// the one-cell merge), any level above.
+bool mergeLanesAvailable(const IntervalPyramid& p, int L);
+
+/// Cells x0 … x0 + 15 of row y of level L ≥ 1 of p (level L − 1 built), each with all four
+/// children inside level L − 1 (2·x0 + 32 ≤ its width, 2·y + 2 ≤ its height): appends the cells'
+/// merged intervals to `out` in cell order, writes how many each cell has to counts[0 … 15] and
+/// returns true — or returns false, having done nothing, when a child cell (L ≥ 2) holds more
+/// than four intervals. The same intervals, bit for bit, as merging each cell alone
+/// (interval_pyramid_build.cpp: sort the children by front, then sweep with τ·d, a child that
+/// overlaps the running interval extending it). Level 0's pixels must be sorted by front with
+/// {+∞, +∞} past their count, as every IntervalLayers the pyramid is built over is.
+bool mergeCellsLanes(const IntervalPyramid& p, int L, int x0, int y, float tauPerDepth, std::vector<Interval>& out, uint32_t counts[16]);
 
 }  // namespace lt
