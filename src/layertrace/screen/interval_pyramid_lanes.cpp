@@ -12,7 +12,7 @@
 namespace lt {
 
 #if LT_SIMD512
-// Compiled for AVX-512 (util/simd512.h) and run only where level1LanesAvailable says so; the
+// Compiled for AVX-512 (util/simd512.h) and run only where mergeLanesAvailable says so; the
 // one-cell merge of interval_pyramid_build.cpp is the portable path and the reference.
 #pragma GCC push_options
 #pragma GCC target("avx512f,avx512vl,avx512bw,avx512dq")
@@ -106,9 +106,9 @@ void mergeRunsAndSweep(F f[16], F b[16], float tauPerDepth, std::vector<Interval
   constexpr float inf = std::numeric_limits<float>::infinity();
   mergeRuns(f, b, std::make_index_sequence<kMerge.size()>{});
 
-  // mergeChildren's sweep in every lane; sentinels ({+∞, +∞}: slots past a pixel's count) sort
-  // last and take no part. The interval a step closes is stored at the step's index, and the
-  // lane's bit for that index says it was closed there.
+  // Sentinels ({+∞, +∞}: slots past a pixel's or a cell's count) sort last and take no part.
+  // The interval step i closes is stored at index i − 1 (the last one at 15) with the lane's bit
+  // i − 1 set; the set bits are read out lane by lane, in cell order.
   const F tau = F{} + tauPerDepth, infinity = F{} + inf;
   alignas(64) float closedF[16][16], closedB[16][16];
   alignas(64) int32_t closed[16];
