@@ -387,6 +387,11 @@ TEST(Capture, MergeLanesEqualThePlainMerge) {
       }
     }
   }
+  // A level 0 with nothing stored: every level above is empty (the lanes read no interval).
+  IntervalLayers empty = stressLevel0(cam.width(), cam.height(), test::testSeed());
+  std::fill(empty.count.begin(), empty.count.end(), uint8_t(0));
+  const IntervalPyramid none = buildIntervalPyramid(std::move(empty), cam, PyramidConfig{4, 25.0f});
+  for (int L = 1; L < 4; ++L) EXPECT_TRUE(none.levels[size_t(L)].intervals.empty()) << L;
   if (simd512Available()) {
     EXPECT_GT(groups[1], 100u);
     EXPECT_GT(groups[2], 10u);

@@ -82,7 +82,9 @@ inline void loadPixels(const IntervalLayers& base, int x0, int y, F f[16], F b[1
 /// loaded) when a child holds more than four.
 inline bool loadCells(const PyramidLevel& child, int x0, int y, F f[16], F b[16]) {
   const F8 sentinel = F8{} + std::numeric_limits<float>::infinity();
-  const float* intervals = &child.intervals.data()->front;
+  // (as an address, not a member access: a level whose cells are all empty has no intervals,
+  // and then every load below is fully masked and reads nothing)
+  const float* intervals = reinterpret_cast<const float*>(child.intervals.data());
   for (int dy = 0; dy < 2; ++dy) {
     const uint32_t* offset = &child.offset[child.cellIndex(2 * x0, 2 * y + dy)];
     for (int i = 0; i < 32; ++i)
