@@ -177,14 +177,13 @@ void buildLevel(IntervalPyramid& p, const Camera& camera, const PyramidConfig& c
       row.reserve(size_t(lvl.width) * 2);
       rowCounts[size_t(y)].resize(size_t(lvl.width));
       const int lanes = 2 * y + 2 <= child.height ? laneCells : 0;
-      for (int x = 0; x < lvl.width; ++x) {
-        if (x % 16 == 0 && x < lanes && mergeCellsLanes(p, L, x, y, tau, row, &rowCounts[size_t(y)][size_t(x)])) {
-          x += 15;
-          continue;
+      for (int x0 = 0; x0 < lvl.width; x0 += 16) {
+        if (x0 < lanes && mergeCellsLanes(p, L, x0, y, tau, row, &rowCounts[size_t(y)][size_t(x0)])) continue;
+        for (int x = x0; x < std::min(x0 + 16, lvl.width); ++x) {
+          const size_t before = row.size();
+          mergeCell(p, L, x, y, tau, childRange, children, row);
+          rowCounts[size_t(y)][size_t(x)] = uint32_t(row.size() - before);
         }
-        const size_t before = row.size();
-        mergeCell(p, L, x, y, tau, childRange, children, row);
-        rowCounts[size_t(y)][size_t(x)] = uint32_t(row.size() - before);
       }
     }
   });
