@@ -134,6 +134,43 @@ void BM_HssrLanes(benchmark::State& state) {
   state.counters["lanes_on"] = lt::hssrLanesAvailable(s.pyramid, 5);
 }
 
+/// SSR (seed 001) over the same rays, one ray at a time (the one-ray path of TracerImpl) against
+/// the AVX-512 lanes (SsrTracer::traceBatch), alternating within each round as BM_HssrLanes
+/// does. Args: scene, all layers (ssr-layers), stride.
+void BM_SsrLanes(benchmark::State& state) {
+  Setup& s = setup(int(state.range(0)));
+  lt::SsrConfig c;
+  c.allLayers = state.range(1) != 0;
+  c.stride = float(state.range(2));
+  const lt::SsrTracer t(s.frame.camera, s.frame.layers, c);
+  std::vector<lt::TraceHit> hits(s.rays.size());
+  auto pass = [&](bool lanes) {
+    const auto t0 = std::chrono::steady_clock::now();
+    tbb::parallel_for(tbb::blocked_range<size_t>(0, s.rays.size(), 1024), [&](const tbb::blocked_range<size_t>& r) {
+      for (size_t b = r.begin(); b < r.end(); b += 256) {
+        const size_t len = std::min<size_t>(256, r.end() - b);
+        const auto in = std::span<const lt::Ray>(&s.rays[b], len);
+        const auto o = std::span<lt::TraceHit>(&hits[b], len);
+        if (lanes) t.traceBatch(in, o, {});
+        else t.TracerImpl<lt::SsrTracer>::traceBatch(in, o, {});
+      }
+    });
+    return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+  };
+  std::vector<double> one, lanes;
+  for (auto _ : state) {
+    const bool lanesFirst = one.size() % 2 == 1;
+    if (lanesFirst) lanes.push_back(pass(true));
+    one.push_back(pass(false));
+    if (!lanesFirst) lanes.push_back(pass(true));
+  }
+  std::sort(one.begin(), one.end());
+  std::sort(lanes.begin(), lanes.end());
+  state.counters["one_ms"] = one[one.size() / 2];
+  state.counters["lanes_ms"] = lanes[lanes.size() / 2];
+  state.counters["speedup"] = one[one.size() / 2] / lanes[lanes.size() / 2];
+}
+
 void BM_Embree(benchmark::State& state) {
   Setup& s = setup(int(state.range(0)));
   const lt::EmbreeScene embree(s.frame.scene, lt::EmbreeScene::Mode::Fast);
@@ -164,6 +201,7 @@ void BM_HierarchyBuild(benchmark::State& state) {
 // Args: scene (0 = FZK-Haus, 1 = am_thornish), stride, all layers.
 BENCHMARK(BM_Hssr)->Arg(0)->Arg(1)->Unit(benchmark::kMillisecond)->UseRealTime();
 BENCHMARK(BM_HssrLanes)->Arg(0)->Arg(1)->Iterations(9)->Unit(benchmark::kMillisecond)->UseRealTime();
+BENCHMARK(BM_SsrLanes)->ArgsProduct({{0, 1}, {0, 1}, {1}})->Iterations(5)->Unit(benchmark::kMillisecond)->UseRealTime();
 BENCHMARK(BM_Embree)->Arg(0)->Arg(1)->Unit(benchmark::kMillisecond)->UseRealTime();
 BENCHMARK(BM_Hybrid)->Arg(0)->Arg(1)->Unit(benchmark::kMillisecond)->UseRealTime();
 BENCHMARK(BM_Ssr)

@@ -6,6 +6,7 @@
 #include <cstring>
 #include <limits>
 
+#include "layertrace/screen/interval_lanes.h"
 #include "layertrace/util/cpu_dispatch.h"
 #include "layertrace/util/simd512.h"
 
@@ -112,31 +113,16 @@ inline void loadRecords(const Lanes& ln, const Tables& tb, F field[8]) {
       F8 lo, hi;
       std::memcpy(&lo, record(j), sizeof lo);
       std::memcpy(&hi, record(j + 8), sizeof hi);
-      r[j] = __builtin_shufflevector(lo, hi, 0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 14, 15);
+      r[j] = joinRows(lo, hi);
     }
   } else {
     // A pixel's record is 8k < 32 bytes: masked loads read its 2k floats only (the last pixel's
     // record ends where the array does; masked-off floats are not read).
     const __mmask8 pixel = __mmask8((1u << (2 * tb.k)) - 1);
     auto row = [&](int j) { return (F8)_mm256_maskz_loadu_ps(ln.L[j] == 0 ? pixel : __mmask8(0xff), record(j)); };
-    for (int j = 0; j < 8; ++j) r[j] = __builtin_shufflevector(row(j), row(j + 8), 0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 14, 15);
+    for (int j = 0; j < 8; ++j) r[j] = joinRows(row(j), row(j + 8));
   }
-  F u[8], v[8];
-  for (int j = 0; j < 4; ++j) {
-    u[2 * j] = __builtin_shufflevector(r[2 * j], r[2 * j + 1], 0, 16, 1, 17, 4, 20, 5, 21, 8, 24, 9, 25, 12, 28, 13, 29);
-    u[2 * j + 1] = __builtin_shufflevector(r[2 * j], r[2 * j + 1], 2, 18, 3, 19, 6, 22, 7, 23, 10, 26, 11, 27, 14, 30, 15, 31);
-  }
-  for (int j = 0; j < 2; ++j) {
-    const F &a = u[4 * j], &b = u[4 * j + 1], &c = u[4 * j + 2], &d = u[4 * j + 3];
-    v[4 * j] = __builtin_shufflevector(a, c, 0, 1, 16, 17, 4, 5, 20, 21, 8, 9, 24, 25, 12, 13, 28, 29);
-    v[4 * j + 1] = __builtin_shufflevector(a, c, 2, 3, 18, 19, 6, 7, 22, 23, 10, 11, 26, 27, 14, 15, 30, 31);
-    v[4 * j + 2] = __builtin_shufflevector(b, d, 0, 1, 16, 17, 4, 5, 20, 21, 8, 9, 24, 25, 12, 13, 28, 29);
-    v[4 * j + 3] = __builtin_shufflevector(b, d, 2, 3, 18, 19, 6, 7, 22, 23, 10, 11, 26, 27, 14, 15, 30, 31);
-  }
-  for (int f = 0; f < 4; ++f) {
-    field[f] = __builtin_shufflevector(v[f], v[f + 4], 0, 1, 2, 3, 16, 17, 18, 19, 8, 9, 10, 11, 24, 25, 26, 27);
-    field[f + 4] = __builtin_shufflevector(v[f], v[f + 4], 4, 5, 6, 7, 20, 21, 22, 23, 12, 13, 14, 15, 28, 29, 30, 31);
-  }
+  transposeRows8(r, field);
 }
 
 /// One iteration of hssrMarch's loop in every live lane (the comments name the scalar code's
@@ -180,21 +166,7 @@ __attribute__((noinline)) uint32_t step(Lanes& ln, const Tables& tb) {
   const F za = 1.0f / (k0 + s0 * dk), zb = 1.0f / (k0 + s1 * dk);
   I found = zero - 1;
   if (at0.bits) {
-    const F zmin = vmin(za, zb), zmax = vmax(za, zb);
-    F bestEntry = F{};
-    M scan = at0;
-    for (int i = 0; i < tb.k; ++i) {
-      const F front = field[2 * i], back = field[2 * i + 1];
-      scan = scan & ~gt(front, zmax);  // sorted by front: nothing further can overlap (nor the sentinel)
-      const M overlap = scan & ~lt(back, zmin);
-      const M first = overlap & increasing;  // depth grows: the first overlap in front order
-      found = sel(first, zero + i, found);
-      scan = scan & ~first;
-      const F entry = sel(lt(back, zmax), back, zmax);  // depth shrinks: the largest entry depth
-      const M later = overlap & ~increasing & (lt(found, zero) | ge(entry, bestEntry));
-      found = sel(later, zero + i, found);
-      bestEntry = sel(later, entry, bestEntry);
-    }
+    found = firstMetLanes(field, tb.k, vmin(za, zb), vmax(za, zb), at0, increasing);
   }
   const M hit = at0 & ge(found, zero);
 

@@ -2,9 +2,11 @@
 
 #include <algorithm>
 #include <cmath>
+#include <vector>
 
 #include "layertrace/screen/fragment_hit.h"
 #include "layertrace/screen/screen_segment.h"
+#include "layertrace/screen/ssr_march_lanes.h"
 #include "layertrace/util/error.h"
 
 namespace lt {
@@ -21,83 +23,62 @@ template <class C>
 TraceHit SsrTracer::traceImpl(const Ray& ray, C& c) const {
   const ScreenSegment seg = makeScreenSegment(camera_, ray);
   if (!seg.valid) return {};
-  glm::vec2 P0 = seg.p0, P1 = seg.p1;
-  // seed 001: a degenerate line covers at least one pixel.
-  if (glm::dot(P1 - P0, P1 - P0) < 1e-4f) P1 += glm::vec2(0.01f);
-  glm::vec2 delta = P1 - P0;
-  const bool permute = std::abs(delta.x) < std::abs(delta.y);
-  if (permute) std::swap(delta.x, delta.y), std::swap(P0.x, P0.y), std::swap(P1.x, P1.y);
-  const float stepDir = delta.x >= 0.0f ? 1.0f : -1.0f;
-  const float invdx = stepDir / delta.x;
-  // Derivatives per unit step along the major axis, in the segment parameter s.
-  const float ds = invdx;  // ds per pixel of x
-  const float stride = config_.stride;
-  const bool increasing = seg.k1 <= seg.k0;  // depth grows along the ray
-  const int W = camera_.width(), H = camera_.height();
+  const SsrStart m(seg, config_.stride, config_.jitter);
+  const SsrSample h = ssrMarch(depth_, m, config_.maxSteps, camera_.width(), camera_.height(), c);
+  return h.hit() ? finish(m, h.s, h.x, h.y, h.layer, c) : TraceHit{};
+}
 
-  auto pixelAt = [&](float s, int& x, int& y) {
-    glm::vec2 p = P0 + (P1 - P0) * s;
-    if (permute) std::swap(p.x, p.y);
-    x = int(std::floor(p.x)), y = int(std::floor(p.y));
-    return x >= 0 && y >= 0 && x < W && y < H;
+template <class C>
+TraceHit SsrTracer::finish(const SsrStart& m, float s, int x, int y, int layer, C& c) const {
+  const int W = camera_.width(), H = camera_.height();
+  const ScreenSegment& seg = m.seg;
+  auto pixelAt = [&](float t, int& px, int& py) {
+    glm::vec2 p = m.P0 + (m.P1 - m.P0) * t;
+    if (m.permute) std::swap(p.x, p.y);
+    px = int(std::floor(p.x)), py = int(std::floor(p.y));
+    return px >= 0 && py >= 0 && px < W && py < H;
   };
-  // Depth range of the ray over one step centred at s (seed 001: from the previous half-step
+  // Depth range of the ray over one step centred at t (seed 001: from the previous half-step
   // estimate to the next one).
-  auto rangeAt = [&](float s, float halfStep, float& zmin, float& zmax) {
-    const float a = seg.depthAt(std::clamp(s - halfStep, 0.0f, 1.0f)), b = seg.depthAt(std::clamp(s + halfStep, 0.0f, 1.0f));
+  auto rangeAt = [&](float t, float halfStep, float& zmin, float& zmax) {
+    const float a = seg.depthAt(std::clamp(t - halfStep, 0.0f, 1.0f)), b = seg.depthAt(std::clamp(t + halfStep, 0.0f, 1.0f));
     zmin = std::min(a, b), zmax = std::max(a, b);
   };
-
-  // Skip the origin's own pixel (as HSSR does, seed 000 §5.1), then march with stride and
-  // jitter. As in seed 001 the state advances incrementally (P += dP, k += dk) and each step
-  // costs one division: the depth estimate half a step ahead, reused as the next step's start.
-  const float dsStep = ds * stride;
-  const float dk = (seg.k1 - seg.k0) * dsStep;
-  const glm::vec2 dP = (P1 - P0) * dsStep;
-  const float kLo = std::min(seg.k0, seg.k1), kHi = std::max(seg.k0, seg.k1);
-  // A ray entering from outside the view (clippedStart) starts no surface: sample its first
-  // pixel too (a hair inside, so the viewport edge it enters through is not the sample).
-  float s = dsStep * ((seg.clippedStart ? 1e-3f : 1.0f) + config_.jitter);
-  glm::vec2 P = P0 + (P1 - P0) * s;
-  float kHalf = seg.k0 + (seg.k1 - seg.k0) * std::max(s - 0.5f * dsStep, 0.0f);
-  float prevDepth = 1.0f / kHalf;
-  kHalf += dk;
-  int step = 0;
-  for (; step < config_.maxSteps && s <= 1.0f; ++step, s += dsStep, P += dP, kHalf += dk) {
-    c.iteration();
-    const int px = int(std::floor(P.x)), py = int(std::floor(P.y));
-    const int x = permute ? py : px, y = permute ? px : py;
-    if (x < 0 || y < 0 || x >= W || y >= H) break;
-    c.pixel();
-    // Half a step ahead, but not beyond the segment's end.
-    const float nextDepth = 1.0f / std::clamp(kHalf, kLo, kHi);
-    const float zmin = std::min(prevDepth, nextDepth), zmax = std::max(prevDepth, nextDepth);
-    prevDepth = nextDepth;
-    int layer = firstMet(depth_.pixel(x, y), depth_.countAt(x, y), zmin, zmax, increasing, c);
-    if (layer < 0) continue;
-    int hx = x, hy = y;
-    if (config_.refine && stride > 1.0f) {
-      // Binary search between the previous (missed) sample and this one for the first hit.
-      float lo = s - dsStep, hi = s;
-      while ((hi - lo) > ds) {
-        const float mid = 0.5f * (lo + hi);
-        int mx, my;
-        c.iteration();
-        if (!pixelAt(mid, mx, my)) {
-          lo = mid;
-          continue;
-        }
-        float a, b;
-        rangeAt(mid, 0.25f * (hi - lo), a, b);
-        const int ml = firstMet(depth_.pixel(mx, my), depth_.countAt(mx, my), a, b, increasing, c);
-        if (ml >= 0) hi = mid, hx = mx, hy = my, layer = ml;
-        else lo = mid;
+  if (config_.refine && config_.stride > 1.0f) {
+    // Binary search between the previous (missed) sample and this one for the first hit.
+    float lo = s - m.dsStep, hi = s;
+    while ((hi - lo) > m.ds) {
+      const float mid = 0.5f * (lo + hi);
+      int mx, my;
+      c.iteration();
+      if (!pixelAt(mid, mx, my)) {
+        lo = mid;
+        continue;
       }
+      float a, b;
+      rangeAt(mid, 0.25f * (hi - lo), a, b);
+      const int ml = firstMet(depth_.pixel(mx, my), depth_.countAt(mx, my), a, b, m.increasing, c);
+      if (ml >= 0) hi = mid, x = mx, y = my, layer = ml;
+      else lo = mid;
     }
-    return fragmentHit(camera_, layers_, hx, hy, layer);
   }
-  if (step == config_.maxSteps && s <= 1.0f) c.giveUp();  // --max-steps ended the march early
-  return {};
+  return fragmentHit(camera_, layers_, x, y, layer);
+}
+
+void SsrTracer::traceBatch(std::span<const Ray> rays, std::span<TraceHit> hits, std::span<RayCounters> counters) const {
+  if ((kCountersCompiled && !counters.empty()) || !ssrLanesAvailable(depth_)) return TracerImpl::traceBatch(rays, hits, counters);
+  // Uncounted: the batch's starts through the lane march, then each hit refined and shaded.
+  thread_local std::vector<SsrStart> starts;
+  thread_local std::vector<SsrSample> samples;
+  starts.resize(rays.size());
+  samples.resize(rays.size());
+  for (size_t i = 0; i < rays.size(); ++i) starts[i] = SsrStart(makeScreenSegment(camera_, rays[i]), config_.stride, config_.jitter);
+  ssrMarchBatch(depth_, starts, config_.maxSteps, camera_.width(), camera_.height(), samples);
+  NoCounters none;
+  for (size_t i = 0; i < rays.size(); ++i) {
+    const SsrSample& h = samples[i];
+    hits[i] = h.hit() ? finish(starts[i], h.s, h.x, h.y, h.layer, none) : TraceHit{};
+  }
 }
 
 template TraceHit SsrTracer::traceImpl(const Ray&, RayCounters&) const;

@@ -7,6 +7,7 @@
 #include "layertrace/raster/layer_arrays.h"
 #include "layertrace/scene/camera.h"
 #include "layertrace/screen/interval_layers.h"
+#include "layertrace/screen/ssr_march.h"
 #include "layertrace/trace/tracer.h"
 
 namespace lt {
@@ -28,8 +29,20 @@ class SsrTracer : public TracerImpl<SsrTracer> {
   /// seed 001's march, written once against the counter calls (trace/tracer.h).
   template <class C>
   TraceHit traceImpl(const Ray& ray, C& counters) const;
+  /// Uncounted batches march sixteen rays at a time in AVX-512 lanes where the CPU has them
+  /// (ssr_march_lanes.h): the same samples and hits bit for bit as traceImpl (tested).
+  void traceBatch(std::span<const Ray> rays, std::span<TraceHit> hits, std::span<RayCounters> counters) const override;
+  /// Any hit is the closest hit for a screen march: the same batch path.
+  void occludedBatch(std::span<const Ray> rays, std::span<TraceHit> hits, std::span<RayCounters> counters) const override {
+    traceBatch(rays, hits, counters);
+  }
 
  private:
+  /// The hit at sample (x, y, layer) of parameter s: refined between the previous sample and
+  /// this one when the stride skips pixels, then turned into a fragment hit.
+  template <class C>
+  TraceHit finish(const SsrStart& m, float s, int x, int y, int layer, C& counters) const;
+
   const Camera& camera_;
   const LayerArrays& layers_;
   IntervalLayers depth_;  ///< what the march reads: the front layer (ssr) or all k (ssr-layers)

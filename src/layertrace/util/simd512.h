@@ -95,6 +95,32 @@ inline void transpose16(F m[16]) {
   }
 }
 
+/// Sixteen rows of eight floats, row j in the low half of r[j] and row j + 8 in its high half
+/// (j < 8), as eight registers: lane j of field[f] is float f of row j. An 8 × 8 transpose done on
+/// both register halves at once (unpack, shuffle, then 128-bit blocks) in 24 shuffles — what a
+/// lane march uses to read one 32-byte record per lane, cheaper here than eight gathers.
+inline void transposeRows8(const F r[8], F field[8]) {
+  F u[8], v[8];
+  for (int j = 0; j < 4; ++j) {
+    u[2 * j] = __builtin_shufflevector(r[2 * j], r[2 * j + 1], 0, 16, 1, 17, 4, 20, 5, 21, 8, 24, 9, 25, 12, 28, 13, 29);
+    u[2 * j + 1] = __builtin_shufflevector(r[2 * j], r[2 * j + 1], 2, 18, 3, 19, 6, 22, 7, 23, 10, 26, 11, 27, 14, 30, 15, 31);
+  }
+  for (int j = 0; j < 2; ++j) {
+    const F &a = u[4 * j], &b = u[4 * j + 1], &c = u[4 * j + 2], &d = u[4 * j + 3];
+    v[4 * j] = __builtin_shufflevector(a, c, 0, 1, 16, 17, 4, 5, 20, 21, 8, 9, 24, 25, 12, 13, 28, 29);
+    v[4 * j + 1] = __builtin_shufflevector(a, c, 2, 3, 18, 19, 6, 7, 22, 23, 10, 11, 26, 27, 14, 15, 30, 31);
+    v[4 * j + 2] = __builtin_shufflevector(b, d, 0, 1, 16, 17, 4, 5, 20, 21, 8, 9, 24, 25, 12, 13, 28, 29);
+    v[4 * j + 3] = __builtin_shufflevector(b, d, 2, 3, 18, 19, 6, 7, 22, 23, 10, 11, 26, 27, 14, 15, 30, 31);
+  }
+  for (int f = 0; f < 4; ++f) {
+    field[f] = __builtin_shufflevector(v[f], v[f + 4], 0, 1, 2, 3, 16, 17, 18, 19, 8, 9, 10, 11, 24, 25, 26, 27);
+    field[f + 4] = __builtin_shufflevector(v[f], v[f + 4], 4, 5, 6, 7, 20, 21, 22, 23, 12, 13, 14, 15, 28, 29, 30, 31);
+  }
+}
+
+/// Row j (8 floats) and row j + 8 as one register: the input of transposeRows8.
+inline F joinRows(F8 lo, F8 hi) { return __builtin_shufflevector(lo, hi, 0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 14, 15); }
+
 /// transpose16 over 16 rows of 16 floats in memory, `in` to `out` (callable from code compiled
 /// for any CPU, as the tests do; run it only where simd512Available()).
 inline void transpose16(const float* in, float* out) {

@@ -1,0 +1,39 @@
+// firstMet (interval_layers.h) in sixteen AVX-512 lanes: what the HSSR and SSR lane marches
+// (hssr_march_lanes.cpp, ssr_march_lanes.cpp) ask of a pixel's stored intervals. Compiled for
+// AVX-512 by its own target region, like simd512.h; call it only from that region.
+#pragma once
+
+#include "layertrace/util/simd512.h"
+
+#if LT_SIMD512
+#pragma GCC push_options
+#pragma GCC target("avx512f,avx512vl,avx512bw,avx512dq")
+namespace lt::simd512 {
+
+/// Per lane of `scan`, firstMet over the lane's k ≤ 4 intervals (field[2i] = fronts of interval
+/// i, field[2i + 1] = backs; slots past a pixel's count are the {+∞, +∞} sentinel) while the ray's
+/// depth covers [zmin, zmax]: the interval index, or −1. The scalar rule's selects, so every lane
+/// answers bit for bit like firstMet: when depth grows the first overlap in front order; when it
+/// shrinks the largest entry depth min(back, zmax), ties to the later interval.
+inline I firstMetLanes(const F field[8], int k, F zmin, F zmax, M scan, M increasing) {
+  const I zero = I{};
+  I found = zero - 1;
+  F bestEntry = F{};
+  for (int i = 0; i < k; ++i) {
+    const F front = field[2 * i], back = field[2 * i + 1];
+    scan = scan & ~gt(front, zmax);  // sorted by front: nothing further can overlap (nor the sentinel)
+    const M overlap = scan & ~lt(back, zmin);
+    const M first = overlap & increasing;  // depth grows: the first overlap in front order
+    found = sel(first, zero + i, found);
+    scan = scan & ~first;
+    const F entry = sel(lt(back, zmax), back, zmax);  // depth shrinks: the largest entry depth
+    const M later = overlap & ~increasing & (lt(found, zero) | ge(entry, bestEntry));
+    found = sel(later, zero + i, found);
+    bestEntry = sel(later, entry, bestEntry);
+  }
+  return found;
+}
+
+}  // namespace lt::simd512
+#pragma GCC pop_options
+#endif
