@@ -43,21 +43,22 @@ class EmbreeScene {
   EmbreeScene(const EmbreeScene&) = delete;
   EmbreeScene& operator=(const EmbreeScene&) = delete;
 
-  /// Closest hit with t in [tnear, tfar]; `counts` (if given) gets one step: one BVH query.
+  /// Closest hit with t in (tnear, tfar] (Embree's rule: tnear < t ≤ tfar); `counts` (if
+  /// given) gets one step: one BVH query.
   GeoHit intersect(glm::vec3 origin, glm::vec3 dir, float tnear, float tfar, TraversalCounts* counts = nullptr) const;
-  /// Any hit with t in [tnear, tfar]; `counts` as for intersect.
+  /// Any hit with t in (tnear, tfar]; `counts` as for intersect.
   bool occluded(glm::vec3 origin, glm::vec3 dir, float tnear, float tfar, TraversalCounts* counts = nullptr) const;
   /// Closest hits of n rays with one tnear/tfar, traced `width` (4, 8 or 16) at a time with
   /// rtcIntersect4/8/16 (the last packet masked) — the packet baseline of geobench.
   void intersectPackets(const glm::vec3* origins, const glm::vec3* dirs, size_t n, float tnear, float tfar, int width,
                         GeoHit* out) const;
-  /// The same with each ray's own [tnear, tfar], 16 at a time (rtcIntersect16).
+  /// The same with each ray's own (tnear, tfar], 16 at a time (rtcIntersect16).
   void intersectPackets(const glm::vec3* origins, const glm::vec3* dirs, const float* tnear, const float* tfar, size_t n,
                         GeoHit* out) const;
-  /// Any hit of n rays, each with its own [tnear, tfar], 16 at a time (rtcOccluded16).
+  /// Any hit of n rays, each with its own (tnear, tfar], 16 at a time (rtcOccluded16).
   void occludedPackets(const glm::vec3* origins, const glm::vec3* dirs, const float* tnear, const float* tfar, size_t n,
                        bool* out) const;
-  /// Every hit along the ray with t in [tnear, tfar], sorted by t, each triangle once (with
+  /// Every hit along the ray with t in (tnear, tfar], sorted by t, each triangle once (with
   /// HIGH build quality Embree may report a triangle twice). Robust and Capture modes.
   void allHits(glm::vec3 origin, glm::vec3 dir, float tnear, float tfar, std::vector<GeoHit>& out) const;
 

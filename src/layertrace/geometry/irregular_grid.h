@@ -72,9 +72,10 @@ class IrregularGrid {
  public:
   IrregularGrid(const Scene& scene, const GridConfig& config = {});
 
-  /// Closest hit with t in [tnear, tfar]; `steps` counts visited cells.
+  /// Closest hit with t in (tnear, tfar] (Embree's rule: a ray starting on a triangle does not
+  /// hit it at t = tnear); `steps` counts visited cells.
   GeoHit intersect(glm::vec3 origin, glm::vec3 dir, float tnear, float tfar, TraversalCounts* counts = nullptr) const;
-  /// Any hit with t in [tnear, tfar].
+  /// Any hit with t in (tnear, tfar].
   bool occluded(glm::vec3 origin, glm::vec3 dir, float tnear, float tfar, TraversalCounts* counts = nullptr) const;
 
   const GridStats& stats() const { return stats_; }

@@ -1,4 +1,5 @@
 #include <algorithm>
+#include <limits>
 #include <atomic>
 #include <chrono>
 #include <cmath>
@@ -15,7 +16,13 @@
 namespace lt {
 
 bool triangleBoxOverlap(glm::vec3 a, glm::vec3 b, glm::vec3 c, glm::vec3 boxLo, glm::vec3 boxHi, float eps) {
-  const glm::vec3 center = (boxLo + boxHi) * 0.5f, half = (boxHi - boxLo) * 0.5f + glm::vec3(eps);
+  // The box widened by eps and by the rounding of its centre and of the vertices' offsets from
+  // it: a few ulps of the coordinates' magnitude. Without the latter a thin box far from the
+  // origin (a flat scene's slab, 4e-4 wide at x = -1.146) rejected a triangle lying exactly on
+  // the boundary of two such boxes from both sides, and the grid missed it.
+  const glm::vec3 magnitude = glm::max(glm::abs(boxLo), glm::abs(boxHi));
+  const glm::vec3 center = (boxLo + boxHi) * 0.5f,
+                  half = (boxHi - boxLo) * 0.5f + glm::vec3(eps) + magnitude * (4.0f * std::numeric_limits<float>::epsilon());
   const glm::vec3 v[3] = {a - center, b - center, c - center};
   for (int i = 0; i < 3; ++i) {  // box normals
     const float mn = std::min({v[0][i], v[1][i], v[2][i]}), mx = std::max({v[0][i], v[1][i], v[2][i]});

@@ -32,7 +32,7 @@ inline Float4 load4(const float* p) {
 inline bool any(Mask4 m) { return (m[0] | m[1] | m[2] | m[3]) != 0; }
 
 /// hitTriangleWatertight for the four triangles of a block: lane i of `t` is the hit distance
-/// where lane i of the returned mask is set (all ones), with t in [tmin, tmax]. (A template so
+/// where lane i of the returned mask is set (all ones), with t in (tmin, tmax]. (A template so
 /// that it need not name IrregularGrid's private TriangleBlock.)
 template <class Block>
 inline Mask4 hitBlock(const WatertightRay& r, const Block& b, float tmin, float tmax, Float4& t) {
@@ -58,7 +58,7 @@ inline Mask4 hitBlock(const WatertightRay& r, const Block& b, float tmin, float 
   const Float4 nx = e1[1] * e2[2] - e1[2] * e2[1], ny = e1[2] * e2[0] - e1[0] * e2[2], nz = e1[0] * e2[1] - e1[1] * e2[0];
   const Float4 den = nx * r.d.x + ny * r.d.y + nz * r.d.z;
   t = (nx * p[0][0] + ny * p[0][1] + nz * p[0][2]) / den;  // masked where den = 0
-  return inside & (den != zero) & (t >= zero + tmin) & (t <= zero + tmax);
+  return inside & (den != zero) & (t > zero + tmin) & (t <= zero + tmax);
 }
 
 }  // namespace

@@ -13,7 +13,8 @@ namespace lt {
 /// Möller–Trumbore with edges widened by a few ulps of the barycentrics (1e-6): a ray through
 /// a shared edge or vertex hits at least one of the triangles there instead of slipping
 /// through a rounding crack (Embree's robust mode gives the same guarantee). The triangle is
-/// v0 + a e1 + b e2; true with t in [tmin, tmax].
+/// v0 + a e1 + b e2; true with t in (tmin, tmax] — Embree's rule (tnear < t ≤ tfar): a ray that
+/// starts on a triangle does not hit it at t = tmin.
 inline bool hitTriangle(glm::vec3 o, glm::vec3 d, glm::vec3 v0, glm::vec3 e1, glm::vec3 e2, float tmin, float tmax, float& t) {
   const glm::vec3 p = glm::cross(d, e2);
   const float det = glm::dot(e1, p);
@@ -27,7 +28,7 @@ inline bool hitTriangle(glm::vec3 o, glm::vec3 d, glm::vec3 v0, glm::vec3 e1, gl
   const float v = glm::dot(d, q) * inv;
   if (v < -eps || u + v > 1.0f + eps) return false;
   t = glm::dot(e2, q) * inv;
-  return t >= tmin && t <= tmax;
+  return t > tmin && t <= tmax;
 }
 
 /// A ray prepared for the watertight test (Woop, Benthin, Wald: "Watertight Ray/Triangle
@@ -54,7 +55,8 @@ struct WatertightRay {
   }
 };
 
-/// The watertight test of the ray against triangle (v0, v1, v2): true with t in [tmin, tmax].
+/// The watertight test of the ray against triangle (v0, v1, v2): true with t in (tmin, tmax], as
+/// Embree's intersectors (an eye or origin lying on a triangle does not hit it at t = tmin).
 /// A point on an edge (an edge function exactly 0) belongs to both triangles sharing it; a
 /// triangle seen exactly edge-on (U + V + W = 0) is missed. Both faces hit (no culling). The
 /// paper's double-precision re-evaluation of zero edge functions is left out: it orders rays
@@ -80,7 +82,7 @@ inline bool hitTriangleWatertight(const WatertightRay& r, glm::vec3 v0, glm::vec
   const float den = nx * r.d.x + ny * r.d.y + nz * r.d.z;
   if (den == 0.0f) return false;
   t = (nx * a.x + ny * a.y + nz * a.z) / den;
-  return t >= tmin && t <= tmax;
+  return t > tmin && t <= tmax;
 }
 
 }  // namespace lt

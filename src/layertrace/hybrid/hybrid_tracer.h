@@ -97,10 +97,10 @@ class HybridTracer : public Tracer {
   /// [from, to] of `ray` as a ray from free space (its hits' points are camera-space points of
   /// the original ray).
   static Ray segment(const Ray& ray, float from, float to);
-  /// Ray (world space) against one scene triangle, t in [tmin, tmax].
+  /// Ray (world space) against one scene triangle, t in (tmin, tmax].
   bool hitsTriangle(glm::vec3 o, glm::vec3 d, uint32_t triangle, float tmin, float tmax, float& t) const;
   /// The nearest intersection with the triangles of the first `layers` layers of pixel (x, y),
-  /// t in [tmin, tmax].
+  /// t in (tmin, tmax].
   GeoHit pixelHit(glm::vec3 worldOrigin, glm::vec3 worldDir, int x, int y, int layers, float tmin, float tmax) const;
   /// The ray's length inside the scene's bounds (the denominator of geo_length_mean).
   float lengthInScene(glm::vec3 worldOrigin, glm::vec3 worldDir, float maxDistance) const;
