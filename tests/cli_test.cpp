@@ -80,12 +80,28 @@ TEST(CliErrors, BadInputIsOneLineStatusTwoNoOutput) {
       {"layers " + kDefault + " --eye 1,2,x", "\"x\""},
       {"layers " + kDefault + " --fov 190", "--fov 190"},
       {"layers " + kDefault + " --thickness -1", "--thickness -1"},
+      // 0 is a value, not "use the default" (it was taken as unset before)
+      {"layers " + kDefault + " --fov 0", "--fov 0"},
+      {"layers " + kDefault + " --thickness 0", "--thickness 0"},
+      {"layers " + kDefault + " --thickness-px 0", "--thickness-px 0"},
+      {"layers " + kDefault + " --eye 1,2,3 --target 1,2,3", "--eye 1,2,3"},
+      {"layers " + kDefault + " --up 0,0,0", "--up 0,0,0"},
       {"layers " + kDefault + " --light 1,2,3,-4", "--light"},
       {"layers " + kDefault + " --width 64 --height 64 --pool 1000", "lost"},
       {"layers " + kDefault + " --bogus", "--bogus"},
       {"frobnicate " + kDefault, "frobnicate"},
   };
   for (const BadCase& c : cases) expectRejected(c, dir);
+}
+
+// An image that cannot be written is reported under the name the user gave, not the temporary
+// file it was being written to.
+TEST(CliErrors, UnwritableImageNamesTheUsersPath) {
+  std::string err;
+  ASSERT_EQ(test::runCli("render " + kDefault + " --width 32 --height 18 --quiet -o /proc/layertrace_x.png", &err), 2);
+  EXPECT_NE(err.find("/proc/layertrace_x.png:"), std::string::npos) << err;
+  EXPECT_EQ(err.find(".tmp."), std::string::npos) << err;
+  EXPECT_EQ(std::count(err.begin(), err.end(), '\n'), 1) << err;
 }
 
 TEST(CliErrors, RandomBytesAsModelsAreRejectedCleanly) {

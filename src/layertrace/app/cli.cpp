@@ -48,9 +48,7 @@ glm::vec3 parseVec3(const std::string& option, const std::string& text) {
 struct RawFrameOptions {
   std::string eye, target, up;
   std::vector<std::string> lights;
-  float fov = 0.0f;
-  float thickness = 0.0f;
-  float thicknessPx = 0.0f;
+  std::string fov, thickness, thicknessPx;  ///< parsed when given: 0 is a value, not "unset"
   std::string warpEye, warpTarget;  ///< --warp-eye / --warp-target (effect options)
   std::string maxMemory;            ///< --max-memory
 };
@@ -144,9 +142,9 @@ void finishFrameOptions(lt::RunOptions& run, const RawFrameOptions& raw) {
   if (!raw.eye.empty()) f.eye = parseVec3("--eye", raw.eye);
   if (!raw.target.empty()) f.target = parseVec3("--target", raw.target);
   if (!raw.up.empty()) f.up = parseVec3("--up", raw.up);
-  if (raw.fov != 0.0f) f.fov = raw.fov;
-  if (raw.thickness != 0.0f) f.thickness = raw.thickness;
-  if (raw.thicknessPx != 0.0f) f.thicknessPx = raw.thicknessPx;
+  if (!raw.fov.empty()) f.fov = parseNumbers("--fov", raw.fov, 1, 1)[0];
+  if (!raw.thickness.empty()) f.thickness = parseNumbers("--thickness", raw.thickness, 1, 1)[0];
+  if (!raw.thicknessPx.empty()) f.thicknessPx = parseNumbers("--thickness-px", raw.thicknessPx, 1, 1)[0];
   for (const std::string& l : raw.lights) {
     const auto v = parseNumbers("--light", l, 3, 4);
     f.lights.push_back({v[0], v[1], v[2], v.size() == 4 ? v[3] : 1.0f});

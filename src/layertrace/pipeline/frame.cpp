@@ -71,6 +71,13 @@ void loadFrameScene(const FrameOptions& o, Frame& frame) {
   if (o.target) desc.target = *o.target, desc.name = "custom";
   if (o.up) desc.up = *o.up;
   if (o.fov) desc.fovY = *o.fov;
+  // The view options' own errors name the option (the camera's checks name the camera).
+  auto text = [](glm::vec3 v) { return cat(v.x, ",", v.y, ",", v.z); };
+  if ((o.eye || o.target) && desc.eye == desc.target)
+    inputError(o.eye ? "--eye " : "--target ", text(o.eye ? *o.eye : *o.target), ": equals the ", o.eye ? "target " : "eye ",
+               text(o.eye ? desc.target : desc.eye), " (the view needs a direction)");
+  if (o.up && !(glm::length(*o.up) > 0.0f)) inputError("--up ", text(*o.up), ": is the zero vector");
+  if (o.fov && !(*o.fov > 0.0f && *o.fov < 180.0f)) inputError("--fov ", *o.fov, ": must be in (0, 180) degrees");
   setFrameView(o, desc, frame);
   frame.lights = frame.scene.lights;
   for (const glm::vec4& l : o.lights) frame.lights.push_back({glm::vec3(l), glm::vec3(l.w)});

@@ -72,13 +72,14 @@ void commit(const std::string& tmp, const std::string& path) {
   }
 }
 
-void writePng(const std::string& tmp, const Image& image, bool srgb) {
+/// Writes `tmp`; errors name `path`, the file the user asked for.
+void writePng(const std::string& tmp, const std::string& path, const Image& image, bool srgb) {
   const int outChannels = image.channels == 1 ? 1 : 3;
   std::vector<uint8_t> bytes;
   encode8(image, srgb, outChannels, bytes);
   if (!stbi_write_png(tmp.c_str(), image.width, image.height, outChannels, bytes.data(),
                       image.width * outChannels))
-    inputError("output ", tmp, ": cannot write PNG");
+    inputError("output ", path, ": cannot write PNG");
 }
 
 void writeExr(const std::string& tmp, const Image& image) {
@@ -124,7 +125,7 @@ void writeImage(const std::string& path, const Image& image, bool srgb) {
   const std::string tmp = tempNameFor(path) + ext;  // keep the extension for the writers
   try {
     if (ext == ".png")
-      writePng(tmp, image, srgb);
+      writePng(tmp, path, image, srgb);
     else
       writeExr(tmp, image);
   } catch (const InputError&) {
