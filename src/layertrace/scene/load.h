@@ -38,6 +38,12 @@ void checkQuake3Archive(const std::string& path, uint64_t maxTotalBytes);
 /// lightmaps — what assimp's Q3BSP importer reads without checking (scene/quake3_bsp.cpp).
 void validateQuake3Bsp(const unsigned char* data, size_t size, const std::string& name);
 
+/// InputError naming `name` when an OFF file's header (the first 4 KiB of `data`) declares more
+/// vertices or faces than `size` bytes of text can hold: assimp's OFF importer would otherwise
+/// reserve memory for them (assimp's own test file OutOfMemory.off, 353 535 235 358 vertices in
+/// 309 bytes, ran for 85 s before the importer died).
+void validateOffHeader(const char* data, size_t size, const std::string& name);
+
 /// Loads a model from memory through assimp; `formatHint` is the file extension without the dot
 /// ("obj", "glb", …), `source` names the input in error messages.
 Scene loadModelFromMemory(const void* data, size_t size, const std::string& formatHint, const std::string& source);

@@ -6,6 +6,7 @@
 #include <functional>
 #include <iterator>
 #include <memory>
+#include <sstream>
 #include <vector>
 
 #include <csetjmp>
@@ -319,6 +320,31 @@ void checkQuake3Archive(const std::string& path, uint64_t maxTotalBytes) {
 
 void setModelImportTimeout(unsigned seconds) { gImportTimeout = seconds; }
 
+void validateOffHeader(const char* data, size_t size, const std::string& name) {
+  // The header: an optional keyword line (OFF, COFF, NOFF, STOFF, 4OFF…), comments (#), then
+  // "vertices faces [edges]". A vertex takes at least 6 bytes of text ("0 0 0\n"), a face 8
+  // ("3 0 1 2\n"). Anything that does not parse is left to assimp.
+  std::istringstream in(std::string(data, std::min<size_t>(size, 4096)));
+  std::string line;
+  while (std::getline(in, line)) {
+    const size_t start = line.find_first_not_of(" \t\r");
+    if (start == std::string::npos || line[start] == '#') continue;
+    if (!std::isdigit(static_cast<unsigned char>(line[start]))) {  // the keyword; counts may follow it
+      const size_t off = line.find("OFF");
+      if (off == std::string::npos) return;
+      line = line.substr(off + 3);
+      if (line.find_first_not_of(" \t\r") == std::string::npos) continue;
+    }
+    std::istringstream counts(line);
+    double vertices = 0.0, faces = 0.0;
+    if (!(counts >> vertices >> faces)) return;
+    if (vertices * 6.0 + faces * 8.0 > double(size))
+      inputError("scene ", name, ": the OFF header declares ", uint64_t(std::max(vertices, 0.0)), " vertices and ",
+                 uint64_t(std::max(faces, 0.0)), " faces, more than its ", size, " bytes can hold (malformed model)");
+    return;
+  }
+}
+
 Scene loadModel(const std::string& path, const glm::mat4& transform) {
   std::error_code ec;
   if (!fs::exists(path, ec)) inputError("scene ", path, ": file not found");
@@ -328,6 +354,13 @@ Scene loadModel(const std::string& path, const glm::mat4& transform) {
   const bool q3 = isQuake3(ext);
   // assimp inflates archive entries into memory: refuse what declares more than it could hold.
   if (ext == ".pk3") checkQuake3Archive(path, kMaxArchiveBytes);
+  if (ext == ".off") {
+    std::ifstream in(path, std::ios::binary);
+    std::string head(4096, '\0');
+    in.read(head.data(), std::streamsize(head.size()));
+    head.resize(size_t(in.gcount()));
+    validateOffHeader(head.data(), head.size() < 4096 ? head.size() : size_t(fs::file_size(path, ec)), path);
+  }
   if (ext == ".bsp") {
     std::ifstream in(path, std::ios::binary);
     const std::vector<unsigned char> bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
@@ -343,6 +376,7 @@ Scene loadModelFromMemory(const void* data, size_t size, const std::string& form
   std::string hint = formatHint;
   std::transform(hint.begin(), hint.end(), hint.begin(), [](unsigned char ch) { return std::tolower(ch); });
   const bool q3 = isQuake3("." + hint);
+  if (hint == "off") validateOffHeader(static_cast<const char*>(data), size, source);
   auto importer = std::make_unique<Assimp::Importer>();
   const unsigned flags = configureImporter(*importer, q3);
   const aiScene* as =
