@@ -10,6 +10,7 @@
 #include "layertrace/eval/classify.h"
 #include "layertrace/geometry/geometric_tracer.h"
 #include "layertrace/pipeline/tracer_factory.h"
+#include "layertrace/raster/unsampled.h"
 #include "layertrace/scene/load.h"
 #include "test_util.h"
 
@@ -187,6 +188,50 @@ bool sameAnswer(const Ray& r, const TraceHit& a, const TraceHit& b) {
   if (!a.hit) return true;
   const float ta = glm::length(a.point - r.origin), tb = glm::length(b.point - r.origin);
   return a.triangle == b.triangle || std::abs(ta - tb) <= 1e-4f * std::max(ta, tb);
+}
+
+/// A floor in the plane of the eye (y = 0, seen exactly edge-on: no pixel stores it), a lower
+/// floor at y = -2 and a wall at z = -10, both seen.
+Scene edgeOnFloor() {
+  Scene s = makeQuad({-30, 0, -0.5f}, {60, 0, 0}, {0, 0, -9.4f});  // y = 0 from z = -0.5 to -9.9
+  s.append(makeQuad({-30, -2, -0.5f}, {60, 0, 0}, {0, 0, -9.5f}));
+  s.append(makeQuad({-30, -5, -10}, {60, 0, 0}, {0, 10, 0}));
+  s.finalize("edge-on floor");
+  return s;
+}
+
+// Knowledge ends where a surface crosses pixels no sample stored (raster/unsampled.h): rays from
+// the wall down through the edge-on floor hit it (Embree), not the lower floor behind it —
+// which the screen march meets many pixels later, far outside the window before its hit. Found
+// on assimp's cameras.dae, whose camera sits at the apex of a pyramid (14 % of its rays wrong).
+TEST(Hybrid, SurfaceSeenEdgeOnEndsKnowledge) {
+  const Frame f = test::frameOf(edgeOnFloor(), test::originCamera(60.0f, 0.05f, 100.0f), 160, 120, 4, 0.05f);
+  const std::vector<float> unsampled = unsampledDepths(f.scene, f.camera, f.layers);
+  ASSERT_EQ(unsampled.size(), size_t(160 * 120));
+  size_t marked = 0;
+  for (const float d : unsampled) marked += d < 1e30f;
+  EXPECT_GT(marked, 160u) << "the horizon row and its neighbours";
+  EXPECT_LT(marked, 160u * 4) << "and nothing else";
+  const BuiltTracer embree = buildReference(f);
+  // hssr and hiz march the solid intervals (rule 3 inside the march), the quad-tree asks the
+  // known-space pyramid (rule 3 by its own march).
+  for (const char* screen : {"hssr", "hiz", "quadtree"}) {
+    SCOPED_TRACE(screen);
+    TracerOptions o;
+    o.hybridScreen = screen;
+    const BuiltTracer hybrid = buildTracer("hybrid", f, o);
+    int floorHits = 0;
+    for (int i = 0; i < 40; ++i) {
+      const float x = -3.0f + 0.15f * float(i);
+      const Ray r = freeRay({x, 2.0f, -9.9f}, glm::vec3(0.1f, -1.0f, 1.0f));  // crosses y = 0 at z = -7.9
+      RayCounters c;
+      const TraceHit truth = embree.tracer->trace(r, c), answer = hybrid.tracer->trace(r, c);
+      ASSERT_TRUE(truth.hit);
+      floorHits += truth.triangle / 2 == 0;
+      EXPECT_TRUE(sameAnswer(r, answer, truth)) << "ray " << i << ": hybrid triangle " << answer.triangle << ", Embree " << truth.triangle;
+    }
+    EXPECT_EQ(floorHits, 40) << "precondition: every ray meets the edge-on floor first";
+  }
 }
 
 // An analytic room with a box in it: mirror rays from every covered pixel get the answers of

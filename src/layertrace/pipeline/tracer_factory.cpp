@@ -3,8 +3,10 @@
 #include <chrono>
 #include <cmath>
 #include <limits>
+#include <vector>
 
 #include "layertrace/geometry/geometric_tracer.h"
+#include "layertrace/raster/unsampled.h"
 #include "layertrace/util/error.h"
 
 namespace lt {
@@ -81,7 +83,9 @@ BuiltTracer buildTracer(const std::string& name, const Frame& frame, const Trace
     b.tracer = makeGridTracer(frame.scene, frame.camera, *b.grid);
   } else if (name == "hybrid") {
     validateTracerOptions(o);
-    const CaptureCoverage coverage{frame.layers, frame.lists.complexity, frame.frontFacesOnly};
+    // Triangles thinner than a pixel that cross pixels unstored end those pixels' knowledge.
+    const std::vector<float> unsampled = unsampledDepths(frame.scene, frame.camera, frame.layers);
+    const CaptureCoverage coverage{frame.layers, frame.lists.complexity, frame.frontFacesOnly, unsampled};
     const bool pyramidScreen = o.hybridScreen == "hssr" || o.hybridScreen == "hiz";
     if (pyramidScreen) {
       // HSSR or Hi-Z over the solid intervals: one march answers rule 3 and the surfaces.

@@ -26,7 +26,8 @@ float CaptureCoverage::unknownDepth(size_t p) const {
   const FragmentNode* f = &layers.slots[p * size_t(layers.k)];
   if (frontFacesOnly) return n > 0 ? f[0].back() : 0.0f;
   const bool truncated = complexity.empty() ? n == layers.k : complexity[p] > uint32_t(n);
-  return !truncated ? kInf : n > 0 ? f[n - 1].back() : 0.0f;
+  const float u = !truncated ? kInf : n > 0 ? f[n - 1].back() : 0.0f;
+  return unsampled.empty() ? u : std::min(u, unsampled[p]);
 }
 
 namespace {
@@ -34,6 +35,7 @@ namespace {
 void checkCoverage(const CaptureCoverage& c) {
   const size_t pixels = size_t(c.layers.width) * size_t(c.layers.height);
   LT_CHECK(c.complexity.empty() || c.complexity.size() == pixels, "fragment counts of ", c.complexity.size(), " pixels for ", pixels);
+  LT_CHECK(c.unsampled.empty() || c.unsampled.size() == pixels, "unsampled depths of ", c.unsampled.size(), " pixels for ", pixels);
 }
 
 }  // namespace
@@ -58,6 +60,15 @@ IntervalLayers solidIntervals(const Camera& camera, const CaptureCoverage& c, fl
     for (int i = 0; i < n; ++i) {
       const float next = i + 1 < n ? f[i + 1].depth : u < kInf ? kInf : f[i].depth + lastThicknessPx * camera.pixelFootprint(f[i].depth);
       iv[i] = {f[i].depth, std::max(f[i].back(), next)};
+    }
+    // An unstored surface crossing the pixel (raster/unsampled.h): what lies behind its depth d
+    // is unknown — solid from d on, so a ray reaching it meets an interval no stored triangle
+    // backs, and the hybrid's exact check hands the ray to geometry.
+    const float d = c.unsampled.empty() ? kInf : c.unsampled[p];
+    if (d < kInf) {
+      while (n > 0 && iv[n - 1].front >= d) --n;  // stored behind it: unreachable unseen
+      if (n > 0 && (iv[n - 1].back >= d || n == L.k)) iv[n - 1].back = kInf;  // joins (or no slot left: from earlier)
+      else iv[n] = {d, kInf}, ++n;
     }
     // An uncovered pixel where anything may be (front faces only): unknown from the near plane.
     if (n == 0 && u < kInf) iv[0] = {u, kInf}, n = 1;

@@ -10,6 +10,8 @@
 //      list held (more than k, or merged by adaptive thickness — conservative), +∞ when every
 //      fragment of the pixel is stored. With --front-faces-only no back face was captured, so
 //      u(p) is the back of the first interval (0 on an uncovered pixel: anything may be there).
+//      A triangle thinner than a pixel that crosses the pixel without being stored in it (seen
+//      edge-on, raster/unsampled.h) ends the pixel's knowledge at its nearest depth.
 // Over [0, knownUntil) a miss is certain, up to the pixel sampling every screen tracer shares;
 // from knownUntil on nobody saw what the ray meets.
 //
@@ -36,7 +38,11 @@ struct CaptureCoverage {
   const LayerArrays& layers;
   std::span<const uint32_t> complexity;  ///< fragments per pixel (FragmentLists::complexity); empty = unknown
   bool frontFacesOnly = false;
-  /// u(p) of rule 3 for pixel index p (+∞ when the pixel is complete).
+  /// Per pixel, the nearest depth of a surface that crosses the pixel unstored (a triangle thinner
+  /// than a pixel: raster/unsampled.h); empty = none. Knowledge ends there too.
+  std::span<const float> unsampled = {};
+  /// u(p) of rule 3 for pixel index p (+∞ when the pixel is complete and crossed by no unstored
+  /// surface).
   float unknownDepth(size_t p) const;
 };
 
