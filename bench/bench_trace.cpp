@@ -95,10 +95,27 @@ void BM_Hssr(benchmark::State& state) {
   traceAll(state, t, s.rays);
 }
 
-/// The HSSR march alone (segments made beforehand, no hit shading), one ray at a time
-/// (hssrMarchEach) against the AVX-512 lanes (hssrMarchBatch) on the same segments: each round
-/// times both, in alternating order; the counters are the medians and their ratio (the
+/// Each round times `pass(false)` (one ray at a time) and `pass(true)` (the lanes) on the same
+/// rays, alternating which runs first; the counters are the medians and their ratio (the
 /// machine is noisy, a ratio within one round is not).
+template <class Pass>
+void timeOneAgainstLanes(benchmark::State& state, Pass&& pass) {
+  std::vector<double> one, lanes;
+  for (auto _ : state) {
+    const bool lanesFirst = one.size() % 2 == 1;
+    if (lanesFirst) lanes.push_back(pass(true));
+    one.push_back(pass(false));
+    if (!lanesFirst) lanes.push_back(pass(true));
+  }
+  std::sort(one.begin(), one.end());
+  std::sort(lanes.begin(), lanes.end());
+  state.counters["one_ms"] = one[one.size() / 2];
+  state.counters["lanes_ms"] = lanes[lanes.size() / 2];
+  state.counters["speedup"] = one[one.size() / 2] / lanes[lanes.size() / 2];
+}
+
+/// The HSSR march alone (segments made beforehand, no hit shading), one ray at a time
+/// (hssrMarchEach) against the AVX-512 lanes (hssrMarchBatch) on the same segments.
 void BM_HssrLanes(benchmark::State& state) {
   Setup& s = setup(int(state.range(0)));
   const lt::Frame& f = s.frame;
@@ -119,24 +136,12 @@ void BM_HssrLanes(benchmark::State& state) {
     });
     return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
   };
-  std::vector<double> one, lanes;
-  for (auto _ : state) {
-    const bool lanesFirst = one.size() % 2 == 1;
-    if (lanesFirst) lanes.push_back(pass(true));
-    one.push_back(pass(false));
-    if (!lanesFirst) lanes.push_back(pass(true));
-  }
-  std::sort(one.begin(), one.end());
-  std::sort(lanes.begin(), lanes.end());
-  state.counters["one_ms"] = one[one.size() / 2];
-  state.counters["lanes_ms"] = lanes[lanes.size() / 2];
-  state.counters["speedup"] = one[one.size() / 2] / lanes[lanes.size() / 2];
+  timeOneAgainstLanes(state, pass);
   state.counters["lanes_on"] = lt::hssrLanesAvailable(s.pyramid, 5);
 }
 
 /// SSR (seed 001) over the same rays, one ray at a time (the one-ray path of TracerImpl) against
-/// the AVX-512 lanes (SsrTracer::traceBatch), alternating within each round as BM_HssrLanes
-/// does. Args: scene, all layers (ssr-layers), stride.
+/// the AVX-512 lanes (SsrTracer::traceBatch). Args: scene, all layers (ssr-layers), stride.
 void BM_SsrLanes(benchmark::State& state) {
   Setup& s = setup(int(state.range(0)));
   lt::SsrConfig c;
@@ -157,18 +162,7 @@ void BM_SsrLanes(benchmark::State& state) {
     });
     return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
   };
-  std::vector<double> one, lanes;
-  for (auto _ : state) {
-    const bool lanesFirst = one.size() % 2 == 1;
-    if (lanesFirst) lanes.push_back(pass(true));
-    one.push_back(pass(false));
-    if (!lanesFirst) lanes.push_back(pass(true));
-  }
-  std::sort(one.begin(), one.end());
-  std::sort(lanes.begin(), lanes.end());
-  state.counters["one_ms"] = one[one.size() / 2];
-  state.counters["lanes_ms"] = lanes[lanes.size() / 2];
-  state.counters["speedup"] = one[one.size() / 2] / lanes[lanes.size() / 2];
+  timeOneAgainstLanes(state, pass);
 }
 
 void BM_Embree(benchmark::State& state) {

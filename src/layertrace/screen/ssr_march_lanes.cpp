@@ -138,13 +138,14 @@ void marchLanes(const IntervalLayers& depth, std::span<const SsrStart> starts, i
   Tables tb;
   tb.slots = reinterpret_cast<const char*>(depth.slots.data());
   tb.k = depth.k, tb.W = W, tb.H = H, tb.width = depth.width, tb.maxSteps = maxSteps;
-  // Two groups of lanes stepped in turn, as in the HSSR lanes: each step prefetches its lanes'
-  // next records and the other group's step hides their latency.
-  constexpr int kGroups = 2;
-  Lanes lanes[kGroups];
+  // Two groups of lanes stepped in turn, as in the HSSR lanes (runLaneGroups).
+  Lanes lanes[2];
+  for (Lanes& ln : lanes) {
+    ln = Lanes{};
+    std::fill(std::begin(ln.ray), std::end(ln.ray), -1);
+  }
   size_t next = 0;
-  int live = 0;
-  auto refill = [&](Lanes& ln, int j) {
+  auto fill = [&](Lanes& ln, int j) {
     ln.ray[j] = -1;
     while (next < starts.size()) {
       const size_t i = next++;
@@ -153,32 +154,15 @@ void marchLanes(const IntervalLayers& depth, std::span<const SsrStart> starts, i
         continue;
       }
       start(ln, j, starts[i], int(i));
-      ++live;
-      return;
+      return true;
     }
+    return false;
   };
-  for (Lanes& ln : lanes) {
-    ln = Lanes{};
-    std::fill(std::begin(ln.ray), std::end(ln.ray), -1);
-    for (int j = 0; j < kLanes; ++j) refill(ln, j);
-    store(ln.pixel, nextPixel(ln, tb));
-  }
-  while (live > 0) {
-    uint32_t finished[kGroups];
-    for (int g = 0; g < kGroups; ++g) finished[g] = step(lanes[g], tb);
-    for (int g = 0; g < kGroups; ++g) {
-      Lanes& ln = lanes[g];
-      if (!finished[g]) continue;
-      for (uint32_t m = finished[g]; m; m &= m - 1) {
-        const int j = __builtin_ctz(m);
-        const size_t i = size_t(ln.ray[j]);
-        out[i] = (ln.hitMask >> j & 1) ? SsrSample{ln.x[j], ln.y[j], ln.layer[j], ln.hitS[j]} : SsrSample{};
-        --live;
-        refill(ln, j);
-      }
-      store(ln.pixel, nextPixel(ln, tb));  // the refilled lanes' first samples
-    }
-  }
+  auto done = [&](const Lanes& ln, int j) {
+    out[size_t(ln.ray[j])] = (ln.hitMask >> j & 1) ? SsrSample{ln.x[j], ln.y[j], ln.layer[j], ln.hitS[j]} : SsrSample{};
+  };
+  // (after a refill: the new lanes' first samples, for the step's record loads)
+  runLaneGroups(lanes, fill, [&](Lanes& ln) { return step(ln, tb); }, done, [&](Lanes& ln) { store(ln.pixel, nextPixel(ln, tb)); });
 }
 
 }  // namespace

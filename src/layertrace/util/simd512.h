@@ -121,6 +121,34 @@ inline void transposeRows8(const F r[8], F field[8]) {
 /// Row j (8 floats) and row j + 8 as one register: the input of transposeRows8.
 inline F joinRows(F8 lo, F8 hi) { return __builtin_shufflevector(lo, hi, 0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 14, 15); }
 
+/// Lane refill over `kGroups` groups of sixteen lanes stepped in turn (the HSSR and SSR lane
+/// marches): `fill(ln, j)` gives lane j of a group its next item (false when none is left: the
+/// lane stays empty), `step(ln)` advances every live lane of a group and returns the mask of the
+/// lanes that finished, `done(ln, j)` takes a finished lane's result before the lane is refilled,
+/// and `refilled(ln)` runs after a group's lanes were (re)filled. With two groups each step can
+/// prefetch its lanes' next records while the other group's step hides their latency.
+template <int kGroups, class Lanes, class Fill, class Step, class Done, class Refilled>
+void runLaneGroups(Lanes (&lanes)[kGroups], Fill&& fill, Step&& step, Done&& done, Refilled&& refilled) {
+  int live = 0;
+  for (Lanes& ln : lanes) {
+    for (int j = 0; j < kLanes; ++j) live += fill(ln, j);
+    refilled(ln);
+  }
+  while (live > 0) {
+    uint32_t finished[kGroups];
+    for (int g = 0; g < kGroups; ++g) finished[g] = step(lanes[g]);
+    for (int g = 0; g < kGroups; ++g) {
+      if (!finished[g]) continue;
+      for (uint32_t m = finished[g]; m; m &= m - 1) {
+        const int j = __builtin_ctz(m);
+        done(lanes[g], j);
+        live += int(fill(lanes[g], j)) - 1;
+      }
+      refilled(lanes[g]);
+    }
+  }
+}
+
 /// transpose16 over 16 rows of 16 floats in memory, `in` to `out` (callable from code compiled
 /// for any CPU, as the tests do; run it only where simd512Available()).
 inline void transpose16(const float* in, float* out) {
