@@ -299,10 +299,6 @@ void marchLanes(const IntervalPyramid& pyramid, int levels, int nUp, std::span<c
   // other group's step hides their latency (bench_trace BM_HssrLanes, FZK-Haus: one group 1.16–
   // 1.22× the one-ray march, two 1.31–1.37×, three and four no better than two).
   Lanes lanes[2];
-  for (Lanes& ln : lanes) {
-    ln = Lanes{};
-    std::fill(std::begin(ln.ray), std::end(ln.ray), -1);
-  }
   size_t next = 0;
   auto fill = [&](Lanes& ln, int j) {
     ln.ray[j] = -1;

@@ -140,10 +140,6 @@ void marchLanes(const IntervalLayers& depth, std::span<const SsrStart> starts, i
   tb.k = depth.k, tb.W = W, tb.H = H, tb.width = depth.width, tb.maxSteps = maxSteps;
   // Two groups of lanes stepped in turn, as in the HSSR lanes (runLaneGroups).
   Lanes lanes[2];
-  for (Lanes& ln : lanes) {
-    ln = Lanes{};
-    std::fill(std::begin(ln.ray), std::end(ln.ray), -1);
-  }
   size_t next = 0;
   auto fill = [&](Lanes& ln, int j) {
     ln.ray[j] = -1;

@@ -127,10 +127,14 @@ inline F joinRows(F8 lo, F8 hi) { return __builtin_shufflevector(lo, hi, 0, 1, 2
 /// lanes that finished, `done(ln, j)` takes a finished lane's result before the lane is refilled,
 /// and `refilled(ln)` runs after a group's lanes were (re)filled. With two groups each step can
 /// prefetch its lanes' next records while the other group's step hides their latency.
+/// Lanes is a lane state with an `int32_t ray[kLanes]` member (−1: an empty lane); every group
+/// starts value-initialized and empty.
 template <int kGroups, class Lanes, class Fill, class Step, class Done, class Refilled>
 void runLaneGroups(Lanes (&lanes)[kGroups], Fill&& fill, Step&& step, Done&& done, Refilled&& refilled) {
   int live = 0;
   for (Lanes& ln : lanes) {
+    ln = Lanes{};
+    for (int32_t& r : ln.ray) r = -1;
     for (int j = 0; j < kLanes; ++j) live += fill(ln, j);
     refilled(ln);
   }
