@@ -6,7 +6,6 @@
 #include <cstring>
 #include <limits>
 
-#include "layertrace/screen/interval_lanes.h"
 #include "layertrace/util/cpu_dispatch.h"
 #include "layertrace/util/simd512.h"
 
@@ -166,7 +165,24 @@ __attribute__((noinline)) uint32_t step(Lanes& ln, const Tables& tb) {
   const F za = 1.0f / (k0 + s0 * dk), zb = 1.0f / (k0 + s1 * dk);
   I found = zero - 1;
   if (at0.bits) {
-    found = firstMetLanes(field, tb.k, vmin(za, zb), vmax(za, zb), at0, increasing);
+    // firstMetLanes (interval_lanes.h) written out: called here, the same operations leave this
+    // step with 9 more stack spills and the lanes 5–8 % slower (bench_trace BM_HssrLanes, three
+    // alternating runs of both binaries, session 13); the SSR lanes call it.
+    const F zmin = vmin(za, zb), zmax = vmax(za, zb);
+    F bestEntry = F{};
+    M scan = at0;
+    for (int i = 0; i < tb.k; ++i) {
+      const F front = field[2 * i], back = field[2 * i + 1];
+      scan = scan & ~gt(front, zmax);  // sorted by front: nothing further can overlap (nor the sentinel)
+      const M overlap = scan & ~lt(back, zmin);
+      const M first = overlap & increasing;  // depth grows: the first overlap in front order
+      found = sel(first, zero + i, found);
+      scan = scan & ~first;
+      const F entry = sel(lt(back, zmax), back, zmax);  // depth shrinks: the largest entry depth
+      const M later = overlap & ~increasing & (lt(found, zero) | ge(entry, bestEntry));
+      found = sel(later, zero + i, found);
+      bestEntry = sel(later, entry, bestEntry);
+    }
   }
   const M hit = at0 & ge(found, zero);
 

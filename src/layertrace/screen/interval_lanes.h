@@ -1,6 +1,7 @@
-// firstMet (interval_layers.h) in sixteen AVX-512 lanes: what the HSSR and SSR lane marches
-// (hssr_march_lanes.cpp, ssr_march_lanes.cpp) ask of a pixel's stored intervals. Compiled for
-// AVX-512 by its own target region, like simd512.h; call it only from that region.
+// firstMet (interval_layers.h) in sixteen AVX-512 lanes: what a lane march asks of a pixel's
+// stored intervals (ssr_march_lanes.cpp; hssr_march_lanes.cpp writes the same operations out,
+// see there). Compiled for AVX-512 by its own target region, like simd512.h; call it only from
+// code compiled for it.
 #pragma once
 
 #include "layertrace/util/simd512.h"
