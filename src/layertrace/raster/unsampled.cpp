@@ -10,6 +10,7 @@
 
 #include <glm/geometric.hpp>
 
+#include "layertrace/util/memory.h"
 #include "layertrace/util/parallel.h"
 
 namespace lt {
@@ -36,6 +37,7 @@ int clipToNear(const glm::vec3 in[3], float near, glm::vec3 out[4]) {
 std::vector<float> unsampledDepths(const Scene& scene, const Camera& camera, const LayerArrays& layers) {
   const int W = layers.width, H = layers.height;
   const size_t pixels = size_t(W) * size_t(H);
+  checkAllocation("the hybrid's unsampled depths", pixels * sizeof(uint32_t));  // before the pass that may need it
   // Depths are positive: their bits order like the floats, so an integer min is a float min.
   std::vector<uint32_t> bits;
   std::atomic<bool> any{false};
