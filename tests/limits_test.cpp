@@ -12,6 +12,7 @@
 #include "layertrace/screen/quadtree.h"
 #include "layertrace/util/error.h"
 #include "layertrace/util/memory.h"
+#include "layertrace/screen/known_space.h"
 #include "test_util.h"
 
 namespace lt {
@@ -70,7 +71,8 @@ TEST(Limits, EveryStructureIsRefusedByNameBeforeItAllocates) {
     expectRefused("quad-tree", [&] { buildQuadtree(f.layers, f.camera, QuadtreeConfig{}); });
     expectRefused("Embree BVH", [&] { EmbreeScene e(f.scene, EmbreeScene::Mode::Fast); });
     expectRefused("irregular grid", [&] { IrregularGrid g(f.scene); });
-    expectRefused("solid intervals", [&] { buildTracer("hybrid", f, TracerOptions{}); });
+    expectRefused("unsampled depths", [&] { buildTracer("hybrid", f, TracerOptions{}); });  // its first structure
+    expectRefused("solid intervals", [&] { solidIntervals(f.camera, CaptureCoverage{f.layers, f.lists.complexity}, 20.0f); });
     expectRefused("layered depth cube", [&] { buildLdc(f.scene, LdcConfig{}); });
   }
   EXPECT_NO_THROW(IrregularGrid g(f.scene));
