@@ -39,8 +39,7 @@ std::vector<float> unsampledDepths(const Scene& scene, const Camera& camera, con
   const size_t pixels = size_t(W) * size_t(H);
   checkAllocation("the hybrid's unsampled depths", pixels * sizeof(uint32_t));  // before the pass that may need it
   // Depths are positive: their bits order like the floats, so an integer min is a float min.
-  std::vector<uint32_t> bits;
-  std::atomic<bool> any{false};
+  std::vector<uint32_t> bits;  // sized at the first unstored crossing: empty when there is none
   std::once_flag sized;
   parallelFor(size_t(0), scene.triangleCount(), [&](size_t t) {
     const glm::uvec3 tri = scene.triangles[t];
@@ -87,7 +86,6 @@ std::vector<float> unsampledDepths(const Scene& scene, const Camera& camera, con
           for (size_t i = 0; i < size_t(layers.count[p]) && !stored; ++i) stored = layers.triangle[p * k + i] == uint32_t(t);
           if (stored) continue;
           std::call_once(sized, [&] { bits.assign(pixels, std::bit_cast<uint32_t>(kInf)); });
-          any.store(true, std::memory_order_relaxed);
           std::atomic_ref<uint32_t> cell(bits[p]);
           const uint32_t mine = std::bit_cast<uint32_t>(nearest);
           uint32_t cur = cell.load(std::memory_order_relaxed);
@@ -96,10 +94,8 @@ std::vector<float> unsampledDepths(const Scene& scene, const Camera& camera, con
       if (u >= t1) break;
     }
   });
-  std::vector<float> out;
-  if (!any.load()) return out;
-  out.resize(pixels);
-  for (size_t p = 0; p < pixels; ++p) out[p] = std::bit_cast<float>(bits[p]);
+  std::vector<float> out(bits.size());
+  for (size_t p = 0; p < out.size(); ++p) out[p] = std::bit_cast<float>(bits[p]);
   return out;
 }
 

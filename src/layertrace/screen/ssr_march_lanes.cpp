@@ -32,11 +32,13 @@ struct alignas(64) Lanes {
   float s[kLanes], dsStep[kLanes], kHalf[kLanes], dk[kLanes], kLo[kLanes], kHi[kLanes], prevDepth[kLanes];
   int32_t step[kLanes];
   int32_t ray[kLanes];  ///< the start's index in the batch; −1 for an empty lane
-  int32_t pixel[kLanes];  ///< the pixel index the next step reads (0 where it reads none)
+  // The pixel of each lane's next sample (nextPixel): its coordinates, and its index where it
+  // lies in the view (0 elsewhere: not read). A finished lane's hit is at x, y.
+  int32_t x[kLanes], y[kLanes], pixel[kLanes];
   __mmask16 permute, increasing;
   // Written by a step for the lanes it finished:
   __mmask16 hitMask;
-  int32_t x[kLanes], y[kLanes], layer[kLanes];
+  int32_t layer[kLanes];
   float hitS[kLanes];
 };
 
@@ -52,14 +54,14 @@ inline I floorToInt(F v) {
   return __builtin_convertvector((F)f, I);
 }
 
-/// The pixel each lane's next sample reads (as the step computes it), for the step's prefetch
-/// and record loads: 0 where the sample lies outside the view (it is not read then).
-inline I nextPixel(const Lanes& ln, const Tables& tb) {
+/// Stores the pixel each lane's next sample reads (ssrMarch's floor and un-permute of P) in
+/// Lanes::x, y and pixel, for the next step's bounds check, record loads and prefetch.
+inline void nextPixel(Lanes& ln, const Tables& tb) {
   const M permute{ln.permute};
   const I px = floorToInt(load<F>(ln.px)), py = floorToInt(load<F>(ln.py));
   const I x = sel(permute, py, px), y = sel(permute, px, py), zero = I{};
   const M inside = ge(x, zero) & ge(y, zero) & lt(x, zero + tb.W) & lt(y, zero + tb.H);
-  return sel(inside, y * tb.width + x, zero);
+  store(ln.x, x), store(ln.y, y), store(ln.pixel, sel(inside, y * tb.width + x, zero));
 }
 
 void start(Lanes& ln, int j, const SsrStart& m, int i) {
@@ -77,14 +79,13 @@ void start(Lanes& ln, int j, const SsrStart& m, int i) {
 /// (hitMask: with a hit).
 __attribute__((noinline)) uint32_t step(Lanes& ln, const Tables& tb) {
   const I zero = I{}, one = zero + 1;
-  const M permute{ln.permute}, increasing{ln.increasing};
+  const M increasing{ln.increasing};
   F px = load<F>(ln.px), py = load<F>(ln.py), s = load<F>(ln.s), kHalf = load<F>(ln.kHalf);
   I steps = load<I>(ln.step);
   const M live = ge(load<I>(ln.ray), zero);
   // The loop's condition, then the sample's pixel and the view's bounds.
   M act = live & lt(steps, zero + tb.maxSteps) & le(s, F{} + 1.0f);
-  const I ix = floorToInt(px), iy = floorToInt(py);
-  const I x = sel(permute, iy, ix), y = sel(permute, ix, iy);
+  const I x = load<I>(ln.x), y = load<I>(ln.y);  // the sample's pixel (nextPixel)
   act = act & ge(x, zero) & ge(y, zero) & lt(x, zero + tb.W) & lt(y, zero + tb.H);
   // The depth range from half a step back to half a step ahead (clamped to the segment).
   const F prevDepth = load<F>(ln.prevDepth);
@@ -124,11 +125,11 @@ __attribute__((noinline)) uint32_t step(Lanes& ln, const Tables& tb) {
   py = sel(move, py + load<F>(ln.dpy), py);
   store(ln.px, px), store(ln.py, py);
   store(ln.kHalf, sel(move, kHalf + load<F>(ln.dk), kHalf));
-  store(ln.x, x), store(ln.y, y), store(ln.layer, found), store(ln.hitS, s);
+  store(ln.layer, found), store(ln.hitS, s);
   ln.hitMask = hit.bits;
-  // The next samples' records, requested now so that their loads overlap the other group's step.
-  const I next = nextPixel(ln, tb);
-  store(ln.pixel, next);
+  // The next samples' records, requested now so that their loads overlap the other group's step
+  // (a lane that hit keeps its sample: x, y stay its hit pixel).
+  nextPixel(ln, tb);
   const size_t bytes = sizeof(Interval) * size_t(tb.k);
   for (int j = 0; j < kLanes; ++j) __builtin_prefetch(tb.slots + size_t(ln.pixel[j]) * bytes);
   return (live & ~move).bits;
@@ -158,7 +159,7 @@ void marchLanes(const IntervalLayers& depth, std::span<const SsrStart> starts, i
     out[size_t(ln.ray[j])] = (ln.hitMask >> j & 1) ? SsrSample{ln.x[j], ln.y[j], ln.layer[j], ln.hitS[j]} : SsrSample{};
   };
   // (after a refill: the new lanes' first samples, for the step's record loads)
-  runLaneGroups(lanes, fill, [&](Lanes& ln) { return step(ln, tb); }, done, [&](Lanes& ln) { store(ln.pixel, nextPixel(ln, tb)); });
+  runLaneGroups(lanes, fill, [&](Lanes& ln) { return step(ln, tb); }, done, [&](Lanes& ln) { nextPixel(ln, tb); });
 }
 
 }  // namespace
