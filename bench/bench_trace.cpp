@@ -95,23 +95,36 @@ void BM_Hssr(benchmark::State& state) {
   traceAll(state, t, s.rays);
 }
 
-/// Each round times `pass(false)` (one ray at a time) and `pass(true)` (the lanes) on the same
-/// rays, alternating which runs first; the counters are the medians and their ratio (the
-/// machine is noisy, a ratio within one round is not).
+/// Each round times pass(0) … pass(n − 1) on the same rays, rotating which runs first; the
+/// counters `<name>_ms` are the medians (the machine is noisy, a ratio within one round is not).
+template <class Pass>
+std::vector<double> timeAlternating(benchmark::State& state, std::initializer_list<const char*> names, Pass&& pass) {
+  const int n = int(names.size());
+  std::vector<std::vector<double>> ms(static_cast<size_t>(n));
+  int round = 0;
+  for (auto _ : state) {
+    for (int k = 0; k < n; ++k) {
+      const int v = (round + k) % n;
+      ms[size_t(v)].push_back(pass(v));
+    }
+    ++round;
+  }
+  std::vector<double> median;
+  int v = 0;
+  for (const char* name : names) {
+    std::vector<double>& m = ms[size_t(v++)];
+    std::sort(m.begin(), m.end());
+    median.push_back(m[m.size() / 2]);
+    state.counters[std::string(name) + "_ms"] = median.back();
+  }
+  return median;
+}
+
+/// `pass(false)` (one ray at a time) against `pass(true)` (the lanes): one_ms, lanes_ms, speedup.
 template <class Pass>
 void timeOneAgainstLanes(benchmark::State& state, Pass&& pass) {
-  std::vector<double> one, lanes;
-  for (auto _ : state) {
-    const bool lanesFirst = one.size() % 2 == 1;
-    if (lanesFirst) lanes.push_back(pass(true));
-    one.push_back(pass(false));
-    if (!lanesFirst) lanes.push_back(pass(true));
-  }
-  std::sort(one.begin(), one.end());
-  std::sort(lanes.begin(), lanes.end());
-  state.counters["one_ms"] = one[one.size() / 2];
-  state.counters["lanes_ms"] = lanes[lanes.size() / 2];
-  state.counters["speedup"] = one[one.size() / 2] / lanes[lanes.size() / 2];
+  const std::vector<double> m = timeAlternating(state, {"one", "lanes"}, [&](int v) { return pass(v == 1); });
+  state.counters["speedup"] = m[0] / m[1];
 }
 
 /// The HSSR march alone (segments made beforehand, no hit shading), one ray at a time
@@ -182,6 +195,69 @@ void BM_Hybrid(benchmark::State& state) {
   state.counters["geo%"] = 100.0 * h.geoFraction();
 }
 
+/// The irregular grid (seed 003) one ray at a time against its batch queries (several rays in
+/// flight), with plain single-ray Embree on the same rays in the same rounds. Args: scene, ray
+/// set (0 primary, 1 AO: any hit within 5 % of the scene's diagonal, 2 diffuse; both
+/// cosine-distributed from the primary hits, as `geobench`).
+void BM_GridBatch(benchmark::State& state) {
+  Setup& s = setup(int(state.range(0)));
+  const lt::Scene& scene = s.frame.scene;
+  const lt::Camera& cam = s.frame.camera;
+  const lt::EmbreeScene embree(scene, lt::EmbreeScene::Mode::Fast);
+  const lt::IrregularGrid grid(scene);
+  const int set = int(state.range(1));
+  const float diag = scene.bounds().diagonal();
+  std::vector<lt::IrregularGrid::Query> q;
+  uint32_t seed = 1;
+  auto uniform = [&seed] { return float((seed = seed * 1664525u + 1013904223u) >> 8) * 0x1p-24f; };
+  for (int y = 0; y < cam.height(); ++y)
+    for (int x = 0; x < cam.width(); ++x) {
+      const glm::vec3 o = cam.desc().eye, d = glm::normalize(cam.dirToWorld(cam.rayThrough({x + 0.5f, y + 0.5f})));
+      if (set == 0) {
+        q.push_back({o, d, 0.0f, 1e30f});
+        continue;
+      }
+      const lt::GeoHit h = embree.intersect(o, d, 0.0f, 1e30f);
+      if (!h.hit()) continue;
+      glm::vec3 n = glm::normalize(h.ng);
+      if (glm::dot(n, d) > 0.0f) n = -n;
+      const glm::vec3 t = glm::normalize(std::abs(n.x) > 0.5f ? glm::cross(n, {0, 1, 0}) : glm::cross(n, {1, 0, 0})), b = glm::cross(n, t);
+      const float r1 = uniform(), r = std::sqrt(r1), phi = 6.2831853f * uniform();
+      const glm::vec3 dir = glm::normalize(t * (r * std::cos(phi)) + b * (r * std::sin(phi)) + n * std::sqrt(std::max(0.0f, 1.0f - r1)));
+      q.push_back({o + d * h.t, dir, 1e-4f * diag, set == 1 ? 0.05f * diag : 1e30f});
+    }
+  std::vector<float> answer(q.size());
+  auto pass = [&](int v) {
+    const auto t0 = std::chrono::steady_clock::now();
+    tbb::parallel_for(tbb::blocked_range<size_t>(0, q.size(), 1024), [&](const tbb::blocked_range<size_t>& r) {
+      const std::span<const lt::IrregularGrid::Query> chunk(&q[r.begin()], r.size());
+      if (v == 2) {  // the grid's batch
+        if (set == 1) {
+          std::vector<uint8_t> hit(r.size());
+          grid.occluded(chunk, hit);
+          for (size_t i = 0; i < r.size(); ++i) answer[r.begin() + i] = hit[i];
+        } else {
+          std::vector<lt::GeoHit> hit(r.size());
+          grid.intersect(chunk, hit);
+          for (size_t i = 0; i < r.size(); ++i) answer[r.begin() + i] = hit[i].t;
+        }
+        return;
+      }
+      for (size_t i = 0; i < r.size(); ++i) {  // one ray at a time: Embree, or the grid
+        const lt::IrregularGrid::Query& a = chunk[i];
+        if (set == 1) answer[r.begin() + i] = v == 0 ? embree.occluded(a.origin, a.dir, a.tnear, a.tfar) : grid.occluded(a.origin, a.dir, a.tnear, a.tfar);
+        else answer[r.begin() + i] = (v == 0 ? embree.intersect(a.origin, a.dir, a.tnear, a.tfar) : grid.intersect(a.origin, a.dir, a.tnear, a.tfar)).t;
+      }
+    });
+    benchmark::DoNotOptimize(answer.data());
+    return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+  };
+  const std::vector<double> m = timeAlternating(state, {"embree", "grid_one", "grid_batch"}, pass);
+  state.counters["batch_speedup"] = m[1] / m[2];
+  state.counters["one_x_embree"] = m[0] / m[1];
+  state.counters["batch_x_embree"] = m[0] / m[2];
+}
+
 void BM_HierarchyBuild(benchmark::State& state) {
   Setup& s = setup(int(state.range(0)));
   for (auto _ : state) {
@@ -203,6 +279,7 @@ BENCHMARK(BM_Ssr)
     ->Unit(benchmark::kMillisecond)
     ->UseRealTime();
 BENCHMARK(BM_Ssr)->ArgsProduct({{0}, {1, 2, 4, 8}, {0}})->Unit(benchmark::kMillisecond)->UseRealTime();
+BENCHMARK(BM_GridBatch)->ArgsProduct({{0, 1}, {0, 1, 2}})->Iterations(7)->Unit(benchmark::kMillisecond)->UseRealTime();
 BENCHMARK(BM_HierarchyBuild)->Arg(0)->Arg(1)->Unit(benchmark::kMillisecond)->UseRealTime();
 
 }  // namespace

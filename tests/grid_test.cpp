@@ -5,6 +5,7 @@
 #include <bit>
 #include <limits>
 #include <random>
+#include <span>
 
 #include <glm/geometric.hpp>
 #include <tbb/parallel_for.h>
@@ -121,6 +122,36 @@ GeoHit referenceTraverse(const IrregularGrid& g, const Scene& scene, glm::vec3 o
     if (v[axis] < 0 || v[axis] >= g.virtualResolution(axis)) break;
   }
   return best;
+}
+
+/// The batch queries (several rays in flight) answer every ray exactly as the one-ray traversal —
+/// closest hits (t, triangle and normal, to the bit) and any hits — in batches shorter and
+/// longer than the rays in flight; returns the number of differing answers.
+size_t batchDifferences(const IrregularGrid& grid, const std::vector<IrregularGrid::Query>& q) {
+  auto same = [](const GeoHit& a, const GeoHit& b) {
+    return a.triangle == b.triangle && std::bit_cast<uint32_t>(a.t) == std::bit_cast<uint32_t>(b.t) &&
+           std::bit_cast<uint32_t>(a.ng.x) == std::bit_cast<uint32_t>(b.ng.x) &&
+           std::bit_cast<uint32_t>(a.ng.y) == std::bit_cast<uint32_t>(b.ng.y) && std::bit_cast<uint32_t>(a.ng.z) == std::bit_cast<uint32_t>(b.ng.z);
+  };
+  std::vector<GeoHit> one(q.size());
+  std::vector<uint8_t> oneAny(q.size());
+  for (size_t i = 0; i < q.size(); ++i) {
+    one[i] = grid.intersect(q[i].origin, q[i].dir, q[i].tnear, q[i].tfar);
+    oneAny[i] = grid.occluded(q[i].origin, q[i].dir, q[i].tnear, q[i].tfar);
+  }
+  size_t differ = 0;
+  for (size_t batch : {size_t(1), size_t(5), size_t(16), size_t(17), size_t(256), q.size()}) {
+    for (size_t b = 0; b < q.size(); b += batch) {
+      const size_t n = std::min(batch, q.size() - b);
+      const std::span<const IrregularGrid::Query> chunk(&q[b], n);
+      std::vector<GeoHit> hits(n);
+      std::vector<uint8_t> any(n, 7);
+      grid.intersect(chunk, hits);
+      grid.occluded(chunk, any);
+      for (size_t i = 0; i < n; ++i) differ += !same(hits[i], one[b + i]) + (any[i] != oneAny[b + i]);
+    }
+  }
+  return differ;
 }
 
 /// Calls f(a, A, v, B) for every voxel v of the expanded box of every `stride`-th cell A, B being
@@ -313,6 +344,48 @@ TEST(Grid, ParallelMergeEqualsSerialOnTheDefaultScene) {
   expectParallelMergeEqualsSerial(f.scene);
 }
 
+// Issue 14: the grid's batch queries (several rays in flight) against its one-ray traversal on
+// the default scene — primary rays, diffuse and AO rays from their hits, and the odd ones: rays
+// that miss the grid's box, start outside it, run along an axis (direction components of 0),
+// have an empty range, or start on a triangle.
+TEST(Grid, BatchQueriesAnswerAsOneRayOnTheDefaultScene) {
+  FrameOptions o;
+  o.scenePath = test::sourceDir() + "/scenes/default.json";
+  Frame f;
+  loadFrameScene(o, f);
+  const IrregularGrid grid(f.scene);
+  const Camera cam(withClipPlanes(f.camera.desc(), f.scene), 96, 64);
+  const float diag = f.scene.bounds().diagonal();
+  const glm::vec3 centre = (grid.origin() + grid.boxMax()) * 0.5f;
+  std::mt19937_64 rng(test::testSeed());
+  std::normal_distribution<float> g;
+  std::vector<IrregularGrid::Query> q;
+  size_t hits = 0;
+  for (int y = 0; y < 64; ++y)
+    for (int x = 0; x < 96; ++x) {
+      const glm::vec3 eye = f.camera.desc().eye, d = glm::normalize(cam.dirToWorld(cam.rayThrough({x + 0.5f, y + 0.5f})));
+      q.push_back({eye, d, 0.0f, 1e30f});
+      const GeoHit h = grid.intersect(eye, d, 0.0f, 1e30f);
+      if (!h.hit()) continue;
+      ++hits;
+      const glm::vec3 p = eye + d * h.t, r = glm::normalize(glm::vec3(g(rng), g(rng), g(rng)));
+      q.push_back({p, r, 1e-4f * diag, 1e30f});
+      q.push_back({p, r, 1e-4f * diag, 0.05f * diag});
+      q.push_back({p, -d, h.t * 0.5f, 1e30f});  // back along the primary ray
+      q.push_back({eye, d, h.t, h.t});          // an empty range (tnear = tfar)
+    }
+  for (int axis = 0; axis < 3; ++axis)
+    for (float sign : {-1.0f, 1.0f}) {
+      glm::vec3 d(0.0f);
+      d[axis] = sign;
+      q.push_back({centre, d, 0.0f, 1e30f});                // along an axis
+      q.push_back({centre - d * diag * 3.0f, d, 0.0f, 1e30f});  // from outside the box, into it
+      q.push_back({centre + d * diag * 3.0f, d, 0.0f, 1e30f});  // outside, away from it
+    }
+  EXPECT_GT(hits, q.size() / 8);
+  EXPECT_EQ(batchDifferences(grid, q), 0u) << "of " << q.size() << " rays";
+}
+
 TEST(Grid, AgreesWithEmbreeOnTheDefaultScene) {
   FrameOptions o;
   o.scenePath = test::sourceDir() + "/scenes/default.json";
@@ -447,6 +520,31 @@ TEST_P(RealSceneGrid, PackedTraversalEqualsReference) {
   });
   EXPECT_GT(hits.load(), rays.load() / 6);
   EXPECT_EQ(differ.load(), 0u) << "of " << rays.load() << " rays";
+}
+
+// Issue 14: the batch queries (several rays in flight) answer as the one-ray traversal, bit for
+// bit, on primary rays and diffuse and AO rays from their hits.
+TEST_P(RealSceneGrid, BatchQueriesAnswerAsOneRay) {
+  ASSERT_TRUE(test::haveFetchedScenes()) << "run scripts/fetch-scenes.sh";
+  Frame f;
+  loadParamScene(GetParam(), f);
+  const IrregularGrid grid(f.scene);
+  const Camera cam(withClipPlanes(f.camera.desc(), f.scene), 160, 90);
+  const float diag = f.scene.bounds().diagonal();
+  std::mt19937_64 rng(test::testSeed());
+  std::normal_distribution<float> g;
+  std::vector<IrregularGrid::Query> q;
+  for (int y = 0; y < 90; ++y)
+    for (int x = 0; x < 160; ++x) {
+      const glm::vec3 eye = f.camera.desc().eye, d = glm::normalize(cam.dirToWorld(cam.rayThrough({x + 0.5f, y + 0.5f})));
+      q.push_back({eye, d, 0.0f, 1e30f});
+      const GeoHit h = grid.intersect(eye, d, 0.0f, 1e30f);
+      if (!h.hit()) continue;
+      const glm::vec3 p = eye + d * h.t, r = glm::normalize(glm::vec3(g(rng), g(rng), g(rng)));
+      q.push_back({p, r, 1e-4f * diag, 1e30f});
+      q.push_back({p, r, 1e-4f * diag, 0.05f * diag});
+    }
+  EXPECT_EQ(batchDifferences(grid, q), 0u) << "of " << q.size() << " rays";
 }
 
 // Rays aimed at the edges of the virtual grid (two coordinates on voxel planes, to the float)

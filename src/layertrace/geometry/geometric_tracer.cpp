@@ -76,4 +76,36 @@ void EmbreePacketTracer::occludedBatch(std::span<const Ray> rays, std::span<Trac
   });
 }
 
+template <class F>
+void GridTracer::chunks(std::span<const Ray> rays, F f) const {
+  const Camera& cam = hits().camera();
+  IrregularGrid::Query q[kChunk];
+  for (size_t b = 0; b < rays.size(); b += kChunk) {
+    const size_t n = std::min(kChunk, rays.size() - b);
+    for (size_t i = 0; i < n; ++i) {
+      const Ray& r = rays[b + i];
+      q[i] = {cam.toWorld(r.origin), cam.dirToWorld(r.dir), GeometricHits::originOffset(r), r.maxDistance};
+    }
+    f(std::span<const IrregularGrid::Query>(q, n), b);
+  }
+}
+
+void GridTracer::traceBatch(std::span<const Ray> rays, std::span<TraceHit> hits, std::span<RayCounters> counters) const {
+  if (kCountersCompiled && !counters.empty()) return GeometricTracer::traceBatch(rays, hits, counters);
+  chunks(rays, [&](std::span<const IrregularGrid::Query> q, size_t b) {
+    GeoHit g[kChunk];
+    grid_.intersect(q, std::span<GeoHit>(g, q.size()));
+    for (size_t i = 0; i < q.size(); ++i) hits[b + i] = this->hits().makeHit(rays[b + i], g[i]);
+  });
+}
+
+void GridTracer::occludedBatch(std::span<const Ray> rays, std::span<TraceHit> hits, std::span<RayCounters> counters) const {
+  if (kCountersCompiled && !counters.empty()) return GeometricTracer::occludedBatch(rays, hits, counters);
+  chunks(rays, [&](std::span<const IrregularGrid::Query> q, size_t b) {
+    uint8_t blocked[kChunk];
+    grid_.occluded(q, std::span<uint8_t>(blocked, q.size()));
+    for (size_t i = 0; i < q.size(); ++i) hits[b + i] = GeometricHits::occludedHit(blocked[i] != 0);
+  });
+}
+
 }  // namespace lt

@@ -72,7 +72,23 @@ class GeometricTracer : public TracerImpl<GeometricTracer<Accel>> {
   const Accel& accel_;
 };
 using EmbreeTracer = GeometricTracer<EmbreeScene>;
-using GridTracer = GeometricTracer<IrregularGrid>;
+
+/// The irregular grid as a tracer: uncounted batches trace with several rays in flight
+/// (IrregularGrid's batch queries, the same answers bit for bit); counted runs one ray at a time.
+class GridTracer : public GeometricTracer<IrregularGrid> {
+ public:
+  GridTracer(const Scene& scene, const Camera& camera, const IrregularGrid& grid)
+      : GeometricTracer<IrregularGrid>("grid", scene, camera, grid), grid_(grid) {}
+  void traceBatch(std::span<const Ray> rays, std::span<TraceHit> hits, std::span<RayCounters> counters) const override;
+  void occludedBatch(std::span<const Ray> rays, std::span<TraceHit> hits, std::span<RayCounters> counters) const override;
+
+ private:
+  static constexpr size_t kChunk = 256;
+  /// Calls f(queries, first) for each chunk of up to kChunk rays, as world-space grid queries.
+  template <class F>
+  void chunks(std::span<const Ray> rays, F f) const;
+  const IrregularGrid& grid_;
+};
 
 /// Plain Embree with 16-wide packets (rtcIntersect16 / rtcOccluded16): each batch is cut into
 /// packets of 16 consecutive rays — the packet baseline `compare` reports beside single-ray
@@ -107,7 +123,7 @@ inline std::unique_ptr<Tracer> makeEmbreeTracer(const Scene& scene, const Camera
   return std::make_unique<EmbreeTracer>("embree", scene, camera, embree);
 }
 inline std::unique_ptr<Tracer> makeGridTracer(const Scene& scene, const Camera& camera, const IrregularGrid& grid) {
-  return std::make_unique<GridTracer>("grid", scene, camera, grid);
+  return std::make_unique<GridTracer>(scene, camera, grid);
 }
 
 }  // namespace lt

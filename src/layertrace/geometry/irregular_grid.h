@@ -17,6 +17,8 @@
 #pragma once
 
 #include <cstdint>
+#include <new>
+#include <span>
 #include <vector>
 
 #include <glm/vec3.hpp>
@@ -78,16 +80,25 @@ class IrregularGrid {
   /// Any hit with t in (tnear, tfar].
   bool occluded(glm::vec3 origin, glm::vec3 dir, float tnear, float tfar, TraversalCounts* counts = nullptr) const;
 
+  /// One query of a batch.
+  struct Query {
+    glm::vec3 origin, dir;
+    float tnear, tfar;
+  };
+  /// The answers of intersect / occluded for many rays, bit for bit, with several rays in flight
+  /// (uncounted): each ray's next cell is prefetched while the other rays of its group step, so
+  /// the traversal's chain of dependent loads (leaf → cell → triangles) overlaps across rays
+  /// instead of stalling each ray (issue 14: incoherent rays were latency-bound).
+  void intersect(std::span<const Query> queries, std::span<GeoHit> hits) const;
+  void occluded(std::span<const Query> queries, std::span<uint8_t> hits) const;
+
   const GridStats& stats() const { return stats_; }
   size_t memoryBytes() const;
   const std::vector<GridCell>& cells() const { return cells_; }
   const std::vector<uint32_t>& refs() const { return refs_; }
   /// The cell containing virtual voxel v (the voxel map lookup).
   uint32_t cellAt(const int v[3]) const {
-    const TopCell& t = topCells_[(size_t(v[2] >> depth_) * size_t(top_[1]) + size_t(v[1] >> depth_)) * size_t(top_[0]) + size_t(v[0] >> depth_)];
-    const int d = int(t.depth), mask = (1 << depth_) - 1, shift = depth_ - d;
-    const uint32_t l0 = uint32_t((v[0] & mask) >> shift), l1 = uint32_t((v[1] & mask) >> shift), l2 = uint32_t((v[2] & mask) >> shift);
-    return leaf_[t.offset + ((l2 << (2 * d)) + (l1 << d) + l0)];
+    return leaf_[leafIndex(v)];
   }
   int virtualResolution(int axis) const { return virt_[axis]; }
   glm::vec3 voxelSize() const { return voxel_; }
@@ -100,27 +111,56 @@ class IrregularGrid {
   GeoHit traverse(glm::vec3 o, glm::vec3 d, float tnear, float tfar, TraversalCounts* counts) const;
   friend struct GridBuilder;
 
-  /// What the traversal reads, packed apart from the builder's data (the same values): one
-  /// load finds a top cell's leaves, a cell's exit box and triangle blocks fill 32 bytes, and a
-  /// cell's triangles sit in its own blocks of four, vertex coordinates lane by lane, ready for
-  /// the 4-wide watertight test — no reference list to follow, one load fewer per cell (issue
-  /// 14 §3). A triangle referenced by several cells is copied into each: 160 bytes per four
-  /// references instead of 4 per reference plus 36 per triangle.
+  /// What the traversal reads, packed apart from the builder's data (the same values). Each cell
+  /// is one 32-byte record — its exit box and reference count — followed directly by its
+  /// triangles in blocks of four, vertex coordinates lane by lane, ready for the 4-wide watertight
+  /// test; records start on 64-byte lines, so a cell and its first block are exactly three lines
+  /// that one leaf lookup locates and prefetches together (issue 14 §3: no reference list to
+  /// follow, one dependent load per cell after the leaf). A triangle referenced by several cells
+  /// is copied into each: 160 bytes per four references instead of 4 per reference plus 36 per
+  /// triangle.
   struct TopCell {
     uint32_t offset, depth;
   };
-  struct TraversalCell {
-    int elo[3], ehi[3];
-    uint32_t blockBegin, blockEnd;
-  };
   static constexpr int kLanes = 4;
+  static constexpr size_t kUnit = 32;  ///< walk_ is addressed in 32-byte units
+  struct alignas(kUnit) TraversalCell {
+    int elo[3], ehi[3];
+    uint32_t refs;  ///< references; its ⌈refs / 4⌉ blocks follow the record
+    uint32_t id;    ///< index in cells_
+  };
   /// Four triangles: v[vertex][axis][lane], and their scene ids. A cell whose reference count is
   /// not a multiple of four repeats its last triangle in the spare lanes — the same triangle
   /// tested twice gives the same answer, so no lane mask is needed.
-  struct alignas(16) TriangleBlock {
+  struct alignas(kUnit) TriangleBlock {
     float v[3][3][kLanes];
     uint32_t id[kLanes];
   };
+  static_assert(sizeof(TraversalCell) == kUnit && sizeof(TriangleBlock) % kUnit == 0);
+  struct alignas(64) Line {
+    unsigned char bytes[64];
+  };
+  const TraversalCell& walkCell(uint32_t unit) const {
+    return *std::launder(reinterpret_cast<const TraversalCell*>(reinterpret_cast<const unsigned char*>(walk_.data()) + size_t(unit) * kUnit));
+  }
+  static const TriangleBlock* walkBlocks(const TraversalCell& c) { return std::launder(reinterpret_cast<const TriangleBlock*>(&c + 1)); }
+  /// Index in walkLeaf_ of virtual voxel v (the voxel map's first level).
+  size_t leafIndex(const int v[3]) const {
+    const TopCell& t = topCells_[(size_t(v[2] >> depth_) * size_t(top_[1]) + size_t(v[1] >> depth_)) * size_t(top_[0]) + size_t(v[0] >> depth_)];
+    const int d = int(t.depth), mask = (1 << depth_) - 1, shift = depth_ - d;
+    const uint32_t l0 = uint32_t((v[0] & mask) >> shift), l1 = uint32_t((v[1] & mask) >> shift), l2 = uint32_t((v[2] & mask) >> shift);
+    return t.offset + ((l2 << (2 * d)) + (l1 << d) + l0);
+  }
+  /// One ray's traversal state; the steps below are what the one-ray and the batched traversal
+  /// share, so both answer alike.
+  struct Walk;
+  bool enter(Walk& w, glm::vec3 o, glm::vec3 d, float tnear, float tfar) const;
+  bool exitCell(Walk& w, const TraversalCell& c) const;
+  template <bool AnyHit>
+  bool testCell(Walk& w, const TraversalCell& c, bool more) const;
+  GeoHit finish(const Walk& w) const;
+  template <bool AnyHit, class Out>
+  void traverseBatch(std::span<const Query> queries, Out out) const;
   void packForTraversal();
 
   const Scene* scene_;
@@ -135,8 +175,8 @@ class IrregularGrid {
   std::vector<GridCell> cells_;
   std::vector<uint32_t> refs_;
   std::vector<TopCell> topCells_;
-  std::vector<TraversalCell> hot_;
-  std::vector<TriangleBlock> blocks_;  ///< every cell's triangles, cell after cell
+  std::vector<uint32_t> walkLeaf_;  ///< voxel map, level 2, for the traversal: the leaf's cell record in walk_
+  std::vector<Line> walk_;          ///< every cell's record and triangle blocks, cell after cell
   GridStats stats_;
 };
 

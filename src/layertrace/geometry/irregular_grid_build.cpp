@@ -412,37 +412,44 @@ IrregularGrid::IrregularGrid(const Scene& scene, const GridConfig& config) : sce
 
 void IrregularGrid::packForTraversal() {
   invVoxel_ = 1.0f / voxel_;
-  hot_.resize(cells_.size());
-  uint64_t blockCount = 0;
-  for (const GridCell& g : cells_) blockCount += (g.refEnd - g.refBegin + kLanes - 1) / kLanes;
-  if (blockCount > 0xFFFFFFFFull) inputError("irregular grid: ", blockCount, " triangle blocks exceed the 32-bit block index");
-  checkAllocation(cat("the irregular grid's triangle blocks (", blockCount, ")"), blockCount * sizeof(TriangleBlock));
-  blocks_.resize(blockCount);
-  uint32_t next = 0;
+  // Lay the cells out: record, blocks, padding to the next 64-byte line.
+  std::vector<uint64_t> unitOf(cells_.size());
+  uint64_t units = 0;
   for (size_t c = 0; c < cells_.size(); ++c) {
     const GridCell& g = cells_[c];
-    const uint32_t n = g.refEnd - g.refBegin, begin = next;
-    next += (n + kLanes - 1) / kLanes;
-    hot_[c] = {{g.elo[0], g.elo[1], g.elo[2]}, {g.ehi[0], g.ehi[1], g.ehi[2]}, begin, next};
+    unitOf[c] = units;
+    units += 1 + (g.refEnd - g.refBegin + kLanes - 1) / kLanes * (sizeof(TriangleBlock) / kUnit);
+    units += units % 2;
   }
+  if (units > 0xFFFFFFFFull) inputError("irregular grid: ", units * kUnit, " bytes of cells and triangle blocks exceed the 32-bit cell index");
+  checkAllocation(cat("the irregular grid's triangle blocks (", units * kUnit, " bytes)"), units * kUnit + leaf_.size() * sizeof(uint32_t));
+  walk_.resize(units / 2);
+  walkLeaf_.resize(leaf_.size());
+  for (size_t l = 0; l < leaf_.size(); ++l) walkLeaf_[l] = uint32_t(unitOf[leaf_[l]]);
+  auto* base = reinterpret_cast<unsigned char*>(walk_.data());
   parallelFor(0, int(cells_.size()), [&](int c) {
     const GridCell& g = cells_[size_t(c)];
     const uint32_t n = g.refEnd - g.refBegin;
-    for (uint32_t r = 0; r < (n + kLanes - 1) / kLanes * kLanes; ++r) {
-      const uint32_t tri = refs_[g.refBegin + std::min(r, n - 1)];  // spare lanes: the last triangle again
-      TriangleBlock& b = blocks_[hot_[size_t(c)].blockBegin + r / kLanes];
-      const glm::uvec3 ix = scene_->triangles[tri];
-      const glm::vec3 p[3] = {scene_->positions[ix.x], scene_->positions[ix.y], scene_->positions[ix.z]};
-      for (int vtx = 0; vtx < 3; ++vtx)
-        for (int axis = 0; axis < 3; ++axis) b.v[vtx][axis][r % kLanes] = p[vtx][axis];
-      b.id[r % kLanes] = tri;
+    auto* cell = new (base + unitOf[size_t(c)] * kUnit)
+        TraversalCell{{g.elo[0], g.elo[1], g.elo[2]}, {g.ehi[0], g.ehi[1], g.ehi[2]}, n, uint32_t(c)};
+    auto* blocks = reinterpret_cast<unsigned char*>(cell + 1);
+    for (uint32_t k = 0; k < (n + kLanes - 1) / kLanes; ++k) {
+      TriangleBlock& b = *new (blocks + k * sizeof(TriangleBlock)) TriangleBlock;
+      for (uint32_t lane = 0; lane < uint32_t(kLanes); ++lane) {
+        const uint32_t tri = refs_[g.refBegin + std::min(k * kLanes + lane, n - 1)];  // spare lanes: the last triangle again
+        const glm::uvec3 ix = scene_->triangles[tri];
+        const glm::vec3 p[3] = {scene_->positions[ix.x], scene_->positions[ix.y], scene_->positions[ix.z]};
+        for (int vtx = 0; vtx < 3; ++vtx)
+          for (int axis = 0; axis < 3; ++axis) b.v[vtx][axis][lane] = p[vtx][axis];
+        b.id[lane] = tri;
+      }
     }
   });
 }
 
 size_t IrregularGrid::memoryBytes() const {
   return topDepth_.size() + topOffset_.size() * 4 + leaf_.size() * 4 + cells_.size() * sizeof(GridCell) + refs_.size() * 4 +
-         topCells_.size() * sizeof(TopCell) + hot_.size() * sizeof(TraversalCell) + blocks_.size() * sizeof(TriangleBlock);
+         topCells_.size() * sizeof(TopCell) + walkLeaf_.size() * 4 + walk_.size() * sizeof(Line);
 }
 
 }  // namespace lt

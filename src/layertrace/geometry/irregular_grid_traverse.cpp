@@ -63,10 +63,19 @@ inline Mask4 hitBlock(const WatertightRay& r, const Block& b, float tmin, float 
 
 }  // namespace
 
-template <bool AnyHit>
-GeoHit IrregularGrid::traverse(glm::vec3 o, glm::vec3 d, float tnear, float tfar, TraversalCounts* counts) const {
+struct IrregularGrid::Walk {
+  glm::vec3 o, d, inv;
+  WatertightRay ray;
+  float tnear, t1, bestT, tExit;
   GeoHit best;
-  // Clip to the grid's box.
+  int v[3];      ///< the voxel of the cell to visit next
+  int step;      ///< cells visited
+  uint32_t cell; ///< walk_ unit of the cell to visit next
+  size_t leaf;   ///< walkLeaf_ index of that cell (the batch's pending lookup)
+};
+
+/// Clips the ray to the grid's box and locates the voxel it enters; false if it misses the box.
+inline bool IrregularGrid::enter(Walk& w, glm::vec3 o, glm::vec3 d, float tnear, float tfar) const {
   float t0 = tnear, t1 = tfar;
   const glm::vec3 inv = 1.0f / d;
   for (int i = 0; i < 3; ++i) {
@@ -77,81 +86,174 @@ GeoHit IrregularGrid::traverse(glm::vec3 o, glm::vec3 d, float tnear, float tfar
     t0 = std::max(t0, a);
     t1 = std::min(t1, b);
   }
-  if (t0 > t1) return best;
-  // Locate the origin's (entry point's) voxel.
-  int v[3];
+  if (t0 > t1) return false;
   const glm::vec3 p = (o + d * t0 - lo_) * invVoxel_;
-  for (int i = 0; i < 3; ++i) v[i] = std::clamp(int(std::floor(p[i])), 0, virt_[i] - 1);
-  float bestT = tfar;
-  const WatertightRay ray(o, d);
-  const int maxSteps = 4 * (virt_[0] + virt_[1] + virt_[2]) + 16;
-  int step = 0;
-  uint32_t cellId = cellAt(v);
-  for (; step < maxSteps; ++step) {
-    const TraversalCell& c = hot_[cellId];
-    if (counts) ++counts->steps, counts->tests += cells_[cellId].refEnd - cells_[cellId].refBegin;
-    // Exit of the expanded box, and the next cell, before this cell's triangles are tested:
-    // neither depends on the tests, and the next cell's chain of loads (top cell, leaf, cell)
-    // then runs while the tests do instead of after them.
-    float tExit = std::numeric_limits<float>::infinity();
-    int axis = 0;
-    for (int i = 0; i < 3; ++i) {
-      if (d[i] == 0.0f) continue;
-      const float bound = lo_[i] + float(d[i] > 0.0f ? c.ehi[i] : c.elo[i]) * voxel_[i];
-      const float t = (bound - o[i]) * inv[i];
-      if (t < tExit) tExit = t, axis = i;
-    }
-    bool more = tExit < t1;
-    uint32_t nextId = cellId;
-    if (more) {
-      // The voxel beyond the exit face: integer on the exit axis, clamped to the face
-      // elsewhere, and never behind the current voxel along the ray. The last rule matters
-      // where the ray passes (within rounding) through an edge of two cells' faces: the rounded
-      // exit point of the second cell can lie a hair before its entry, on the first cell's side
-      // of the shared plane, and the two cells would hand the ray back and forth until the step
-      // cap (seen on engine: 1 diffuse ray in 921 600). A ray's voxel coordinates are monotone
-      // along it, so each step now moves forward on the exit axis and not back on the others:
-      // the traversal ends after at most the virtual grid's width + height + depth steps.
-      const glm::vec3 q = (o + d * tExit - lo_) * invVoxel_;
-      for (int i = 0; i < 3; ++i) {
-        if (i == axis) {
-          v[i] = d[i] > 0.0f ? c.ehi[i] : c.elo[i] - 1;
-        } else {
-          const int face = std::clamp(int(std::floor(q[i])), c.elo[i], c.ehi[i] - 1);
-          v[i] = d[i] > 0.0f ? std::max(face, v[i]) : d[i] < 0.0f ? std::min(face, v[i]) : face;
-        }
-      }
-      more = v[axis] >= 0 && v[axis] < virt_[axis];
-      if (more) {
-        nextId = cellAt(v);
-        __builtin_prefetch(&hot_[nextId]);
-      }
-    }
-    for (uint32_t k = c.blockBegin; k < c.blockEnd; ++k) {
-      const TriangleBlock& b = blocks_[k];
-      Float4 t;
-      const Mask4 hit = hitBlock(ray, b, tnear, bestT, t);
-      if (!any(hit)) continue;
-      for (int l = 0; l < kLanes; ++l) {
-        if (!hit[l]) continue;
-        const uint32_t tri = b.id[l];
-        if (AnyHit) {
-          best.t = t[l], best.triangle = tri;
-          return best;
-        }
-        if (t[l] < bestT || (t[l] == bestT && tri < best.triangle)) bestT = t[l], best.t = t[l], best.triangle = tri;
-      }
-    }
-    if (best.hit() && bestT <= tExit) break;  // the closest hit lies inside this cell
-    if (!more) break;
-    cellId = nextId;
+  for (int i = 0; i < 3; ++i) w.v[i] = std::clamp(int(std::floor(p[i])), 0, virt_[i] - 1);
+  w.o = o, w.d = d, w.inv = inv, w.ray = WatertightRay(o, d);
+  w.tnear = tnear, w.t1 = t1, w.bestT = tfar;
+  w.best = GeoHit{};
+  w.step = 0;
+  return true;
+}
+
+/// The exit of cell c's expanded box, and the voxel beyond it (w.v): false if the ray ends or
+/// leaves the grid first. Neither depends on c's triangles, so the next cell's lookup can start
+/// before they are tested.
+inline bool IrregularGrid::exitCell(Walk& w, const TraversalCell& c) const {
+  float tExit = std::numeric_limits<float>::infinity();
+  int axis = 0;
+  for (int i = 0; i < 3; ++i) {
+    if (w.d[i] == 0.0f) continue;
+    const float bound = lo_[i] + float(w.d[i] > 0.0f ? c.ehi[i] : c.elo[i]) * voxel_[i];
+    const float t = (bound - w.o[i]) * w.inv[i];
+    if (t < tExit) tExit = t, axis = i;
   }
-  if (step == maxSteps && counts) ++counts->giveUps;  // a safety net: the steps move forward (above)
+  w.tExit = tExit;
+  if (!(tExit < w.t1)) return false;
+  // The voxel beyond the exit face: integer on the exit axis, clamped to the face elsewhere, and
+  // never behind the current voxel along the ray. The last rule matters where the ray passes
+  // (within rounding) through an edge of two cells' faces: the rounded exit point of the second
+  // cell can lie a hair before its entry, on the first cell's side of the shared plane, and the
+  // two cells would hand the ray back and forth until the step cap (seen on engine: 1 diffuse
+  // ray in 921 600). A ray's voxel coordinates are monotone along it, so each step now moves
+  // forward on the exit axis and not back on the others: the traversal ends after at most the
+  // virtual grid's width + height + depth steps.
+  const glm::vec3 q = (w.o + w.d * tExit - lo_) * invVoxel_;
+  int* v = w.v;
+  for (int i = 0; i < 3; ++i) {
+    if (i == axis) {
+      v[i] = w.d[i] > 0.0f ? c.ehi[i] : c.elo[i] - 1;
+    } else {
+      const int face = std::clamp(int(std::floor(q[i])), c.elo[i], c.ehi[i] - 1);
+      v[i] = w.d[i] > 0.0f ? std::max(face, v[i]) : w.d[i] < 0.0f ? std::min(face, v[i]) : face;
+    }
+  }
+  return v[axis] >= 0 && v[axis] < virt_[axis];
+}
+
+/// Tests cell c's triangles; true when the ray is answered: an any-hit found, the closest hit
+/// lies inside the cell, or (`more` false) there is no next cell.
+template <bool AnyHit>
+inline bool IrregularGrid::testCell(Walk& w, const TraversalCell& c, bool more) const {
+  const TriangleBlock* blocks = walkBlocks(c);
+  for (uint32_t k = 0; k < (c.refs + kLanes - 1) / kLanes; ++k) {
+    const TriangleBlock& b = blocks[k];
+    Float4 t;
+    const Mask4 hit = hitBlock(w.ray, b, w.tnear, w.bestT, t);
+    if (!any(hit)) continue;
+    for (int l = 0; l < kLanes; ++l) {
+      if (!hit[l]) continue;
+      const uint32_t tri = b.id[l];
+      if (AnyHit) {
+        w.best.t = t[l], w.best.triangle = tri;
+        return true;
+      }
+      if (t[l] < w.bestT || (t[l] == w.bestT && tri < w.best.triangle)) w.bestT = t[l], w.best.t = t[l], w.best.triangle = tri;
+    }
+  }
+  return (w.best.hit() && w.bestT <= w.tExit) || !more;  // the closest hit lies inside this cell
+}
+
+inline GeoHit IrregularGrid::finish(const Walk& w) const {
+  GeoHit best = w.best;
   if (best.hit()) {
     const glm::uvec3 i = scene_->triangles[best.triangle];
     best.ng = glm::cross(scene_->positions[i.y] - scene_->positions[i.x], scene_->positions[i.z] - scene_->positions[i.x]);
   }
   return best;
+}
+
+namespace {
+/// A cell's record and its first triangle block: three 64-byte lines.
+inline void prefetchCell(const void* cell) {
+  const char* p = static_cast<const char*>(cell);
+  __builtin_prefetch(p);
+  __builtin_prefetch(p + 64);
+  __builtin_prefetch(p + 128);
+}
+}  // namespace
+
+template <bool AnyHit>
+GeoHit IrregularGrid::traverse(glm::vec3 o, glm::vec3 d, float tnear, float tfar, TraversalCounts* counts) const {
+  Walk w;
+  if (!enter(w, o, d, tnear, tfar)) return GeoHit{};
+  const int maxSteps = 4 * (virt_[0] + virt_[1] + virt_[2]) + 16;
+  uint32_t cell = walkLeaf_[leafIndex(w.v)];
+  for (;;) {
+    const TraversalCell& c = walkCell(cell);
+    if (counts) ++counts->steps, counts->tests += c.refs;
+    // The next cell is looked up before this cell's triangles are tested: its chain of loads
+    // (top cell, leaf, cell) then runs while the tests do instead of after them.
+    const bool more = exitCell(w, c);
+    if (more) {
+      cell = walkLeaf_[leafIndex(w.v)];
+      prefetchCell(&walkCell(cell));
+    }
+    if (testCell<AnyHit>(w, c, more)) break;
+    if (++w.step == maxSteps) {  // a safety net: the steps move forward (exitCell)
+      if (counts) ++counts->giveUps;
+      break;
+    }
+  }
+  return AnyHit ? w.best : finish(w);
+}
+
+/// Several rays in flight: each round first reads every active ray's pending leaf (prefetched a
+/// round earlier) and prefetches its cell, then steps every ray through its cell — whose lines
+/// arrived meanwhile — and prefetches the leaf of its next cell. A ray that is answered hands its
+/// slot to the next query. Every ray goes through the very steps of traverse() above.
+template <bool AnyHit, class Out>
+void IrregularGrid::traverseBatch(std::span<const Query> queries, Out out) const {
+  // 16 rays: enough to cover a miss to memory with the other rays' work (8 and 32: measured in
+  // the README's grid section).
+#ifndef LT_GRID_INFLIGHT
+#define LT_GRID_INFLIGHT 16
+#endif
+  constexpr int kInFlight = LT_GRID_INFLIGHT;
+  const int maxSteps = 4 * (virt_[0] + virt_[1] + virt_[2]) + 16;
+  Walk walks[kInFlight];
+  size_t ray[kInFlight];
+  size_t next = 0;
+  auto start = [&](int s) {  // the slot's next ray that enters the grid; the others miss
+    while (next < queries.size()) {
+      const Query& q = queries[next];
+      const size_t i = next++;
+      if (enter(walks[s], q.origin, q.dir, q.tnear, q.tfar)) {
+        ray[s] = i;
+        walks[s].leaf = leafIndex(walks[s].v);
+        __builtin_prefetch(&walkLeaf_[walks[s].leaf]);
+        return true;
+      }
+      out(i, GeoHit{});
+    }
+    return false;
+  };
+  int active = 0;
+  while (active < kInFlight && start(active)) ++active;
+  while (active > 0) {
+    for (int s = 0; s < active; ++s) {
+      walks[s].cell = walkLeaf_[walks[s].leaf];
+      prefetchCell(&walkCell(walks[s].cell));
+    }
+    for (int s = 0; s < active; ++s) {
+      Walk& w = walks[s];
+      const TraversalCell& c = walkCell(w.cell);
+      const bool more = exitCell(w, c);
+      if (more) {
+        w.leaf = leafIndex(w.v);
+        __builtin_prefetch(&walkLeaf_[w.leaf]);
+      }
+      if (!testCell<AnyHit>(w, c, more) && ++w.step != maxSteps) continue;
+      out(ray[s], AnyHit ? w.best : finish(w));
+      if (start(s)) continue;
+      // No ray left for the slot: the last active slot moves here (it has not stepped this round).
+      if (s != --active) {
+        walks[s] = walks[active];
+        ray[s] = ray[active];
+        --s;
+      }
+    }
+  }
 }
 
 LT_CPU_DISPATCH GeoHit IrregularGrid::intersect(glm::vec3 origin, glm::vec3 dir, float tnear, float tfar, TraversalCounts* counts) const {
@@ -160,6 +262,14 @@ LT_CPU_DISPATCH GeoHit IrregularGrid::intersect(glm::vec3 origin, glm::vec3 dir,
 
 LT_CPU_DISPATCH bool IrregularGrid::occluded(glm::vec3 origin, glm::vec3 dir, float tnear, float tfar, TraversalCounts* counts) const {
   return traverse<true>(origin, dir, tnear, tfar, counts).hit();
+}
+
+LT_CPU_DISPATCH void IrregularGrid::intersect(std::span<const Query> queries, std::span<GeoHit> hits) const {
+  traverseBatch<false>(queries, [&hits](size_t i, const GeoHit& h) { hits[i] = h; });
+}
+
+LT_CPU_DISPATCH void IrregularGrid::occluded(std::span<const Query> queries, std::span<uint8_t> hits) const {
+  traverseBatch<true>(queries, [&hits](size_t i, const GeoHit& h) { hits[i] = h.hit(); });
 }
 
 }  // namespace lt

@@ -44,6 +44,7 @@ struct WatertightRay {
   int kx = 0, ky = 1, kz = 2;
   float sx = 0.0f, sy = 0.0f;
 
+  WatertightRay() = default;
   WatertightRay(glm::vec3 origin, glm::vec3 dir) : o(origin), d(dir) {
     const glm::vec3 a = glm::abs(d);
     kz = a.x >= a.y ? (a.x >= a.z ? 0 : 2) : (a.y >= a.z ? 1 : 2);
