@@ -221,7 +221,7 @@ int runGeobench(const GeobenchOptions& o) {
         size_t i = 0;
         for (const auto& [name, set] : sets) {
           std::vector<float> answers;
-          const double t = medianMs(o.repeat, [&] { answers = traceAll(*set, gridQ(*sg, *set)); });
+          const double t = medianMs(o.repeat, [&] { answers = traceAllGrid(*set, *sg); });
           const double mrays = double(set->o.size()) / t * 1e-3;
           sweep << "," << mrays;
           ratios << "," << mrays / g["embree"][std::string("mrays_") + name].get<double>();

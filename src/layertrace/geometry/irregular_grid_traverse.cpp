@@ -100,14 +100,18 @@ inline bool IrregularGrid::enter(Walk& w, glm::vec3 o, glm::vec3 d, float tnear,
 /// leaves the grid first. Neither depends on c's triangles, so the next cell's lookup can start
 /// before they are tested.
 inline bool IrregularGrid::exitCell(Walk& w, const TraversalCell& c) const {
-  float tExit = std::numeric_limits<float>::infinity();
-  int axis = 0;
+  // Selects instead of branches: which face a ray leaves by is what a branch predictor cannot
+  // guess (the first axis with the smallest distance, as a loop keeping the first minimum).
+  float t[3];
   for (int i = 0; i < 3; ++i) {
-    if (w.d[i] == 0.0f) continue;
     const float bound = lo_[i] + float(w.d[i] > 0.0f ? c.ehi[i] : c.elo[i]) * voxel_[i];
-    const float t = (bound - w.o[i]) * w.inv[i];
-    if (t < tExit) tExit = t, axis = i;
+    t[i] = w.d[i] == 0.0f ? std::numeric_limits<float>::infinity() : (bound - w.o[i]) * w.inv[i];
   }
+  const bool y = t[1] < t[0];
+  const float t01 = y ? t[1] : t[0];
+  const bool z = t[2] < t01;
+  const int axis = z ? 2 : int(y);
+  const float tExit = z ? t[2] : t01;
   w.tExit = tExit;
   if (!(tExit < w.t1)) return false;
   // The voxel beyond the exit face: integer on the exit axis, clamped to the face elsewhere, and
@@ -121,12 +125,10 @@ inline bool IrregularGrid::exitCell(Walk& w, const TraversalCell& c) const {
   const glm::vec3 q = (w.o + w.d * tExit - lo_) * invVoxel_;
   int* v = w.v;
   for (int i = 0; i < 3; ++i) {
-    if (i == axis) {
-      v[i] = w.d[i] > 0.0f ? c.ehi[i] : c.elo[i] - 1;
-    } else {
-      const int face = std::clamp(int(std::floor(q[i])), c.elo[i], c.ehi[i] - 1);
-      v[i] = w.d[i] > 0.0f ? std::max(face, v[i]) : w.d[i] < 0.0f ? std::min(face, v[i]) : face;
-    }
+    const int face = std::clamp(int(std::floor(q[i])), c.elo[i], c.ehi[i] - 1);
+    const int beside = w.d[i] > 0.0f ? std::max(face, v[i]) : w.d[i] < 0.0f ? std::min(face, v[i]) : face;
+    const int beyond = w.d[i] > 0.0f ? c.ehi[i] : c.elo[i] - 1;
+    v[i] = i == axis ? beyond : beside;
   }
   return v[axis] >= 0 && v[axis] < virt_[axis];
 }
@@ -204,12 +206,9 @@ GeoHit IrregularGrid::traverse(glm::vec3 o, glm::vec3 d, float tnear, float tfar
 /// slot to the next query. Every ray goes through the very steps of traverse() above.
 template <bool AnyHit, class Out>
 void IrregularGrid::traverseBatch(std::span<const Query> queries, Out out) const {
-  // 16 rays: enough to cover a miss to memory with the other rays' work (8 and 32: measured in
-  // the README's grid section).
-#ifndef LT_GRID_INFLIGHT
-#define LT_GRID_INFLIGHT 16
-#endif
-  constexpr int kInFlight = LT_GRID_INFLIGHT;
+  // 16 rays: BM_GridBatch with 8 / 16 / 32 in flight, two runs each, is within the noise
+  // between 16 and 32 and 5–15 % slower with 8 on the diffuse rays.
+  constexpr int kInFlight = 16;
   const int maxSteps = 4 * (virt_[0] + virt_[1] + virt_[2]) + 16;
   Walk walks[kInFlight];
   size_t ray[kInFlight];
