@@ -43,6 +43,10 @@ TEST(CliLayers, WritesImagesAndStatsWithTheContractKeys) {
   EXPECT_TRUE(j["timings_ms"].contains("raster") && j["timings_ms"].contains("sort"));
   EXPECT_EQ(j["verify"]["pixels"], 320 * 180);
   EXPECT_GE(j["verify"]["match_fraction"].get<double>(), 0.999);
+  // Front faces only: Embree's reference leaves out the back faces too (it matched no pixel).
+  ASSERT_NO_FATAL_FAILURE(expectRuns("layers " + kDefault + " --width 320 --height 180 --front-faces-only --verify --quiet -o " + (dir / "ff") +
+                                     " --stats " + (dir / "ff.json")));
+  EXPECT_GE(readJson(dir / "ff.json")["verify"]["match_fraction"].get<double>(), 0.999);
 }
 
 struct BadCase {
@@ -92,6 +96,56 @@ TEST(CliErrors, BadInputIsOneLineStatusTwoNoOutput) {
       {"frobnicate " + kDefault, "frobnicate"},
   };
   for (const BadCase& c : cases) expectRejected(c, dir);
+}
+
+// Found by a sweep of hand-written scene files and option edges (session 14).
+TEST(CliErrors, SweepFindingsAreRefusedByName) {
+  test::TempDir dir, in;
+  std::ofstream(in / "deep.json") << R"({"objects": [{"box": {"min": )" << std::string(200000, '[') << std::string(200000, ']')
+                                   << R"(, "max": [1,1,1]}}]})";
+  std::ofstream(in / "box.json") << R"({"objects": [{"box": {"min": [0,0,0], "max": [1,0,1]}}]})";
+  const std::vector<BadCase> cases = {
+      {"layers " + in / "deep.json", "nested deeper than 64 levels"},  // crashed (stack overflow)
+      {"layers " + in / "box.json", "objects[0].box: box: max must exceed min"},
+      {"render " + kDefault + " --tracer ssr --stride 1e9", "--stride 1e+09"},  // overflowed in the SSR lanes
+      {"render " + kDefault + " --tracer ssr --stride inf", "--stride inf"},
+      {"render " + kDefault + " --tracer hssr --tau inf", "--tau inf"},
+      {"render " + kDefault + " --effect ao --ao-radius inf", "--ao-radius inf"},
+      {"render " + kDefault + " --max-distance inf", "--max-distance inf"},
+      {"layers " + kDefault + " --eye 1e20,1,0 --target 0,0,0", "too far from the scene"},  // an infinite far plane
+      {"layers " + kDefault + " --thickness 1e40", "\"1e40\" is out of range"},
+      {"layers " + kDefault + " --thickness-px 1e30", "--thickness-px 1e+30: must be in (0, 1e6]"},
+      {"layers " + kDefault + " --pool -1", "--pool"},
+      {"layers " + kDefault + " --seed -1", "--seed"},
+      {"layers " + kDefault + " --max-memory 1K", "--max-memory 1024 bytes"},
+      {"compare " + kDefault + " --tracers hssr,grid,hssr", "--tracers hssr: listed twice"},
+  };
+  for (const BadCase& c : cases) expectRejected(c, dir);
+}
+
+// A command writes all its files or none: when one output cannot be written — the last or the
+// first — the others it had written are not left behind (they were before: the image and the
+// pixel statistics stayed when --stats could not be written).
+TEST(CliErrors, AnOutputThatCannotBeWrittenLeavesNoOtherOutput) {
+  test::TempDir dir;
+  std::ofstream(dir / "a_file") << "x";
+  const std::string small = kDefault + " --width 48 --height 27 --quiet";
+  const std::vector<std::string> runs = {
+      "render " + small + " -o " + (dir / "r/out.png") + " --pixelstats " + (dir / "r/ps") + " --stats /proc/self/nope.json",
+      "render " + small + " -o " + (dir / "a_file/x.png") + " --pixelstats " + (dir / "ps2"),
+      "compare " + small + " --tracers hssr -o " + (dir / "c") + " --stats /proc/self/nope.json",
+      "layers " + small + " -o " + (dir / "l") + " --stats /proc/self/nope.json",
+  };
+  for (const std::string& args : runs) {
+    std::string err;
+    EXPECT_EQ(test::runCli(args, &err), 2) << args << "\n" << err;
+    EXPECT_EQ(std::count(err.begin(), err.end(), '\n'), 1) << err;
+    for (const auto& e : fs::directory_iterator(dir.path))
+      if (e.path().filename() != "a_file") ADD_FAILURE() << "left behind: " << e.path() << " by " << args;
+  }
+  // The same commands with writable outputs write every file (upper-case extensions too).
+  ASSERT_NO_FATAL_FAILURE(expectRuns("render " + small + " -o " + (dir / "r/OUT.PNG") + " --pixelstats " + (dir / "r/ps") + " --stats " + (dir / "r/s.json")));
+  for (const char* f : {"r/OUT.PNG", "r/ps/iterations.exr", "r/s.json"}) EXPECT_TRUE(fs::exists(dir / f)) << f;
 }
 
 // An image that cannot be written is reported under the name the user gave, not the temporary

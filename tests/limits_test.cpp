@@ -7,6 +7,7 @@
 #include "layertrace/geometry/embree_scene.h"
 #include "layertrace/geometry/irregular_grid.h"
 #include "layertrace/pipeline/tracer_factory.h"
+#include "layertrace/raster/raster_setup.h"
 #include "layertrace/raster/rasterizer.h"
 #include "layertrace/scene/load.h"
 #include "layertrace/screen/quadtree.h"
@@ -65,7 +66,7 @@ TEST(Limits, EveryStructureIsRefusedByNameBeforeItAllocates) {
   const FragmentLists lists = rasterize(f.scene, f.camera);
   {
     const MemoryLimit limit(residentBytes() + (1u << 20));
-    expectRefused("fragment pool", [&] { rasterize(f.scene, f.camera); });
+    expectRefused("rasterizer's vertices and triangles", [&] { rasterize(f.scene, f.camera); });
     expectRefused("k-layer arrays", [&] { sortAndTruncate(lists, LayerConfig{}); });
     expectRefused("interval", [&] { buildIntervalPyramid(f.layers, f.camera, PyramidConfig{}); });
     expectRefused("quad-tree", [&] { buildQuadtree(f.layers, f.camera, QuadtreeConfig{}); });
@@ -75,8 +76,39 @@ TEST(Limits, EveryStructureIsRefusedByNameBeforeItAllocates) {
     expectRefused("solid intervals", [&] { solidIntervals(f.camera, CaptureCoverage{f.layers, f.lists.complexity}, 20.0f); });
     expectRefused("layered depth cube", [&] { buildLdc(f.scene, LdcConfig{}); });
   }
+  {
+    // Past the rasterizer's setup, its fragment pool is the next refused.
+    const uint64_t setup = uint64_t(scene.positions.size()) * (sizeof(glm::vec4) + 2 * sizeof(glm::vec3)) +
+                           uint64_t(scene.triangles.size()) * sizeof(raster::TriangleSetup);
+    const MemoryLimit limit(residentBytes() + setup + (1u << 20));
+    expectRefused("fragment pool", [&] { rasterize(f.scene, f.camera); });
+    // The grid's top level (a huge λ1; it took 4 GB under a 2 GB limit before it was checked).
+    GridConfig dense;
+    dense.lambda1 = 1e9f;
+    expectRefused("irregular grid's top level", [&] { IrregularGrid g(f.scene, dense); });
+  }
   EXPECT_NO_THROW(IrregularGrid g(f.scene));
   EXPECT_NO_THROW(buildTracer("hybrid", f, TracerOptions{}));
+}
+
+// A scene a micrometre across, framed by the automatic camera: the default near plane and the
+// geometric tracers' origin offset scale with it (an absolute floor of 1e-4 clipped the whole
+// scene away, and skipped it as the rays' offset).
+TEST(Limits, ASceneAMicrometreAcrossIsCapturedAndTraced) {
+  Scene s = makeBox({0, 0, 0}, {1e-6f, 1e-6f, 1e-6f});
+  s.append(makeSphere({3e-6f, 0, 0}, 1e-6f, 16));
+  s.finalize("tiny");
+  const Frame f = test::frameOf(s, withClipPlanes(autoCamera(s), s), 96, 64, 4, 1e-8f);
+  EXPECT_GT(f.layers.countAt(48, 32), 0) << "the centre pixel sees the scene";
+  const BuiltTracer embree = buildTracer("embree", f, TracerOptions{});
+  const std::vector<Ray> rays = test::sampleRays(f, 2000, test::testSeed());
+  ASSERT_GT(rays.size(), 500u);
+  size_t hits = 0;
+  for (const Ray& r : rays) {
+    RayCounters c;
+    hits += embree.tracer->trace(r, c).hit;
+  }
+  EXPECT_GT(hits, rays.size() / 10);
 }
 
 /// Mirror-ish rays from random points above a scene toward it; the grid must answer as Embree.

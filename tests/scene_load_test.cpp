@@ -2,6 +2,8 @@
 #include <fstream>
 #include <random>
 
+#include <glm/geometric.hpp>
+
 #include "layertrace/scene/load.h"
 #include "layertrace/util/error.h"
 #include "test_util.h"
@@ -67,6 +69,48 @@ TEST(SceneJson, ErrorsNameTheInputAndValue) {
   EXPECT_NE(err(R"({"objects": [{"model": "missing.obj"}]})").find("missing.obj: file not found"), std::string::npos);
   EXPECT_NE(err(R"({"objects": [{"sphere": {"radius": 1}}], "cameras": [{"eye": [0,0,1], "target": [0,0,0], "fov": 0}]})").find("fov"), std::string::npos);
   EXPECT_NE(err("").find("x.json: malformed JSON"), std::string::npos);
+  // Found by a sweep of hand-written scene files (session 14): each refused by name.
+  EXPECT_NE(err(R"({"objects": [{"sphere": {"radius": 1, "segments": 3.9}}]})").find("segments: value 3.9 is not a whole number"), std::string::npos);
+  EXPECT_NE(err(R"({"objects": [{"sphere": {"radius": 1, "segments": 1e30}}]})").find("segments: value 1e+30"), std::string::npos);
+  EXPECT_NE(err(R"({"objects": [{"box": {"min": [0,0,0], "max": [1,0,1]}}]})").find("x.json: objects[0].box: box: max must exceed min"), std::string::npos);
+  EXPECT_NE(err(R"({"objects": [{"sphere": {"radius": 1}}], "cameras": [{"eye": [1,2,3], "target": [1,2,3]}]})").find("cameras[0]: eye and target coincide"),
+            std::string::npos);
+  EXPECT_NE(err(R"({"objects": [{"sphere": {"radius": 1}}], "lights": [{"position": [0,0,0], "intensity": -5}]})").find("lights[0].intensity: value -5 is negative"),
+            std::string::npos);
+  EXPECT_NE(err(R"({"environment": [-1, 0, 0], "objects": [{"sphere": {"radius": 1}}]})").find("environment"), std::string::npos);
+  EXPECT_NE(err(R"({"objects": [{"box": {"min": [0,0,0], "max": [1,1,1]}}]})" + std::string(1, '\0') + "junk").find("a NUL byte at offset"), std::string::npos);
+  // Nested 100 000 deep: refused while parsing (copying or printing it recursed off the stack).
+  const std::string deep = R"({"objects": [{"box": {"min": )" + std::string(100000, '[') + std::string(100000, ']') + R"(, "max": [1,1,1]}}]})";
+  EXPECT_NE(err(deep).find("nested deeper than 64 levels"), std::string::npos);
+  // A long value is quoted cut short: the message stays one readable line.
+  EXPECT_LT(err(R"({"objects": [{"box": {"min": [)" + std::string(20000, '1') + R"(], "max": [1,1,1]}}]})").size(), 200u);
+}
+
+// A mirroring transform (negative determinant) keeps each triangle's front face outside: the
+// winding is reversed with the positions (before, a mirrored box was captured inside out with
+// --front-faces-only). Built-in shapes and models (assimp's node transforms) alike.
+TEST(SceneJson, MirroringTransformsKeepFrontFacesOutward) {
+  auto outward = [](const Scene& s) {  // triangles whose winding normal points away from the centre
+    const glm::vec3 c = s.bounds().center();
+    size_t n = 0;
+    for (const glm::uvec3& t : s.triangles) {
+      const glm::vec3 a = s.positions[t.x], b = s.positions[t.y], d = s.positions[t.z];
+      n += glm::dot(glm::cross(b - a, d - a), (a + b + d) / 3.0f - c) > 0.0f;
+    }
+    return n;
+  };
+  test::TempDir dir;  // an octahedron, counter-clockwise seen from outside
+  std::ofstream(dir / "octahedron.obj") << "v 1 0 0\nv -1 0 0\nv 0 1 0\nv 0 -1 0\nv 0 0 1\nv 0 0 -1\n"
+                                           "f 1 3 5\nf 3 2 5\nf 2 4 5\nf 4 1 5\nf 3 1 6\nf 2 3 6\nf 4 2 6\nf 1 4 6\n";
+  for (const char* transform : {R"({"scale": [1, 1, 1]})", R"({"scale": [-1, 1, 1]})", R"({"scale": [-2, -3, -1]})",
+                                R"({"matrix": [1,0,0,0, 0,1,0,0, 0,0,-1,0, 0,0,0,1]})", R"({"scale": [-1, -1, 1]})"}) {
+    SCOPED_TRACE(transform);
+    const Scene box = parseJsonScene(std::string(R"({"objects": [{"box": {"min": [-1,-1,-1], "max": [1,1,1]}, "transform": )") + transform + "}]}", ".", "x.json");
+    EXPECT_EQ(outward(box), box.triangles.size());
+    const Scene model = parseJsonScene(std::string(R"({"objects": [{"model": "octahedron.obj", "transform": )") + transform + "}]}", dir.path.string(), "x.json");
+    ASSERT_EQ(model.triangles.size(), 8u);
+    EXPECT_EQ(outward(model), 8u);
+  }
 }
 
 TEST(SceneLoad, MissingAndEmptyFiles) {

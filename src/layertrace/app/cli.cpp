@@ -5,6 +5,7 @@
 #include <cmath>
 #include <iostream>
 #include <memory>
+#include <optional>
 #include <sstream>
 #include <tuple>
 
@@ -14,6 +15,7 @@
 #include "layertrace/app/commands.h"
 #include "layertrace/app/view_session.h"
 #include "layertrace/util/error.h"
+#include "layertrace/util/image.h"
 
 namespace {
 
@@ -29,6 +31,8 @@ std::vector<float> parseNumbers(const std::string& option, const std::string& te
       const float f = std::stof(item, &used);
       if (used != item.size() || !std::isfinite(f)) throw std::invalid_argument(item);
       v.push_back(f);
+    } catch (const std::out_of_range&) {
+      inputError(option, " ", text, ": \"", item, "\" is out of range");
     } catch (const std::exception&) {
       inputError(option, " ", text, ": \"", item, "\" is not a number");
     }
@@ -70,11 +74,11 @@ void addFrameOptions(CLI::App* app, lt::RunOptions& run, RawFrameOptions& raw) {
   app->add_option("--min-separation", f.minSeparation, "minimum depth separation of kept layers (0 = off)")->capture_default_str();
   app->add_flag("--adaptive-thickness", f.adaptiveThickness, "merge fragments that start inside the previous kept interval (seed 000 §4.2)");
   app->add_flag("--front-faces-only", f.frontFacesOnly, "capture only triangles facing the camera (layers = nearest front surfaces)");
-  app->add_option("--pool", f.pool, "fragment pool capacity (0 = automatic, grows on overflow)")->capture_default_str();
+  app->add_option("--pool", f.pool, "fragment pool capacity (0 = automatic, grows on overflow)")->capture_default_str()->check(CLI::NonNegativeNumber);
   app->add_option("--max-memory", raw.maxMemory, "refuse, before allocating, any structure that would take the process past this size, e.g. 4G (default: the memory available)");
   app->add_option("--light", raw.lights, "add a point light x,y,z[,intensity] (repeatable; default light: above the eye)");
   app->add_option("--threads", run.threads, "worker threads (0 = all cores)")->capture_default_str();
-  app->add_option("--seed", run.seed, "random seed")->capture_default_str();
+  app->add_option("--seed", run.seed, "random seed")->capture_default_str()->check(CLI::NonNegativeNumber);
   app->add_option("--stats", run.statsPath, "write statistics JSON to this file");
   app->add_option("--pixelstats", run.pixelStats, "write per-pixel counter images to this folder");
   app->add_option("-o,--output", run.output, "output image (render) or folder");
@@ -284,27 +288,35 @@ int runCli(int argc, const char* const* argv, CliMode mode) {
       if (ldcCmd->parsed()) lt::validateLdcConfig(ldc.ldc);
       return 0;
     }
+    // A command's files appear together when it succeeds, or not at all (the viewer, which saves
+    // while it runs, writes directly).
+    std::optional<lt::OutputStage> stage;
+    if (!viewCmd->parsed()) stage.emplace();
+    auto done = [&stage](int status) {
+      if (status == 0 && stage) stage->commit();
+      return status;
+    };
     if (layersCmd->parsed()) {
       prepare(layers.run, layersRaw);
-      return lt::runLayers(layers);
+      return done(lt::runLayers(layers));
     }
     if (ldcCmd->parsed()) {
       prepare(ldc.run, ldcRaw);
-      return lt::runLdc(ldc);
+      return done(lt::runLdc(ldc));
     }
     if (geobenchCmd->parsed()) {
       prepare(geobench.run, geobenchRaw);
-      return lt::runGeobench(geobench);
+      return done(lt::runGeobench(geobench));
     }
     if (benchCmd->parsed()) {
       prepare(bench.run, benchRaw);
-      return lt::runBench(bench);
+      return done(lt::runBench(bench));
     }
     if (compareCmd->parsed()) {
       prepare(compare.run, compareRaw);
       finishEffectOptions(compare.effect, compareEffect, compareRaw);
       compare.tracers = splitList(compareTracers);
-      return lt::runCompare(compare);
+      return done(lt::runCompare(compare));
     }
     if (viewCmd->parsed()) {
       prepare(view.render.run, viewRaw);
@@ -318,7 +330,7 @@ int runCli(int argc, const char* const* argv, CliMode mode) {
     if (renderCmd->parsed()) {
       prepare(render.run, renderRaw);
       finishEffectOptions(render.effect, effectName, renderRaw);
-      return lt::runRender(render);
+      return done(lt::runRender(render));
     }
   } catch (const lt::InputError& e) {
     std::cerr << "layertrace: " << e.what() << "\n";

@@ -23,8 +23,11 @@
 #include <filesystem>
 #include <fstream>
 #include <iostream>
+#include <iterator>
 #include <sstream>
 #include <thread>
+
+#include <unistd.h>
 
 #include <tbb/global_control.h>
 
@@ -455,23 +458,34 @@ int runBench(const BenchOptions& o) {
   writeFileAtomic(base + ".csv", t.csv());
   writeFileAtomic(base + ".json", result.dump(2) + "\n");
   writeStats(o.run.statsPath, result.dump(2));
-  // The plot: python3 + matplotlib (tools/plot_bench.py); a missing Python is not an error.
+  // The plot: python3 + matplotlib (tools/plot_bench.py); a missing Python is not an error. It
+  // runs in a scratch folder (the outputs above are staged until the command succeeds), and its
+  // PNG is staged beside them.
   const std::string script = std::string(LAYERTRACE_TOOLS_DIR) + "/plot_bench.py";
+  const fs::path scratch = fs::temp_directory_path() / cat("layertrace-plot-", ::getpid());
+  const std::string plotPng = (scratch / "plot.png").string();
   bool plotted = false;
-  if (fs::exists(script)) {
+  std::error_code fsError;
+  if (fs::exists(script) && fs::create_directories(scratch, fsError)) {
+    std::ofstream((scratch / "plot.json").string()) << result.dump(2) << "\n";
     // Debian's interpreter first: python3-matplotlib is installed for it.
     const std::string python = fs::exists("/usr/bin/python3") ? "/usr/bin/python3" : "python3";
-    const std::string cmd = python + " '" + script + "' '" + base + ".json' '" + base + ".png' >/dev/null 2>&1";
-    plotted = std::system(cmd.c_str()) == 0 && fs::exists(base + ".png");
+    const std::string cmd = python + " '" + script + "' '" + (scratch / "plot.json").string() + "' '" + plotPng + "' >/dev/null 2>&1";
+    plotted = std::system(cmd.c_str()) == 0 && fs::exists(plotPng);
+    if (plotted) {
+      std::ifstream in(plotPng, std::ios::binary);
+      writeFileAtomic(base + ".png", std::string(std::istreambuf_iterator<char>(in), {}));
+    }
   }
   if (!o.report.empty()) {
     ReportPage page;
     page.title = cat("layertrace bench ", e, ": ", frame.scene.name);
     page.table = t.csv();
     page.json = result;
-    if (plotted) page.files.push_back({e + ".png", base + ".png"});
+    if (plotted) page.files.push_back({e + ".png", plotPng});
     writeReport(o.report, page);
   }
+  fs::remove_all(scratch, fsError);
   if (!o.run.quiet) {
     std::cout << "bench " << e << ": " << frame.scene.name << " (" << machine() << ", " << LAYERTRACE_BUILD_TYPE << ")\n"
               << t.csv() << "  wrote " << base << ".csv, .json" << (plotted ? ", .png" : " (no plot: python3/matplotlib missing)")

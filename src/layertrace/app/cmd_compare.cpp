@@ -43,6 +43,9 @@ int runCompare(const CompareOptions& o) {
   if (o.tracers.empty()) inputError("--tracers: empty list");
   for (const std::string& t : o.tracers)
     if (!isKnownTracer(t)) inputError("--tracers ", t, ": unknown (use ", kTracerNames, ")");
+  for (size_t i = 0; i < o.tracers.size(); ++i)
+    if (std::find(o.tracers.begin(), o.tracers.begin() + std::ptrdiff_t(i), o.tracers[i]) != o.tracers.begin() + std::ptrdiff_t(i))
+      inputError("--tracers ", o.tracers[i], ": listed twice");
   validateTracerOptions(o.options);
   validateEffectConfig(o.effect);
   FrameOptions fo = o.run.frame;

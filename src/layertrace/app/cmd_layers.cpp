@@ -16,9 +16,7 @@ void writeStats(const std::string& path, const std::string& json) {
 }
 
 void ensureDirectory(const std::string& dir, const std::string& option) {
-  std::error_code ec;
-  fs::create_directories(dir, ec);
-  if (ec || !fs::is_directory(dir)) inputError(option, " ", dir, ": cannot create directory");
+  if (!createOutputDirectory(dir)) inputError(option, " ", dir, ": cannot create directory");
 }
 
 Image layerAlbedo(const LayerArrays& L, int layer) {
@@ -52,7 +50,7 @@ int runLayers(const LayersOptions& o) {
 
   if (o.verify) {
     const EmbreeScene embree(frame.scene);
-    const VerifyResult v = verifyLayers(frame.lists, frame.camera, embree);
+    const VerifyResult v = verifyLayers(frame.lists, frame.camera, embree, fo.frontFacesOnly ? &frame.scene : nullptr);
     stats["verify"] = {{"pixels", v.pixels},
                        {"pixels_matching", v.matching},
                        {"match_fraction", v.matchFraction()},

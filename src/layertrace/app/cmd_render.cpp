@@ -1,4 +1,5 @@
 #include <algorithm>
+#include <cctype>
 #include <chrono>
 #include <optional>
 #include <filesystem>
@@ -165,7 +166,8 @@ WarpHoles countWarpHoles(const WarpReference& ref, const std::vector<uint8_t>& h
 
 int runRender(const RenderOptions& o) {
   const std::string out = o.run.output.empty() ? "out/render.png" : o.run.output;
-  const std::string ext = fs::path(out).extension().string();
+  std::string ext = fs::path(out).extension().string();
+  std::transform(ext.begin(), ext.end(), ext.begin(), [](unsigned char c) { return char(std::tolower(c)); });
   if (ext != ".png" && ext != ".exr") inputError("-o ", out, ": render writes .png or .exr");
   if (!isKnownTracer(o.tracer)) inputError("--tracer ", o.tracer, ": unknown (use ", kTracerNames, ")");
   const bool screen = isScreenTracer(o.tracer);

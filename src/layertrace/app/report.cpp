@@ -54,14 +54,9 @@ void writeReport(const std::string& dir, const ReportPage& page) {
           "<span style=\"background:#1aa626\">correct hit</span><span style=\"background:#e61a1a\">wrong hit</span>"
           "<span style=\"background:#ccaa00\">false miss</span><span style=\"background:#2659f2\">information miss</span>"
           "<span style=\"background:#404040\">correct miss</span></p>\n<h2>Images</h2>\n";
-  const std::string tmp = (fs::path(dir) / ".report_tmp.png").string();
-  for (const auto& [caption, image] : page.images) {
-    writeImage(tmp, *image);
-    html << "<figure><img src=\"data:image/png;base64," << base64(slurp(tmp)) << "\"><figcaption>" << escape(caption)
+  for (const auto& [caption, image] : page.images)
+    html << "<figure><img src=\"data:image/png;base64," << base64(encodePng(*image)) << "\"><figcaption>" << escape(caption)
          << "</figcaption></figure>\n";
-  }
-  std::error_code ec;
-  fs::remove(tmp, ec);
   for (const auto& [caption, file] : page.files)
     html << "<figure><img src=\"data:image/png;base64," << base64(slurp(file)) << "\"><figcaption>" << escape(caption)
          << "</figcaption></figure>\n";

@@ -18,7 +18,7 @@ inline std::pair<double, double> rmsePsnr(const Image& a, const Image& b) {
     sum += d * d;
   }
   const double mse = sum / double(std::max<size_t>(a.data.size(), 1));
-  return {std::sqrt(mse), mse > 0.0 ? 10.0 * std::log10(1.0 / mse) : 99.0};
+  return {std::sqrt(mse), mse > 0.0 ? std::min(99.0, 10.0 * std::log10(1.0 / mse)) : 99.0};
 }
 
 }  // namespace lt

@@ -7,12 +7,13 @@
 #include <atomic>
 #include <cmath>
 
+#include <glm/geometric.hpp>
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>
 
 namespace lt {
 
-VerifyResult verifyLayers(const FragmentLists& lists, const Camera& camera, const EmbreeScene& embree) {
+VerifyResult verifyLayers(const FragmentLists& lists, const Camera& camera, const EmbreeScene& embree, const Scene* frontFacesOf) {
   LT_CHECK(lists.head.size() == size_t(lists.width) * size_t(lists.height), lists.head.size());  // needs the list pipeline
   std::atomic<uint64_t> matching{0}, fewer{0}, more{0}, depth{0};
   const glm::vec3 eye = camera.desc().eye;
@@ -25,6 +26,15 @@ VerifyResult verifyLayers(const FragmentLists& lists, const Camera& camera, cons
         // Direction with unit depth component: Embree's t is then the fragment depth.
         const glm::vec3 dir = camera.dirToWorld(camera.rayThrough({float(x) + 0.5f, float(y) + 0.5f}));
         embree.allHits(eye, dir, camera.near(), camera.far(), hits);
+        if (frontFacesOf) {
+          const Scene& s = *frontFacesOf;
+          const glm::vec3 view = camera.orthographic() ? camera.dirToWorld({0.0f, 0.0f, -1.0f}) : glm::vec3(0.0f);
+          std::erase_if(hits, [&](const GeoHit& h) {
+            const glm::uvec3 t = s.triangles[h.triangle];
+            const glm::vec3 a = s.positions[t.x], n = glm::cross(s.positions[t.y] - a, s.positions[t.z] - a);
+            return !(glm::dot(n, camera.orthographic() ? view : a - eye) < 0.0f);
+          });
+        }
         frags.clear();
         for (uint32_t i = lists.head[lists.pixelIndex(x, y)]; i != kNullIndex; i = lists.nodes[i].next)
           frags.push_back(lists.nodes[i].depth);

@@ -24,7 +24,9 @@ inline constexpr float kVerifyRelativeTolerance = 1e-4f;
 
 /// For each pixel, casts the pixel-centre ray through Embree between the near and far planes,
 /// collects all hits (deduplicated by triangle) and compares them with the pixel's list.
-VerifyResult verifyLayers(const FragmentLists& lists, const Camera& camera, const EmbreeScene& embree);
+/// With `frontFacesOf` (the scene of a --front-faces-only capture), Embree's hits on triangles
+/// facing away from the eye (the rasterizer's rule: clockwise seen from the eye) are left out.
+VerifyResult verifyLayers(const FragmentLists& lists, const Camera& camera, const EmbreeScene& embree, const Scene* frontFacesOf = nullptr);
 
 /// Embree's answer to capture: every hit of every pixel-centre ray between the near and far
 /// planes, collected (and deduplicated) as verifyLayers does, without the comparison — the

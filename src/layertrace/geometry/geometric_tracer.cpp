@@ -9,11 +9,14 @@
 
 namespace lt {
 
-GeometricHits::GeometricHits(const Scene& scene, const Camera& camera) : scene_(scene), camera_(camera) {
+GeometricHits::GeometricHits(const Scene& scene, const Camera& camera) : scene_(scene), camera_(camera), unit_(offsetUnit(scene)) {
   for (const Material& m : scene.materials) packed_.push_back(packAlbedoSpec(m.albedo, m.specular));
 }
 
-float GeometricHits::originOffset(const Ray& ray) { return 1e-4f * std::max(1.0f, glm::length(ray.origin)); }
+float GeometricHits::offsetUnit(const Scene& scene) {
+  const float d = scene.bounds().diagonal();
+  return d > 0.0f ? std::min(1.0f, d) : 1.0f;
+}
 
 TraceHit GeometricHits::makeHit(const Ray& ray, const GeoHit& g) const {
   TraceHit h;
@@ -52,7 +55,7 @@ void EmbreePacketTracer::packets(std::span<const Ray> rays, F f) const {
     for (size_t i = 0; i < n; ++i) {
       const Ray& r = rays[b + i];
       o[i] = cam.toWorld(r.origin), d[i] = cam.dirToWorld(r.dir);
-      tnear[i] = GeometricHits::originOffset(r), tfar[i] = r.maxDistance;
+      tnear[i] = single_.hits().originOffset(r), tfar[i] = r.maxDistance;
     }
     f(o, d, tnear, tfar, n, b);
   }
@@ -84,7 +87,7 @@ void GridTracer::chunks(std::span<const Ray> rays, F f) const {
     const size_t n = std::min(kChunk, rays.size() - b);
     for (size_t i = 0; i < n; ++i) {
       const Ray& r = rays[b + i];
-      q[i] = {cam.toWorld(r.origin), cam.dirToWorld(r.dir), GeometricHits::originOffset(r), r.maxDistance};
+      q[i] = {cam.toWorld(r.origin), cam.dirToWorld(r.dir), hits().originOffset(r), r.maxDistance};
     }
     f(std::span<const IrregularGrid::Query>(q, n), b);
   }

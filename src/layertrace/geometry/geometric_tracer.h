@@ -2,8 +2,11 @@
 // for the very rays the screen-space tracers trace (same camera-space origins and directions).
 #pragma once
 
+#include <algorithm>
 #include <memory>
 #include <vector>
+
+#include <glm/geometric.hpp>
 
 #include "layertrace/geometry/embree_scene.h"
 #include "layertrace/geometry/irregular_grid.h"
@@ -19,8 +22,13 @@ class GeometricHits {
  public:
   GeometricHits(const Scene& scene, const Camera& camera);
   /// A relative offset keeps the ray off the surface it starts on (screen tracers skip the
-  /// origin pixel for the same reason).
-  static float originOffset(const Ray& ray);
+  /// origin pixel for the same reason): 1e-4 of the origin's distance from the eye, at least
+  /// 1e-4 of `unit` (offsetUnit).
+  static float originOffset(const Ray& ray, float unit) { return 1e-4f * std::max(unit, glm::length(ray.origin)); }
+  /// The floor's unit: 1 (scene units) — or the scene's diagonal where that is smaller, so that a
+  /// scene a micrometre across is not skipped whole.
+  static float offsetUnit(const Scene& scene);
+  float originOffset(const Ray& ray) const { return originOffset(ray, unit_); }
   TraceHit makeHit(const Ray& ray, const GeoHit& g) const;
   /// An any-hit answer: hit, no blocker details.
   static TraceHit occludedHit(bool hit) {
@@ -33,6 +41,7 @@ class GeometricHits {
  private:
   const Scene& scene_;
   const Camera& camera_;
+  float unit_ = 1.0f;  ///< offsetUnit(scene_)
   std::vector<uint32_t> packed_;  ///< per material: albedo + specular as stored in fragments
 };
 
@@ -61,7 +70,7 @@ class GeometricTracer : public TracerImpl<GeometricTracer<Accel>> {
   auto query(const Ray& ray, C& c, Q&& q) const {
     const Camera& cam = hits_.camera();
     TraversalCounts n;
-    const auto answer = q(cam.toWorld(ray.origin), cam.dirToWorld(ray.dir), GeometricHits::originOffset(ray), ray.maxDistance,
+    const auto answer = q(cam.toWorld(ray.origin), cam.dirToWorld(ray.dir), hits_.originOffset(ray), ray.maxDistance,
                           C::kEnabled ? &n : nullptr);
     c.addIterations(std::max(n.steps, 1u));
     if (n.giveUps) c.giveUp();

@@ -82,6 +82,9 @@ struct GridBuilder {
     for (int i = 0; i < 3; ++i) g.top_[i] = std::clamp(int(d[i] * density), 1, 512);
     const glm::vec3 topSize = d / glm::vec3(g.top_[0], g.top_[1], g.top_[2]);
     const size_t numTop = size_t(g.top_[0]) * size_t(g.top_[1]) * size_t(g.top_[2]);
+    // Per top cell: its reference list, depth, leaf offset and traversal entry.
+    checkAllocation(cat("the irregular grid's top level (", numTop, " cells)"),
+                    uint64_t(numTop) * (sizeof(std::vector<uint32_t>) + sizeof(uint8_t) + sizeof(uint32_t) + 2 * sizeof(uint32_t)));
 
     // References of the top cells (exact triangle/box overlap): pairs per chunk of triangles in
     // parallel, then gathered in chunk order, so each cell's list stays sorted by triangle.

@@ -28,6 +28,7 @@ double msBetween(std::chrono::steady_clock::time_point a, std::chrono::steady_cl
 HybridTracer::HybridTracer(const Scene& scene, const Camera& camera, const LayerArrays& layers, const KnownSpace& known,
                            const Tracer& screen, const Tracer& geo, float worldMargin)
     : scene_(scene),
+      offsetUnit_(GeometricHits::offsetUnit(scene)),
       camera_(camera),
       layers_(layers),
       known_(known),
@@ -168,7 +169,7 @@ void HybridTracer::run(Query q, std::span<const Ray> rays, std::span<TraceHit> h
     // its samples say so).
     const ParamSpan span = rayParamsAroundPixel(camera_, r, seg, sh.x, sh.y, kPixelMargin);
     const GeoHit v = pixelHit(camera_.toWorld(r.origin), camera_.dirToWorld(r.dir), sh.x, sh.y, sh.layer + 1,
-                              GeometricHits::originOffset(r), span.after);
+                              GeometricHits::originOffset(r, offsetUnit_), span.after);
     if (!v.hit()) {
       // The ray passed behind the stored surface (a thickness false hit) or met a neighbour of
       // the sampled triangle. It got behind a surface without a crossing where the samples

@@ -106,6 +106,7 @@ class HybridTracer : public Tracer {
   float lengthInScene(glm::vec3 worldOrigin, glm::vec3 worldDir, float maxDistance) const;
 
   const Scene& scene_;
+  float offsetUnit_;  ///< GeometricHits::offsetUnit(scene_): the geometric tracers' origin offset
   const Camera& camera_;
   const LayerArrays& layers_;
   const KnownSpace& known_;

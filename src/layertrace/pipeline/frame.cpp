@@ -24,9 +24,10 @@ void validateFrameOptions(const FrameOptions& o) {
   if (o.height <= 0) inputError("--height ", o.height, ": must be positive");
   if (o.width > 32768 || o.height > 32768) inputError("--width/--height ", o.width, "x", o.height, ": at most 32768 per side");
   if (o.layers < 1 || o.layers > 16) inputError("--layers ", o.layers, ": must be between 1 and 16");
-  if (o.thickness && !(*o.thickness > 0.0f && std::isfinite(*o.thickness))) inputError("--thickness ", *o.thickness, ": must be positive");
+  if (o.thickness && !(*o.thickness > 0.0f && std::isfinite(*o.thickness)))
+    inputError("--thickness ", *o.thickness, ": must be positive and finite");
   if (o.thicknessPx && !(*o.thicknessPx > 0.0f && *o.thicknessPx <= 1e6f))
-    inputError("--thickness-px ", *o.thicknessPx, ": must be positive (pixel footprints)");
+    inputError("--thickness-px ", *o.thicknessPx, ": must be in (0, 1e6] pixel footprints");
   if (o.thickness && o.thicknessPx) inputError("--thickness-px ", *o.thicknessPx, ": give either --thickness or --thickness-px");
   if (o.fov && !(*o.fov > 0.0f && *o.fov < 180.0f)) inputError("--fov ", *o.fov, ": must be in (0, 180) degrees");
   for (const glm::vec4& l : o.lights)

@@ -12,14 +12,14 @@
 namespace lt {
 
 void validateTracerOptions(const TracerOptions& o) {
-  if (!(o.ssr.stride >= 1.0f)) inputError("--stride ", o.ssr.stride, ": must be >= 1");
+  if (!(o.ssr.stride >= 1.0f && o.ssr.stride <= 4096.0f)) inputError("--stride ", o.ssr.stride, ": must be between 1 and 4096 pixels");
   if (!(o.ssr.jitter >= 0.0f && o.ssr.jitter <= 1.0f)) inputError("--jitter ", o.ssr.jitter, ": must be in [0, 1]");
   if (o.ssr.maxSteps < 0) inputError("--max-steps ", o.ssr.maxSteps, ": must be >= 0");
   if (o.hssr.nUp < 1) inputError("--n-up ", o.hssr.nUp, ": must be >= 1");
   if (!(o.grid.lambda1 > 0.0f)) inputError("--lambda1 ", o.grid.lambda1, ": must be positive");
   if (!(o.grid.lambda2 > 0.0f)) inputError("--lambda2 ", o.grid.lambda2, ": must be positive");
   if (o.pyramid.levels < 1 || o.pyramid.levels > 16) inputError("--levels ", o.pyramid.levels, ": must be between 1 and 16");
-  if (!(o.pyramid.tau > 0.0f)) inputError("--tau ", o.pyramid.tau, ": must be positive");
+  if (!(o.pyramid.tau > 0.0f && std::isfinite(o.pyramid.tau))) inputError("--tau ", o.pyramid.tau, ": must be positive and finite");
   validateQuadtreeConfig(o.quadtree);
   validateLdcConfig(o.ldc);
   if (o.hybridScreen != "hssr" && o.hybridScreen != "hiz" && o.hybridScreen != "quadtree" && o.hybridScreen != "ldc")

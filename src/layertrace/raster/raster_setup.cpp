@@ -7,6 +7,7 @@
 #include <tbb/parallel_for.h>
 
 #include "layertrace/util/error.h"
+#include "layertrace/util/memory.h"
 #include "layertrace/util/parallel.h"
 
 namespace lt::raster {
@@ -119,6 +120,8 @@ void prepareRaster(const Scene& scene, const Camera& camera, const RasterConfig&
   const glm::mat3 normalToCam(camera.view());
   std::vector<glm::vec4>& clip = setup.clip;
   std::vector<glm::vec3>&camPos = setup.camPos, &camNormals = setup.camNormals;
+  checkAllocation(cat("the rasterizer's vertices and triangles (", scene.positions.size(), " and ", scene.triangles.size(), ")"),
+                  uint64_t(scene.positions.size()) * (sizeof(glm::vec4) + 2 * sizeof(glm::vec3)) + uint64_t(scene.triangles.size()) * sizeof(TriangleSetup));
   clip.resize(scene.positions.size());
   camPos.resize(scene.positions.size());
   camNormals.resize(scene.positions.size());

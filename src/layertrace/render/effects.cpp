@@ -43,8 +43,9 @@ const char* effectName(Effect e) {
 void validateEffectConfig(const EffectConfig& config) {
   if (config.bounces < 1 || config.bounces > 16) inputError("--bounces ", config.bounces, ": must be between 1 and 16");
   if (config.aoSamples < 1 || config.aoSamples > 4096) inputError("--ao-samples ", config.aoSamples, ": must be between 1 and 4096");
-  if (!(config.aoRadius >= 0.0f)) inputError("--ao-radius ", config.aoRadius, ": must be >= 0");
-  if (!(config.maxDistance >= 0.0f)) inputError("--max-distance ", config.maxDistance, ": must be >= 0");
+  if (!(config.aoRadius >= 0.0f && std::isfinite(config.aoRadius))) inputError("--ao-radius ", config.aoRadius, ": must be >= 0 and finite");
+  if (!(config.maxDistance >= 0.0f && std::isfinite(config.maxDistance)))
+    inputError("--max-distance ", config.maxDistance, ": must be >= 0 and finite");
   if (config.effect == Effect::Warp && !config.warpEye) inputError("--effect warp: needs --warp-eye x,y,z");
   for (const auto& v : {config.warpEye, config.warpTarget})
     if (v && !std::isfinite(v->x + v->y + v->z)) inputError("--warp-eye/--warp-target ", v->x, ",", v->y, ",", v->z, ": not finite");

@@ -82,11 +82,13 @@ CameraDesc autoCamera(const Scene& scene) {
 
 CameraDesc withClipPlanes(CameraDesc d, const Scene& scene) {
   const Bounds b = scene.bounds();
-  if (d.near <= 0.0f) d.near = std::max(1e-4f, 1e-4f * b.diagonal());
+  // Relative to the scene only (an absolute floor of 1e-4 clipped away a whole scene 1e-6 across).
+  if (d.near <= 0.0f) d.near = std::max(1e-4f * b.diagonal(), 1e-30f);
   if (d.far <= 0.0f) {
     d.far = std::max(b.farthestFrom(d.eye) * 1.01f, d.near * 10.0f);
   }
   if (!(d.far > d.near)) inputError("camera ", d.name, ": far ", d.far, " is not beyond near ", d.near);
+  if (!std::isfinite(d.far)) inputError("camera ", d.name, ": the eye ", d.eye.x, ",", d.eye.y, ",", d.eye.z, " is too far from the scene (the far plane overflows)");
   return d;
 }
 

@@ -1,6 +1,7 @@
 // JSON scene files: compose model files and built-in shapes with transforms and material
 // overrides, add lights and named cameras. The format is documented in scenes/README.md.
 // Unknown keys are errors (a misspelt key silently ignored is a wrong experiment).
+#include <cmath>
 #include <filesystem>
 #include <fstream>
 #include <set>
@@ -27,6 +28,13 @@ class Reader {
     inputError("scene ", source_, ": ", where, ": ", what);
   }
 
+  /// A value as the message quotes it: its JSON, cut short (an error stays one readable line).
+  static std::string brief(const json& j) {
+    std::string text = j.dump(-1, ' ', false, json::error_handler_t::replace);
+    if (text.size() > 60) text = text.substr(0, 57) + "...";
+    return text;
+  }
+
   void allowKeys(const json& j, const std::string& where, std::initializer_list<const char*> keys) const {
     if (!j.is_object()) fail(where, "expected an object");
     std::set<std::string> allowed(keys.begin(), keys.end());
@@ -35,21 +43,30 @@ class Reader {
   }
 
   float number(const json& j, const std::string& where) const {
-    if (!j.is_number()) fail(where, cat("expected a number, got ", j.dump()));
+    if (!j.is_number()) fail(where, cat("expected a number, got ", brief(j)));
     const double v = j.get<double>();
-    if (!std::isfinite(v) || std::abs(v) > 1e30) fail(where, cat("value ", j.dump(), " is out of range"));
+    if (!std::isfinite(v) || std::abs(v) > 1e30) fail(where, cat("value ", brief(j), " is out of range"));
     return float(v);
   }
 
   glm::vec3 vec3(const json& j, const std::string& where) const {
-    if (!j.is_array() || j.size() != 3) fail(where, cat("expected 3 numbers, got ", j.dump()));
+    if (!j.is_array() || j.size() != 3) fail(where, cat("expected 3 numbers, got ", brief(j)));
     return {number(j[0], where), number(j[1], where), number(j[2], where)};
   }
 
-  /// A colour or intensity: one number (grey) or three.
+  /// A whole number in [lo, hi].
+  int integer(const json& j, const std::string& where, int lo, int hi) const {
+    if (!j.is_number()) fail(where, cat("expected a whole number, got ", brief(j)));
+    const double v = j.get<double>();
+    if (!(v >= lo && v <= hi) || v != std::floor(v)) fail(where, cat("value ", brief(j), " is not a whole number in [", lo, ", ", hi, "]"));
+    return int(v);
+  }
+
+  /// A colour or intensity: one number (grey) or three, none negative.
   glm::vec3 colour(const json& j, const std::string& where) const {
-    if (j.is_number()) return glm::vec3(number(j, where));
-    return vec3(j, where);
+    const glm::vec3 c = j.is_number() ? glm::vec3(number(j, where)) : vec3(j, where);
+    if (c.x < 0.0f || c.y < 0.0f || c.z < 0.0f) fail(where, cat("value ", brief(j), " is negative"));
+    return c;
   }
 
   float unitInterval(const json& j, const std::string& where) const {
@@ -105,8 +122,18 @@ class Reader {
     return m;
   }
 
+  /// A built-in shape; its own complaint ("box: max must exceed min …") names the file and object.
+  template <class Make>
+  Scene shape(const std::string& where, Make&& make) const {
+    try {
+      return make();
+    } catch (const InputError& e) {
+      fail(where, e.what());
+    }
+  }
+
   std::string string(const json& j, const std::string& where) const {
-    if (!j.is_string()) fail(where, cat("expected a string, got ", j.dump()));
+    if (!j.is_string()) fail(where, cat("expected a string, got ", brief(j)));
     return j.get<std::string>();
   }
 
@@ -117,15 +144,26 @@ class Reader {
 }  // namespace
 
 Scene parseJsonScene(const std::string& text, const std::string& baseDir, const std::string& source) {
+  // A scene file is a handful of levels deep. Deeper nesting is refused while parsing: the
+  // parser is iterative, but copying or printing a value nested 100 000 deep recurses off the
+  // stack (found by a sweep of hand-written scene files).
+  constexpr int kMaxDepth = 64;
+  if (const size_t nul = text.find('\0'); nul != std::string::npos)
+    inputError("scene ", source, ": malformed JSON: a NUL byte at offset ", nul);
   json root;
   try {
-    root = json::parse(text);
+    root = json::parse(text, [&](int depth, json::parse_event_t, json&) {
+      if (depth > kMaxDepth) inputError("scene ", source, ": malformed JSON: nested deeper than ", kMaxDepth, " levels");
+      return true;
+    });
   } catch (const json::exception& e) {
     // parse_error carries "at line L, column C"; out_of_range is a number beyond double (1e999,
     // found by fuzz/fuzz_json_scene.cpp); both are bad input.
     std::string what = e.what();
     const auto pos = what.find("parse error");
-    inputError("scene ", source, ": malformed JSON: ", pos == std::string::npos ? what : what.substr(pos));
+    if (pos != std::string::npos) what = what.substr(pos);
+    if (what.size() > 160) what = what.substr(0, 157) + "...";  // "last read: '…'" quotes the token, however long
+    inputError("scene ", source, ": malformed JSON: ", what);
   }
   const Reader r(source);
   r.allowKeys(root, "top level", {"name", "environment", "materials", "objects", "lights", "cameras"});
@@ -167,24 +205,28 @@ Scene parseJsonScene(const std::string& text, const std::string& baseDir, const 
       ++kinds;
       const json& b = o["box"];
       r.allowKeys(b, where + ".box", {"min", "max"});
-      part = makeBox(r.vec3(b.value("min", json()), where + ".box.min"), r.vec3(b.value("max", json()), where + ".box.max"));
+      const glm::vec3 lo = r.vec3(b.contains("min") ? b["min"] : json(), where + ".box.min");
+      const glm::vec3 hi = r.vec3(b.contains("max") ? b["max"] : json(), where + ".box.max");
+      part = r.shape(where + ".box", [&] { return makeBox(lo, hi); });
       transformScene(part, m);
     }
     if (o.contains("sphere")) {
       ++kinds;
       const json& s = o["sphere"];
       r.allowKeys(s, where + ".sphere", {"center", "radius", "segments"});
-      const int seg = s.contains("segments") ? int(r.number(s["segments"], where + ".sphere.segments")) : 48;
-      part = makeSphere(s.contains("center") ? r.vec3(s["center"], where + ".sphere.center") : glm::vec3(0.0f),
-                        r.number(s.value("radius", json()), where + ".sphere.radius"), seg);
+      const int seg = s.contains("segments") ? r.integer(s["segments"], where + ".sphere.segments", 3, 4096) : 48;
+      const glm::vec3 centre = s.contains("center") ? r.vec3(s["center"], where + ".sphere.center") : glm::vec3(0.0f);
+      const float radius = r.number(s.contains("radius") ? s["radius"] : json(), where + ".sphere.radius");
+      part = r.shape(where + ".sphere", [&] { return makeSphere(centre, radius, seg); });
       transformScene(part, m);
     }
     if (o.contains("quad")) {
       ++kinds;
       const json& q = o["quad"];
       r.allowKeys(q, where + ".quad", {"corner", "u", "v"});
-      part = makeQuad(r.vec3(q.value("corner", json()), where + ".quad.corner"), r.vec3(q.value("u", json()), where + ".quad.u"),
-                      r.vec3(q.value("v", json()), where + ".quad.v"));
+      const glm::vec3 corner = r.vec3(q.contains("corner") ? q["corner"] : json(), where + ".quad.corner");
+      const glm::vec3 u = r.vec3(q.contains("u") ? q["u"] : json(), where + ".quad.u"), v = r.vec3(q.contains("v") ? q["v"] : json(), where + ".quad.v");
+      part = r.shape(where + ".quad", [&] { return makeQuad(corner, u, v); });
       transformScene(part, m);
     }
     if (kinds != 1) r.fail(where, "needs exactly one of \"model\", \"box\", \"sphere\", \"quad\"");
@@ -228,7 +270,7 @@ Scene parseJsonScene(const std::string& text, const std::string& baseDir, const 
       const std::string where = cat("lights[", i, "]");
       r.allowKeys(lights[i], where, {"position", "intensity"});
       PointLight l;
-      l.position = r.vec3(lights[i].value("position", json()), where + ".position");
+      l.position = r.vec3(lights[i].contains("position") ? lights[i]["position"] : json(), where + ".position");
       if (lights[i].contains("intensity")) l.intensity = r.colour(lights[i]["intensity"], where + ".intensity");
       scene.lights.push_back(l);
     }
@@ -242,9 +284,11 @@ Scene parseJsonScene(const std::string& text, const std::string& baseDir, const 
       r.allowKeys(c, where, {"name", "eye", "target", "up", "fov", "near", "far"});
       CameraDesc d;
       d.name = c.contains("name") ? r.string(c["name"], where + ".name") : cat("camera", i);
-      d.eye = r.vec3(c.value("eye", json()), where + ".eye");
-      d.target = r.vec3(c.value("target", json()), where + ".target");
+      d.eye = r.vec3(c.contains("eye") ? c["eye"] : json(), where + ".eye");
+      d.target = r.vec3(c.contains("target") ? c["target"] : json(), where + ".target");
       if (c.contains("up")) d.up = r.vec3(c["up"], where + ".up");
+      if (d.eye == d.target) r.fail(where, "eye and target coincide");
+      if (d.up == glm::vec3(0.0f)) r.fail(where + ".up", "must not be zero");
       if (c.contains("fov")) d.fovY = r.number(c["fov"], where + ".fov");
       if (c.contains("near")) d.near = r.number(c["near"], where + ".near");
       if (c.contains("far")) d.far = r.number(c["far"], where + ".far");

@@ -400,6 +400,11 @@ Scene convertScene(const aiScene* as, const std::string& path, const std::string
   std::function<void(const aiNode*, const glm::mat4&)> visit = [&](const aiNode* node, const glm::mat4& parent) {
     const glm::mat4 m = parent * toGlm(node->mTransformation);
     const glm::mat3 nm = glm::inverseTranspose(glm::mat3(m));
+    // A mirroring transform (negative determinant) turns counter-clockwise into clockwise:
+    // swapping two corners keeps each triangle's front face the side it was (issue: mirrored
+    // objects were captured inside out with --front-faces-only).
+    const bool mirrored = glm::determinant(glm::mat3(m)) < 0.0f;
+    const int second = mirrored ? 2 : 1, third = mirrored ? 1 : 2;
     for (unsigned k = 0; k < node->mNumMeshes && node->mMeshes; ++k) {
       if (node->mMeshes[k] >= as->mNumMeshes) continue;
       const aiMesh* mesh = as->mMeshes[node->mMeshes[k]];
@@ -419,7 +424,7 @@ Scene convertScene(const aiScene* as, const std::string& path, const std::string
       if (q3) {
         // Consecutive vertices form triangles; Quake 3 winds front faces clockwise.
         for (uint32_t t = 0; t + 2 < mesh->mNumVertices; t += 3) {
-          scene.triangles.push_back({base + t, base + t + 2, base + t + 1});
+          scene.triangles.push_back({base + t, base + t + uint32_t(third), base + t + uint32_t(second)});
           scene.triMaterial.push_back(material);
         }
         continue;
@@ -430,7 +435,7 @@ Scene convertScene(const aiScene* as, const std::string& path, const std::string
         bool ok = true;
         for (int c = 0; c < 3; ++c) ok = ok && face.mIndices[c] < mesh->mNumVertices;
         if (!ok) inputError("scene ", path, ": face index out of range in mesh ", node->mMeshes[k]);
-        scene.triangles.push_back({base + face.mIndices[0], base + face.mIndices[1], base + face.mIndices[2]});
+        scene.triangles.push_back({base + face.mIndices[0], base + face.mIndices[second], base + face.mIndices[third]});
         scene.triMaterial.push_back(material);
       }
     }

@@ -1,4 +1,5 @@
 #include <cmath>
+#include <utility>
 
 #include <glm/geometric.hpp>
 #include <glm/gtc/constants.hpp>
@@ -6,6 +7,7 @@
 
 #include "layertrace/scene/load.h"
 #include "layertrace/util/error.h"
+#include "layertrace/util/memory.h"
 
 namespace lt {
 
@@ -52,6 +54,9 @@ Scene makeSphere(glm::vec3 center, float radius, int segments) {
   if (segments < 3 || segments > 4096) inputError("sphere: segments ", segments, " not in [3, 4096]");
   Scene s;
   const int rings = segments / 2 + 1;
+  const uint64_t vertices = uint64_t(rings + 1) * uint64_t(segments + 1), triangles = 2 * uint64_t(rings) * uint64_t(segments);
+  checkAllocation(cat("sphere of ", segments, " segments (", triangles, " triangles)"),
+                  vertices * 2 * sizeof(glm::vec3) + triangles * (sizeof(glm::uvec3) + sizeof(uint32_t)));
   for (int r = 0; r <= rings; ++r) {
     const float theta = glm::pi<float>() * float(r) / float(rings);
     for (int k = 0; k <= segments; ++k) {
@@ -81,6 +86,10 @@ void transformScene(Scene& scene, const glm::mat4& m) {
     const float len = glm::length(t);
     n = len > 0.0f ? t / len : n;
   }
+  // A mirroring transform (negative determinant) reverses the winding: swap two corners so each
+  // triangle keeps its front face (what --front-faces-only and back-face tests read).
+  if (glm::determinant(glm::mat3(m)) < 0.0f)
+    for (glm::uvec3& t : scene.triangles) std::swap(t.y, t.z);
   for (PointLight& l : scene.lights) l.position = glm::vec3(m * glm::vec4(l.position, 1.0f));
   for (CameraDesc& c : scene.cameras) {
     c.eye = glm::vec3(m * glm::vec4(c.eye, 1.0f));

@@ -61,7 +61,9 @@ inline void nextPixel(Lanes& ln, const Tables& tb) {
   const I px = floorToInt(load<F>(ln.px)), py = floorToInt(load<F>(ln.py));
   const I x = sel(permute, py, px), y = sel(permute, px, py), zero = I{};
   const M inside = ge(x, zero) & ge(y, zero) & lt(x, zero + tb.W) & lt(y, zero + tb.H);
-  store(ln.x, x), store(ln.y, y), store(ln.pixel, sel(inside, y * tb.width + x, zero));
+  // Lanes outside the view read pixel 0 (their x, y are clamped first: y * width of a lane far
+  // outside would overflow).
+  store(ln.x, x), store(ln.y, y), store(ln.pixel, sel(inside, y, zero) * tb.width + sel(inside, x, zero));
 }
 
 void start(Lanes& ln, int j, const SsrStart& m, int i) {

@@ -57,13 +57,15 @@ void encode8(const Image& image, bool srgb, int outChannels, std::vector<uint8_t
       }
 }
 
+void stageOrRename(const std::string& tmp, const std::string& path);
+
 namespace {
 
 std::string tempNameFor(const std::string& path) {
   return cat(path, ".tmp.", ::getpid());
 }
 
-void commit(const std::string& tmp, const std::string& path) {
+void renameIntoPlace(const std::string& tmp, const std::string& path) {
   std::error_code ec;
   fs::rename(tmp, path, ec);
   if (ec) {
@@ -71,6 +73,8 @@ void commit(const std::string& tmp, const std::string& path) {
     inputError("output ", path, ": cannot write (", ec.message(), ")");
   }
 }
+
+OutputStage* currentStage = nullptr;  // commands write their outputs from one thread
 
 /// Writes `tmp`; errors name `path`, the file the user asked for.
 void writePng(const std::string& tmp, const std::string& path, const Image& image, bool srgb) {
@@ -114,7 +118,7 @@ void writeFileAtomic(const std::string& path, const std::string& bytes) {
       inputError("output ", path, ": write failed");
     }
   }
-  commit(tmp, path);
+  stageOrRename(tmp, path);
 }
 
 void writeImage(const std::string& path, const Image& image, bool srgb) {
@@ -137,7 +141,7 @@ void writeImage(const std::string& path, const Image& image, bool srgb) {
     fs::remove(tmp, ec);
     inputError("output ", path, ": cannot write (", e.what(), ")");
   }
-  commit(tmp, path);
+  stageOrRename(tmp, path);
 }
 
 void writePngBytes(const std::string& path, int width, int height, int channels, const uint8_t* bytes) {
@@ -148,7 +152,7 @@ void writePngBytes(const std::string& path, int width, int height, int channels,
     fs::remove(tmp, ec);
     inputError("output ", path, ": cannot write PNG");
   }
-  commit(tmp, path);
+  stageOrRename(tmp, path);
 }
 
 Image readImage(const std::string& path, bool srgb) {
@@ -196,6 +200,64 @@ glm::vec3 heatColor(float t) {
   const int i = std::min(int(s), 3);
   const float f = s - float(i);
   return stops[i] * (1.0f - f) + stops[i + 1] * f;
+}
+
+std::string encodePng(const Image& image, bool srgb) {
+  const int outChannels = image.channels == 1 ? 1 : 3;
+  std::vector<uint8_t> bytes;
+  encode8(image, srgb, outChannels, bytes);
+  std::string png;
+  auto append = [](void* context, void* data, int size) { static_cast<std::string*>(context)->append(static_cast<const char*>(data), size_t(size)); };
+  if (!stbi_write_png_to_func(append, &png, image.width, image.height, outChannels, bytes.data(), image.width * outChannels))
+    throw InternalError("PNG encoding failed");
+  return png;
+}
+
+void stageOrRename(const std::string& tmp, const std::string& path) {
+  if (currentStage) currentStage->files_.emplace_back(tmp, path);
+  else renameIntoPlace(tmp, path);
+}
+
+bool createOutputDirectory(const std::string& dir) {
+  std::error_code ec;
+  fs::path top;  // the outermost folder this call creates
+  for (fs::path p = fs::absolute(dir, ec); !ec && !p.empty() && !fs::exists(p, ec); p = p.parent_path()) {
+    top = p;
+    if (p == p.parent_path()) break;
+  }
+  fs::create_directories(dir, ec);
+  if (ec || !fs::is_directory(dir, ec)) return false;
+  if (currentStage && !top.empty()) currentStage->createdDirs_.push_back(top.string());
+  return true;
+}
+
+OutputStage::OutputStage() : outer_(currentStage) { currentStage = this; }
+
+OutputStage::~OutputStage() {
+  rollback();
+  currentStage = outer_;
+}
+
+void OutputStage::commit() {
+  for (size_t i = 0; i < files_.size(); ++i) {
+    std::error_code ec;
+    fs::rename(files_[i].first, files_[i].second, ec);
+    if (ec) {
+      const std::string path = files_[i].second, why = ec.message();
+      files_.erase(files_.begin(), files_.begin() + std::ptrdiff_t(i));  // these are in place
+      inputError("output ", path, ": cannot write (", why, ")");
+    }
+  }
+  files_.clear();
+  createdDirs_.clear();
+}
+
+void OutputStage::rollback() noexcept {
+  std::error_code ec;
+  for (const auto& f : files_) fs::remove(f.first, ec);
+  for (auto it = createdDirs_.rbegin(); it != createdDirs_.rend(); ++it) fs::remove_all(*it, ec);
+  files_.clear();
+  createdDirs_.clear();
 }
 
 }  // namespace lt

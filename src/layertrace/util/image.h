@@ -50,6 +50,35 @@ Image readImage(const std::string& path, bool srgb = true);
 
 /// Writes `bytes` to `path` through `path.tmp.<pid>` and a rename.
 void writeFileAtomic(const std::string& path, const std::string& bytes);
+/// An image as the bytes of a PNG file (sRGB 8 bit when `srgb`), written nowhere.
+std::string encodePng(const Image& image, bool srgb = true);
+
+/// Creates `dir` and its missing parents; false if it cannot. Inside an OutputStage the folders
+/// it created are removed again if the stage ends without commit.
+bool createOutputDirectory(const std::string& dir);
+
+/// All or nothing for a command's outputs. While a stage lives, the writers above write each
+/// file to its temporary name as always but leave it there; commit() renames them all into
+/// place. A stage destroyed without commit — the command failed — removes the temporary files
+/// and the folders createOutputDirectory made, so a failed command leaves nothing behind, even
+/// when its last output is the one that cannot be written (DESIGN: no partial output).
+class OutputStage {
+ public:
+  OutputStage();
+  ~OutputStage();
+  OutputStage(const OutputStage&) = delete;
+  OutputStage& operator=(const OutputStage&) = delete;
+  /// Renames every staged file into place (InputError naming the file if one cannot be).
+  void commit();
+
+ private:
+  friend void stageOrRename(const std::string& tmp, const std::string& path);
+  friend bool createOutputDirectory(const std::string& dir);
+  void rollback() noexcept;
+  std::vector<std::pair<std::string, std::string>> files_;  ///< (temporary, final)
+  std::vector<std::string> createdDirs_;
+  OutputStage* outer_;
+};
 
 /// Maps t in [0,1] to a perceptual heat colour (blue → cyan → green → yellow → red).
 glm::vec3 heatColor(float t);

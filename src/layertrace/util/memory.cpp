@@ -16,7 +16,7 @@ namespace {
 
 std::atomic<uint64_t> gLimit{0};
 
-std::string mib(uint64_t bytes) { return cat((bytes + (1u << 20) - 1) >> 20, " MiB"); }
+std::string mib(uint64_t bytes) { return bytes < (1u << 20) ? cat(bytes, " bytes") : cat((bytes + (1u << 20) - 1) >> 20, " MiB"); }
 
 }  // namespace
 
