@@ -154,6 +154,29 @@ size_t batchDifferences(const IrregularGrid& grid, const std::vector<IrregularGr
   return differ;
 }
 
+/// Primary rays through a W × H view, and from each hit a random (diffuse) ray and a short (AO)
+/// ray; `extra` adds queries at each hit.
+template <class Extra>
+std::vector<IrregularGrid::Query> primaryAndBounceQueries(const IrregularGrid& grid, const Frame& f, int W, int H, Extra&& extra) {
+  const Camera cam(withClipPlanes(f.camera.desc(), f.scene), W, H);
+  const float diag = f.scene.bounds().diagonal();
+  std::mt19937_64 rng(test::testSeed());
+  std::normal_distribution<float> g;
+  std::vector<IrregularGrid::Query> q;
+  for (int y = 0; y < H; ++y)
+    for (int x = 0; x < W; ++x) {
+      const glm::vec3 eye = f.camera.desc().eye, d = glm::normalize(cam.dirToWorld(cam.rayThrough({x + 0.5f, y + 0.5f})));
+      q.push_back({eye, d, 0.0f, 1e30f});
+      const GeoHit h = grid.intersect(eye, d, 0.0f, 1e30f);
+      if (!h.hit()) continue;
+      const glm::vec3 p = eye + d * h.t, r = glm::normalize(glm::vec3(g(rng), g(rng), g(rng)));
+      q.push_back({p, r, 1e-4f * diag, 1e30f});
+      q.push_back({p, r, 1e-4f * diag, 0.05f * diag});
+      extra(q, eye, d, h);
+    }
+  return q;
+}
+
 /// Calls f(a, A, v, B) for every voxel v of the expanded box of every `stride`-th cell A, B being
 /// the cell that owns v.
 template <class F>
@@ -354,26 +377,15 @@ TEST(Grid, BatchQueriesAnswerAsOneRayOnTheDefaultScene) {
   Frame f;
   loadFrameScene(o, f);
   const IrregularGrid grid(f.scene);
-  const Camera cam(withClipPlanes(f.camera.desc(), f.scene), 96, 64);
   const float diag = f.scene.bounds().diagonal();
   const glm::vec3 centre = (grid.origin() + grid.boxMax()) * 0.5f;
-  std::mt19937_64 rng(test::testSeed());
-  std::normal_distribution<float> g;
-  std::vector<IrregularGrid::Query> q;
   size_t hits = 0;
-  for (int y = 0; y < 64; ++y)
-    for (int x = 0; x < 96; ++x) {
-      const glm::vec3 eye = f.camera.desc().eye, d = glm::normalize(cam.dirToWorld(cam.rayThrough({x + 0.5f, y + 0.5f})));
-      q.push_back({eye, d, 0.0f, 1e30f});
-      const GeoHit h = grid.intersect(eye, d, 0.0f, 1e30f);
-      if (!h.hit()) continue;
-      ++hits;
-      const glm::vec3 p = eye + d * h.t, r = glm::normalize(glm::vec3(g(rng), g(rng), g(rng)));
-      q.push_back({p, r, 1e-4f * diag, 1e30f});
-      q.push_back({p, r, 1e-4f * diag, 0.05f * diag});
-      q.push_back({p, -d, h.t * 0.5f, 1e30f});  // back along the primary ray
-      q.push_back({eye, d, h.t, h.t});          // an empty range (tnear = tfar)
-    }
+  std::vector<IrregularGrid::Query> q =
+      primaryAndBounceQueries(grid, f, 96, 64, [&](std::vector<IrregularGrid::Query>& out, glm::vec3 eye, glm::vec3 d, const GeoHit& h) {
+        ++hits;
+        out.push_back({eye + d * h.t, -d, h.t * 0.5f, 1e30f});  // back along the primary ray
+        out.push_back({eye, d, h.t, h.t});                      // an empty range (tnear = tfar)
+      });
   for (int axis = 0; axis < 3; ++axis)
     for (float sign : {-1.0f, 1.0f}) {
       glm::vec3 d(0.0f);
@@ -529,21 +541,7 @@ TEST_P(RealSceneGrid, BatchQueriesAnswerAsOneRay) {
   Frame f;
   loadParamScene(GetParam(), f);
   const IrregularGrid grid(f.scene);
-  const Camera cam(withClipPlanes(f.camera.desc(), f.scene), 160, 90);
-  const float diag = f.scene.bounds().diagonal();
-  std::mt19937_64 rng(test::testSeed());
-  std::normal_distribution<float> g;
-  std::vector<IrregularGrid::Query> q;
-  for (int y = 0; y < 90; ++y)
-    for (int x = 0; x < 160; ++x) {
-      const glm::vec3 eye = f.camera.desc().eye, d = glm::normalize(cam.dirToWorld(cam.rayThrough({x + 0.5f, y + 0.5f})));
-      q.push_back({eye, d, 0.0f, 1e30f});
-      const GeoHit h = grid.intersect(eye, d, 0.0f, 1e30f);
-      if (!h.hit()) continue;
-      const glm::vec3 p = eye + d * h.t, r = glm::normalize(glm::vec3(g(rng), g(rng), g(rng)));
-      q.push_back({p, r, 1e-4f * diag, 1e30f});
-      q.push_back({p, r, 1e-4f * diag, 0.05f * diag});
-    }
+  const std::vector<IrregularGrid::Query> q = primaryAndBounceQueries(grid, f, 160, 90, [](auto&&...) {});
   EXPECT_EQ(batchDifferences(grid, q), 0u) << "of " << q.size() << " rays";
 }
 
