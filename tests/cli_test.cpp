@@ -146,6 +146,11 @@ TEST(CliErrors, AnOutputThatCannotBeWrittenLeavesNoOtherOutput) {
   // The same commands with writable outputs write every file (upper-case extensions too).
   ASSERT_NO_FATAL_FAILURE(expectRuns("render " + small + " -o " + (dir / "r/OUT.PNG") + " --pixelstats " + (dir / "r/ps") + " --stats " + (dir / "r/s.json")));
   for (const char* f : {"r/OUT.PNG", "r/ps/iterations.exr", "r/s.json"}) EXPECT_TRUE(fs::exists(dir / f)) << f;
+  // One file written twice by a command (its stats onto its own compare.json) is staged once.
+  ASSERT_NO_FATAL_FAILURE(expectRuns("compare " + small + " --tracers hssr -o " + (dir / "c2") + " --stats " + (dir / "c2/compare.json")));
+  EXPECT_TRUE(readJson(dir / "c2/compare.json").contains("compare"));
+  for (const auto& e : fs::directory_iterator(dir / "c2"))
+    EXPECT_EQ(e.path().string().find(".tmp."), std::string::npos) << "left behind: " << e.path();
 }
 
 // An image that cannot be written is reported under the name the user gave, not the temporary

@@ -214,8 +214,11 @@ std::string encodePng(const Image& image, bool srgb) {
 }
 
 void stageOrRename(const std::string& tmp, const std::string& path) {
-  if (currentStage) currentStage->files_.emplace_back(tmp, path);
-  else renameIntoPlace(tmp, path);
+  if (!currentStage) return renameIntoPlace(tmp, path);
+  // A file written twice in one command: its temporary name is the same, so the later content
+  // replaced the earlier one there; stage it once.
+  std::erase_if(currentStage->files_, [&](const auto& f) { return f.second == path; });
+  currentStage->files_.emplace_back(tmp, path);
 }
 
 bool createOutputDirectory(const std::string& dir) {
