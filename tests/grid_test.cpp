@@ -154,6 +154,15 @@ size_t batchDifferences(const IrregularGrid& grid, const std::vector<IrregularGr
   return differ;
 }
 
+/// The default scene and its camera (loaded, not captured).
+Frame defaultSceneFrame() {
+  FrameOptions o;
+  o.scenePath = test::sourceDir() + "/scenes/default.json";
+  Frame f;
+  loadFrameScene(o, f);
+  return f;
+}
+
 /// Primary rays through a W × H view, and from each hit a random (diffuse) ray and a short (AO)
 /// ray; `extra` adds queries at each hit.
 template <class Extra>
@@ -307,10 +316,7 @@ TEST(Grid, RayStartingOnATriangleDoesNotHitItAtTnear) {
 }
 
 TEST(Grid, CellsPartitionTheVirtualGridAndExpansionKeepsSubsets) {
-  FrameOptions o;
-  o.scenePath = test::sourceDir() + "/scenes/default.json";
-  Frame f;
-  loadFrameScene(o, f);
+  const Frame f = defaultSceneFrame();
   GridConfig whole;  // seed 003's expansion (partial expansion: the next test)
   whole.partialExpansion = false;
   const IrregularGrid grid(f.scene, whole);
@@ -336,10 +342,7 @@ TEST(Grid, CellsPartitionTheVirtualGridAndExpansionKeepsSubsets) {
 // Partial expansion (the default): every primitive that overlaps a voxel of a cell's expanded
 // box is referenced by that cell — what makes skipping the swept voxels safe.
 TEST(Grid, PartialExpansionReferencesEveryPrimitiveOfTheSweptVoxels) {
-  FrameOptions o;
-  o.scenePath = test::sourceDir() + "/scenes/default.json";
-  Frame f;
-  loadFrameScene(o, f);
+  const Frame f = defaultSceneFrame();
   const IrregularGrid grid(f.scene);
   GridConfig whole;
   whole.partialExpansion = false;
@@ -360,10 +363,7 @@ TEST(Grid, PartialExpansionReferencesEveryPrimitiveOfTheSweptVoxels) {
 }
 
 TEST(Grid, ParallelMergeEqualsSerialOnTheDefaultScene) {
-  FrameOptions o;
-  o.scenePath = test::sourceDir() + "/scenes/default.json";
-  Frame f;
-  loadFrameScene(o, f);
+  const Frame f = defaultSceneFrame();
   expectParallelMergeEqualsSerial(f.scene);
 }
 
@@ -372,10 +372,7 @@ TEST(Grid, ParallelMergeEqualsSerialOnTheDefaultScene) {
 // that miss the grid's box, start outside it, run along an axis (direction components of 0),
 // have an empty range, or start on a triangle.
 TEST(Grid, BatchQueriesAnswerAsOneRayOnTheDefaultScene) {
-  FrameOptions o;
-  o.scenePath = test::sourceDir() + "/scenes/default.json";
-  Frame f;
-  loadFrameScene(o, f);
+  const Frame f = defaultSceneFrame();
   const IrregularGrid grid(f.scene);
   const float diag = f.scene.bounds().diagonal();
   const glm::vec3 centre = (grid.origin() + grid.boxMax()) * 0.5f;
@@ -399,10 +396,7 @@ TEST(Grid, BatchQueriesAnswerAsOneRayOnTheDefaultScene) {
 }
 
 TEST(Grid, AgreesWithEmbreeOnTheDefaultScene) {
-  FrameOptions o;
-  o.scenePath = test::sourceDir() + "/scenes/default.json";
-  Frame f;
-  loadFrameScene(o, f);
+  const Frame f = defaultSceneFrame();
   for (int variant = 0; variant < 3; ++variant) {  // plain; merged + expanded; + partial expansion
     GridConfig gc;
     gc.merge = variant > 0;

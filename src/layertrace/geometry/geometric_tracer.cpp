@@ -97,7 +97,7 @@ void GridTracer::traceBatch(std::span<const Ray> rays, std::span<TraceHit> hits,
   if (kCountersCompiled && !counters.empty()) return GeometricTracer::traceBatch(rays, hits, counters);
   chunks(rays, [&](std::span<const IrregularGrid::Query> q, size_t b) {
     GeoHit g[kChunk];
-    grid_.intersect(q, std::span<GeoHit>(g, q.size()));
+    accel().intersect(q, std::span<GeoHit>(g, q.size()));
     for (size_t i = 0; i < q.size(); ++i) hits[b + i] = this->hits().makeHit(rays[b + i], g[i]);
   });
 }
@@ -106,7 +106,7 @@ void GridTracer::occludedBatch(std::span<const Ray> rays, std::span<TraceHit> hi
   if (kCountersCompiled && !counters.empty()) return GeometricTracer::occludedBatch(rays, hits, counters);
   chunks(rays, [&](std::span<const IrregularGrid::Query> q, size_t b) {
     uint8_t blocked[kChunk];
-    grid_.occluded(q, std::span<uint8_t>(blocked, q.size()));
+    accel().occluded(q, std::span<uint8_t>(blocked, q.size()));
     for (size_t i = 0; i < q.size(); ++i) hits[b + i] = GeometricHits::occludedHit(blocked[i] != 0);
   });
 }

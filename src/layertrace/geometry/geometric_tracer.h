@@ -56,6 +56,7 @@ class GeometricTracer : public TracerImpl<GeometricTracer<Accel>> {
       : name_(name), hits_(scene, camera), accel_(accel) {}
   const char* name() const override { return name_; }
   const GeometricHits& hits() const { return hits_; }
+  const Accel& accel() const { return accel_; }
   template <class C>
   TraceHit traceImpl(const Ray& ray, C& c) const {
     return hits_.makeHit(ray, query(ray, c, [this](auto... a) { return accel_.intersect(a...); }));
@@ -87,7 +88,7 @@ using EmbreeTracer = GeometricTracer<EmbreeScene>;
 class GridTracer : public GeometricTracer<IrregularGrid> {
  public:
   GridTracer(const Scene& scene, const Camera& camera, const IrregularGrid& grid)
-      : GeometricTracer<IrregularGrid>("grid", scene, camera, grid), grid_(grid) {}
+      : GeometricTracer<IrregularGrid>("grid", scene, camera, grid) {}
   void traceBatch(std::span<const Ray> rays, std::span<TraceHit> hits, std::span<RayCounters> counters) const override;
   void occludedBatch(std::span<const Ray> rays, std::span<TraceHit> hits, std::span<RayCounters> counters) const override;
 
@@ -96,7 +97,6 @@ class GridTracer : public GeometricTracer<IrregularGrid> {
   /// Calls f(queries, first) for each chunk of up to kChunk rays, as world-space grid queries.
   template <class F>
   void chunks(std::span<const Ray> rays, F f) const;
-  const IrregularGrid& grid_;
 };
 
 /// Plain Embree with 16-wide packets (rtcIntersect16 / rtcOccluded16): each batch is cut into

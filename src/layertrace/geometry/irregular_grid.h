@@ -96,10 +96,8 @@ class IrregularGrid {
   size_t memoryBytes() const;
   const std::vector<GridCell>& cells() const { return cells_; }
   const std::vector<uint32_t>& refs() const { return refs_; }
-  /// The cell containing virtual voxel v (the voxel map lookup).
-  uint32_t cellAt(const int v[3]) const {
-    return leaf_[leafIndex(v)];
-  }
+  /// The cell containing virtual voxel v (the voxel map lookup), an index in cells().
+  uint32_t cellAt(const int v[3]) const { return walkCell(walkLeaf_[leafIndex(v)]).id; }
   int virtualResolution(int axis) const { return virt_[axis]; }
   glm::vec3 voxelSize() const { return voxel_; }
   glm::vec3 inverseVoxelSize() const { return invVoxel_; }
@@ -127,7 +125,7 @@ class IrregularGrid {
   struct alignas(kUnit) TraversalCell {
     int elo[3], ehi[3];
     uint32_t refs;  ///< references; its ⌈refs / 4⌉ blocks follow the record
-    uint32_t id;    ///< index in cells_
+    uint32_t id;    ///< index in cells_ (what cellAt answers)
   };
   /// Four triangles: v[vertex][axis][lane], and their scene ids. A cell whose reference count is
   /// not a multiple of four repeats its last triangle in the spare lanes — the same triangle
@@ -151,6 +149,8 @@ class IrregularGrid {
     const uint32_t l0 = uint32_t((v[0] & mask) >> shift), l1 = uint32_t((v[1] & mask) >> shift), l2 = uint32_t((v[2] & mask) >> shift);
     return t.offset + ((l2 << (2 * d)) + (l1 << d) + l0);
   }
+  /// During the build, before walkLeaf_ exists: the builder's cell id of voxel v.
+  uint32_t buildCellAt(const int v[3]) const { return leaf_[leafIndex(v)]; }
   /// One ray's traversal state; the steps below are what the one-ray and the batched traversal
   /// share, so both answer alike.
   struct Walk;
@@ -169,9 +169,11 @@ class IrregularGrid {
   int top_[3] = {1, 1, 1};
   int depth_ = 0;
   int virt_[3] = {1, 1, 1};
-  std::vector<uint8_t> topDepth_;   ///< voxel map, level 1: octree depth of each top cell
-  std::vector<uint32_t> topOffset_; ///< voxel map, level 1: first leaf entry of each top cell
-  std::vector<uint32_t> leaf_;      ///< voxel map, level 2: cell id of each leaf
+  // The voxel map as the builder makes and rewrites it; released once packForTraversal has made
+  // topCells_ and walkLeaf_ from it.
+  std::vector<uint8_t> topDepth_;   ///< level 1: octree depth of each top cell
+  std::vector<uint32_t> topOffset_; ///< level 1: first leaf entry of each top cell
+  std::vector<uint32_t> leaf_;      ///< level 2: cell id of each leaf
   std::vector<GridCell> cells_;
   std::vector<uint32_t> refs_;
   std::vector<TopCell> topCells_;

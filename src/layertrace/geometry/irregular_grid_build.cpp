@@ -194,7 +194,7 @@ struct GridBuilder {
   }
 
   /// Current (live) cell containing virtual voxel v.
-  uint32_t at(const int v[3]) const { return live(g.cellAt(v)); }
+  uint32_t at(const int v[3]) const { return live(g.buildCellAt(v)); }
 
   static bool subset(const std::vector<uint32_t>& small, const std::vector<uint32_t>& big) {
     return std::includes(big.begin(), big.end(), small.begin(), small.end());
@@ -351,7 +351,7 @@ struct GridBuilder {
       for (int vu = A.elo[u]; vu < A.ehi[u];) {
         int p[3];
         p[axis] = layer, p[u] = vu, p[w] = vw;
-        const uint32_t b = g.cellAt(p);
+        const uint32_t b = g.buildCellAt(p);
         const GridCell& B = g.cells_[b];
         if (b != a) neighbours.push_back(b);
         depth = std::min(depth, side ? B.hi[axis] - face : face - B.lo[axis]);
@@ -396,7 +396,7 @@ IrregularGrid::IrregularGrid(const Scene& scene, const GridConfig& config) : sce
   GridBuilder b{*this, scene, config, {}, {}};
   b.initialGrid();
   // The voxel map's top level is final now (merging relabels leaves only): the builder's
-  // lookups use cellAt too.
+  // lookups use buildCellAt too.
   topCells_.resize(topDepth_.size());
   for (size_t c = 0; c < topDepth_.size(); ++c) topCells_[c] = {topOffset_[c], topDepth_[c]};
   stats_.initialMs = since(start);
@@ -458,10 +458,15 @@ void IrregularGrid::packForTraversal() {
       }
     }
   });
+  // The builder's voxel map is derivable from what the traversal keeps: cellAt reads the cell id
+  // from the record a leaf points at.
+  std::vector<uint32_t>().swap(leaf_);
+  std::vector<uint32_t>().swap(topOffset_);
+  std::vector<uint8_t>().swap(topDepth_);
 }
 
 size_t IrregularGrid::memoryBytes() const {
-  return topDepth_.size() + topOffset_.size() * 4 + leaf_.size() * 4 + cells_.size() * sizeof(GridCell) + refs_.size() * 4 +
+  return cells_.size() * sizeof(GridCell) + refs_.size() * 4 +
          topCells_.size() * sizeof(TopCell) + walkLeaf_.size() * 4 + walk_.size() * sizeof(Line);
 }
 

@@ -19,6 +19,13 @@ using nlohmann::json;
 
 namespace {
 
+/// j's member `key`, or null when it has none (the readers below then say what was expected).
+const json& member(const json& j, const char* key) {
+  static const json missing;
+  const auto it = j.find(key);
+  return it == j.end() ? missing : *it;
+}
+
 /// Reads one scene file and reports errors as "scene FILE: path.to.key: problem".
 class Reader {
  public:
@@ -205,8 +212,8 @@ Scene parseJsonScene(const std::string& text, const std::string& baseDir, const 
       ++kinds;
       const json& b = o["box"];
       r.allowKeys(b, where + ".box", {"min", "max"});
-      const glm::vec3 lo = r.vec3(b.contains("min") ? b["min"] : json(), where + ".box.min");
-      const glm::vec3 hi = r.vec3(b.contains("max") ? b["max"] : json(), where + ".box.max");
+      const glm::vec3 lo = r.vec3(member(b, "min"), where + ".box.min");
+      const glm::vec3 hi = r.vec3(member(b, "max"), where + ".box.max");
       part = r.shape(where + ".box", [&] { return makeBox(lo, hi); });
       transformScene(part, m);
     }
@@ -216,7 +223,7 @@ Scene parseJsonScene(const std::string& text, const std::string& baseDir, const 
       r.allowKeys(s, where + ".sphere", {"center", "radius", "segments"});
       const int seg = s.contains("segments") ? r.integer(s["segments"], where + ".sphere.segments", 3, 4096) : 48;
       const glm::vec3 centre = s.contains("center") ? r.vec3(s["center"], where + ".sphere.center") : glm::vec3(0.0f);
-      const float radius = r.number(s.contains("radius") ? s["radius"] : json(), where + ".sphere.radius");
+      const float radius = r.number(member(s, "radius"), where + ".sphere.radius");
       part = r.shape(where + ".sphere", [&] { return makeSphere(centre, radius, seg); });
       transformScene(part, m);
     }
@@ -224,8 +231,8 @@ Scene parseJsonScene(const std::string& text, const std::string& baseDir, const 
       ++kinds;
       const json& q = o["quad"];
       r.allowKeys(q, where + ".quad", {"corner", "u", "v"});
-      const glm::vec3 corner = r.vec3(q.contains("corner") ? q["corner"] : json(), where + ".quad.corner");
-      const glm::vec3 u = r.vec3(q.contains("u") ? q["u"] : json(), where + ".quad.u"), v = r.vec3(q.contains("v") ? q["v"] : json(), where + ".quad.v");
+      const glm::vec3 corner = r.vec3(member(q, "corner"), where + ".quad.corner");
+      const glm::vec3 u = r.vec3(member(q, "u"), where + ".quad.u"), v = r.vec3(member(q, "v"), where + ".quad.v");
       part = r.shape(where + ".quad", [&] { return makeQuad(corner, u, v); });
       transformScene(part, m);
     }
@@ -270,7 +277,7 @@ Scene parseJsonScene(const std::string& text, const std::string& baseDir, const 
       const std::string where = cat("lights[", i, "]");
       r.allowKeys(lights[i], where, {"position", "intensity"});
       PointLight l;
-      l.position = r.vec3(lights[i].contains("position") ? lights[i]["position"] : json(), where + ".position");
+      l.position = r.vec3(member(lights[i], "position"), where + ".position");
       if (lights[i].contains("intensity")) l.intensity = r.colour(lights[i]["intensity"], where + ".intensity");
       scene.lights.push_back(l);
     }
@@ -284,8 +291,8 @@ Scene parseJsonScene(const std::string& text, const std::string& baseDir, const 
       r.allowKeys(c, where, {"name", "eye", "target", "up", "fov", "near", "far"});
       CameraDesc d;
       d.name = c.contains("name") ? r.string(c["name"], where + ".name") : cat("camera", i);
-      d.eye = r.vec3(c.contains("eye") ? c["eye"] : json(), where + ".eye");
-      d.target = r.vec3(c.contains("target") ? c["target"] : json(), where + ".target");
+      d.eye = r.vec3(member(c, "eye"), where + ".eye");
+      d.target = r.vec3(member(c, "target"), where + ".target");
       if (c.contains("up")) d.up = r.vec3(c["up"], where + ".up");
       if (d.eye == d.target) r.fail(where, "eye and target coincide");
       if (d.up == glm::vec3(0.0f)) r.fail(where + ".up", "must not be zero");
