@@ -179,3 +179,33 @@ TEST(SceneLoad, CoordinatesThatOverflowFloatArithmeticAreRefusedByName) {
 
 }  // namespace
 }  // namespace lt
+
+namespace lt {
+namespace {
+
+// recentre: a scene far from the origin moves next to it by a shift that leaves every vertex
+// exact (origin + new position == old position, in double); a scene near the origin stays.
+TEST(SceneRecentre, MovesOnlyFarScenesAndKeepsEveryVertexExact) {
+  std::mt19937 rng(7);
+  std::uniform_real_distribution<float> u(-1.0f, 1.0f);
+  for (const glm::vec3 centre : {glm::vec3(0.0f), glm::vec3(3.0f, -2.0f, 1.0f), glm::vec3(1e5f, 3.0f, -2.5e5f), glm::vec3(-7e6f, 6e6f, 1e7f),
+                                 glm::vec3(20.0f, 0.0f, 0.0f)}) {
+    SCOPED_TRACE(centre.x);
+    Scene s = makeSphere(centre, 2.0f, 24);
+    for (glm::vec3& p : s.positions) p += glm::vec3(u(rng), u(rng), u(rng)) * 0.01f;  // not on a nice grid
+    s.lights.push_back({centre + glm::vec3(0.0f, 3.0f, 0.0f), glm::vec3(1.0f)});
+    const Scene before = s;
+    recentre(s);
+    const bool far = glm::length(centre) > 100.0f;
+    EXPECT_EQ(s.origin != glm::dvec3(0.0), far);
+    for (size_t i = 0; i < s.positions.size(); ++i) ASSERT_EQ(s.toWorld(s.positions[i]), glm::dvec3(before.positions[i])) << i;
+    EXPECT_EQ(s.toWorld(s.lights[0].position), glm::dvec3(before.lights[0].position));
+    EXPECT_LE(glm::length(s.bounds().center()), 8.0f * s.bounds().diagonal());
+    if (far) {
+      EXPECT_LE(glm::length(s.bounds().center()), s.bounds().diagonal());
+    }
+  }
+}
+
+}  // namespace
+}  // namespace lt

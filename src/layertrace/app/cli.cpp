@@ -3,6 +3,7 @@
 #include "layertrace/app/cli.h"
 
 #include <cmath>
+#include <limits>
 #include <iostream>
 #include <memory>
 #include <optional>
@@ -21,15 +22,18 @@ namespace {
 
 using lt::inputError;
 
-std::vector<float> parseNumbers(const std::string& option, const std::string& text, size_t minCount, size_t maxCount) {
-  std::vector<float> v;
+/// Numbers in double (a position far from the origin keeps its precision until the scene's
+/// origin is subtracted: Scene::fromWorld), each within float range.
+std::vector<double> parseNumbers(const std::string& option, const std::string& text, size_t minCount, size_t maxCount) {
+  std::vector<double> v;
   std::stringstream ss(text);
   std::string item;
   while (std::getline(ss, item, ',')) {
     try {
       size_t used = 0;
-      const float f = std::stof(item, &used);
+      const double f = std::stod(item, &used);
       if (used != item.size() || !std::isfinite(f)) throw std::invalid_argument(item);
+      if (std::abs(f) > double(std::numeric_limits<float>::max())) throw std::out_of_range(item);
       v.push_back(f);
     } catch (const std::out_of_range&) {
       inputError(option, " ", text, ": \"", item, "\" is out of range");
@@ -43,10 +47,12 @@ std::vector<float> parseNumbers(const std::string& option, const std::string& te
   return v;
 }
 
-glm::vec3 parseVec3(const std::string& option, const std::string& text) {
+glm::dvec3 parseVec3(const std::string& option, const std::string& text) {
   const auto v = parseNumbers(option, text, 3, 3);
   return {v[0], v[1], v[2]};
 }
+
+float parseFloat(const std::string& option, const std::string& text) { return float(parseNumbers(option, text, 1, 1)[0]); }
 
 /// Raw strings of the vector options, converted after parsing so errors name the option.
 struct RawFrameOptions {
@@ -145,13 +151,13 @@ void finishFrameOptions(lt::RunOptions& run, const RawFrameOptions& raw) {
   lt::FrameOptions& f = run.frame;
   if (!raw.eye.empty()) f.eye = parseVec3("--eye", raw.eye);
   if (!raw.target.empty()) f.target = parseVec3("--target", raw.target);
-  if (!raw.up.empty()) f.up = parseVec3("--up", raw.up);
-  if (!raw.fov.empty()) f.fov = parseNumbers("--fov", raw.fov, 1, 1)[0];
-  if (!raw.thickness.empty()) f.thickness = parseNumbers("--thickness", raw.thickness, 1, 1)[0];
-  if (!raw.thicknessPx.empty()) f.thicknessPx = parseNumbers("--thickness-px", raw.thicknessPx, 1, 1)[0];
+  if (!raw.up.empty()) f.up = glm::vec3(parseVec3("--up", raw.up));
+  if (!raw.fov.empty()) f.fov = parseFloat("--fov", raw.fov);
+  if (!raw.thickness.empty()) f.thickness = parseFloat("--thickness", raw.thickness);
+  if (!raw.thicknessPx.empty()) f.thicknessPx = parseFloat("--thickness-px", raw.thicknessPx);
   for (const std::string& l : raw.lights) {
     const auto v = parseNumbers("--light", l, 3, 4);
-    f.lights.push_back({v[0], v[1], v[2], v.size() == 4 ? v[3] : 1.0f});
+    f.lights.push_back({v[0], v[1], v[2], v.size() == 4 ? v[3] : 1.0});
   }
   if (run.threads < 0) inputError("--threads ", run.threads, ": must be >= 0");
 }

@@ -409,8 +409,8 @@ int runBench(const BenchOptions& o) {
       EffectConfig w = ec;
       w.effect = Effect::Warp;
       const CameraDesc& d = frame.camera.desc();
-      w.warpEye = d.eye + glm::normalize(frame.camera.dirToWorld({1, 0, 0})) * (offset * glm::length(d.target - d.eye));
-      w.warpTarget = d.target;
+      w.warpEye = frame.scene.toWorld(d.eye + glm::normalize(frame.camera.dirToWorld({1, 0, 0})) * (offset * glm::length(d.target - d.eye)));
+      w.warpTarget = frame.scene.toWorld(d.target);
       refs.push_back(warpReference(frame, o.run.frame, w));
       warps.push_back(w);
     }

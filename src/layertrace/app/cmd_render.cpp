@@ -118,11 +118,12 @@ void writePixelStats(const std::string& dir, const EffectResult& r) {
 }
 
 WarpReference warpReference(const Frame& frame, const FrameOptions& options, const EffectConfig& warp) {
-  const Camera second = warpCamera(frame.camera, warp);
+  const Camera second = warpCamera(frame, warp);
   FrameOptions fo = options;
   fo.cameraName.clear();
   fo.frontFacesOnly = false;  // the truth is what the second camera sees, back faces included
-  fo.eye = second.desc().eye, fo.target = second.desc().target, fo.up = second.desc().up, fo.fov = second.desc().fovY;
+  fo.eye = frame.scene.toWorld(second.desc().eye), fo.target = frame.scene.toWorld(second.desc().target);
+  fo.up = second.desc().up, fo.fov = second.desc().fovY;
   Frame other = buildFrame(fo);
   other.lights = frame.lights;
   EffectConfig shade = warp;
@@ -235,14 +236,14 @@ int runRender(const RenderOptions& o) {
   if (ec.effect == Effect::Warp) {
     // The truth of view synthesis: the second camera's own rasterization, shaded with the same
     // lights. Holes are counted where that view sees a surface and the warp found none.
-    const Camera second = warpCamera(frame.camera, ec);
+    const Camera second = warpCamera(frame, ec);
     WarpReference ref = warpReference(frame, o.run.frame, ec);
     direct = std::move(ref.image);
     const WarpHoles h = countWarpHoles(ref, r.holes);
     const uint64_t covered = h.covered, holes = h.holes, allHoles = uint64_t(std::count(r.holes.begin(), r.holes.end(), 1));
     const auto [rmse, psnr] = rmsePsnr(r.image, *direct);
-    const glm::vec3 e = second.desc().eye, t = second.desc().target;
-    stats["warp"] = {{"eye", {e.x, e.y, e.z}},      {"target", {t.x, t.y, t.z}},
+    stats["warp"] = {{"eye", worldStats(frame.scene, second.desc().eye)},
+                     {"target", worldStats(frame.scene, second.desc().target)},
                      {"covered_pixels", covered},  {"holes", holes},
                      {"hole_fraction", covered ? double(holes) / double(covered) : 0.0},
                      {"holes_total", allHoles},    {"psnr_db", psnr},

@@ -30,8 +30,8 @@ void validateFrameOptions(const FrameOptions& o) {
     inputError("--thickness-px ", *o.thicknessPx, ": must be in (0, 1e6] pixel footprints");
   if (o.thickness && o.thicknessPx) inputError("--thickness-px ", *o.thicknessPx, ": give either --thickness or --thickness-px");
   if (o.fov && !(*o.fov > 0.0f && *o.fov < 180.0f)) inputError("--fov ", *o.fov, ": must be in (0, 180) degrees");
-  for (const glm::vec4& l : o.lights)
-    if (!(l.w >= 0.0f) || !std::isfinite(l.x + l.y + l.z + l.w)) inputError("--light ", l.x, ",", l.y, ",", l.z, ",", l.w, ": invalid");
+  for (const glm::dvec4& l : o.lights)
+    if (!(l.w >= 0.0) || !std::isfinite(l.x + l.y + l.z + l.w)) inputError("--light ", l.x, ",", l.y, ",", l.z, ",", l.w, ": invalid");
   // Buffers per pixel: heads + counters (8), the initial pool of 8 fragments (8 × 20; the
   // tile-local capture has none), k layer slots (k × 20 + 1), and images/tracer state (~64).
   const uint64_t pixels = uint64_t(o.width) * uint64_t(o.height);
@@ -68,20 +68,27 @@ void loadFrameScene(const FrameOptions& o, Frame& frame) {
   } else {
     desc = autoCamera(frame.scene);
   }
-  if (o.eye) desc.eye = *o.eye, desc.name = "custom";
-  if (o.target) desc.target = *o.target, desc.name = "custom";
+  const Scene& scene = frame.scene;
+  // The view options are world coordinates; the scene's own are relative to its origin.
+  auto text = [](glm::dvec3 v) { return cat(v.x, ",", v.y, ",", v.z); };
+  auto local = [&](const char* option, const glm::dvec3& p) {
+    const glm::vec3 v = scene.fromWorld(p);
+    if (!std::isfinite(v.x + v.y + v.z)) inputError(option, text(p), ": out of range");
+    return v;
+  };
+  if (o.eye) desc.eye = local("--eye ", *o.eye), desc.name = "custom";
+  if (o.target) desc.target = local("--target ", *o.target), desc.name = "custom";
   if (o.up) desc.up = *o.up;
   if (o.fov) desc.fovY = *o.fov;
   // The view options' own errors name the option (the camera's checks name the camera).
-  auto text = [](glm::vec3 v) { return cat(v.x, ",", v.y, ",", v.z); };
   if ((o.eye || o.target) && desc.eye == desc.target)
     inputError(o.eye ? "--eye " : "--target ", text(o.eye ? *o.eye : *o.target), ": equals the ", o.eye ? "target " : "eye ",
-               text(o.eye ? desc.target : desc.eye), " (the view needs a direction)");
+               text(scene.toWorld(o.eye ? desc.target : desc.eye)), " (the view needs a direction)");
   if (o.up && !(glm::length(*o.up) > 0.0f)) inputError("--up ", text(*o.up), ": is the zero vector");
   if (o.fov && !(*o.fov > 0.0f && *o.fov < 180.0f)) inputError("--fov ", *o.fov, ": must be in (0, 180) degrees");
   setFrameView(o, desc, frame);
   frame.lights = frame.scene.lights;
-  for (const glm::vec4& l : o.lights) frame.lights.push_back({glm::vec3(l), glm::vec3(l.w)});
+  for (const glm::dvec4& l : o.lights) frame.lights.push_back({local("--light ", glm::dvec3(l)), glm::vec3(float(l.w))});
   if (frame.lights.empty()) frame.lights.push_back(defaultLight(frame.camera));
 }
 
@@ -205,6 +212,12 @@ Frame buildFrame(const FrameOptions& o) {
   return frame;
 }
 
+nlohmann::json worldStats(const Scene& scene, glm::vec3 p) {
+  if (scene.origin == glm::dvec3(0.0)) return nlohmann::json::array({p.x, p.y, p.z});  // floats print shorter
+  const glm::dvec3 w = scene.toWorld(p);
+  return nlohmann::json::array({w.x, w.y, w.z});
+}
+
 nlohmann::json frameStats(const Frame& f) {
   nlohmann::json j;
   j["scene"] = f.scene.name;
@@ -219,10 +232,11 @@ nlohmann::json frameStats(const Frame& f) {
   if (f.thicknessPerDepth > 0.0f) j["thickness_px"] = f.thicknessPerDepth * f.camera.focal();
   else j["thickness_fixed"] = f.thickness;
   j["triangles"] = f.scene.triangleCount();
+  auto world = [&](glm::vec3 p) { return worldStats(f.scene, p); };
   const Bounds b = f.scene.bounds();
-  j["bounds"] = {{b.lo.x, b.lo.y, b.lo.z}, {b.hi.x, b.hi.y, b.hi.z}};
+  j["bounds"] = {world(b.lo), world(b.hi)};
   const CameraDesc& cd = f.camera.desc();
-  j["view"] = {{"eye", {cd.eye.x, cd.eye.y, cd.eye.z}}, {"target", {cd.target.x, cd.target.y, cd.target.z}},
+  j["view"] = {{"eye", world(cd.eye)}, {"target", world(cd.target)},
                {"up", {cd.up.x, cd.up.y, cd.up.z}}, {"fov", cd.fovY}, {"near", f.camera.near()}, {"far", f.camera.far()}};
   j["timings_ms"]["load"] = f.loadMs;
   j["timings_ms"]["raster"] = f.rasterMs;

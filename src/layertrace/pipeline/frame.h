@@ -13,6 +13,8 @@
 
 #include <glm/vec3.hpp>
 #include <glm/vec4.hpp>
+#include <glm/ext/vector_double3.hpp>
+#include <glm/ext/vector_double4.hpp>
 #include <nlohmann/json.hpp>
 
 #include "layertrace/raster/capture.h"
@@ -36,7 +38,10 @@ inline constexpr float kDefaultThicknessPx = 6.0f;
 struct FrameOptions {
   std::string scenePath;
   std::string cameraName;              ///< --camera; empty = the scene's first camera, else auto-framed
-  std::optional<glm::vec3> eye, target, up;  ///< --eye/--target/--up override the camera
+  /// --eye/--target override the camera; world coordinates (those of the scene file), in double so
+  /// that a view of a scene far from the origin keeps its precision (Scene::origin).
+  std::optional<glm::dvec3> eye, target;
+  std::optional<glm::vec3> up;         ///< --up
   std::optional<float> fov;            ///< --fov, vertical degrees
   int width = 1280, height = 720;      ///< --width --height
   int layers = 4;                      ///< --layers (k)
@@ -62,7 +67,7 @@ struct FrameOptions {
   /// default: measured, it costs the same wall time at two threads and 30–60 % more at one
   /// (README "Capture: two pipelines, the same bytes"). Tile-local capture only.
   bool pyramidPerTile = false;
-  std::vector<glm::vec4> lights;       ///< --light x,y,z[,intensity] (repeatable)
+  std::vector<glm::dvec4> lights;      ///< --light x,y,z[,intensity] (repeatable), world coordinates
 };
 
 struct Frame {
@@ -125,6 +130,9 @@ PointLight defaultLight(const Camera& camera);
 
 /// The stats keys every subcommand shares: scene, width, height, layers, timings (raster, sort),
 /// memory (lists, arrays), fragments.
+/// Positions in them (bounds, view) are world coordinates: Scene::origin added back.
 nlohmann::json frameStats(const Frame& frame);
+/// A point of the scene as the stats write it: [x, y, z] in world coordinates.
+nlohmann::json worldStats(const Scene& scene, glm::vec3 p);
 
 }  // namespace lt

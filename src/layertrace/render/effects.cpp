@@ -51,12 +51,16 @@ void validateEffectConfig(const EffectConfig& config) {
     if (v && !std::isfinite(v->x + v->y + v->z)) inputError("--warp-eye/--warp-target ", v->x, ",", v->y, ",", v->z, ": not finite");
 }
 
-Camera warpCamera(const Camera& first, const EffectConfig& config) {
+Camera warpCamera(const Frame& frame, const EffectConfig& config) {
+  const Camera& first = frame.camera;
   CameraDesc d = first.desc();
   d.name = "warp";
-  if (config.warpEye) d.eye = *config.warpEye;
-  if (config.warpTarget) d.target = *config.warpTarget;
-  if (!(glm::length(d.target - d.eye) > 0.0f)) inputError("--warp-eye ", d.eye.x, ",", d.eye.y, ",", d.eye.z, ": equals the target");
+  if (config.warpEye) d.eye = frame.scene.fromWorld(*config.warpEye);
+  if (config.warpTarget) d.target = frame.scene.fromWorld(*config.warpTarget);
+  const glm::dvec3 eye = frame.scene.toWorld(d.eye);
+  if (!std::isfinite(d.eye.x + d.eye.y + d.eye.z + d.target.x + d.target.y + d.target.z))
+    inputError("--warp-eye/--warp-target ", eye.x, ",", eye.y, ",", eye.z, ": out of range");
+  if (!(glm::length(d.target - d.eye) > 0.0f)) inputError("--warp-eye ", eye.x, ",", eye.y, ",", eye.z, ": equals the target");
   d.near = first.near(), d.far = first.far();
   return Camera(d, first.width(), first.height());
 }
@@ -130,7 +134,7 @@ class Renderer {
     eps_ = 1e-4f * diag;
     query_ = c.effect == Effect::AO || c.effect == Effect::Shadow ? Query::Any : Query::Closest;
     if (c.effect == Effect::Warp) {
-      warp_ = warpCamera(f.camera, c);
+      warp_ = warpCamera(f, c);
       warpOrigin_ = f.camera.toCamera(warp_.desc().eye);
       warpMax_ = 2.0f * diag + glm::length(warp_.desc().eye - f.scene.bounds().center());
     }

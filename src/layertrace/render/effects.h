@@ -22,6 +22,7 @@
 #include <string>
 #include <vector>
 
+#include <glm/ext/vector_double3.hpp>
 #include <glm/vec3.hpp>
 
 #include "layertrace/pipeline/frame.h"
@@ -51,12 +52,15 @@ struct EffectConfig {
   /// Count traversal work per ray (iterations, intervals, per-pixel counter images). Off for
   /// timing runs: tracers then run their counter-free instantiation (trace/tracer.h).
   bool countRays = true;
-  std::optional<glm::vec3> warpEye;     ///< --warp-eye: the second camera's eye (world space), Effect::Warp
-  std::optional<glm::vec3> warpTarget;  ///< --warp-target: its target; default the first camera's target
+  /// --warp-eye: the second camera's eye, Effect::Warp. World coordinates (those of the scene file),
+  /// like --eye: warpCamera subtracts the scene's origin (Scene::origin).
+  std::optional<glm::dvec3> warpEye;
+  std::optional<glm::dvec3> warpTarget;  ///< --warp-target: its target; default the first camera's target
 };
 
-/// The second camera of Effect::Warp (InputError naming --warp-eye if the view is degenerate).
-Camera warpCamera(const Camera& first, const EffectConfig& config);
+/// The second camera of Effect::Warp beside the frame's (InputError naming --warp-eye if the view
+/// is degenerate).
+Camera warpCamera(const Frame& frame, const EffectConfig& config);
 
 struct EffectResult {
   Image image;

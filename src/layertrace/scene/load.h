@@ -13,7 +13,8 @@
 
 namespace lt {
 
-/// Loads a JSON scene or a model file, chosen by extension (.json → JSON scene).
+/// Loads a JSON scene or a model file, chosen by extension (.json → JSON scene), and
+/// recentre()s it: a scene far from the origin comes back with Scene::origin set.
 Scene loadScene(const std::string& path);
 
 /// Loads one model file through assimp, transformed by `transform`.

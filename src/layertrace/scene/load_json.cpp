@@ -322,7 +322,9 @@ Scene loadJsonScene(const std::string& path) {
 Scene loadScene(const std::string& path) {
   std::string ext = fs::path(path).extension().string();
   for (char& c : ext) c = char(std::tolower((unsigned char)c));
-  return ext == ".json" ? loadJsonScene(path) : loadModel(path);
+  Scene scene = ext == ".json" ? loadJsonScene(path) : loadModel(path);
+  recentre(scene);
+  return scene;
 }
 
 }  // namespace lt

@@ -81,4 +81,27 @@ void Scene::finalize(const std::string& source) {
   if (diagonal <= 0.0f) inputError("scene ", source, ": all vertices coincide");
 }
 
+void recentre(Scene& scene) {
+  const Bounds b = scene.bounds();
+  if (b.empty()) return;
+  // The unit: the smallest power of two >= the diagonal (ldexp/frexp are exact).
+  int exponent = 0;
+  std::frexp(double(std::max(b.diagonal(), 1e-30f)), &exponent);
+  const double unit = std::ldexp(1.0, exponent);
+  // Per axis: a centre c with |c| >= 4 units moves by s = round(c / unit) · unit. Each vertex v
+  // on that axis then has |v| >= 4·unit - unit/2 > 2·unit, so its float spacing is at least
+  // 2·unit·2⁻²³, while |v - s| <= unit: v - s is a multiple of v's spacing that needs at most
+  // 22 bits, and float(v - s) is exact. Centres nearer than 4 units (<= 8 diagonals) stay.
+  glm::dvec3 shift(0.0);
+  const glm::vec3 c = b.center();
+  for (int a = 0; a < 3; ++a)
+    if (std::abs(double(c[a])) >= 4.0 * unit) shift[a] = std::nearbyint(double(c[a]) / unit) * unit;
+  if (shift == glm::dvec3(0.0)) return;
+  auto move = [&](glm::vec3& p) { p = glm::vec3(glm::dvec3(p) - shift); };
+  for (glm::vec3& p : scene.positions) move(p);
+  for (PointLight& l : scene.lights) move(l.position);
+  for (CameraDesc& d : scene.cameras) move(d.eye), move(d.target);
+  scene.origin += shift;
+}
+
 }  // namespace lt

@@ -12,6 +12,7 @@
 #include <vector>
 
 #include <glm/vec3.hpp>
+#include <glm/ext/vector_double3.hpp>
 
 namespace lt {
 
@@ -66,6 +67,14 @@ struct Scene {
   std::vector<PointLight> lights;
   std::vector<CameraDesc> cameras;
   glm::vec3 environment{0.05f, 0.06f, 0.08f};  ///< colour of rays that leave the scene
+  /// Where the scene's coordinates start, in the coordinates of the file it came from (world
+  /// coordinates): positions, lights and cameras are stored relative to it. Zero unless
+  /// recentre() moved the scene; every coordinate a user gives or reads is a world coordinate
+  /// (toWorld / fromWorld).
+  glm::dvec3 origin{0.0};
+
+  glm::dvec3 toWorld(glm::vec3 p) const { return origin + glm::dvec3(p); }
+  glm::vec3 fromWorld(const glm::dvec3& p) const { return glm::vec3(p - origin); }
 
   Bounds bounds() const;
   size_t triangleCount() const { return triangles.size(); }
@@ -77,5 +86,14 @@ struct Scene {
   /// Throws InputError naming `source` when the scene is empty or an index is out of range.
   void finalize(const std::string& source);
 };
+
+/// Moves a scene that lies far from the origin of its coordinates next to it, so that every
+/// tracer computes with coordinates a few scene diagonals large instead of 10⁵ (a float has 24
+/// bits: a house 10⁵ units out keeps ~6 mm of resolution, and plain Embree then disagrees with
+/// robust Embree on 0.1–0.3 % of the rays). An axis moves when the bounding box's centre lies
+/// at least 4 units out on it, for a unit of the smallest power of two ≥ the diagonal; it moves
+/// by a multiple of that unit, which makes every vertex's new coordinate exact (the geometry is
+/// the file's, bit for bit). Lights and cameras move with it; Scene::origin records the shift.
+void recentre(Scene& scene);
 
 }  // namespace lt
