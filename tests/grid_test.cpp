@@ -289,6 +289,46 @@ TEST(Grid, FlatScenesAwayFromTheOriginAgreeWithEmbree) {
   }
 }
 
+/// A flat scene: the top cells are not cubes (one cell high), and each axis is subdivided to its own
+/// depth (irregular_grid.h; seed 003's cubic octree cut the short axis as finely as the long
+/// ones). The leaves are then not cubic in voxels, there are fewer of them, and every voxel still
+/// maps to the cell that contains it; the grid agrees with Embree.
+TEST(Grid, FlatSlabIsSubdividedPerAxisAndAgreesWithEmbree) {
+  Scene s;
+  std::mt19937 rng(5);
+  std::uniform_real_distribution<float> u(0.0f, 1.0f);
+  for (int i = 0; i < 3000; ++i) {
+    const glm::vec3 lo(20.0f * u(rng), 0.2f * u(rng), 20.0f * u(rng));
+    s.append(makeBox(lo, lo + glm::vec3(0.05f + 0.1f * u(rng))));
+  }
+  s.finalize("slab");
+  GridConfig initial;  // the cells as subdivided, before merging
+  initial.merge = false;
+  const IrregularGrid grid(s, initial);
+  const GridStats& st = grid.stats();
+  ASSERT_EQ(st.top[1], 1);
+  ASSERT_GT(st.depth, 0);
+  size_t boxLeaves = 0;  // in voxels; a cubic octree's leaves are cubes of voxels
+  for (const GridCell& c : grid.cells()) boxLeaves += c.hi[1] - c.lo[1] != c.hi[0] - c.lo[0];
+  EXPECT_GT(boxLeaves, grid.cells().size() / 2) << "leaves as high as wide: the short axes were cut as finely as the long one";
+  EXPECT_LT(st.cellsInitial, size_t(st.top[0]) * size_t(st.top[2]) << (3 * st.depth - 1));
+  for (int z = 0; z < grid.virtualResolution(2); ++z)
+    for (int y = 0; y < grid.virtualResolution(1); ++y)
+      for (int x = 0; x < grid.virtualResolution(0); x += 5) {
+        const int v[3] = {x, y, z};
+        const GridCell& c = grid.cells()[grid.cellAt(v)];
+        for (int i = 0; i < 3; ++i) ASSERT_TRUE(c.lo[i] <= v[i] && v[i] < c.hi[i]) << x << " " << y << " " << z;
+      }
+  CameraDesc cd;
+  cd.eye = {-2.0f, 2.0f, -2.0f};
+  cd.target = {10.0f, 0.0f, 10.0f};
+  for (const GridConfig& config : {initial, GridConfig{}}) {
+    const IrregularGrid g(s, config);
+    const Agreement a = compareWithEmbree(s, cd, g, 320, 180, test::testSeed());
+    EXPECT_GE(a.fraction(), 0.99999) << a.agree << " of " << a.rays;
+  }
+}
+
 /// Embree's rule for the ray's start, tnear < t: a ray starting on a triangle (an eye or a
 /// bounce origin lying on it) does not hit it there — in the grid, the watertight and the
 /// Möller–Trumbore test as in Embree.

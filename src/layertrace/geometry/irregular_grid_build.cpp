@@ -118,27 +118,31 @@ struct GridBuilder {
     for (const auto& list : pairs)
       for (const auto& [cell, t] : list) topRefs[cell].push_back(t);
     pairs.clear();
-    // Octree depth per top cell: the same formula with λ2 and the cell's own count and volume.
-    g.topDepth_.assign(numTop, 0);
+    // Octree depth per top cell: the same formula with λ2 and the cell's own count and volume,
+    // per axis (irregular_grid.h: seed 003 takes the longest axis's for all three).
+    g.topDepth_.assign(numTop, {0, 0, 0});
     const float topVolume = topSize.x * topSize.y * topSize.z;
+    g.depth_ = 0;
     for (size_t c = 0; c < numTop; ++c) {
       if (topRefs[c].empty()) continue;
       const float dens = std::cbrt(cfg.lambda2 * float(topRefs[c].size()) / topVolume);
-      const float r = std::max({topSize.x * dens, topSize.y * dens, topSize.z * dens});
-      g.topDepth_[c] = uint8_t(std::clamp(int(std::ceil(std::log2(std::max(r, 1.0f)))), 0, cfg.maxDepth));
+      for (int i = 0; i < 3; ++i) {
+        g.topDepth_[c][size_t(i)] = uint8_t(std::clamp(int(std::ceil(std::log2(std::max(topSize[i] * dens, 1.0f)))), 0, cfg.maxDepth));
+        g.depth_ = std::max(g.depth_, int(g.topDepth_[c][size_t(i)]));
+      }
     }
-    g.depth_ = *std::max_element(g.topDepth_.begin(), g.topDepth_.end());
     for (int i = 0; i < 3; ++i) g.virt_[i] = g.top_[i] << g.depth_;
     g.voxel_ = d / glm::vec3(g.virt_[0], g.virt_[1], g.virt_[2]);
 
     // Leaves: each top cell fully subdivided to its depth; leaf references from its top cell's.
     g.topOffset_.resize(numTop + 1);
     uint64_t leaves = 0;
-    for (size_t c = 0; c < numTop; ++c) leaves += uint64_t(1) << (3 * g.topDepth_[c]);
+    auto leafBits = [&](size_t c) { return g.topDepth_[c][0] + g.topDepth_[c][1] + g.topDepth_[c][2]; };
+    for (size_t c = 0; c < numTop; ++c) leaves += uint64_t(1) << leafBits(c);
     if (leaves > 0xFFFFFFFFull) inputError("irregular grid: ", leaves, " cells exceed the 32-bit cell index (use lower --lambda1/--lambda2)");
     checkAllocation(cat("the irregular grid (", leaves, " cells)"), leaves * (sizeof(GridCell) + sizeof(uint32_t) + sizeof(std::vector<uint32_t>) + 8));
     uint32_t total = 0;
-    for (size_t c = 0; c < numTop; ++c) g.topOffset_[c] = total, total += 1u << (3 * g.topDepth_[c]);
+    for (size_t c = 0; c < numTop; ++c) g.topOffset_[c] = total, total += 1u << leafBits(c);
     g.topOffset_[numTop] = total;
     g.leaf_.resize(total);
     g.cells_.resize(total);
@@ -146,26 +150,28 @@ struct GridBuilder {
     parallelFor(size_t(0), numTop, [&](size_t c) {
       const int tx = int(c % size_t(g.top_[0])), ty = int(c / size_t(g.top_[0]) % size_t(g.top_[1])),
                 tz = int(c / (size_t(g.top_[0]) * size_t(g.top_[1])));
-      const int depth = g.topDepth_[c], n = 1 << depth, span = 1 << (g.depth_ - depth);
+      int n[3], span[3];
+      for (int i = 0; i < 3; ++i) n[i] = 1 << g.topDepth_[c][size_t(i)], span[i] = 1 << (g.depth_ - g.topDepth_[c][size_t(i)]);
       const int base[3] = {tx << g.depth_, ty << g.depth_, tz << g.depth_};
-      for (int z = 0; z < n; ++z)
-        for (int y = 0; y < n; ++y)
-          for (int x = 0; x < n; ++x) {
-            const uint32_t id = g.topOffset_[c] + uint32_t((z * n + y) * n + x);
+      auto leafId = [&](int x, int y, int z) { return g.topOffset_[c] + uint32_t((z * n[1] + y) * n[0] + x); };
+      for (int z = 0; z < n[2]; ++z)
+        for (int y = 0; y < n[1]; ++y)
+          for (int x = 0; x < n[0]; ++x) {
+            const uint32_t id = leafId(x, y, z);
             g.leaf_[id] = id;
             GridCell& cell = g.cells_[id];
             const int off[3] = {x, y, z};
             for (int i = 0; i < 3; ++i) {
-              cell.lo[i] = cell.elo[i] = base[i] + off[i] * span;
-              cell.hi[i] = cell.ehi[i] = cell.lo[i] + span;
+              cell.lo[i] = cell.elo[i] = base[i] + off[i] * span[i];
+              cell.hi[i] = cell.ehi[i] = cell.lo[i] + span[i];
             }
           }
-      if (depth == 0) {
+      if (leafBits(c) == 0) {
         cellRefs[g.topOffset_[c]] = topRefs[c];
         return;
       }
       // Each triangle is tested only against the leaves its bounding box overlaps.
-      const glm::vec3 leafSize = g.voxel_ * float(span);
+      const glm::vec3 leafSize = g.voxel_ * glm::vec3(span[0], span[1], span[2]);
       const glm::vec3 cellLo = g.lo_ + glm::vec3(base[0], base[1], base[2]) * g.voxel_;
       for (uint32_t t : topRefs[c]) {
         const glm::uvec3 tri = scene.triangles[t];
@@ -173,13 +179,13 @@ struct GridBuilder {
         const glm::vec3 mn = (glm::min(a, glm::min(bb, cc)) - cellLo) / leafSize, mx = (glm::max(a, glm::max(bb, cc)) - cellLo) / leafSize;
         int lo[3], hi[3];
         for (int i = 0; i < 3; ++i) {
-          lo[i] = std::clamp(int(std::floor(mn[i])) - 1, 0, n - 1);
-          hi[i] = std::clamp(int(std::floor(mx[i])) + 1, 0, n - 1);
+          lo[i] = std::clamp(int(std::floor(mn[i])) - 1, 0, n[i] - 1);
+          hi[i] = std::clamp(int(std::floor(mx[i])) + 1, 0, n[i] - 1);
         }
         for (int z = lo[2]; z <= hi[2]; ++z)
           for (int y = lo[1]; y <= hi[1]; ++y)
             for (int x = lo[0]; x <= hi[0]; ++x) {
-              const uint32_t id = g.topOffset_[c] + uint32_t((z * n + y) * n + x);
+              const uint32_t id = leafId(x, y, z);
               const GridCell& cell = g.cells_[id];
               const glm::vec3 bl = voxelLo(cell.lo), bh = voxelLo(cell.hi);
               if (triangleBoxOverlap(a, bb, cc, bl, bh, 1e-5f * glm::length(bh - bl))) cellRefs[id].push_back(t);
@@ -398,7 +404,10 @@ IrregularGrid::IrregularGrid(const Scene& scene, const GridConfig& config) : sce
   // The voxel map's top level is final now (merging relabels leaves only): the builder's
   // lookups use buildCellAt too.
   topCells_.resize(topDepth_.size());
-  for (size_t c = 0; c < topDepth_.size(); ++c) topCells_[c] = {topOffset_[c], topDepth_[c]};
+  for (size_t c = 0; c < topDepth_.size(); ++c) {
+    const std::array<uint8_t, 3> d = topDepth_[c];
+    topCells_[c] = {topOffset_[c], {uint8_t(depth_ - d[0]), uint8_t(depth_ - d[1]), uint8_t(depth_ - d[2])}, d[0], uint8_t(d[0] + d[1])};
+  }
   stats_.initialMs = since(start);
   auto t = std::chrono::steady_clock::now();
   if (config.merge) b.merge();
@@ -462,7 +471,7 @@ void IrregularGrid::packForTraversal() {
   // from the record a leaf points at.
   std::vector<uint32_t>().swap(leaf_);
   std::vector<uint32_t>().swap(topOffset_);
-  std::vector<uint8_t>().swap(topDepth_);
+  std::vector<std::array<uint8_t, 3>>().swap(topDepth_);
 }
 
 size_t IrregularGrid::memoryBytes() const {
