@@ -390,6 +390,13 @@ TEST(CliGeobench, StatsKeysAndAgreement) {
         EXPECT_GE(j["geobench"][t][k].get<double>(), 0.9999) << t << " " << k;
       }
     }
+  // Agreement counting robust Embree where plain Embree slipped through an edge: the grid answers
+  // as the watertight reference on every ray, and never less than it agrees with plain Embree.
+  for (const char* set : {"primary", "ao", "diffuse"}) {
+    const double robust = j["geobench"]["grid"][std::string("agreement_robust_") + set].get<double>();
+    EXPECT_EQ(robust, 1.0) << set;
+    EXPECT_GE(robust, j["geobench"]["grid"][std::string("agreement_") + set].get<double>()) << set;
+  }
   // Every λ setting of the sweep answers like Embree (the speed is the README's to compare).
   std::ifstream sweep(dir / "g/geobench_sweep.csv");
   std::string line;
