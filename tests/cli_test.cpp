@@ -627,15 +627,24 @@ TEST(CliWorld, AFarSceneIsTracedAsWellAsTheSameSceneAtTheOrigin) {
   const std::string eye = at(1.4, 0.4, 1.5), target = at(-0.5, 0.6, -1.5);
   ASSERT_NO_FATAL_FAILURE(expectRuns("render " + far + size + " --tracer embree --eye " + eye + " --target " + target +
                                       " --light " + at(0.0, 2.7, -0.5) + ",6" +
-                                     " -o " + (dir / "far.png") + " --stats " + (dir / "far.json")));
+                                     " -o " + (dir / "far.png") + " --stats " + (dir / "farview.json")));
   ASSERT_NO_FATAL_FAILURE(expectRuns("render " + kDefault + size + " --tracer embree --eye 1.4,0.4,1.5 --target -0.5,0.6,-1.5 --light 0,2.7,-0.5,6 -o " +
                                      (dir / "near.png") + " --stats " + (dir / "near.json")));
-  EXPECT_NEAR(readJson(dir / "far.json")["view"]["target"][2].get<double>(), offset[2] - 1.5, 1e-9);
+  EXPECT_NEAR(readJson(dir / "farview.json")["view"]["target"][2].get<double>(), offset[2] - 1.5, 1e-9);
   const Image a = readImage(dir / "far.png"), b = readImage(dir / "near.png");
   ASSERT_EQ(a.data.size(), b.data.size());
   size_t differ = 0;  // the same picture, but for the bunny's vertices, rounded to 1/128 out there
   for (size_t i = 0; i < a.data.size(); ++i) differ += std::abs(a.data[i] - b.data[i]) > 0.1f;
   EXPECT_LT(differ, a.data.size() / 50);
+  // View synthesis: the second eye in the file's coordinates too, reported back in them.
+  ASSERT_NO_FATAL_FAILURE(expectRuns("render " + far + size + " --tracer hssr --effect warp --warp-eye " + at(0.3, 1.4, 1.8) + " -o " +
+                                     (dir / "wf.png") + " --stats " + (dir / "wf.json")));
+  ASSERT_NO_FATAL_FAILURE(expectRuns("render " + kDefault + size + " --tracer hssr --effect warp --warp-eye 0.3,1.4,1.8 -o " + (dir / "wn.png") +
+                                     " --stats " + (dir / "wn.json")));
+  const auto wf = readJson(dir / "wf.json")["warp"], wn = readJson(dir / "wn.json")["warp"];
+  EXPECT_NEAR(wf["eye"][0].get<double>(), offset[0] + 0.3, 1.0 / 128);
+  EXPECT_NEAR(wf["hole_fraction"].get<double>(), wn["hole_fraction"].get<double>(), 0.01);
+  EXPECT_NEAR(wf["psnr_db"].get<double>(), wn["psnr_db"].get<double>(), 1.5);
 }
 
 }  // namespace
