@@ -192,8 +192,12 @@ bool sameAnswer(const Ray& r, const TraceHit& a, const TraceHit& b) {
 
 /// A floor in the plane of the eye (y = 0, seen exactly edge-on: no pixel stores it), a lower
 /// floor at y = -2 and a wall at z = -10, both seen.
-Scene edgeOnFloor() {
-  Scene s = makeQuad({-30, 0, -0.5f}, {60, 0, 0}, {0, 0, -9.4f});  // y = 0 from z = -0.5 to -9.9
+/// A floor at y = height from z = zNear to -9.9, `halfWidth` to either side at its near end: a
+/// rectangle, or a wedge (one triangle, its apex at the far end).
+Scene edgeOnFloor(float height = 0.0f, float halfWidth = 30.0f, float zNear = -0.5f, bool wedge = false) {
+  Scene s;
+  if (wedge) test::addTriangle(s, {-halfWidth, height, zNear}, {halfWidth, height, zNear}, {0, height, -9.9f});
+  else s = makeQuad({-halfWidth, height, zNear}, {2 * halfWidth, 0, 0}, {0, 0, -9.9f - zNear});
   s.append(makeQuad({-30, -2, -0.5f}, {60, 0, 0}, {0, 0, -9.5f}));
   s.append(makeQuad({-30, -5, -10}, {60, 0, 0}, {0, 10, 0}));
   s.finalize("edge-on floor");
@@ -204,13 +208,26 @@ Scene edgeOnFloor() {
 // the wall down through the edge-on floor hit it (Embree), not the lower floor behind it —
 // which the screen march meets many pixels later, far outside the window before its hit. Found
 // on assimp's cameras.dae, whose camera sits at the apex of a pyramid (14 % of its rays wrong).
+//
+// A floor just above or below the eye, seen at a grazing angle, covers part of a pixel row's
+// pixels without their centres over a long depth range (found on assimp's heffalump.sib seen
+// from just below its base: 2 % of the hybrid's rays false misses): knowledge ends there too.
 TEST(Hybrid, SurfaceSeenEdgeOnEndsKnowledge) {
-  const Frame f = test::frameOf(edgeOnFloor(), test::originCamera(60.0f, 0.05f, 100.0f), 160, 120, 4, 0.05f);
-  const std::vector<float> unsampled = unsampledDepths(f.scene, f.camera, f.layers);
-  ASSERT_EQ(unsampled.size(), size_t(160 * 120));
+  // The floor: exactly edge-on; then a wedge 3 cm above and below the eye, 1.2 m wide 2 m away,
+  // its apex 9.9 m away: 1.7 pixels high on screen, its far part within one pixel row.
+  struct Floor {
+    float height, halfWidth, zNear, x0, dx;
+    bool wedge;
+  };
+  for (const Floor& fl : {Floor{0.0f, 30.0f, -0.5f, -3.0f, 0.15f, false}, Floor{0.03f, 0.6f, -2.0f, -0.32f, 0.006f, true},
+                          Floor{-0.03f, 0.6f, -2.0f, -0.32f, 0.006f, true}}) {
+  SCOPED_TRACE(fl.height);
+  const Frame f = test::frameOf(edgeOnFloor(fl.height, fl.halfWidth, fl.zNear, fl.wedge), test::originCamera(60.0f, 0.05f, 100.0f), 160, 120, 4, 0.05f);
+  const std::vector<float> unsampled = unsampledDepths(f.scene, f.camera, f.layers, kHybridLastThicknessPx);
+  ASSERT_TRUE(unsampled.empty() || unsampled.size() == size_t(160 * 120));  // empty: nothing marked
   size_t marked = 0;
   for (const float d : unsampled) marked += d < 1e30f;
-  EXPECT_GT(marked, 160u) << "the horizon row and its neighbours";
+  EXPECT_GT(marked, fl.wedge ? 5u : 160u) << "the horizon row and its neighbours";
   EXPECT_LT(marked, 160u * 4) << "and nothing else";
   const BuiltTracer embree = buildReference(f);
   // hssr and hiz march the solid intervals (rule 3 inside the march), the quad-tree asks the
@@ -222,15 +239,16 @@ TEST(Hybrid, SurfaceSeenEdgeOnEndsKnowledge) {
     const BuiltTracer hybrid = buildTracer("hybrid", f, o);
     int floorHits = 0;
     for (int i = 0; i < 40; ++i) {
-      const float x = -3.0f + 0.15f * float(i);
+      const float x = fl.x0 + fl.dx * float(i);
       const Ray r = freeRay({x, 2.0f, -9.9f}, glm::vec3(0.1f, -1.0f, 1.0f));  // crosses y = 0 at z = -7.9
       RayCounters c;
       const TraceHit truth = embree.tracer->trace(r, c), answer = hybrid.tracer->trace(r, c);
       ASSERT_TRUE(truth.hit);
-      floorHits += truth.triangle / 2 == 0;
+      floorHits += truth.triangle < (fl.wedge ? 1u : 2u);
       EXPECT_TRUE(sameAnswer(r, answer, truth)) << "ray " << i << ": hybrid triangle " << answer.triangle << ", Embree " << truth.triangle;
     }
     EXPECT_EQ(floorHits, 40) << "precondition: every ray meets the edge-on floor first";
+  }
   }
 }
 

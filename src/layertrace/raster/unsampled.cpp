@@ -32,9 +32,101 @@ int clipToNear(const glm::vec3 in[3], float near, glm::vec3 out[4]) {
   return n;
 }
 
+/// A convex polygon in screen space with 1/depth at its corners (affine across a triangle's
+/// plane, so exact at every point clipping makes along an edge).
+struct Poly {
+  int n = 0;
+  glm::vec3 p[8];  ///< x, y, 1/depth
+  /// Keeps the part where sign · (p[axis] − at) ≥ 0 (Sutherland–Hodgman, one plane).
+  Poly clip(int axis, float at, float sign) const {
+    Poly out;
+    for (int i = 0; i < n; ++i) {
+      const glm::vec3 a = p[i], b = p[(i + 1) % n];
+      const float da = sign * (a[axis] - at), db = sign * (b[axis] - at);
+      if (da >= 0.0f) out.p[out.n++] = a;
+      if ((da >= 0.0f) != (db >= 0.0f)) out.p[out.n++] = a + (b - a) * (da / (da - db));
+    }
+    return out;
+  }
+};
+
+/// The x-range where the triangle crosses the horizontal line y (empty: lo > hi).
+void spanAt(const glm::vec3 v[3], float y, float& lo, float& hi) {
+  lo = kInf, hi = -kInf;
+  for (int i = 0; i < 3; ++i) {
+    const glm::vec3 a = v[i], b = v[(i + 1) % 3];
+    if ((a.y - y) * (b.y - y) > 0.0f || a.y == b.y) continue;
+    const float x = a.x + (b.x - a.x) * ((y - a.y) / (b.y - a.y));
+    lo = std::min(lo, x), hi = std::max(hi, x);
+  }
+}
+
+/// Session 15: the pixels where a triangle has depths the pixel's solid intervals do not hold —
+/// where it lies in front of the pixel's first stored surface, or behind the end of its last
+/// one, by more than `lastThicknessPx` footprints (the hybrid's solid intervals, known_space.h).
+/// That happens where a triangle covers part of a pixel but not its centre (no sample stored it
+/// there) in front of what the pixel stores, and where a surface seen at a grazing angle spans
+/// more depth inside one pixel than its stored interval holds (found on assimp's heffalump.sib
+/// seen from just below its base: its far part one pixel row high, several units deep; 2 % of
+/// the hybrid's reflection rays passed through it as known-empty space). Knowledge ends at the
+/// triangle's nearest depth in such a pixel. A mesh's neighbouring triangles lie within that
+/// margin of each other, and a pixel whose centre a triangle covers holds it (or is truncated
+/// in front of it) within its depth change across the pixel: those pixels are skipped unless
+/// the triangle changes depth by more than the margin across a pixel somewhere.
+template <class Mark>
+void markUnheldDepths(const glm::vec3 v[3], const LayerArrays& layers, float focal, float lastThicknessPx, Mark&& mark) {
+  const float area = (v[1].x - v[0].x) * (v[2].y - v[0].y) - (v[2].x - v[0].x) * (v[1].y - v[0].y);
+  if (!(std::abs(area) > 1e-4f)) return;  // edge-on: the thin-triangle rule's case
+  // 1/depth is affine on screen: its gradient, and the largest depth change across a pixel in
+  // footprints (depth / focal), which is largest at the farthest corner.
+  const float gx = ((v[1].z - v[0].z) * (v[2].y - v[0].y) - (v[2].z - v[0].z) * (v[1].y - v[0].y)) / area;
+  const float gy = ((v[2].z - v[0].z) * (v[1].x - v[0].x) - (v[1].z - v[0].z) * (v[2].x - v[0].x)) / area;
+  const float farthest = 1.0f / std::min({v[0].z, v[1].z, v[2].z});
+  const bool grazing = !(focal * farthest * (std::abs(gx) + std::abs(gy)) < 0.5f * lastThicknessPx);
+  const int W = layers.width, H = layers.height;
+  const float ylo = std::min({v[0].y, v[1].y, v[2].y}), yhi = std::max({v[0].y, v[1].y, v[2].y});
+  const int y0 = std::max(int(std::floor(ylo)), 0), y1 = std::min(int(std::floor(yhi)), H - 1);
+  Poly tri;
+  tri.n = 3;
+  for (int i = 0; i < 3; ++i) tri.p[i] = v[i];
+  const size_t k = size_t(layers.k);
+  for (int y = y0; y <= y1; ++y) {
+    const Poly band = tri.clip(1, float(y), 1.0f).clip(1, float(y + 1), -1.0f);
+    if (band.n < 3) continue;
+    float xlo = kInf, xhi = -kInf;
+    for (int i = 0; i < band.n; ++i) xlo = std::min(xlo, band.p[i].x), xhi = std::max(xhi, band.p[i].x);
+    float clo, chi;  // the centres the triangle covers on this row
+    spanAt(v, float(y) + 0.5f, clo, chi);
+    const int x0 = std::max(int(std::floor(xlo)), 0), x1 = std::min(int(std::floor(xhi)), W - 1);
+    for (int x = x0; x <= x1; ++x) {
+      const float c = float(x) + 0.5f;
+      if (!grazing && c >= clo && c <= chi) {
+        x = std::max(x, int(std::floor(chi - 0.5f)));  // the covered run holds it
+        continue;
+      }
+      const Poly cell = band.clip(0, float(x), 1.0f).clip(0, float(x + 1), -1.0f);
+      if (cell.n < 3) continue;
+      float most = 0.0f, least = kInf;
+      for (int i = 0; i < cell.n; ++i) most = std::max(most, cell.p[i].z), least = std::min(least, cell.p[i].z);
+      if (!(most > 0.0f) || !(least > 0.0f)) continue;
+      const float nearest = 1.0f / most, deepest = 1.0f / least;
+      const size_t p = size_t(y) * size_t(W) + size_t(x);
+      const size_t n = layers.count[p];
+      bool unheld = n == 0;
+      if (!unheld) {
+        const FragmentNode* slot = &layers.slots[p * k];
+        const float margin = lastThicknessPx / focal;  // footprints per unit depth
+        const float front = slot[0].depth, back = n == k ? kInf : slot[n - 1].back() * (1.0f + margin);
+        unheld = nearest < front * (1.0f - margin) || deepest > back;
+      }
+      if (unheld) mark(p, nearest * (1.0f - 1e-5f));
+    }
+  }
+}
+
 }  // namespace
 
-std::vector<float> unsampledDepths(const Scene& scene, const Camera& camera, const LayerArrays& layers) {
+std::vector<float> unsampledDepths(const Scene& scene, const Camera& camera, const LayerArrays& layers, float lastThicknessPx) {
   const int W = layers.width, H = layers.height;
   const size_t pixels = size_t(W) * size_t(H);
   checkAllocation("the hybrid's unsampled depths", pixels * sizeof(uint32_t));  // before the pass that may need it
@@ -51,6 +143,22 @@ std::vector<float> unsampledDepths(const Scene& scene, const Camera& camera, con
     glm::vec2 s[4];
     float nearest = kInf;
     for (int i = 0; i < n; ++i) s[i] = camera.project(clipped[i]), nearest = std::min(nearest, -clipped[i].z);
+    auto markPixel = [&](size_t p, float depth) {
+      std::call_once(sized, [&] { bits.assign(pixels, std::bit_cast<uint32_t>(kInf)); });
+      std::atomic_ref<uint32_t> cell(bits[p]);
+      const uint32_t mine = std::bit_cast<uint32_t>(depth);
+      uint32_t cur = cell.load(std::memory_order_relaxed);
+      while (mine < cur && !cell.compare_exchange_weak(cur, mine, std::memory_order_relaxed)) {}
+    };
+    bool onScreen = n >= 3;  // projected coordinates a float resolves to a hundredth of a pixel
+    for (int i = 0; i < n; ++i) onScreen = onScreen && std::abs(s[i].x) < 1e5f && std::abs(s[i].y) < 1e5f;
+    if (onScreen)
+      for (int h = 0; h + 2 < n; ++h) {  // the clipped polygon as a fan of triangles in its plane
+        const int c[3] = {0, h + 1, h + 2};
+        glm::vec3 v[3];
+        for (int i = 0; i < 3; ++i) v[i] = glm::vec3(s[c[i]], 1.0f / std::max(-clipped[c[i]].z, camera.near()));
+        markUnheldDepths(v, layers, camera.focal(), lastThicknessPx, markPixel);
+      }
     // The two farthest points, and how far the others lie from the line through them.
     int a = 0, b = 1;
     float longest = -1.0f;
@@ -84,12 +192,7 @@ std::vector<float> unsampledDepths(const Scene& scene, const Camera& camera, con
           const size_t p = size_t(y) * size_t(W) + size_t(x);
           bool stored = false;
           for (size_t i = 0; i < size_t(layers.count[p]) && !stored; ++i) stored = layers.triangle[p * k + i] == uint32_t(t);
-          if (stored) continue;
-          std::call_once(sized, [&] { bits.assign(pixels, std::bit_cast<uint32_t>(kInf)); });
-          std::atomic_ref<uint32_t> cell(bits[p]);
-          const uint32_t mine = std::bit_cast<uint32_t>(nearest);
-          uint32_t cur = cell.load(std::memory_order_relaxed);
-          while (mine < cur && !cell.compare_exchange_weak(cur, mine, std::memory_order_relaxed)) {}
+          if (!stored) markPixel(p, nearest);
         }
       if (u >= t1) break;
     }

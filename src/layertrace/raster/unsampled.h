@@ -24,6 +24,13 @@ namespace lt {
 /// those). Its pixels are those of the samples every half pixel along that line and their eight
 /// neighbours; its depth there is its nearest vertex's (conservative: knowledge ends no later
 /// than it must).
-std::vector<float> unsampledDepths(const Scene& scene, const Camera& camera, const LayerArrays& layers);
+///
+/// Since session 15 also every pixel where a triangle has depths the pixel's solid intervals do
+/// not hold — in front of its first stored surface, or behind its last one's end, by more than
+/// `lastThicknessPx` footprints (the hybrid's solid intervals: the last stored surface of a
+/// complete pixel is that deep) — marked with the triangle's nearest depth in the pixel: a
+/// triangle covering part of a pixel but not its centre in front of what the pixel stores, and a
+/// surface seen at a grazing angle that spans more depth inside one pixel than its interval.
+std::vector<float> unsampledDepths(const Scene& scene, const Camera& camera, const LayerArrays& layers, float lastThicknessPx);
 
 }  // namespace lt
