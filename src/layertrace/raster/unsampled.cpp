@@ -32,6 +32,18 @@ int clipToNear(const glm::vec3 in[3], float near, glm::vec3 out[4]) {
   return n;
 }
 
+/// Keeps the part of a camera-space polygon where dot(plane.xyz, p) + plane.w ≥ 0.
+int clipToPlane(const glm::vec3* in, int n, glm::vec4 plane, glm::vec3* out) {
+  int m = 0;
+  for (int i = 0; i < n; ++i) {
+    const glm::vec3 a = in[i], b = in[(i + 1) % n];
+    const float da = glm::dot(glm::vec3(plane), a) + plane.w, db = glm::dot(glm::vec3(plane), b) + plane.w;
+    if (da >= 0.0f) out[m++] = a;
+    if ((da >= 0.0f) != (db >= 0.0f)) out[m++] = a + (b - a) * (da / (da - db));
+  }
+  return m;
+}
+
 /// A convex polygon in screen space with 1/depth at its corners (affine across a triangle's
 /// plane, so exact at every point clipping makes along an edge).
 struct Poly {
@@ -150,15 +162,26 @@ std::vector<float> unsampledDepths(const Scene& scene, const Camera& camera, con
       uint32_t cur = cell.load(std::memory_order_relaxed);
       while (mine < cur && !cell.compare_exchange_weak(cur, mine, std::memory_order_relaxed)) {}
     };
-    bool onScreen = n >= 3;  // projected coordinates a float resolves to a hundredth of a pixel
-    for (int i = 0; i < n; ++i) onScreen = onScreen && std::abs(s[i].x) < 1e5f && std::abs(s[i].y) < 1e5f;
-    if (onScreen)
-      for (int h = 0; h + 2 < n; ++h) {  // the clipped polygon as a fan of triangles in its plane
+    {
+      // The part in the view (two pixels of guard band), clipped in camera space so that a
+      // triangle passing next to the eye keeps exact screen coordinates: the side planes
+      // x_px = −2, W + 2 and y_px = −2, H + 2 pass through the eye (perspective).
+      glm::vec3 side[2][8];
+      int m = n;
+      std::copy(clipped, clipped + n, side[0]);
+      if (!camera.orthographic()) {
+        const float f = camera.focal(), gx = 0.5f * float(W) + 2.0f, gy = 0.5f * float(H) + 2.0f;
+        const glm::vec4 planes[4] = {{f, 0.0f, -gx, 0.0f}, {-f, 0.0f, -gx, 0.0f}, {0.0f, -f, -gy, 0.0f}, {0.0f, f, -gy, 0.0f}};
+        for (int i = 0; i < 4 && m >= 3; ++i) m = clipToPlane(side[i % 2], m, planes[i], side[(i + 1) % 2]);
+      }
+      const glm::vec3* view = side[0];
+      for (int h = 0; h + 2 < m; ++h) {  // the clipped polygon as a fan of triangles in its plane
         const int c[3] = {0, h + 1, h + 2};
         glm::vec3 v[3];
-        for (int i = 0; i < 3; ++i) v[i] = glm::vec3(s[c[i]], 1.0f / std::max(-clipped[c[i]].z, camera.near()));
+        for (int i = 0; i < 3; ++i) v[i] = glm::vec3(camera.project(view[c[i]]), 1.0f / std::max(-view[c[i]].z, camera.near()));
         markUnheldDepths(v, layers, camera.focal(), lastThicknessPx, markPixel);
       }
+    }
     // The two farthest points, and how far the others lie from the line through them.
     int a = 0, b = 1;
     float longest = -1.0f;
