@@ -30,28 +30,6 @@ bool lexLess(const glm::vec4& a, const glm::vec4& b) {
   return a.w < b.w;
 }
 
-/// Sutherland–Hodgman against one plane. The intersection of an edge is computed from its
-/// lexicographically smaller endpoint, so the two triangles sharing an edge get bit-identical
-/// clipped vertices — clipping keeps the mesh watertight.
-int clipAgainst(const glm::vec4* in, int n, const glm::vec4& plane, glm::vec4* out) {
-  int m = 0;
-  for (int i = 0; i < n; ++i) {
-    const glm::vec4& a = in[i];
-    const glm::vec4& b = in[(i + 1) % n];
-    const float da = glm::dot(plane, a), db = glm::dot(plane, b);
-    if (da >= 0.0f) out[m++] = a;
-    if ((da >= 0.0f) != (db >= 0.0f)) {
-      const bool aFirst = lexLess(a, b);
-      const glm::vec4& p = aFirst ? a : b;
-      const glm::vec4& q = aFirst ? b : a;
-      const float dp = aFirst ? da : db, dq = aFirst ? db : da;
-      const float t = dp / (dp - dq);
-      out[m++] = p + (q - p) * t;
-    }
-  }
-  return m;
-}
-
 /// Fixed-point edge function of edge a→b at p: positive on the inside of a triangle with
 /// positive area (screen y points down).
 inline int64_t edge(int64_t ax, int64_t ay, int64_t bx, int64_t by, int64_t px, int64_t py) {
@@ -109,6 +87,26 @@ void clipAndProject(const Scene& scene, const Camera& camera, const std::vector<
 }
 
 }  // namespace
+
+int clipAgainst(const glm::vec4* in, int n, const glm::vec4& plane, glm::vec4* out) {
+  int m = 0;
+  for (int i = 0; i < n; ++i) {
+    const glm::vec4& a = in[i];
+    const glm::vec4& b = in[(i + 1) % n];
+    const float da = glm::dot(plane, a), db = glm::dot(plane, b);
+    if (da >= 0.0f) out[m++] = a;
+    if ((da >= 0.0f) != (db >= 0.0f)) {
+      const bool aFirst = lexLess(a, b);
+      const glm::vec4& p = aFirst ? a : b;
+      const glm::vec4& q = aFirst ? b : a;
+      const float dp = aFirst ? da : db, dq = aFirst ? db : da;
+      const float t = dp / (dp - dq);
+      out[m++] = p + (q - p) * t;
+    }
+  }
+  return m;
+}
+
 
 void prepareRaster(const Scene& scene, const Camera& camera, const RasterConfig& config, RasterSetup& setup) {
   LT_CHECK(config.tileSize > 0, config.tileSize);

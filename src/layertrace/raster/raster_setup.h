@@ -25,6 +25,13 @@ namespace lt::raster {
 inline constexpr int64_t kSub = 256;  // 8 sub-pixel bits
 
 /// A triangle after clipping, in fixed-point pixel coordinates, with E > 0 inside.
+/// Sutherland–Hodgman against one plane: keeps the part of the polygon in[0..n) where
+/// dot(plane, p) ≥ 0, into `out` (room for n + 1 points); returns its size. The intersection of an
+/// edge is computed from its lexicographically smaller endpoint, so the two triangles sharing an
+/// edge get bit-identical clipped vertices — clipping keeps the mesh watertight. Any affine
+/// attribute carried in a coordinate is interpolated exactly along the edge.
+int clipAgainst(const glm::vec4* in, int n, const glm::vec4& plane, glm::vec4* out);
+
 struct SubTriangle {
   int64_t x[3], y[3];
   uint32_t triangle;

@@ -10,6 +10,7 @@
 
 #include <glm/geometric.hpp>
 
+#include "layertrace/raster/raster_setup.h"
 #include "layertrace/util/memory.h"
 #include "layertrace/util/parallel.h"
 
@@ -19,45 +20,17 @@ namespace {
 
 constexpr float kInf = std::numeric_limits<float>::infinity();
 
-/// The triangle clipped to the near side of z = −near (camera space; Sutherland–Hodgman on one
-/// plane): up to four points, returned count.
-int clipToNear(const glm::vec3 in[3], float near, glm::vec3 out[4]) {
-  int n = 0;
-  for (int i = 0; i < 3; ++i) {
-    const glm::vec3 a = in[i], b = in[(i + 1) % 3];
-    const bool aIn = a.z <= -near, bIn = b.z <= -near;
-    if (aIn) out[n++] = a;
-    if (aIn != bIn) out[n++] = a + (b - a) * ((-near - a.z) / (b.z - a.z));
-  }
-  return n;
-}
-
-/// Keeps the part of a camera-space polygon where dot(plane.xyz, p) + plane.w ≥ 0.
-int clipToPlane(const glm::vec3* in, int n, glm::vec4 plane, glm::vec3* out) {
-  int m = 0;
-  for (int i = 0; i < n; ++i) {
-    const glm::vec3 a = in[i], b = in[(i + 1) % n];
-    const float da = glm::dot(glm::vec3(plane), a) + plane.w, db = glm::dot(glm::vec3(plane), b) + plane.w;
-    if (da >= 0.0f) out[m++] = a;
-    if ((da >= 0.0f) != (db >= 0.0f)) out[m++] = a + (b - a) * (da / (da - db));
-  }
-  return m;
-}
-
 /// A convex polygon in screen space with 1/depth at its corners (affine across a triangle's
-/// plane, so exact at every point clipping makes along an edge).
+/// plane, so exact at every point clipping makes along an edge): (x, y, 1/depth, 1).
 struct Poly {
   int n = 0;
-  glm::vec3 p[8];  ///< x, y, 1/depth
-  /// Keeps the part where sign · (p[axis] − at) ≥ 0 (Sutherland–Hodgman, one plane).
+  glm::vec4 p[8];
+  /// Keeps the part where sign · (p[axis] − at) ≥ 0.
   Poly clip(int axis, float at, float sign) const {
+    glm::vec4 plane(0.0f, 0.0f, 0.0f, -sign * at);
+    plane[axis] = sign;
     Poly out;
-    for (int i = 0; i < n; ++i) {
-      const glm::vec3 a = p[i], b = p[(i + 1) % n];
-      const float da = sign * (a[axis] - at), db = sign * (b[axis] - at);
-      if (da >= 0.0f) out.p[out.n++] = a;
-      if ((da >= 0.0f) != (db >= 0.0f)) out.p[out.n++] = a + (b - a) * (da / (da - db));
-    }
+    out.n = raster::clipAgainst(p, n, plane, out.p);
     return out;
   }
 };
@@ -100,8 +73,9 @@ void markUnheldDepths(const glm::vec3 v[3], const LayerArrays& layers, float foc
   const int y0 = std::max(int(std::floor(ylo)), 0), y1 = std::min(int(std::floor(yhi)), H - 1);
   Poly tri;
   tri.n = 3;
-  for (int i = 0; i < 3; ++i) tri.p[i] = v[i];
+  for (int i = 0; i < 3; ++i) tri.p[i] = glm::vec4(v[i], 1.0f);
   const size_t k = size_t(layers.k);
+  const float margin = lastThicknessPx / focal;  // the margin's footprints per unit depth
   for (int y = y0; y <= y1; ++y) {
     const Poly band = tri.clip(1, float(y), 1.0f).clip(1, float(y + 1), -1.0f);
     if (band.n < 3) continue;
@@ -127,12 +101,36 @@ void markUnheldDepths(const glm::vec3 v[3], const LayerArrays& layers, float foc
       bool unheld = n == 0;
       if (!unheld) {
         const FragmentNode* slot = &layers.slots[p * k];
-        const float margin = lastThicknessPx / focal;  // footprints per unit depth
         const float front = slot[0].depth, back = n == k ? kInf : slot[n - 1].back() * (1.0f + margin);
         unheld = nearest < front * (1.0f - margin) || deepest > back;
       }
       if (unheld) mark(p, nearest * (1.0f - 1e-5f));
     }
+  }
+}
+
+/// markUnheldDepths over the part of a camera-space polygon (the triangle clipped to the near
+/// plane) inside the view with two pixels of guard band, clipped in camera space so that a
+/// triangle passing next to the eye keeps exact screen coordinates: the side planes x_px = −2,
+/// W + 2 and y_px = −2, H + 2 pass through the eye (perspective).
+template <class Mark>
+void markUnheldInView(const glm::vec4* polygon, int n, const Camera& camera, const LayerArrays& layers, float lastThicknessPx, Mark&& mark) {
+  glm::vec4 side[2][8];
+  int m = n;
+  std::copy(polygon, polygon + n, side[0]);
+  if (!camera.orthographic()) {
+    const float f = camera.focal(), gx = 0.5f * float(layers.width) + 2.0f, gy = 0.5f * float(layers.height) + 2.0f;
+    const glm::vec4 planes[4] = {{f, 0.0f, -gx, 0.0f}, {-f, 0.0f, -gx, 0.0f}, {0.0f, -f, -gy, 0.0f}, {0.0f, f, -gy, 0.0f}};
+    for (int i = 0; i < 4 && m >= 3; ++i) m = raster::clipAgainst(side[i % 2], m, planes[i], side[(i + 1) % 2]);
+  }
+  for (int h = 0; h + 2 < m; ++h) {  // the clipped polygon as a fan of triangles in its plane
+    const int c[3] = {0, h + 1, h + 2};
+    glm::vec3 v[3];
+    for (int i = 0; i < 3; ++i) {
+      const glm::vec3 q(side[0][c[i]]);
+      v[i] = glm::vec3(camera.project(q), 1.0f / std::max(-q.z, camera.near()));
+    }
+    markUnheldDepths(v, layers, camera.focal(), lastThicknessPx, mark);
   }
 }
 
@@ -148,13 +146,13 @@ std::vector<float> unsampledDepths(const Scene& scene, const Camera& camera, con
   parallelFor(size_t(0), scene.triangleCount(), [&](size_t t) {
     const glm::uvec3 tri = scene.triangles[t];
     const glm::vec3 world[3] = {scene.positions[tri.x], scene.positions[tri.y], scene.positions[tri.z]};
-    glm::vec3 cam[3], clipped[4];
-    for (int i = 0; i < 3; ++i) cam[i] = camera.toCamera(world[i]);
-    const int n = clipToNear(cam, camera.near(), clipped);
+    glm::vec4 cam[3], clipped[4];  // camera space, w = 1
+    for (int i = 0; i < 3; ++i) cam[i] = glm::vec4(camera.toCamera(world[i]), 1.0f);
+    const int n = raster::clipAgainst(cam, 3, glm::vec4(0.0f, 0.0f, -1.0f, -camera.near()), clipped);  // z ≤ −near
     if (n < 2) return;
     glm::vec2 s[4];
     float nearest = kInf;
-    for (int i = 0; i < n; ++i) s[i] = camera.project(clipped[i]), nearest = std::min(nearest, -clipped[i].z);
+    for (int i = 0; i < n; ++i) s[i] = camera.project(glm::vec3(clipped[i])), nearest = std::min(nearest, -clipped[i].z);
     auto markPixel = [&](size_t p, float depth) {
       std::call_once(sized, [&] { bits.assign(pixels, std::bit_cast<uint32_t>(kInf)); });
       std::atomic_ref<uint32_t> cell(bits[p]);
@@ -162,26 +160,7 @@ std::vector<float> unsampledDepths(const Scene& scene, const Camera& camera, con
       uint32_t cur = cell.load(std::memory_order_relaxed);
       while (mine < cur && !cell.compare_exchange_weak(cur, mine, std::memory_order_relaxed)) {}
     };
-    {
-      // The part in the view (two pixels of guard band), clipped in camera space so that a
-      // triangle passing next to the eye keeps exact screen coordinates: the side planes
-      // x_px = −2, W + 2 and y_px = −2, H + 2 pass through the eye (perspective).
-      glm::vec3 side[2][8];
-      int m = n;
-      std::copy(clipped, clipped + n, side[0]);
-      if (!camera.orthographic()) {
-        const float f = camera.focal(), gx = 0.5f * float(W) + 2.0f, gy = 0.5f * float(H) + 2.0f;
-        const glm::vec4 planes[4] = {{f, 0.0f, -gx, 0.0f}, {-f, 0.0f, -gx, 0.0f}, {0.0f, -f, -gy, 0.0f}, {0.0f, f, -gy, 0.0f}};
-        for (int i = 0; i < 4 && m >= 3; ++i) m = clipToPlane(side[i % 2], m, planes[i], side[(i + 1) % 2]);
-      }
-      const glm::vec3* view = side[0];
-      for (int h = 0; h + 2 < m; ++h) {  // the clipped polygon as a fan of triangles in its plane
-        const int c[3] = {0, h + 1, h + 2};
-        glm::vec3 v[3];
-        for (int i = 0; i < 3; ++i) v[i] = glm::vec3(camera.project(view[c[i]]), 1.0f / std::max(-view[c[i]].z, camera.near()));
-        markUnheldDepths(v, layers, camera.focal(), lastThicknessPx, markPixel);
-      }
-    }
+    markUnheldInView(clipped, n, camera, layers, lastThicknessPx, markPixel);
     // The two farthest points, and how far the others lie from the line through them.
     int a = 0, b = 1;
     float longest = -1.0f;
