@@ -3,7 +3,9 @@
 // starting where knowledge ends, exact answers on an analytic room, and the strict-class
 // correct share on the real scenes.
 #include <bit>
+#include <cmath>
 #include <cstdint>
+#include <limits>
 
 #include <glm/geometric.hpp>
 
@@ -223,7 +225,7 @@ TEST(Hybrid, SurfaceSeenEdgeOnEndsKnowledge) {
                           Floor{-0.03f, 0.6f, -2.0f, -0.32f, 0.006f, true}}) {
   SCOPED_TRACE(fl.height);
   const Frame f = test::frameOf(edgeOnFloor(fl.height, fl.halfWidth, fl.zNear, fl.wedge), test::originCamera(60.0f, 0.05f, 100.0f), 160, 120, 4, 0.05f);
-  const std::vector<float> unsampled = unsampledDepths(f.scene, f.camera, f.layers, kHybridLastThicknessPx);
+  const std::vector<float> unsampled = unsampledDepths(f.scene, f.camera, f.layers, kHybridLastThicknessPx).unsampled;
   ASSERT_TRUE(unsampled.empty() || unsampled.size() == size_t(160 * 120));  // empty: nothing marked
   size_t marked = 0;
   for (const float d : unsampled) marked += d < 1e30f;
@@ -249,6 +251,70 @@ TEST(Hybrid, SurfaceSeenEdgeOnEndsKnowledge) {
     }
     EXPECT_EQ(floorHits, 40) << "precondition: every ray meets the edge-on floor first";
   }
+  }
+}
+
+/// Two walls 0.2 apart along the view direction, the eye between them: each is seen at a grazing
+/// angle, its depth changing by tens of footprints across one pixel near the centre of the view
+/// (the camera inside assimp's ClearCoatTest.gltf plate, session 16).
+Scene corridor() {
+  Scene s = makeQuad({-0.1f, -5, -0.001f}, {0, 10, 0}, {0, 0, -30});
+  s.append(makeQuad({0.1f, -5, -0.001f}, {0, 0, -30}, {0, 10, 0}));
+  s.finalize("corridor");
+  return s;
+}
+
+// The first solid interval of every pixel starts no deeper than the surface comes inside the
+// pixel's square (raster/unsampled.h `nearest`), where the centre sample alone leaves a gap.
+TEST(Hybrid, SolidIntervalsStartAtTheNearestDepthInsideThePixel) {
+  const Frame f = test::frameOf(corridor(), test::originCamera(60.0f, 0.002f, 100.0f), 320, 240, 4, 0.05f);
+  const UnsampledDepths u = unsampledDepths(f.scene, f.camera, f.layers, kHybridLastThicknessPx);
+  const IntervalLayers solid =
+      solidIntervals(f.camera, CaptureCoverage{f.layers, f.lists.complexity, false, u.unsampled, u.nearest}, kHybridLastThicknessPx);
+  const BuiltTracer embree = buildReference(f);
+  size_t checked = 0, gaps = 0, outside = 0;
+  for (int y = 0; y < f.layers.height; ++y)
+    for (int x = 0; x < f.layers.width; ++x) {
+      if (f.layers.countAt(x, y) == 0) continue;
+      // The walls are planes: their nearest depth inside the square is at a corner (inset so as
+      // not to sample a neighbour).
+      float nearest = std::numeric_limits<float>::infinity();
+      for (const glm::vec2 c : {glm::vec2(0.001f, 0.001f), glm::vec2(0.999f, 0.001f), glm::vec2(0.001f, 0.999f), glm::vec2(0.999f, 0.999f)}) {
+        RayCounters rc;
+        const TraceHit h = embree.tracer->trace(freeRay({0, 0, 0}, f.camera.rayThrough(glm::vec2(float(x), float(y)) + c)), rc);
+        if (h.hit) nearest = std::min(nearest, -h.point.z);
+      }
+      if (!std::isfinite(nearest)) continue;
+      ++checked;
+      const float centre = f.layers.pixel(x, y)[0].depth;
+      gaps += centre - nearest > f.camera.pixelFootprint(centre);
+      outside += !(solid.pixel(x, y)[0].front <= nearest * (1.0f + 1e-5f));
+    }
+  EXPECT_GT(gaps, 2000u) << "precondition: the centre sample lies more than a footprint behind the pixel's nearest depth";
+  EXPECT_GT(checked, 60000u);
+  EXPECT_EQ(outside, 0u);
+}
+
+// A ray from one wall of the corridor to the other crosses the far wall in front of its pixels'
+// centre samples, then lies behind it in pixels whose samples are deeper still: without the
+// nearest depths the march saw none of its intervals and the hybrid accepted a miss (197 of
+// 20 000 any-hit and 26 closest-hit answers wrong; 1.2 % of AO rays on the ClearCoatTest view).
+TEST(Hybrid, SurfaceSeenAtAGrazingAngleIsNotCrossedUnseen) {
+  const Frame f = test::frameOf(corridor(), test::originCamera(60.0f, 0.002f, 100.0f), 320, 240, 4, 0.05f);
+  const std::vector<Ray> rays = test::sampleRays(f, 20000, test::testSeed(), false);
+  const BuiltTracer hybrid = buildTracer("hybrid", f, TracerOptions{}), embree = buildReference(f);
+  for (const Query q : {Query::Closest, Query::Any}) {
+    SCOPED_TRACE(q == Query::Any ? "any hit" : "closest hit");
+    std::vector<TraceHit> answers(rays.size()), truth(rays.size());
+    hybrid.tracer->query(q, rays, answers, {});
+    embree.tracer->query(q, rays, truth, {});
+    size_t wrong = 0, hits = 0;
+    for (size_t i = 0; i < rays.size(); ++i) {
+      hits += truth[i].hit;
+      wrong += q == Query::Any ? answers[i].hit != truth[i].hit : !sameAnswer(rays[i], answers[i], truth[i]);
+    }
+    EXPECT_GT(hits, rays.size() / 4) << "precondition: rays meet the walls";
+    EXPECT_EQ(wrong, 0u);
   }
 }
 
@@ -294,7 +360,7 @@ TEST(Hybrid, AnalyticRoomGivesTheGeometricAnswers) {
 
 // Issue 15's accuracy target on real views: ≥ 99.5 % of one-bounce reflection rays in the
 // strict correct classes (correct hit or correct miss), against HSSR's 34–68 %, with the
-// default screen tracer and with the layered depth cube.
+// default screen tracer (≥ 99.99 % since session 16) and with the layered depth cube.
 TEST(Hybrid, RealScenesCorrectShareAtLeast995Percent) {
   ASSERT_TRUE(test::haveFetchedScenes()) << "run scripts/fetch-scenes.sh";
   for (auto [file, camera] : {std::pair{"fzk-haus.json", "interior"}, std::pair{"am-thornish.json", "hall"}, std::pair{"engine.json", "interior"}}) {
@@ -331,7 +397,9 @@ TEST(Hybrid, RealScenesCorrectShareAtLeast995Percent) {
         const RayClass k = classifyRay(rays[i], answers[i], reference[i], Query::Closest, f.camera, f.layers);
         correct += k == RayClass::CorrectHit || k == RayClass::CorrectMiss;
       }
-      EXPECT_GE(double(correct), 0.995 * double(rays.size()));
+      // HSSR's march holds the nearest depth in every pixel (session 16): 1 / 0 / 0 wrong of
+      // 30 000 with it, 4 / 2 / 1 without; the layered depth cube samples the scene in texels.
+      EXPECT_GE(double(correct), (std::string(screen) == "hssr" ? 0.9999 : 0.995) * double(rays.size()));
     }
   }
 }

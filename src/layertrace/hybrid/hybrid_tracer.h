@@ -26,13 +26,16 @@
 //  5. Otherwise the geometric tracer continues from KnownSpace's geoFrom (one pixel before the
 //     knowledge ended) to the ray's end — not from the origin: the known part was answered.
 //  6. Screen tracers never test the ray's own pixel (seed 000 §5.1): a geometric window covers
-//     the ray from its origin to two pixels past its pixel.
+//     the ray from its origin to two pixels past its pixel, and the screen march starts where
+//     the window ends.
 // Windows are a few pixels of ray: on FZK-Haus they cost about a fifth of whole geometric rays.
 // Every hit the hybrid returns is an exact triangle intersection (layer = -1, like a geometric
-// tracer's), so it shades exactly as the reference does. What it can still get wrong: a surface
-// no pixel sample saw (thinner than a pixel) in known space more than two pixels before a
-// checked hit, and a stored surface between two samples of the last layer of a complete pixel,
-// deeper than its 20-footprint interval.
+// tracer's), so it shades exactly as the reference does. Since session 16 the solid intervals
+// start at the nearest depth any triangle has inside each pixel's square (a conservative
+// rasterization, raster/unsampled.h), so a ray cannot cross a surface in front of a pixel's
+// centre sample unseen either. What it can still get wrong: a triangle seen exactly edge-on
+// that the thin-triangle rule misses (shorter than two pixels), and rounding at the pixel and
+// interval boundaries.
 #pragma once
 
 #include <cstdint>
@@ -120,6 +123,7 @@ class HybridTracer : public Tracer {
     std::vector<Ray> screenRays, geoRays;
     std::vector<TraceHit> screenHits, geoHits;
     std::vector<float> from;  ///< per ray: where geometry must take over (+∞: answered)
+    std::vector<float> windowEnd;  ///< per ray: where the origin's geometric window ends (≤ 0: none)
     std::vector<KnownSpace::Boundary> boundaries;
     std::vector<uint32_t> geoIndex;
     std::vector<GeoHit> best;

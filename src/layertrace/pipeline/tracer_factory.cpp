@@ -84,8 +84,8 @@ BuiltTracer buildTracer(const std::string& name, const Frame& frame, const Trace
   } else if (name == "hybrid") {
     validateTracerOptions(o);
     // Triangles thinner than a pixel that cross pixels unstored end those pixels' knowledge.
-    const std::vector<float> unsampled = unsampledDepths(frame.scene, frame.camera, frame.layers, kHybridLastThicknessPx);
-    const CaptureCoverage coverage{frame.layers, frame.lists.complexity, frame.frontFacesOnly, unsampled};
+    const UnsampledDepths unsampled = unsampledDepths(frame.scene, frame.camera, frame.layers, kHybridLastThicknessPx);
+    const CaptureCoverage coverage{frame.layers, frame.lists.complexity, frame.frontFacesOnly, unsampled.unsampled, unsampled.nearest};
     const bool pyramidScreen = o.hybridScreen == "hssr" || o.hybridScreen == "hiz";
     if (pyramidScreen) {
       // HSSR or Hi-Z over the solid intervals: one march answers rule 3 and the surfaces.

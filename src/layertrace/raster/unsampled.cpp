@@ -54,18 +54,25 @@ void spanAt(const glm::vec3 v[3], float y, float& lo, float& hi) {
 /// more depth inside one pixel than its stored interval holds (found on assimp's heffalump.sib
 /// seen from just below its base: its far part one pixel row high, several units deep; 2 % of
 /// the hybrid's reflection rays passed through it as known-empty space). Knowledge ends at the
-/// triangle's nearest depth in such a pixel. A mesh's neighbouring triangles lie within that
-/// margin of each other, and a pixel whose centre a triangle covers holds it (or is truncated
-/// in front of it) within its depth change across the pixel: those pixels are skipped unless
-/// the triangle changes depth by more than the margin across a pixel somewhere.
-template <class Mark>
-void markUnheldDepths(const glm::vec3 v[3], const LayerArrays& layers, float focal, float lastThicknessPx, Mark&& mark) {
+/// triangle's nearest depth in such a pixel (`mark`). A mesh's neighbouring triangles lie within
+/// that margin of each other, and a pixel whose centre a triangle covers holds it (or is
+/// truncated in front of it) within its depth change across the pixel: those pixels are not
+/// marked unless the triangle changes depth by more than the margin across a pixel somewhere.
+///
+/// Session 16: every pixel the triangle overlaps also gets the triangle's nearest depth in its
+/// square where that lies in front of the pixel's first stored surface (`front`): the solid
+/// intervals start there (known_space.h). Where the square lies inside the triangle that is the
+/// plane's value at the nearest corner (1/depth is affine: the centre's plus half the gradient's
+/// L1 norm); on the triangle's border, the clipped polygon's.
+template <class Mark, class Front>
+void markUnheldDepths(const glm::vec3 v[3], const LayerArrays& layers, float focal, float lastThicknessPx, Mark&& mark, Front&& front) {
   const float area = (v[1].x - v[0].x) * (v[2].y - v[0].y) - (v[2].x - v[0].x) * (v[1].y - v[0].y);
   if (!(std::abs(area) > 1e-4f)) return;  // edge-on: the thin-triangle rule's case
   // 1/depth is affine on screen: its gradient, and the largest depth change across a pixel in
   // footprints (depth / focal), which is largest at the farthest corner.
   const float gx = ((v[1].z - v[0].z) * (v[2].y - v[0].y) - (v[2].z - v[0].z) * (v[1].y - v[0].y)) / area;
   const float gy = ((v[2].z - v[0].z) * (v[1].x - v[0].x) - (v[1].z - v[0].z) * (v[2].x - v[0].x)) / area;
+  const float halfSpread = 0.5f * (std::abs(gx) + std::abs(gy));  // centre to the farthest corner, in 1/depth
   const float farthest = 1.0f / std::min({v[0].z, v[1].z, v[2].z});
   const bool grazing = !(focal * farthest * (std::abs(gx) + std::abs(gy)) < 0.5f * lastThicknessPx);
   const int W = layers.width, H = layers.height;
@@ -83,26 +90,38 @@ void markUnheldDepths(const glm::vec3 v[3], const LayerArrays& layers, float foc
     for (int i = 0; i < band.n; ++i) xlo = std::min(xlo, band.p[i].x), xhi = std::max(xhi, band.p[i].x);
     float clo, chi;  // the centres the triangle covers on this row
     spanAt(v, float(y) + 0.5f, clo, chi);
+    // The squares inside the triangle: both their corners on the row's top and bottom lines
+    // inside it (it is convex).
+    float tlo, thi, blo, bhi;
+    spanAt(v, float(y), tlo, thi);
+    spanAt(v, float(y + 1), blo, bhi);
+    const float inLo = std::max(tlo, blo), inHi = std::min(thi, bhi);
     const int x0 = std::max(int(std::floor(xlo)), 0), x1 = std::min(int(std::floor(xhi)), W - 1);
     for (int x = x0; x <= x1; ++x) {
       const float c = float(x) + 0.5f;
-      if (!grazing && c >= clo && c <= chi) {
-        x = std::max(x, int(std::floor(chi - 0.5f)));  // the covered run holds it
-        continue;
+      const size_t p = size_t(y) * size_t(W) + size_t(x);
+      float most, least;  // 1/depth over the triangle's part of the square
+      if (float(x) >= inLo && float(x + 1) <= inHi) {
+        const float centre = v[0].z + gx * (c - v[0].x) + gy * (float(y) + 0.5f - v[0].y);
+        most = centre + halfSpread, least = centre - halfSpread;
+      } else {
+        const Poly cell = band.clip(0, float(x), 1.0f).clip(0, float(x + 1), -1.0f);
+        if (cell.n < 3) continue;
+        most = 0.0f, least = kInf;
+        for (int i = 0; i < cell.n; ++i) most = std::max(most, cell.p[i].z), least = std::min(least, cell.p[i].z);
       }
-      const Poly cell = band.clip(0, float(x), 1.0f).clip(0, float(x + 1), -1.0f);
-      if (cell.n < 3) continue;
-      float most = 0.0f, least = kInf;
-      for (int i = 0; i < cell.n; ++i) most = std::max(most, cell.p[i].z), least = std::min(least, cell.p[i].z);
       if (!(most > 0.0f) || !(least > 0.0f)) continue;
       const float nearest = 1.0f / most, deepest = 1.0f / least;
-      const size_t p = size_t(y) * size_t(W) + size_t(x);
       const size_t n = layers.count[p];
+      const FragmentNode* slot = &layers.slots[p * k];
+      if (n > 0 && nearest < slot[0].depth) front(p, nearest * (1.0f - 1e-5f));
+      if (!grazing && c >= clo && c <= chi) continue;  // a covered centre holds it
       bool unheld = n == 0;
       if (!unheld) {
-        const FragmentNode* slot = &layers.slots[p * k];
-        const float front = slot[0].depth, back = n == k ? kInf : slot[n - 1].back() * (1.0f + margin);
-        unheld = nearest < front * (1.0f - margin) || deepest > back;
+        // The end of the pixel's last solid interval (known_space.h solidIntervals): its back,
+        // or the margin's footprints behind its front.
+        const float back = n == k ? kInf : std::max(slot[n - 1].back(), slot[n - 1].depth * (1.0f + margin));
+        unheld = nearest < slot[0].depth * (1.0f - margin) || deepest > back;
       }
       if (unheld) mark(p, nearest * (1.0f - 1e-5f));
     }
@@ -113,8 +132,9 @@ void markUnheldDepths(const glm::vec3 v[3], const LayerArrays& layers, float foc
 /// plane) inside the view with two pixels of guard band, clipped in camera space so that a
 /// triangle passing next to the eye keeps exact screen coordinates: the side planes x_px = −2,
 /// W + 2 and y_px = −2, H + 2 pass through the eye (perspective).
-template <class Mark>
-void markUnheldInView(const glm::vec4* polygon, int n, const Camera& camera, const LayerArrays& layers, float lastThicknessPx, Mark&& mark) {
+template <class Mark, class Front>
+void markUnheldInView(const glm::vec4* polygon, int n, const Camera& camera, const LayerArrays& layers, float lastThicknessPx, Mark&& mark,
+                      Front&& front) {
   glm::vec4 side[2][8];
   int m = n;
   std::copy(polygon, polygon + n, side[0]);
@@ -130,19 +150,42 @@ void markUnheldInView(const glm::vec4* polygon, int n, const Camera& camera, con
       const glm::vec3 q(side[0][c[i]]);
       v[i] = glm::vec3(camera.project(q), 1.0f / std::max(-q.z, camera.near()));
     }
-    markUnheldDepths(v, layers, camera.focal(), lastThicknessPx, mark);
+    markUnheldDepths(v, layers, camera.focal(), lastThicknessPx, mark, front);
   }
 }
 
+/// A per-pixel nearest depth that threads lower concurrently, sized at the first mark.
+class MinDepths {
+ public:
+  explicit MinDepths(size_t pixels) : pixels_(pixels) {}
+  void mark(size_t p, float depth) {
+    std::call_once(sized_, [&] { bits_.assign(pixels_, std::bit_cast<uint32_t>(kInf)); });
+    // Depths are positive: their bits order like the floats, so an integer min is a float min.
+    std::atomic_ref<uint32_t> cell(bits_[p]);
+    const uint32_t mine = std::bit_cast<uint32_t>(depth);
+    uint32_t cur = cell.load(std::memory_order_relaxed);
+    while (mine < cur && !cell.compare_exchange_weak(cur, mine, std::memory_order_relaxed)) {}
+  }
+  /// The depths (empty when nothing was marked).
+  std::vector<float> depths() const {
+    std::vector<float> out(bits_.size());
+    for (size_t p = 0; p < out.size(); ++p) out[p] = std::bit_cast<float>(bits_[p]);
+    return out;
+  }
+
+ private:
+  size_t pixels_;
+  std::vector<uint32_t> bits_;
+  std::once_flag sized_;
+};
+
 }  // namespace
 
-std::vector<float> unsampledDepths(const Scene& scene, const Camera& camera, const LayerArrays& layers, float lastThicknessPx) {
+UnsampledDepths unsampledDepths(const Scene& scene, const Camera& camera, const LayerArrays& layers, float lastThicknessPx) {
   const int W = layers.width, H = layers.height;
   const size_t pixels = size_t(W) * size_t(H);
-  checkAllocation("the hybrid's unsampled depths", pixels * sizeof(uint32_t));  // before the pass that may need it
-  // Depths are positive: their bits order like the floats, so an integer min is a float min.
-  std::vector<uint32_t> bits;  // sized at the first unstored crossing: empty when there is none
-  std::once_flag sized;
+  checkAllocation("the hybrid's unsampled depths", 2 * pixels * sizeof(uint32_t));  // before the pass that may need it
+  MinDepths unsampled(pixels), nearestFront(pixels);
   parallelFor(size_t(0), scene.triangleCount(), [&](size_t t) {
     const glm::uvec3 tri = scene.triangles[t];
     const glm::vec3 world[3] = {scene.positions[tri.x], scene.positions[tri.y], scene.positions[tri.z]};
@@ -153,14 +196,8 @@ std::vector<float> unsampledDepths(const Scene& scene, const Camera& camera, con
     glm::vec2 s[4];
     float nearest = kInf;
     for (int i = 0; i < n; ++i) s[i] = camera.project(glm::vec3(clipped[i])), nearest = std::min(nearest, -clipped[i].z);
-    auto markPixel = [&](size_t p, float depth) {
-      std::call_once(sized, [&] { bits.assign(pixels, std::bit_cast<uint32_t>(kInf)); });
-      std::atomic_ref<uint32_t> cell(bits[p]);
-      const uint32_t mine = std::bit_cast<uint32_t>(depth);
-      uint32_t cur = cell.load(std::memory_order_relaxed);
-      while (mine < cur && !cell.compare_exchange_weak(cur, mine, std::memory_order_relaxed)) {}
-    };
-    markUnheldInView(clipped, n, camera, layers, lastThicknessPx, markPixel);
+    auto markPixel = [&](size_t p, float depth) { unsampled.mark(p, depth); };
+    markUnheldInView(clipped, n, camera, layers, lastThicknessPx, markPixel, [&](size_t p, float depth) { nearestFront.mark(p, depth); });
     // The two farthest points, and how far the others lie from the line through them.
     int a = 0, b = 1;
     float longest = -1.0f;
@@ -199,9 +236,7 @@ std::vector<float> unsampledDepths(const Scene& scene, const Camera& camera, con
       if (u >= t1) break;
     }
   });
-  std::vector<float> out(bits.size());
-  for (size_t p = 0; p < out.size(); ++p) out[p] = std::bit_cast<float>(bits[p]);
-  return out;
+  return {unsampled.depths(), nearestFront.depths()};
 }
 
 }  // namespace lt

@@ -41,6 +41,10 @@ struct CaptureCoverage {
   /// Per pixel, the nearest depth of a surface that crosses the pixel unstored (a triangle thinner
   /// than a pixel: raster/unsampled.h); empty = none. Knowledge ends there too.
   std::span<const float> unsampled = {};
+  /// Per pixel, the nearest depth of any surface over the pixel's square where that lies in front
+  /// of its first stored surface (raster/unsampled.h); empty = none. The solid intervals start
+  /// there.
+  std::span<const float> nearest = {};
   /// u(p) of rule 3 for pixel index p (+∞ when the pixel is complete and crossed by no unstored
   /// surface).
   float unknownDepth(size_t p) const;
