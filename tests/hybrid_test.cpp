@@ -330,31 +330,35 @@ TEST(Hybrid, AnalyticRoomGivesTheGeometricAnswers) {
   view.target = {0.3f, -0.4f, -1.0f};
   const Frame f = test::frameOf(scene, view, 160, 120, 4, 0.1f);
   const std::vector<Ray> rays = test::sampleRays(f, 6000, test::testSeed());
-  // The quad-tree marches its own thin planes (no solid intervals), so a ray can still pass a
-  // stored surface between two of its samples: a looser bound.
-  struct Case {
-    const char *screen, *geo;
-    double share;
-  };
-  for (const Case c : {Case{"hssr", "embree", 0.999}, Case{"hiz", "embree", 0.999}, Case{"quadtree", "embree", 0.98}, Case{"hssr", "grid", 0.999},
-                       Case{"ldc", "embree", 0.999}}) {
-    SCOPED_TRACE(std::string(c.screen) + " + " + c.geo);
+  // The quad-tree marches its own thin planes (no solid intervals), so a ray can pass a stored
+  // surface between two of its samples: geometry certifies its empty space too (session 16;
+  // before, 98 % was its bound here).
+  for (const auto& [screen, geometric] : {std::pair{"hssr", "embree"}, std::pair{"hiz", "embree"}, std::pair{"quadtree", "embree"},
+                                         std::pair{"hssr", "grid"}, std::pair{"ldc", "embree"}}) {
+    SCOPED_TRACE(std::string(screen) + " + " + geometric);
     TracerOptions o;
-    o.hybridScreen = c.screen;
-    o.hybridGeo = c.geo;
+    o.hybridScreen = screen;
+    o.hybridGeo = geometric;
     const BuiltTracer hybrid = buildTracer("hybrid", f, o);
-    const BuiltTracer reference = std::string(c.geo) == "grid" ? buildTracer("grid", f, o) : buildReference(f);
+    const BuiltTracer reference = std::string(geometric) == "grid" ? buildTracer("grid", f, o) : buildReference(f);
     std::vector<TraceHit> answers(rays.size()), truth(rays.size());
     hybrid.tracer->traceBatch(rays, answers, {});
     reference.tracer->traceBatch(rays, truth, {});
     size_t same = 0;
     for (size_t i = 0; i < rays.size(); ++i) same += sameAnswer(rays[i], answers[i], truth[i]);
-    EXPECT_GE(double(same), c.share * double(rays.size()));
+    EXPECT_GE(double(same), 0.999 * double(rays.size()));
     const HybridStats s = dynamic_cast<const HybridTracer&>(*hybrid.tracer).stats();
     EXPECT_EQ(s.rays, rays.size());
     EXPECT_GT(s.screenFraction(), 0.2);
     EXPECT_GT(s.geoFraction(), 0.02);
     EXPECT_NEAR(s.screenFraction() + s.geoFraction(), 1.0, 1e-12);
+    // Any-hit queries (AO, shadows) accept misses in known space where the screen half marched
+    // solid intervals, and certify them where it did not.
+    hybrid.tracer->occludedBatch(rays, answers, {});
+    reference.tracer->occludedBatch(rays, truth, {});
+    same = 0;
+    for (size_t i = 0; i < rays.size(); ++i) same += answers[i].hit == truth[i].hit;
+    EXPECT_GE(double(same), 0.999 * double(rays.size()));
   }
 }
 

@@ -26,7 +26,7 @@ double msBetween(std::chrono::steady_clock::time_point a, std::chrono::steady_cl
 }  // namespace
 
 HybridTracer::HybridTracer(const Scene& scene, const Camera& camera, const LayerArrays& layers, const KnownSpace& known,
-                           const Tracer& screen, const Tracer& geo, float worldMargin)
+                           const Tracer& screen, const Tracer& geo, float worldMargin, bool uncertainEmptySpace)
     : scene_(scene),
       offsetUnit_(GeometricHits::offsetUnit(scene)),
       camera_(camera),
@@ -36,7 +36,8 @@ HybridTracer::HybridTracer(const Scene& scene, const Camera& camera, const Layer
       geo_(geo),
       hits_(scene, camera),
       bounds_(scene.bounds()),
-      worldMargin_(worldMargin) {
+      worldMargin_(worldMargin),
+      uncertainEmptySpace_(uncertainEmptySpace) {
   LT_CHECK(worldMargin >= 0.0f, worldMargin);
 }
 
@@ -192,9 +193,10 @@ void HybridTracer::run(Query q, std::span<const Ray> rays, std::span<TraceHit> h
     s.best[i] = v;
     s.from[i] = kInf;
     if (q == Query::Any) continue;  // a crossing before maxDistance: occluded
-    // The window from two pixels before the hit pixel (or the crossing, if earlier) to the
-    // crossing: a neighbour triangle the pixel samples missed may be met first.
-    s.geoRays.push_back(segment(r, std::min(v.t, span.before), v.t * (1.0f + 1e-5f)));
+    // The window from two pixels before the hit pixel (or the crossing, if earlier; the origin
+    // where empty space is uncertain) to the crossing: a neighbour triangle the pixel samples
+    // missed may be met first.
+    s.geoRays.push_back(segment(r, uncertainEmptySpace_ ? 0.0f : std::min(v.t, span.before), v.t * (1.0f + 1e-5f)));
     s.geoIndex.push_back(uint32_t(i));
   }
   const auto t1 = Clock::now();
@@ -228,8 +230,11 @@ void HybridTracer::run(Query q, std::span<const Ray> rays, std::span<TraceHit> h
     // A closest-hit miss in known space returns the environment, the most visible error, and
     // the layers can miss a silhouette thinner than a pixel between two samples: geometry
     // certifies it (0.1 % of reflection rays on am_thornish; it removes two thirds of the false
-    // misses there). Any-hit misses (half of all AO and shadow rays) are accepted.
+    // misses there). Any-hit misses (half of all AO and shadow rays) are accepted where the
+    // screen tracer marched solid intervals; where it did not (uncertainEmptySpace_: the
+    // quad-tree), no part of a ray without a checked hit is known to be empty.
     if (q == Query::Closest && !b.hit() && !(s.from[i] < end)) s.from[i] = 0.0f;
+    if (uncertainEmptySpace_ && !b.hit()) s.from[i] = 0.0f;
     if ((q == Query::Any && b.hit()) || !(s.from[i] < end)) {
       if (b.hit()) ++screenHits;
       else ++certainMisses;

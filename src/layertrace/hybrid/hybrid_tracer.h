@@ -82,8 +82,14 @@ class HybridTracer : public Tracer {
   /// `worldMargin` before it to `worldMargin` past it (nothing there: rejected, geometry from the
   /// origin); `worldMargin` also bounds the origin's window, where the tracer ignores its own
   /// surface (ldc.h: a texel).
+  ///
+  /// `uncertainEmptySpace`: the screen tracer's "nothing here" is not certain — it does not march
+  /// solid intervals (the quad-tree marches its own thin planes and can pass a stored surface
+  /// between two samples). Then a ray without a checked hit goes to geometry from its origin (a
+  /// miss in known space as well as the remainder after knowledge ended), and a checked hit's
+  /// window reaches back to the origin: the screen tracer proposes, geometry certifies.
   HybridTracer(const Scene& scene, const Camera& camera, const LayerArrays& layers, const KnownSpace& known, const Tracer& screen,
-               const Tracer& geo, float worldMargin = 0.0f);
+               const Tracer& geo, float worldMargin = 0.0f, bool uncertainEmptySpace = false);
   const char* name() const override { return "hybrid"; }
   TraceHit trace(const Ray& ray, RayCounters& counters) const override;
   void traceBatch(std::span<const Ray> rays, std::span<TraceHit> hits, std::span<RayCounters> counters) const override;
@@ -118,6 +124,7 @@ class HybridTracer : public Tracer {
   GeometricHits hits_;
   Bounds bounds_;
   float worldMargin_ = 0.0f;  ///< > 0: the screen tracer answers in world space (see the constructor)
+  bool uncertainEmptySpace_ = false;
 
   struct Scratch {
     std::vector<Ray> screenRays, geoRays;
