@@ -170,7 +170,8 @@ void HybridTracer::run(Query q, std::span<const Ray> rays, std::span<TraceHit> h
       // the hit, and geometry answers the ray from its origin.
       const float tScreen = glm::dot(sh.point - r.origin, r.dir);
       s.from[i] = 0.0f;
-      s.geoRays.push_back(segment(r, std::max(0.0f, tScreen - worldMargin_), std::min(tScreen + worldMargin_, r.maxDistance)));
+      const float from = uncertainEmptySpace_ ? 0.0f : std::max(0.0f, tScreen - worldMargin_);
+      s.geoRays.push_back(segment(r, from, std::min(tScreen + worldMargin_, r.maxDistance)));
       s.geoIndex.push_back(uint32_t(i));
       continue;
     }

@@ -85,9 +85,10 @@ class HybridTracer : public Tracer {
   ///
   /// `uncertainEmptySpace`: the screen tracer's "nothing here" is not certain — it does not march
   /// solid intervals (the quad-tree marches its own thin planes and can pass a stored surface
-  /// between two samples). Then a ray without a checked hit goes to geometry from its origin (a
-  /// miss in known space as well as the remainder after knowledge ended), and a checked hit's
-  /// window reaches back to the origin: the screen tracer proposes, geometry certifies.
+  /// between two samples; the layered depth cube's texels can miss a thin surface). Then a ray
+  /// without a checked hit goes to geometry from its origin (a miss in known space as well as the
+  /// remainder after knowledge ended), and a hit's window reaches back to the origin: the screen
+  /// tracer proposes, geometry certifies.
   HybridTracer(const Scene& scene, const Camera& camera, const LayerArrays& layers, const KnownSpace& known, const Tracer& screen,
                const Tracer& geo, float worldMargin = 0.0f, bool uncertainEmptySpace = false);
   const char* name() const override { return "hybrid"; }
