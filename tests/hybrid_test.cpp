@@ -365,7 +365,7 @@ TEST(Hybrid, AnalyticRoomGivesTheGeometricAnswers) {
 // Issue 15's accuracy target on real views: ≥ 99.5 % of one-bounce reflection rays in the
 // strict correct classes (correct hit or correct miss), against HSSR's 34–68 %, with the
 // default screen tracer and with the layered depth cube (both ≥ 99.99 % since session 16).
-TEST(Hybrid, RealScenesCorrectShareAtLeast995Percent) {
+TEST(Hybrid, RealScenesCorrectShareAtLeast99_99Percent) {
   ASSERT_TRUE(test::haveFetchedScenes()) << "run scripts/fetch-scenes.sh";
   for (auto [file, camera] : {std::pair{"fzk-haus.json", "interior"}, std::pair{"am-thornish.json", "hall"}, std::pair{"engine.json", "interior"}}) {
     SCOPED_TRACE(file);
