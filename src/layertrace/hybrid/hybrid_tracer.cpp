@@ -181,30 +181,29 @@ void HybridTracer::run(Query q, std::span<const Ray> rays, std::span<TraceHit> h
     const ParamSpan span = rayParamsAroundPixel(camera_, r, makeScreenSegment(camera_, r), sh.x, sh.y, kPixelMargin);
     const GeoHit v = pixelHit(camera_.toWorld(r.origin), camera_.dirToWorld(r.dir), sh.x, sh.y, sh.layer + 1,
                               GeometricHits::originOffset(r, offsetUnit_), span.after);
-    if (!v.hit()) {
-      // The ray passed behind the stored surface (a thickness false hit) or met a neighbour of
-      // the sampled triangle. It got behind a surface without a crossing where the samples
-      // looked, so the march's "empty so far" is not to be trusted for this ray either:
-      // geometry answers it from the origin (measured: from two pixels before the hit pixel
-      // instead, 3× the wrong answers on FZK-Haus and 2× on am_thornish, for 4 % less time).
-      ++rejected;
-      s.from[i] = 0.0f;
-      continue;
-    }
-    s.best[i] = v;
-    s.from[i] = kInf;
-    if (q == Query::Any) continue;  // a crossing before maxDistance: occluded
-    // The window from two pixels before the hit pixel (or the crossing, if earlier; the origin
-    // where empty space is uncertain) to the crossing: a neighbour triangle the pixel samples
-    // missed may be met first.
-    s.geoRays.push_back(segment(r, uncertainEmptySpace_ ? 0.0f : std::min(v.t, span.before), v.t * (1.0f + 1e-5f)));
+    // No crossing: the ray passed behind the stored surface (a thickness false hit) or met a
+    // neighbour of the sampled triangle. It got behind a surface without a crossing where the
+    // samples looked, so the march's "empty so far" is not to be trusted for this ray either:
+    // geometry answers it from the origin (measured: from two pixels before the hit pixel
+    // instead, 3× the wrong answers on FZK-Haus and 2× on am_thornish, for 4 % less time).
+    s.from[i] = 0.0f;
+    if (!v.hit()) continue;
+    // A crossing is a candidate, not the answer (session 16: our ray–triangle test and Embree's
+    // can disagree on a triangle's edge; on assimp's regr01.obj 0.15 % of reflection rays took a
+    // crossing Embree does not see). Geometry over the window from two pixels before the hit
+    // pixel (or the crossing, if earlier; the origin where empty space is uncertain) to two pixels
+    // past it (or just past the crossing, if later), never beyond the ray's end, decides: its
+    // nearest hit is the answer — a neighbour triangle the samples missed may come first — and
+    // nothing there rejects the hit like a missing crossing.
+    const float to = std::min(std::max(span.after, v.t * (1.0f + 1e-5f)), r.maxDistance);
+    s.geoRays.push_back(segment(r, uncertainEmptySpace_ ? 0.0f : std::min(v.t, span.before), to));
     s.geoIndex.push_back(uint32_t(i));
   }
   const auto t1 = Clock::now();
   geoQuery(q == Query::Any ? Query::Any : Query::Closest, s, counters);
   const auto t2 = Clock::now();
-  // A window's hit is the answer: the origin window precedes everything else on the ray, a hit
-  // window ends at the checked crossing.
+  // A window's hit is the answer: the origin window precedes everything else on the ray, and
+  // the space before a hit window is known to be empty.
   for (size_t j = 0; j < s.geoRays.size(); ++j) {
     const TraceHit& g = s.geoHits[j];
     if (!g.hit) continue;
@@ -226,7 +225,7 @@ void HybridTracer::run(Query q, std::span<const Ray> rays, std::span<TraceHit> h
   for (size_t i = 0; i < n; ++i) {
     const Ray& r = rays[i];
     const GeoHit& b = s.best[i];
-    if (world && s.screenHits[i].hit && s.from[i] == 0.0f) ++rejected;  // its window found nothing
+    if (s.screenHits[i].hit && s.from[i] == 0.0f) ++rejected;  // no crossing, or its window found nothing
     const float end = b.hit() ? b.t : r.maxDistance;
     // A closest-hit miss in known space returns the environment, the most visible error, and
     // the layers can miss a silhouette thinner than a pixel between two samples: geometry

@@ -16,10 +16,10 @@
 //     two pixels past the hit pixel (a grazing ray meets the surface a few pixels before its
 //     samples say so). No crossing means the ray got behind a stored surface without a crossing
 //     where the samples looked: the march's "empty so far" is not trusted either, and geometry
-//     answers the ray from its origin. A crossing is certified by a short geometric window —
-//     from two pixels before the hit pixel (or the crossing, if earlier) to the crossing — that
-//     finds a neighbouring triangle the pixel samples missed; the window's nearest hit, or else
-//     the crossing, is the answer.
+//     answers the ray from its origin. A crossing is a candidate that a short geometric window
+//     decides — from two pixels before the hit pixel (or the crossing, if earlier) to two pixels
+//     past it, within the ray: the window's nearest hit is the answer (it may be a neighbouring
+//     triangle the pixel samples missed), and a window that finds nothing rejects the hit.
 //  4. A miss over a ray that stayed in known space is certain up to the pixel sampling. Any-hit
 //     queries accept it; a closest-hit miss (it returns the environment, the most visible error)
 //     is certified by geometry from the origin — 0.1 % of reflection rays on the real views.
