@@ -232,7 +232,8 @@ void HybridTracer::run(Query q, std::span<const Ray> rays, std::span<TraceHit> h
     // certifies it (0.1 % of reflection rays on am_thornish; it removes two thirds of the false
     // misses there). Any-hit misses (half of all AO and shadow rays) are accepted where the
     // screen tracer marched solid intervals; where it did not (uncertainEmptySpace_: the
-    // quad-tree), no part of a ray without a checked hit is known to be empty.
+    // quad-tree, the layered depth cube), no part of a ray without a checked hit is known to be
+    // empty.
     if (q == Query::Closest && !b.hit() && !(s.from[i] < end)) s.from[i] = 0.0f;
     if (uncertainEmptySpace_ && !b.hit()) s.from[i] = 0.0f;
     if ((q == Query::Any && b.hit()) || !(s.from[i] < end)) {
