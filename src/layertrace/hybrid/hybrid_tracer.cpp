@@ -133,13 +133,16 @@ void HybridTracer::run(Query q, std::span<const Ray> rays, std::span<TraceHit> h
   // nearest depth in each pixel (known_space.h), for a pixel or two — 74 % of the screen hits of
   // FZK-Haus's reflection rays lay inside the window and were rejected by the exact check.
   s.windowEnd.assign(n, -1.0f);
+  s.segs.resize(n);
   for (size_t i = 0; i < n; ++i) {
     const Ray& r = rays[i];
     int x, y;
-    if (r.startsOnSurface && camera_.pixelOf(r.origin, x, y))
-      s.windowEnd[i] = std::max(rayParamsAroundPixel(camera_, r, makeScreenSegment(camera_, r), x, y, kPixelMargin).after, worldMargin_);
-    else if (world && r.startsOnSurface)
-      s.windowEnd[i] = worldMargin_;
+    const bool onScreen = r.startsOnSurface && camera_.pixelOf(r.origin, x, y);
+    // The ray's pixels, made once: for the origin's window and a screen hit's check (a world
+    // tracer's hits need none).
+    if (onScreen || !world) s.segs[i] = makeScreenSegment(camera_, r);
+    if (onScreen) s.windowEnd[i] = std::max(rayParamsAroundPixel(camera_, r, s.segs[i], x, y, kPixelMargin).after, worldMargin_);
+    else if (world && r.startsOnSurface) s.windowEnd[i] = worldMargin_;
   }
   for (size_t i = 0; i < n && !world; ++i) {
     const KnownSpace::Boundary& b = s.boundaries[i];
@@ -178,7 +181,7 @@ void HybridTracer::run(Query q, std::span<const Ray> rays, std::span<TraceHit> h
     // 3: the ray against the triangles of the hit pixel's layers up to the hit one, anywhere
     // up to two pixels past the hit pixel (a grazing ray meets the surface a few pixels before
     // its samples say so).
-    const ParamSpan span = rayParamsAroundPixel(camera_, r, makeScreenSegment(camera_, r), sh.x, sh.y, kPixelMargin);
+    const ParamSpan span = rayParamsAroundPixel(camera_, r, s.segs[i], sh.x, sh.y, kPixelMargin);
     const GeoHit v = pixelHit(camera_.toWorld(r.origin), camera_.dirToWorld(r.dir), sh.x, sh.y, sh.layer + 1,
                               GeometricHits::originOffset(r, offsetUnit_), span.after);
     // No crossing: the ray passed behind the stored surface (a thickness false hit) or met a

@@ -48,6 +48,7 @@
 #include "layertrace/scene/camera.h"
 #include "layertrace/scene/scene.h"
 #include "layertrace/screen/known_space.h"
+#include "layertrace/screen/screen_segment.h"
 #include "layertrace/trace/tracer.h"
 
 namespace lt {
@@ -132,6 +133,7 @@ class HybridTracer : public Tracer {
     std::vector<TraceHit> screenHits, geoHits;
     std::vector<float> from;  ///< per ray: where geometry must take over (+∞: answered)
     std::vector<float> windowEnd;  ///< per ray: where the origin's geometric window ends (≤ 0: none)
+    std::vector<ScreenSegment> segs;  ///< per ray: its screen segment (where a window or a check needs it)
     std::vector<KnownSpace::Boundary> boundaries;
     std::vector<uint32_t> geoIndex;
     std::vector<GeoHit> best;

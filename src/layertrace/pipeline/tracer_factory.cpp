@@ -83,7 +83,8 @@ BuiltTracer buildTracer(const std::string& name, const Frame& frame, const Trace
     b.tracer = makeGridTracer(frame.scene, frame.camera, *b.grid);
   } else if (name == "hybrid") {
     validateTracerOptions(o);
-    // Triangles thinner than a pixel that cross pixels unstored end those pixels' knowledge.
+    // Triangles thinner than a pixel that cross pixels unstored end those pixels' knowledge; the
+    // nearest depth any triangle has inside a pixel starts its solid intervals.
     const UnsampledDepths unsampled = unsampledDepths(frame.scene, frame.camera, frame.layers, kHybridLastThicknessPx);
     const CaptureCoverage coverage{frame.layers, frame.lists.complexity, frame.frontFacesOnly, unsampled.unsampled, unsampled.nearest};
     const bool pyramidScreen = o.hybridScreen == "hssr" || o.hybridScreen == "hiz";

@@ -21,9 +21,10 @@ struct UnsampledDepths {
   /// The nearest depth of a surface that crosses the pixel without the pixel holding it (+∞
   /// elsewhere): knowledge ends there (known_space.h, rule 3).
   std::vector<float> unsampled;
-  /// The nearest depth of any triangle over the pixel's square (+∞ where none is; never behind
-  /// the pixel's first stored surface, which its sample saw at the centre): a ray can meet a
-  /// surface that far in front of the centre sample inside the pixel.
+  /// The nearest depth of any triangle over the pixel's square where that lies in front of the
+  /// pixel's first stored surface (+∞ elsewhere, and on pixels that store nothing — `unsampled`
+  /// covers those): a ray can meet a surface that far in front of the centre sample inside the
+  /// pixel.
   std::vector<float> nearest;
 };
 

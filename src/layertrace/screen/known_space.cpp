@@ -67,7 +67,7 @@ IntervalLayers solidIntervals(const Camera& camera, const CaptureCoverage& c, fl
     // steep in depth across the pixel (grazing, or a neighbour triangle covering part of the
     // pixel): a ray crossing that surface there, in front of every sample, then passes behind
     // it unseen (found on assimp's ClearCoatTest.gltf, the camera inside its thin plate: 1.2 %
-    // of AO rays passed through the plate's edge seen at a slant). From the nearest depth on the
+    // of AO rays passed through the plate's far face, seen at a grazing angle). From the nearest depth on the
     // pixel is solid, so such a ray meets the interval, and the exact check decides.
     if (n > 0 && !c.nearest.empty()) iv[0].front = std::min(iv[0].front, c.nearest[p]);
     // An unstored surface crossing the pixel (raster/unsampled.h): what lies behind its depth d
