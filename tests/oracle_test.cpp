@@ -92,6 +92,45 @@ TEST(Oracle, RayWhoseDepthShrinksEntersTheDeeperOverlappingIntervalFirst) {
   EXPECT_GT(deeperFirst, 100) << "the rays must exercise the case: the deeper interval met first";
 }
 
+// Session 17: two AO rays of unseen assimp models (cube.ply, box.3mf) ended 1e-6 px inside a
+// pixel column in double and exactly on its boundary in float, and met an interval only in
+// that sliver: HSSR missed, the oracle hit, and nothing flagged the ray as undecidable. A ray
+// whose end lies within a float line's error of a boundary, with an interval at its end depth
+// across it, is ambiguous; one a tenth of a pixel away is decided, as HSSR decides it.
+TEST(Oracle, RayEndingOnAPixelBoundaryIsAmbiguousWhereTheSliverDecides) {
+  constexpr int W = 64, H = 36, column = 39;
+  const Camera camera(test::originCamera(60.0f, 0.05f, 100.0f), W, H);
+  LayerArrays layers = uniformLayers(W, H, {{4.0f, 4.1f}});
+  for (int y = 0; y < H; ++y)
+    for (int x = 0; x < W; ++x)
+      if (x != column) layers.count[layers.pixelIndex(x, y)] = 0;
+  const IntervalPyramid pyramid = buildIntervalPyramid(layers, camera, PyramidConfig{5, 25.0f});
+  const HssrTracer hssr(camera, layers, pyramid, HssrConfig{2, 5});
+  const ImageSpaceOracle oracle(camera, layers);
+  // From depth 5 at pixel (20.5, 18.5) to depth 4.05 where the column's left edge is: the
+  // column's interval holds the end, the pixels before it hold nothing.
+  auto rayEndingAt = [&](double xEnd) {
+    const double f = camera.focal();
+    auto at = [&](double x, double y, double depth) { return glm::dvec3((x - 0.5 * W) * depth / f, -(y - 0.5 * H) * depth / f, -depth); };
+    const glm::dvec3 o = at(20.5, 18.5, 5.0), e = at(xEnd, 18.5, 4.05);
+    const glm::dvec3 d = e - o;
+    return Ray{glm::vec3(o), glm::vec3(glm::normalize(d)), float(glm::length(d))};
+  };
+  for (double delta : {-3e-4, -1e-4, -1e-5, 0.0, 1e-5, 1e-4, 3e-4}) {
+    SCOPED_TRACE(delta);
+    EXPECT_TRUE(oracle.answer(rayEndingAt(column + delta)).ambiguous);
+  }
+  for (double delta : {-0.1, 0.1}) {
+    SCOPED_TRACE(delta);
+    const Ray r = rayEndingAt(column + delta);
+    const OracleAnswer a = oracle.answer(r);
+    ASSERT_FALSE(a.ambiguous);
+    EXPECT_EQ(a.hit.hit, delta > 0.0);
+    RayCounters c;
+    EXPECT_EQ(hssr.trace(r, c).hit, a.hit.hit);
+  }
+}
+
 // Issue 10 §3: the coarse entry divides by k1 − k0, ill-conditioned for rays nearly parallel to
 // the image plane (origin (−5, 0, −10), direction ≈ (1, 0, −2e-5), 1280×720, 60°: an error of
 // about 1.7 pixels); the back-off must cover it so the hierarchy never skips the pixel its own
