@@ -72,33 +72,38 @@ TEST(TraceInterface, EmbreePacketsAnswerAsSingleRays) {
   const Frame f = defaultFrame();
   std::vector<Ray> rays = test::sampleRays(f, 3000, test::testSeed() + 1);
   for (size_t i = 0; i < rays.size(); i += 3) rays[i].maxDistance *= 0.05f;  // each ray its own tfar
-  const BuiltTracer single = buildTracer("embree", f, TracerOptions{});
-  const EmbreePacketTracer packets(f.scene, f.camera, *single.embree);
-  std::vector<TraceHit> batch(rays.size());
-  for (size_t b = 0; b < rays.size(); b += 37) {
-    const size_t n = std::min<size_t>(37, rays.size() - b);
-    packets.traceBatch(std::span<const Ray>(&rays[b], n), std::span<TraceHit>(&batch[b], n), {});
+  // Plain Embree (the hybrid's default geometric half) and robust Embree (--hybrid-geo
+  // embree-robust) alike.
+  for (const bool robust : {false, true}) {
+    SCOPED_TRACE(robust ? "robust" : "plain");
+    const BuiltTracer single = robust ? buildReference(f) : buildTracer("embree", f, TracerOptions{});
+    const EmbreePacketTracer packets(f.scene, f.camera, *single.embree);
+    std::vector<TraceHit> batch(rays.size());
+    for (size_t b = 0; b < rays.size(); b += 37) {
+      const size_t n = std::min<size_t>(37, rays.size() - b);
+      packets.traceBatch(std::span<const Ray>(&rays[b], n), std::span<TraceHit>(&batch[b], n), {});
+    }
+    std::vector<TraceHit> blocked(rays.size());
+    for (size_t b = 0; b < rays.size(); b += 37) {
+      const size_t n = std::min<size_t>(37, rays.size() - b);
+      packets.occludedBatch(std::span<const Ray>(&rays[b], n), std::span<TraceHit>(&blocked[b], n), {});
+    }
+    std::vector<TraceHit> anyOne(rays.size());
+    std::vector<RayCounters> counters(rays.size());
+    single.tracer->occludedBatch(rays, anyOne, counters);  // counted: rtcOccluded1 per ray
+    size_t hits = 0, differ = 0, differAny = 0;
+    for (size_t i = 0; i < rays.size(); ++i) {
+      RayCounters c;
+      const TraceHit one = single.tracer->trace(rays[i], c), any = anyOne[i];
+      hits += one.hit;
+      differ += !sameHit(one, batch[i]);
+      differAny += !sameHit(any, blocked[i]);
+    }
+    EXPECT_GT(hits, rays.size() / 4);
+    EXPECT_LT(hits, rays.size() - rays.size() / 10) << "the short rays should miss";
+    EXPECT_EQ(differ, 0u) << "of " << rays.size() << " rays (closest hit)";
+    EXPECT_EQ(differAny, 0u) << "of " << rays.size() << " rays (any hit)";
   }
-  std::vector<TraceHit> blocked(rays.size());
-  for (size_t b = 0; b < rays.size(); b += 37) {
-    const size_t n = std::min<size_t>(37, rays.size() - b);
-    packets.occludedBatch(std::span<const Ray>(&rays[b], n), std::span<TraceHit>(&blocked[b], n), {});
-  }
-  std::vector<TraceHit> anyOne(rays.size());
-  std::vector<RayCounters> counters(rays.size());
-  single.tracer->occludedBatch(rays, anyOne, counters);  // counted: rtcOccluded1 per ray
-  size_t hits = 0, differ = 0, differAny = 0;
-  for (size_t i = 0; i < rays.size(); ++i) {
-    RayCounters c;
-    const TraceHit one = single.tracer->trace(rays[i], c), any = anyOne[i];
-    hits += one.hit;
-    differ += !sameHit(one, batch[i]);
-    differAny += !sameHit(any, blocked[i]);
-  }
-  EXPECT_GT(hits, rays.size() / 4);
-  EXPECT_LT(hits, rays.size() - rays.size() / 10) << "the short rays should miss";
-  EXPECT_EQ(differ, 0u) << "of " << rays.size() << " rays (closest hit)";
-  EXPECT_EQ(differAny, 0u) << "of " << rays.size() << " rays (any hit)";
 }
 
 /// Records every event, and re-traces its ray with the one-ray path to check the answer.

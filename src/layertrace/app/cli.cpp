@@ -117,7 +117,7 @@ void addTracerOptions(CLI::App* app, lt::TracerOptions& t) {
   app->add_option("--gamma-norm", t.quadtree.gammaNorm, "quadtree: merge planes whose normals differ by less (1 - dot)")->capture_default_str();
   app->add_option("--gamma-dist", t.quadtree.gammaDist, "quadtree: merge planes within this relative depth")->capture_default_str();
   app->add_option("--hybrid-screen", t.hybridScreen, "hybrid: the screen tracer (hssr, hiz, quadtree, ldc)")->capture_default_str();
-  app->add_option("--hybrid-geo", t.hybridGeo, "hybrid: the geometric tracer for what the layers do not know (embree, grid)")->capture_default_str();
+  app->add_option("--hybrid-geo", t.hybridGeo, "hybrid: the geometric tracer for what the layers do not know (embree, embree-robust, grid)")->capture_default_str();
   addLdcOptions(app, t.ldc);
   addGridOptions(app, t.grid);
 }

@@ -31,7 +31,7 @@ struct TracerOptions {
   QuadtreeConfig quadtree;
   LdcConfig ldc;
   std::string hybridScreen = "hssr";  ///< --hybrid-screen: hssr, hiz, quadtree or ldc
-  std::string hybridGeo = "embree";   ///< --hybrid-geo: embree or grid
+  std::string hybridGeo = "embree";   ///< --hybrid-geo: embree, embree-robust or grid
 };
 
 /// Throws InputError naming the option for any invalid value, whichever tracer will run.
