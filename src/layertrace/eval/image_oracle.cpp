@@ -77,34 +77,31 @@ OracleAnswer ImageSpaceOracle::answer(const Ray& ray) const {
   const double lineLength = std::max(std::hypot(x1 - x0, y1 - y0), 1e-12);
   const double ux = (x1 - x0) / lineLength, uy = (y1 - y0) / lineLength;  // the 2D line's direction
 
-  // An end of the walk within a float line's error of a pixel boundary: a float tracer may end
+  // Does pixel (ax, ay) — one a float tracer may visit where the double walk does not, or skip
+  // — hold an interval within `m` of depth z? (Never the origin's own pixel.)
+  auto holdsNear = [&](int ax, int ay, double z, double m) {
+    if (ax < 0 || ay < 0 || ax >= int(W) || ay >= int(H) || (ax == ox0 && ay == oy0)) return false;
+    const FragmentNode* fr = layers_.pixel(ax, ay);
+    for (int i = 0; i < layers_.countAt(ax, ay); ++i)
+      if (double(fr[i].depth) <= z + m && double(fr[i].back()) >= z - m) return true;
+    return false;
+  };
+  // The segment's end within a float line's error of a pixel boundary: a float tracer may end
   // just before it or just past it, so it may or may not visit a sliver of the pixel across it
   // (assimp's cube.ply and box.3mf: AO rays whose end projected to 196.99999… in double, 197 in
   // float, the only interval they met in that sliver). Ambiguous when a pixel on either side
-  // holds an interval within the margin of the end's depth.
-  const double avgSlope = std::abs(depth(tEnd) - depth(tStart)) / lineLength;
-  auto sliverAt = [&](double t) {
-    const double x = px(t), y = py(t), z = depth(t);
-    const double lineMargin = kLineMargin + kLineRelative * std::hypot(x - x0, y - y0);
-    const double m = kDepthMargin * z + 2.0 * avgSlope * lineMargin;
+  // holds an interval within the margin of the end's depth and nothing was met before it.
+  const bool endSliver = [&] {
+    const double x = x1, y = y1, z = depth(tEnd);
+    const double lineMargin = kLineMargin + kLineRelative * lineLength;
+    const double m = kDepthMargin * z + 2.0 * std::abs(z - depth(tStart)) / lineLength * lineMargin;
     const double X = std::round(x), Y = std::round(y);
     const bool nearX = std::abs(x - X) <= lineMargin, nearY = std::abs(y - Y) <= lineMargin;
     if (!nearX && !nearY) return false;
-    const int xs[2] = {nearX ? int(X) - 1 : int(std::floor(x)), nearX ? int(X) : int(std::floor(x))};
-    const int ys[2] = {nearY ? int(Y) - 1 : int(std::floor(y)), nearY ? int(Y) : int(std::floor(y))};
-    for (int ax : xs)
-      for (int ay : ys) {
-        if (ax < 0 || ay < 0 || ax >= int(W) || ay >= int(H) || (ax == ox0 && ay == oy0)) continue;
-        const FragmentNode* fr = layers_.pixel(ax, ay);
-        for (int i = 0; i < layers_.countAt(ax, ay); ++i)
-          if (double(fr[i].depth) <= z + m && double(fr[i].back()) >= z - m) return true;
-      }
-    return false;
-  };
-  // A start within the margin may add a pixel before everything else (rays entering the view);
-  // an end may add or drop the last pixel, which matters only if nothing was met before it.
-  if (clipped && sliverAt(tStart)) out.ambiguous = true;
-  const bool endSliver = sliverAt(tEnd);
+    const int xa = nearX ? int(X) - 1 : int(std::floor(x)), xb = nearX ? int(X) : xa;
+    const int ya = nearY ? int(Y) - 1 : int(std::floor(y)), yb = nearY ? int(Y) : ya;
+    return holdsNear(xa, ya, z, m) || holdsNear(xb, ya, z, m) || holdsNear(xa, yb, z, m) || holdsNear(xb, yb, z, m);
+  }();
 
   // 3. Walk the pixels between consecutive crossings.
   double tPrev = tStart;
@@ -139,12 +136,7 @@ OracleAnswer ImageSpaceOracle::answer(const Ray& ray) const {
       const double distance = std::min(std::abs(px(tRow) - X), std::abs(py(tCol) - Y));
       if (distance <= lineMargin) {
         const double z = depth(cs[c].t);
-        for (const auto& [ax, ay] : {std::pair{x + sx, y}, std::pair{x, y + sy}}) {
-          if (ax < 0 || ay < 0 || ax >= int(W) || ay >= int(H) || (ax == ox0 && ay == oy0)) continue;
-          const FragmentNode* fr = layers_.pixel(ax, ay);
-          for (int i = 0; i < layers_.countAt(ax, ay); ++i)
-            if (double(fr[i].depth) <= z + margin(z) && double(fr[i].back()) >= z - margin(z)) out.ambiguous = true;
-        }
+        if (holdsNear(x + sx, y, z, margin(z)) || holdsNear(x, y + sy, z, margin(z))) out.ambiguous = true;
       }
     }
     if (x == ox0 && y == oy0) continue;  // the origin's own pixel (seed 000 §5.1)

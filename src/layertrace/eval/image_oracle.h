@@ -21,10 +21,10 @@
 // an overlap test within 1e-5 relative of the interval's ends (plus what a pixel boundary
 // sliding along the line by the float line's error does to the ray's depth range), a near tie
 // between two intervals, or a pixel corner passed closer than a float line's error (5e-4 px
-// plus 4e-6 × the pixels travelled) where the corner pixel holds an overlapping interval, or an
-// end of the segment (its start, for a ray entering the view) that close to a pixel boundary
-// where a pixel on either side holds an interval at the end's depth — the float line may or may
-// not reach into that pixel, and the answer depends on it (a miss, or a hit in the last pixel). A
+// plus 4e-6 × the pixels travelled) where the corner pixel holds an overlapping interval, or the
+// segment's end that close to a pixel boundary where a pixel on either side holds an interval
+// at the end's depth — the float line may or may not reach into that pixel, and the answer
+// depends on it (a miss, or a hit in the last pixel). A
 // float tracer may legitimately decide such rays either way, so they are counted apart
 // (`rays.oracle_ambiguous`) instead of as mismatches.
 #pragma once
