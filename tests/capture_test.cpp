@@ -2,6 +2,8 @@
 // (rasterize into lists, then sort and truncate) bit for bit, for any tile size and thread count,
 // and reuses its memory from frame to frame.
 #include <algorithm>
+#include <bit>
+#include <limits>
 #include <cstring>
 #include <random>
 
@@ -415,6 +417,30 @@ TEST(Capture, Transpose16) {
   simd512::transpose16(&m[0][0], &t[0][0]);
   for (int i = 0; i < 16; ++i)
     for (int j = 0; j < 16; ++j) ASSERT_EQ(t[i][j], m[j][i]) << i << ", " << j;
+}
+
+// The lanes' max and min are std::max and std::min bit for bit — which operand wins on ties
+// (−0 against +0) and on NaN in either place is what keeps the lane marches equal to the
+// scalar ones. Swapping the operands of the one-instruction form fails on the zero and NaN pairs.
+TEST(Capture, LaneMaxMinAreStdMaxMinBitForBit) {
+  if (!simd512Available()) {
+    GTEST_SKIP() << "no AVX-512 on this CPU";
+  }
+  const float nan = std::numeric_limits<float>::quiet_NaN(), inf = std::numeric_limits<float>::infinity();
+  const float special[] = {-inf, -1.5f, -0.0f, 0.0f, std::numeric_limits<float>::denorm_min(), 1.5f, inf, nan, -nan, 1.5f};
+  std::vector<float> a, b;
+  for (float x : special)
+    for (float y : special) a.push_back(x), b.push_back(y);
+  while (a.size() % 16) a.push_back(0.0f), b.push_back(-0.0f);
+  auto bits = [](float f) { return std::bit_cast<uint32_t>(f); };
+  for (size_t i = 0; i < a.size(); i += 16) {
+    alignas(64) float mx[16], mn[16];
+    simd512::maxMin16(&a[i], &b[i], mx, mn);
+    for (size_t j = 0; j < 16; ++j) {
+      ASSERT_EQ(bits(mx[j]), bits(std::max(a[i + j], b[i + j]))) << a[i + j] << ", " << b[i + j];
+      ASSERT_EQ(bits(mn[j]), bits(std::min(a[i + j], b[i + j]))) << a[i + j] << ", " << b[i + j];
+    }
+  }
 }
 #endif
 

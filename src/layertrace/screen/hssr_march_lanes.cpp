@@ -139,23 +139,20 @@ __attribute__((noinline)) uint32_t step(Lanes& ln, const Tables& tb) {
   const M live = ge(load<I>(ln.ray), zero), increasing{ln.increasing};
   const M posX = gt(stepX, zero), posY = gt(stepY, zero);
 
-  // The step cap (never reached by a conservative DDA) and the level's bounds.
-  M miss = live & ge(guard, zero + tb.safety);
-  M act = live & ~miss;
-  const M outside = lt(cx, zero) | lt(cy, zero) | ge(cx, lookup(L, tb.width)) | ge(cy, lookup(L, tb.height));
-  miss = miss | (act & outside);
-  act = act & ~outside;
+  // The step cap (never reached by a conservative DDA), the level's bounds, the segment's end.
+  // (A live lane that does not step on — act minus the lanes that hit, bail or leave — is
+  // finished: the step returns live & ~(stepped | descended) instead of collecting misses.)
+  M act = lt(live, guard, zero + tb.safety);
+  act = andNot(act, outside(cx, lookup(L, tb.width)) | outside(cy, lookup(L, tb.height)));
   const F sIn = vmax(xIn, yIn), sOut = vmin(xOut, yOut);
   const M level0 = eq(L, zero);
   const F s0 = sel(level0, vmax(sIn, load<F>(ln.sStart)), vmax(sIn, s));
   const F s1 = vmin(sOut, F{} + 1.0f);
-  const M past = gt(s0, F{} + 1.0f);  // the segment ended before this cell
-  miss = miss | (act & past);
-  act = act & ~past;
+  act = notGt(act, s0, F{} + 1.0f);  // (past: the segment ended before this cell)
 
   // The cell's 32-byte record: k ≤ 4 intervals {front, back} of a pixel, or a coarse cell's
   // four κFront then four κBack (requested at the end of the previous step).
-  const M at0 = act & level0, coarse = act & ~level0;
+  const M at0 = act & level0, coarse = andNot(act, level0);
   F field[8];
   loadRecords(ln, tb, field);
 
@@ -173,13 +170,13 @@ __attribute__((noinline)) uint32_t step(Lanes& ln, const Tables& tb) {
     M scan = at0;
     for (int i = 0; i < tb.k; ++i) {
       const F front = field[2 * i], back = field[2 * i + 1];
-      scan = scan & ~gt(front, zmax);  // sorted by front: nothing further can overlap (nor the sentinel)
-      const M overlap = scan & ~lt(back, zmin);
+      scan = notGt(scan, front, zmax);  // sorted by front: nothing further can overlap (nor the sentinel)
+      const M overlap = notLt(scan, back, zmin);
       const M first = overlap & increasing;  // depth grows: the first overlap in front order
       found = sel(first, zero + i, found);
-      scan = scan & ~first;
-      const F entry = sel(lt(back, zmax), back, zmax);  // depth shrinks: the largest entry depth
-      const M later = overlap & ~increasing & (lt(found, zero) | ge(entry, bestEntry));
+      scan = andNot(scan, first);
+      const F entry = vmin(zmax, back);  // depth shrinks: the largest entry depth (back < zmax ? back : zmax)
+      const M later = andNot(overlap, increasing) & (lt(found, zero) | ge(entry, bestEntry));
       found = sel(later, zero + i, found);
       bestEntry = sel(later, entry, bestEntry);
     }
@@ -197,8 +194,8 @@ __attribute__((noinline)) uint32_t step(Lanes& ln, const Tables& tb) {
     M scan = coarse;
     for (int i = 0; i < CoarseCell::kSlots; ++i) {
       const F kFront = field[i], kBack = field[CoarseCell::kSlots + i];
-      scan = scan & ~lt(kFront, kmin);
-      const M overlap = scan & ~gt(kBack, kmax);
+      scan = notLt(scan, kFront, kmin);
+      const M overlap = notGt(scan, kBack, kmax);
       const F kz = sel(increasing, kFront, kBack);
       const F p = (kz - k0) * invDk;
       const F e = p - vmax(pixelBackoff, 8.0f * u * (vmax(kScale, kz * invAbsDk) + vabs(p)));
@@ -209,7 +206,7 @@ __attribute__((noinline)) uint32_t step(Lanes& ln, const Tables& tb) {
   const M descend = coarse & ne(sHit, F{} + inf);
 
   // Descent (seed 000 §5.2): advance to the entry, choose the child holding s.
-  M bail{0};
+  M bail{0}, d{0};
   if (descend.bits) {
     const F sNew = vmax(s, sHit);
     const I Ld = L - 1, half = one << Ld;
@@ -223,14 +220,15 @@ __attribute__((noinline)) uint32_t step(Lanes& ln, const Tables& tb) {
       const F cxIn = sel(firstX, xIn, mx), cxOut = sel(firstX, mx, xOut);
       const F cyIn = sel(firstY, yIn, my), cyOut = sel(firstY, my, yOut);
       const F a = vmax(cxIn, cyIn), b = vmin(cxOut, cyOut);
-      const M ok = le(a, sNew) & le(sNew, b) & ~(eq(b, sNew) & lt(a, b)) & ~(eq(a, b) & (le(cxOut, cyOut) | eq(a, cornerLeft)));
+      const M in = le(le(descend, a, sNew), sNew, b);
+      const M ok = andNot(andNot(in, lt(eq(in, b, sNew), a, b)), eq(in, a, b) & (le(cxOut, cyOut) | eq(a, cornerLeft)));
       const M take = ok & (lt(best, zero) | lt(b, bestOut));
       best = sel(take, zero + q, best);
       bestOut = sel(take, b, bestOut);
       bxIn = sel(take, cxIn, bxIn), bxOut = sel(take, cxOut, bxOut), byIn = sel(take, cyIn, byIn), byOut = sel(take, cyOut, byOut);
     }
-    bail = descend & lt(best, zero);  // rounding left s outside every child: hssrMarch's fallback
-    const M d = descend & ~bail;
+    bail = lt(descend, best, zero);  // rounding left s outside every child: hssrMarch's fallback
+    d = andNot(descend, bail);
     s = sel(d, sNew, s);
     L = sel(d, Ld, L);
     cx = sel(d, 2 * cx + (best & 1), cx);
@@ -240,16 +238,14 @@ __attribute__((noinline)) uint32_t step(Lanes& ln, const Tables& tb) {
   }
 
   // No overlap: step to the next cell of this level, and ascend after n_up of them.
-  M move = act & ~hit & ~descend;
-  cornerLeft = sel(move & eq(sIn, sOut), sOut, cornerLeft);
+  M move = andNot(andNot(act, hit), descend);
+  cornerLeft = sel(eq(move, sIn, sOut), sOut, cornerLeft);
   s = sel(move, vmax(s, s1), s);
-  const M leaves = move & ge(sOut, F{} + 1.0f);
-  miss = miss | leaves;
-  move = move & ~leaves;
+  move = notGe(move, sOut, F{} + 1.0f);  // (the others leave the segment: a miss)
   {
     const I size = one << L;
     const M exitX = le(xOut, yOut);  // ties step in x first (hssr-pitfalls §7)
-    const M mx = move & exitX, my = move & ~exitX;
+    const M mx = move & exitX, my = andNot(move, exitX);
     cx = sel(mx, cx + stepX, cx);
     cy = sel(my, cy + stepY, cy);
     const F nextX = (__builtin_convertvector(sel(posX, cx + 1, cx) * size, F) - p0x) * invDx;
@@ -258,10 +254,10 @@ __attribute__((noinline)) uint32_t step(Lanes& ln, const Tables& tb) {
     yIn = sel(my, yOut, yIn), yOut = sel(my, nextY, yOut);
     misses = sel(move, misses + 1, misses);
     const I Lu = L + 1, px = cx >> 1, py = cy >> 1;
-    M up = move & ge(misses, zero + tb.nUp) & lt(Lu, zero + tb.levels);
+    M up = lt(ge(move, misses, zero + tb.nUp), Lu, zero + tb.levels);
     // seed 000 §5.2: only ascend when the coarser cell does not overlap the origin pixel.
-    up = up & (ne(load<I>(ln.ox) >> Lu, px) | ne(load<I>(ln.oy) >> Lu, py));
-    up = up & lt(px, lookup(Lu, tb.width)) & lt(py, lookup(Lu, tb.height)) & ge(cx, zero) & ge(cy, zero);
+    up = ne(up, load<I>(ln.ox) >> Lu, px) | ne(up, load<I>(ln.oy) >> Lu, py);
+    up = lt(lt(up, px, lookup(Lu, tb.width)), py, lookup(Lu, tb.height)) & ge(cx, zero) & ge(cy, zero);
     if (up.bits) {
       L = sel(up, Lu, L);
       cx = sel(up, px, cx), cy = sel(up, py, cy);
@@ -285,15 +281,15 @@ __attribute__((noinline)) uint32_t step(Lanes& ln, const Tables& tb) {
   {
     // A cell outside its level gets record 0 of the level (any valid address: the lane stops
     // before reading it).
-    const M inside = ge(cx, zero) & ge(cy, zero) & lt(cx, lookup(L, tb.width)) & lt(cy, lookup(L, tb.height));
-    const I index = sel(inside, cy * lookup(L, tb.rowWidth) + cx, zero);
+    const M out = outside(cx, lookup(L, tb.width)) | outside(cy, lookup(L, tb.height));
+    const I index = sel(out, zero, cy * lookup(L, tb.rowWidth) + cx);
     const Q levelLo = lowHalf(L), levelHi = highHalf(L);
     store(ln.offset, lookup(levelLo, tb.base) + lowHalf(index) * lookup(levelLo, tb.recordBytes));
     store(ln.offset + 8, lookup(levelHi, tb.base) + highHalf(index) * lookup(levelHi, tb.recordBytes));
     const uintptr_t origin = reinterpret_cast<uintptr_t>(tb.origin);
     for (int j = 0; j < kLanes; ++j) __builtin_prefetch(reinterpret_cast<const void*>(origin + uintptr_t(ln.offset[j])));
   }
-  return (miss | hit | bail).bits;
+  return andNot(live, move | d).bits;
 }
 
 /// The batch through the lanes: refill every lane that finished with the next segment.

@@ -22,13 +22,13 @@ inline I firstMetLanes(const F field[8], int k, F zmin, F zmax, M scan, M increa
   F bestEntry = F{};
   for (int i = 0; i < k; ++i) {
     const F front = field[2 * i], back = field[2 * i + 1];
-    scan = scan & ~gt(front, zmax);  // sorted by front: nothing further can overlap (nor the sentinel)
-    const M overlap = scan & ~lt(back, zmin);
+    scan = notGt(scan, front, zmax);  // sorted by front: nothing further can overlap (nor the sentinel)
+    const M overlap = notLt(scan, back, zmin);
     const M first = overlap & increasing;  // depth grows: the first overlap in front order
     found = sel(first, zero + i, found);
-    scan = scan & ~first;
-    const F entry = sel(lt(back, zmax), back, zmax);  // depth shrinks: the largest entry depth
-    const M later = overlap & ~increasing & (lt(found, zero) | ge(entry, bestEntry));
+    scan = andNot(scan, first);
+    const F entry = vmin(zmax, back);  // depth shrinks: the largest entry depth (back < zmax ? back : zmax)
+    const M later = andNot(overlap, increasing) & (lt(found, zero) | ge(entry, bestEntry));
     found = sel(later, zero + i, found);
     bestEntry = sel(later, entry, bestEntry);
   }

@@ -60,10 +60,10 @@ inline void nextPixel(Lanes& ln, const Tables& tb) {
   const M permute{ln.permute};
   const I px = floorToInt(load<F>(ln.px)), py = floorToInt(load<F>(ln.py));
   const I x = sel(permute, py, px), y = sel(permute, px, py), zero = I{};
-  const M inside = ge(x, zero) & ge(y, zero) & lt(x, zero + tb.W) & lt(y, zero + tb.H);
+  const M out = outside(x, zero + tb.W) | outside(y, zero + tb.H);
   // Lanes outside the view read pixel 0 (their x, y are clamped first: y * width of a lane far
   // outside would overflow).
-  store(ln.x, x), store(ln.y, y), store(ln.pixel, sel(inside, y, zero) * tb.width + sel(inside, x, zero));
+  store(ln.x, x), store(ln.y, y), store(ln.pixel, sel(out, zero, y) * tb.width + sel(out, zero, x));
 }
 
 void start(Lanes& ln, int j, const SsrStart& m, int i) {
@@ -86,9 +86,9 @@ __attribute__((noinline)) uint32_t step(Lanes& ln, const Tables& tb) {
   I steps = load<I>(ln.step);
   const M live = ge(load<I>(ln.ray), zero);
   // The loop's condition, then the sample's pixel and the view's bounds.
-  M act = live & lt(steps, zero + tb.maxSteps) & le(s, F{} + 1.0f);
+  M act = le(lt(live, steps, zero + tb.maxSteps), s, F{} + 1.0f);
   const I x = load<I>(ln.x), y = load<I>(ln.y);  // the sample's pixel (nextPixel)
-  act = act & ge(x, zero) & ge(y, zero) & lt(x, zero + tb.W) & lt(y, zero + tb.H);
+  act = andNot(act, outside(x, zero + tb.W) | outside(y, zero + tb.H));
   // The depth range from half a step back to half a step ahead (clamped to the segment).
   const F prevDepth = load<F>(ln.prevDepth);
   const F nextDepth = 1.0f / vmin(vmax(kHalf, load<F>(ln.kLo)), load<F>(ln.kHi));
@@ -119,7 +119,7 @@ __attribute__((noinline)) uint32_t step(Lanes& ln, const Tables& tb) {
   const I found = firstMetLanes(field, tb.k, zmin, zmax, act, increasing);
   const M hit = act & ge(found, zero);
   // No hit: advance (++step, s += dsStep, P += dP, κ += dκ).
-  const M move = act & ~hit;
+  const M move = andNot(act, hit);
   store(ln.prevDepth, sel(move, nextDepth, prevDepth));
   store(ln.step, sel(move, steps + one, steps));
   store(ln.s, sel(move, s + load<F>(ln.dsStep), s));
