@@ -171,6 +171,7 @@ __attribute__((noinline)) uint32_t step(Lanes& ln, const Tables& tb) {
     for (int i = 0; i < tb.k; ++i) {
       const F front = field[2 * i], back = field[2 * i + 1];
       scan = notGt(scan, front, zmax);  // sorted by front: nothing further can overlap (nor the sentinel)
+      if (!scan.bits) break;
       const M overlap = notLt(scan, back, zmin);
       const M first = overlap & increasing;  // depth grows: the first overlap in front order
       found = sel(first, zero + i, found);
@@ -195,6 +196,7 @@ __attribute__((noinline)) uint32_t step(Lanes& ln, const Tables& tb) {
     for (int i = 0; i < CoarseCell::kSlots; ++i) {
       const F kFront = field[i], kBack = field[CoarseCell::kSlots + i];
       scan = notLt(scan, kFront, kmin);
+      if (!scan.bits) break;
       const M overlap = notGt(scan, kBack, kmax);
       const F kz = sel(increasing, kFront, kBack);
       const F p = (kz - k0) * invDk;
@@ -213,7 +215,7 @@ __attribute__((noinline)) uint32_t step(Lanes& ln, const Tables& tb) {
     const F xMid = __builtin_convertvector((2 * cx + 1) * half, F), yMid = __builtin_convertvector((2 * cy + 1) * half, F);
     const F mx = (xMid - p0x) * invDx, my = (yMid - p0y) * invDy;
     I best = zero - 1;
-    F bestOut = F{}, bxIn = F{}, bxOut = F{}, byIn = F{}, byOut = F{};
+    F bestOut = F{};
     for (int q = 0; q < 4; ++q) {
       // childSlab: the child entered first along an axis has the cell's entry on that axis.
       const M firstX = (q & 1) ? ~posX : posX, firstY = (q >> 1) ? ~posY : posY;
@@ -225,7 +227,6 @@ __attribute__((noinline)) uint32_t step(Lanes& ln, const Tables& tb) {
       const M take = ok & (lt(best, zero) | lt(b, bestOut));
       best = sel(take, zero + q, best);
       bestOut = sel(take, b, bestOut);
-      bxIn = sel(take, cxIn, bxIn), bxOut = sel(take, cxOut, bxOut), byIn = sel(take, cyIn, byIn), byOut = sel(take, cyOut, byOut);
     }
     bail = lt(descend, best, zero);  // rounding left s outside every child: hssrMarch's fallback
     d = andNot(descend, bail);
@@ -233,7 +234,12 @@ __attribute__((noinline)) uint32_t step(Lanes& ln, const Tables& tb) {
     L = sel(d, Ld, L);
     cx = sel(d, 2 * cx + (best & 1), cx);
     cy = sel(d, 2 * cy + (best >> 1), cy);
-    xIn = sel(d, bxIn, xIn), xOut = sel(d, bxOut, xOut), yIn = sel(d, byIn, yIn), yOut = sel(d, byOut, yOut);
+    // The chosen child's slab (childSlab of quadrant `best`, without carrying four candidates
+    // through the loop): along an axis it is entered first, keeping the cell's entry and ending
+    // at the midline, or second, from the midline to the cell's exit.
+    const M firstX = posX ^ ne(best & 1, zero), firstY = posY ^ ne(best & 2, zero);
+    xIn = sel(andNot(d, firstX), mx, xIn), xOut = sel(d & firstX, mx, xOut);
+    yIn = sel(andNot(d, firstY), my, yIn), yOut = sel(d & firstY, my, yOut);
     misses = sel(d, zero, misses);
   }
 

@@ -49,6 +49,7 @@ struct M {
 inline M operator&(M a, M b) { return {_kand_mask16(a.bits, b.bits)}; }
 inline M operator|(M a, M b) { return {_kor_mask16(a.bits, b.bits)}; }
 inline M operator~(M a) { return {_knot_mask16(a.bits)}; }
+inline M operator^(M a, M b) { return {_kxor_mask16(a.bits, b.bits)}; }
 inline M lt(F a, F b) { return {_mm512_cmp_ps_mask((__m512)a, (__m512)b, _CMP_LT_OQ)}; }
 inline M le(F a, F b) { return {_mm512_cmp_ps_mask((__m512)a, (__m512)b, _CMP_LE_OQ)}; }
 inline M gt(F a, F b) { return {_mm512_cmp_ps_mask((__m512)a, (__m512)b, _CMP_GT_OQ)}; }
