@@ -113,6 +113,29 @@ TEST(SceneJson, MirroringTransformsKeepFrontFacesOutward) {
   }
 }
 
+// A scene file's cameras come first, before the cameras of the models it loads: the default
+// view (the first camera) is the one the file names. (2CylinderEngine.glb carries its own camera,
+// and `compare scenes/engine.json` without --camera looked through it instead of "interior".)
+TEST(SceneJson, OwnCamerasComeBeforeTheModelsCameras) {
+  test::TempDir dir;  // one triangle and a camera node, in glTF 2.0 with an embedded buffer
+  std::ofstream(dir / "tri.gltf") << R"({"asset": {"version": "2.0"}, "scene": 0, "scenes": [{"nodes": [0, 1]}],
+    "nodes": [{"mesh": 0}, {"camera": 0, "name": "modelcam", "translation": [0, 0, 10]}],
+    "cameras": [{"type": "perspective", "perspective": {"yfov": 0.5, "aspectRatio": 1.5, "znear": 0.1, "zfar": 100}}],
+    "meshes": [{"primitives": [{"attributes": {"POSITION": 0}}]}],
+    "accessors": [{"bufferView": 0, "componentType": 5126, "count": 3, "type": "VEC3", "min": [0, 0, 0], "max": [1, 1, 0]}],
+    "bufferViews": [{"buffer": 0, "byteLength": 36}],
+    "buffers": [{"byteLength": 36, "uri": "data:application/octet-stream;base64,AAAAAAAAAAAAAAAAAACAPwAAAAAAAAAAAAAAAAAAgD8AAAAA"}]})";
+  const Scene model = loadScene(dir / "tri.gltf");
+  ASSERT_EQ(model.cameras.size(), 1u) << "the model's camera is loaded (else this test shows nothing)";
+  const Scene s = parseJsonScene(R"({"objects": [{"model": "tri.gltf"}],
+    "cameras": [{"name": "mine", "eye": [0, 0, 5], "target": [0, 0, 0]}, {"name": "second", "eye": [0, 1, 5], "target": [0, 0, 0]}]})",
+                                 dir.path.string(), "x.json");
+  ASSERT_EQ(s.cameras.size(), 3u);
+  EXPECT_EQ(s.cameras[0].name, "mine");
+  EXPECT_EQ(s.cameras[1].name, "second");
+  EXPECT_EQ(s.cameras[2].name, model.cameras[0].name);
+}
+
 TEST(SceneLoad, MissingAndEmptyFiles) {
   test::TempDir dir;
   EXPECT_NE(errorOf([&] { loadScene(dir / "nothing.obj"); }).find("file not found"), std::string::npos);

@@ -285,6 +285,10 @@ Scene parseJsonScene(const std::string& text, const std::string& baseDir, const 
   if (root.contains("cameras")) {
     const json& cams = root["cameras"];
     if (!cams.is_array()) r.fail("cameras", "expected an array");
+    // The file's own cameras come before any its models brought (a glTF's camera node): the
+    // default view (the first camera) is then the one the scene's author named, not whatever
+    // the model's exporter left in it.
+    std::vector<CameraDesc> own;
     for (size_t i = 0; i < cams.size(); ++i) {
       const std::string where = cat("cameras[", i, "]");
       const json& c = cams[i];
@@ -302,8 +306,9 @@ Scene parseJsonScene(const std::string& text, const std::string& baseDir, const 
       if (!(d.fovY > 0.0f && d.fovY < 180.0f)) r.fail(where + ".fov", cat("value ", d.fovY, " is not in (0, 180)"));
       if (d.near < 0.0f || d.far < 0.0f || (d.far > 0.0f && d.far <= d.near))
         r.fail(where, cat("near ", d.near, " and far ", d.far, " must satisfy 0 < near < far"));
-      scene.cameras.push_back(d);
+      own.push_back(d);
     }
+    scene.cameras.insert(scene.cameras.begin(), own.begin(), own.end());
   }
   scene.finalize(source);
   return scene;
