@@ -3,7 +3,8 @@
 // ssr at strides 1, 2, 4, 8; ssr-layers at strides 1, 2, 3, 4, 8; hssr (τ 25, 5 levels, n_up 2).
 // Counters: MRays/s, mean DDA iterations per ray, hit fraction; Embree (the project's scene) on
 // the same rays as the baseline; the hybrid (issue 15: hssr + embree, certified answers) with
-// the share of rays each half answered. Hierarchy build time is
+// the share of rays each half answered; HSSR against Embree alternating round by round on the
+// FZK-Haus, am_thornish and engine interiors (BM_HssrAgainstEmbree). Hierarchy build time is
 // measured beside raster and sort.
 #include <algorithm>
 #include <chrono>
@@ -30,13 +31,16 @@ struct Setup {
   lt::IntervalPyramid pyramid;
 };
 
+/// Scene 0: FZK-Haus interior, 1: am_thornish hall, 2: engine interior.
 Setup& setup(int scene) {
-  static Setup s[2];
-  static bool ready[2] = {false, false};
+  static Setup s[3];
+  static bool ready[3] = {false, false, false};
   if (!ready[scene]) {
+    static const char* const files[3] = {"/scenes/fzk-haus.json", "/scenes/am-thornish.json", "/scenes/engine.json"};
+    static const char* const cameras[3] = {"interior", "hall", "interior"};
     lt::FrameOptions o;
-    o.scenePath = std::string(LAYERTRACE_SOURCE_DIR) + (scene == 0 ? "/scenes/fzk-haus.json" : "/scenes/am-thornish.json");
-    o.cameraName = scene == 0 ? "interior" : "hall";
+    o.scenePath = std::string(LAYERTRACE_SOURCE_DIR) + files[scene];
+    o.cameraName = cameras[scene];
     s[scene].frame = lt::buildFrame(o);
     const lt::Frame& f = s[scene].frame;
     const float maxDist = f.scene.bounds().diagonal();
@@ -185,6 +189,31 @@ void BM_Embree(benchmark::State& state) {
   traceAll(state, t, s.rays);
 }
 
+/// HSSR (τ 25, 5 levels, n_up 2) and plain single-ray Embree on the same rays, alternating in
+/// every round (timeAlternating): the ratio issue 14's target is about, robust to a machine
+/// whose speed drifts between runs. Arg: scene.
+void BM_HssrAgainstEmbree(benchmark::State& state) {
+  Setup& s = setup(int(state.range(0)));
+  const lt::EmbreeScene embree(s.frame.scene, lt::EmbreeScene::Mode::Fast);
+  const lt::EmbreeTracer e("embree", s.frame.scene, s.frame.camera, embree);
+  const lt::HssrTracer h(s.frame.camera, s.frame.layers, s.pyramid, lt::HssrConfig{2, 5});
+  std::vector<lt::TraceHit> hits(s.rays.size());
+  auto pass = [&](int v) {
+    const lt::Tracer& t = v == 0 ? static_cast<const lt::Tracer&>(e) : h;
+    const auto t0 = std::chrono::steady_clock::now();
+    tbb::parallel_for(tbb::blocked_range<size_t>(0, s.rays.size(), 1024), [&](const tbb::blocked_range<size_t>& r) {
+      for (size_t b = r.begin(); b < r.end(); b += 256) {
+        const size_t len = std::min<size_t>(256, r.end() - b);
+        t.traceBatch(std::span<const lt::Ray>(&s.rays[b], len), std::span<lt::TraceHit>(&hits[b], len), {});
+      }
+    });
+    benchmark::DoNotOptimize(hits.data());
+    return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+  };
+  const std::vector<double> m = timeAlternating(state, {"embree", "hssr"}, pass);
+  state.counters["hssr_x_embree"] = m[0] / m[1];
+}
+
 void BM_Hybrid(benchmark::State& state) {
   Setup& s = setup(int(state.range(0)));
   const lt::BuiltTracer b = lt::buildTracer("hybrid", s.frame, lt::TracerOptions{});
@@ -273,6 +302,7 @@ BENCHMARK(BM_Hssr)->Arg(0)->Arg(1)->Unit(benchmark::kMillisecond)->UseRealTime()
 BENCHMARK(BM_HssrLanes)->Arg(0)->Arg(1)->Iterations(9)->Unit(benchmark::kMillisecond)->UseRealTime();
 BENCHMARK(BM_SsrLanes)->ArgsProduct({{0, 1}, {0, 1}, {1}})->Iterations(5)->Unit(benchmark::kMillisecond)->UseRealTime();
 BENCHMARK(BM_Embree)->Arg(0)->Arg(1)->Unit(benchmark::kMillisecond)->UseRealTime();
+BENCHMARK(BM_HssrAgainstEmbree)->DenseRange(0, 2)->Iterations(9)->Unit(benchmark::kMillisecond)->UseRealTime();
 BENCHMARK(BM_Hybrid)->Arg(0)->Arg(1)->Unit(benchmark::kMillisecond)->UseRealTime();
 BENCHMARK(BM_Ssr)
     ->ArgsProduct({{0, 1}, {1, 2, 3, 4, 8}, {1}})
