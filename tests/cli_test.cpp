@@ -70,6 +70,27 @@ void expectRejected(const BadCase& c, const test::TempDir& dir) {
   for (const auto& e : fs::directory_iterator(dir.path)) ADD_FAILURE() << "left behind: " << e.path() << " by " << c.args;
 }
 
+// Which camera a scene file's run looks through: without --camera its own first camera (not
+// the one its model brought), and by a name both use, its own.
+TEST(CliLayers, SceneFileCamerasBeforeTheModelsCameras) {
+  test::TempDir dir;
+  test::writeTriangleWithCamera(dir / "tri.gltf");
+  std::ofstream(dir / "scene.json") << R"({"objects": [{"model": "tri.gltf"}],
+    "cameras": [{"name": "first", "eye": [0.25, 0.25, 4], "target": [0.25, 0.25, 0]},
+                {"name": "modelcam", "eye": [0.25, 0.5, 3], "target": [0.25, 0.25, 0]}]})";
+  auto eyeOf = [&](const std::string& camera) {
+    std::string err;
+    const std::string stats = dir / "s.json";
+    EXPECT_EQ(test::runCli("layers " + (dir / "scene.json") + camera + " --width 32 --height 18 --quiet -o " + (dir / "out") +
+                               " --stats " + stats, &err), 0) << err;
+    const nlohmann::json j = nlohmann::json::parse(std::ifstream(stats));
+    return j.at("view").at("eye").get<std::vector<double>>();
+  };
+  EXPECT_EQ(eyeOf(""), (std::vector<double>{0.25, 0.25, 4}));
+  EXPECT_EQ(eyeOf(" --camera modelcam"), (std::vector<double>{0.25, 0.5, 3}));
+  EXPECT_EQ(eyeOf(" --camera first"), (std::vector<double>{0.25, 0.25, 4}));
+}
+
 TEST(CliErrors, BadInputIsOneLineStatusTwoNoOutput) {
   test::TempDir dir, in;
   std::ofstream(in / "bad.json") << "{\n  \"objects\": [\n    {\"box\": {\"min\": [0,0,0] \"max\": [1,1,1]}}\n  ]\n}\n";

@@ -114,19 +114,17 @@ TEST(SceneJson, MirroringTransformsKeepFrontFacesOutward) {
 }
 
 // A scene file's cameras come first, before the cameras of the models it loads: the default
-// view (the first camera) is the one the file names. (2CylinderEngine.glb carries its own camera,
+// view (the first camera) is the one the file names; a glTF camera sits at its node. (2CylinderEngine.glb carries its own camera,
 // and `compare scenes/engine.json` without --camera looked through it instead of "interior".)
 TEST(SceneJson, OwnCamerasComeBeforeTheModelsCameras) {
-  test::TempDir dir;  // one triangle and a camera node, in glTF 2.0 with an embedded buffer
-  std::ofstream(dir / "tri.gltf") << R"({"asset": {"version": "2.0"}, "scene": 0, "scenes": [{"nodes": [0, 1]}],
-    "nodes": [{"mesh": 0}, {"camera": 0, "name": "modelcam", "translation": [0, 0, 10]}],
-    "cameras": [{"type": "perspective", "perspective": {"yfov": 0.5, "aspectRatio": 1.5, "znear": 0.1, "zfar": 100}}],
-    "meshes": [{"primitives": [{"attributes": {"POSITION": 0}}]}],
-    "accessors": [{"bufferView": 0, "componentType": 5126, "count": 3, "type": "VEC3", "min": [0, 0, 0], "max": [1, 1, 0]}],
-    "bufferViews": [{"buffer": 0, "byteLength": 36}],
-    "buffers": [{"byteLength": 36, "uri": "data:application/octet-stream;base64,AAAAAAAAAAAAAAAAAACAPwAAAAAAAAAAAAAAAAAAgD8AAAAA"}]})";
+  test::TempDir dir;
+  test::writeTriangleWithCamera(dir / "tri.gltf");
   const Scene model = loadScene(dir / "tri.gltf");
   ASSERT_EQ(model.cameras.size(), 1u) << "the model's camera is loaded (else this test shows nothing)";
+  // at its node, looking down the node's −z (assimp 5.2 also put the node's translation in the
+  // camera's own position: the eye was at z = 20)
+  EXPECT_EQ(model.cameras[0].eye, glm::vec3(0, 0, 10));
+  EXPECT_EQ(model.cameras[0].target, glm::vec3(0, 0, 9));
   const Scene s = parseJsonScene(R"({"objects": [{"model": "tri.gltf"}],
     "cameras": [{"name": "mine", "eye": [0, 0, 5], "target": [0, 0, 0]}, {"name": "second", "eye": [0, 1, 5], "target": [0, 0, 0]}]})",
                                  dir.path.string(), "x.json");

@@ -48,6 +48,16 @@ FrameOptions realSceneOptions(const std::string& sceneFile, const std::string& c
   return o;
 }
 
+void writeTriangleWithCamera(const std::string& path) {
+  std::ofstream(path) << R"({"asset": {"version": "2.0"}, "scene": 0, "scenes": [{"nodes": [0, 1]}],
+    "nodes": [{"mesh": 0}, {"camera": 0, "name": "modelcam", "translation": [0, 0, 10]}],
+    "cameras": [{"type": "perspective", "perspective": {"yfov": 0.5, "aspectRatio": 1.5, "znear": 0.1, "zfar": 100}}],
+    "meshes": [{"primitives": [{"attributes": {"POSITION": 0}}]}],
+    "accessors": [{"bufferView": 0, "componentType": 5126, "count": 3, "type": "VEC3", "min": [0, 0, 0], "max": [1, 1, 0]}],
+    "bufferViews": [{"buffer": 0, "byteLength": 36}],
+    "buffers": [{"byteLength": 36, "uri": "data:application/octet-stream;base64,AAAAAAAAAAAAAAAAAACAPwAAAAAAAAAAAAAAAAAAgD8AAAAA"}]})";
+}
+
 bool haveFetchedScenes() { return fs::exists(sourceDir() + "/data/models/AC14-FZK-Haus.ifc"); }
 
 CameraDesc originCamera(float fovY, float near, float far) {

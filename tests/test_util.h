@@ -32,6 +32,10 @@ inline std::string sourceDir() { return LAYERTRACE_SOURCE_DIR; }
 /// Frame options for a scene file of scenes/ (a fetched real scene) with one of its cameras.
 FrameOptions realSceneOptions(const std::string& sceneFile, const std::string& camera);
 
+/// Writes a glTF 2.0 model to `path`: one triangle (0,0,0) (1,0,0) (0,1,0) and a camera node
+/// named "modelcam" at (0, 0, 10) looking down −z.
+void writeTriangleWithCamera(const std::string& path);
+
 /// True when the fetched scenes are present (scripts/fetch-scenes.sh).
 bool haveFetchedScenes();
 

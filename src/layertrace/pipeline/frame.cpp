@@ -58,7 +58,7 @@ void loadFrameScene(const FrameOptions& o, Frame& frame) {
     std::string names;
     for (const CameraDesc& c : frame.scene.cameras) {
       names += (names.empty() ? "" : ", ") + c.name;
-      if (c.name == o.cameraName) desc = c, found = true;
+      if (!found && c.name == o.cameraName) desc = c, found = true;  // the first of that name: the file's own before a model's
     }
     if (!found)
       inputError("--camera ", o.cameraName, ": no such camera in ", o.scenePath,

@@ -193,7 +193,8 @@ const aiScene* guardedImport(std::unique_ptr<Assimp::Importer>& importer, const 
   return as;
 }
 
-Scene convertScene(const aiScene* as, const std::string& path, const std::string& name, bool q3, const glm::mat4& transform);
+/// `ext`: the file's extension, lower case with its dot (".obj"), which decides the importer's quirks.
+Scene convertScene(const aiScene* as, const std::string& path, const std::string& name, const std::string& ext, const glm::mat4& transform);
 
 uint32_t le32(const unsigned char* p) { return uint32_t(p[0]) | uint32_t(p[1]) << 8 | uint32_t(p[2]) << 16 | uint32_t(p[3]) << 24; }
 uint16_t le16(const unsigned char* p) { return uint16_t(p[0] | p[1] << 8); }
@@ -369,7 +370,7 @@ Scene loadModel(const std::string& path, const glm::mat4& transform) {
   auto importer = std::make_unique<Assimp::Importer>();
   const unsigned flags = configureImporter(*importer, q3);
   const aiScene* as = guardedImport(importer, path, [&] { return importer->ReadFile(path, flags); });
-  return convertScene(as, path, fs::path(path).stem().string(), q3, transform);
+  return convertScene(as, path, fs::path(path).stem().string(), ext, transform);
 }
 
 Scene loadModelFromMemory(const void* data, size_t size, const std::string& formatHint, const std::string& source) {
@@ -381,12 +382,13 @@ Scene loadModelFromMemory(const void* data, size_t size, const std::string& form
   const unsigned flags = configureImporter(*importer, q3);
   const aiScene* as =
       guardedImport(importer, source, [&] { return importer->ReadFileFromMemory(data, size, flags, hint.c_str()); });
-  return convertScene(as, source, source, q3, glm::mat4(1.0f));
+  return convertScene(as, source, source, "." + hint, glm::mat4(1.0f));
 }
 
 namespace {
 
-Scene convertScene(const aiScene* as, const std::string& path, const std::string& name, bool q3, const glm::mat4& transform) {
+Scene convertScene(const aiScene* as, const std::string& path, const std::string& name, const std::string& ext, const glm::mat4& transform) {
+  const bool q3 = isQuake3(ext);
   Scene scene;
   scene.name = name;
   for (unsigned i = 0; i < as->mNumMaterials; ++i) {
@@ -450,7 +452,15 @@ Scene convertScene(const aiScene* as, const std::string& path, const std::string
     const glm::mat4 m = transform * nodeTransform(as, ac->mName);
     CameraDesc cd;
     cd.name = ac->mName.length ? ac->mName.C_Str() : cat("camera", i);
-    const glm::vec3 pos(ac->mPosition.x, ac->mPosition.y, ac->mPosition.z);
+    glm::vec3 pos(ac->mPosition.x, ac->mPosition.y, ac->mPosition.z);
+    // assimp 5.2's glTF 2 importer (Debian 12's) also copies the camera node's translation into
+    // mPosition, which is relative to that node: the translation counted twice (assimp issue
+    // #5054, fixed in 5.3 where mPosition is 0). A glTF camera's position is its node's.
+    if ((ext == ".gltf" || ext == ".glb") && as->mRootNode) {
+      if (const aiNode* n = as->mRootNode->FindNode(ac->mName);
+          n && pos == glm::vec3(n->mTransformation.a4, n->mTransformation.b4, n->mTransformation.c4))
+        pos = glm::vec3(0.0f);
+    }
     const glm::vec3 look(ac->mLookAt.x, ac->mLookAt.y, ac->mLookAt.z);
     cd.eye = glm::vec3(m * glm::vec4(pos, 1.0f));
     cd.target = glm::vec3(m * glm::vec4(pos + look, 1.0f));
