@@ -7,6 +7,7 @@
 #include <limits>
 
 #include "layertrace/util/cpu_dispatch.h"
+#include "layertrace/screen/interval_lanes.h"
 #include "layertrace/util/simd512.h"
 
 #define LT_HSSR_LANES LT_SIMD512
@@ -160,28 +161,10 @@ __attribute__((noinline)) uint32_t step(Lanes& ln, const Tables& tb) {
   // (hssrMarch reuses the previous pixel's exit depth when s0 is its exit: the same division of
   // the same s, so dividing again gives the same bits, and the lanes divide anyway)
   const F za = 1.0f / (k0 + s0 * dk), zb = 1.0f / (k0 + s1 * dk);
-  I found = zero - 1;
-  if (at0.bits) {
-    // firstMetLanes (interval_lanes.h) written out: called here, the same operations leave this
-    // step with 9 more stack spills and the lanes 5–8 % slower (bench_trace BM_HssrLanes, three
-    // alternating runs of both binaries, session 13); the SSR lanes call it.
-    const F zmin = vmin(za, zb), zmax = vmax(za, zb);
-    F bestEntry = F{};
-    M scan = at0;
-    for (int i = 0; i < tb.k; ++i) {
-      const F front = field[2 * i], back = field[2 * i + 1];
-      scan = notGt(scan, front, zmax);  // sorted by front: nothing further can overlap (nor the sentinel)
-      if (!scan.bits) break;
-      const M overlap = notLt(scan, back, zmin);
-      const M first = overlap & increasing;  // depth grows: the first overlap in front order
-      found = sel(first, zero + i, found);
-      scan = andNot(scan, first);
-      const F entry = vmin(zmax, back);  // depth shrinks: the largest entry depth (back < zmax ? back : zmax)
-      const M later = andNot(overlap, increasing) & (lt(found, zero) | ge(entry, bestEntry));
-      found = sel(later, zero + i, found);
-      bestEntry = sel(later, entry, bestEntry);
-    }
-  }
+  // (Session 13 wrote firstMetLanes out here: called, it cost 9 stack spills and 5–8 %. With
+  // session 18's one-instruction masks and min/max the call is as fast — BM_HssrLanes 96 vs 94 ms
+  // on FZK-Haus, 126 vs 132 on am_thornish, medians of 5–6 alternating runs — so the copy went.)
+  const I found = at0.bits ? firstMetLanes(field, tb.k, vmin(za, zb), vmax(za, zb), at0, increasing) : zero - 1;
   const M hit = at0 & ge(found, zero);
 
   // Coarse levels: the earliest entry into an interval the ray's κ range overlaps.

@@ -1,7 +1,6 @@
 // firstMet (interval_layers.h) in sixteen AVX-512 lanes: what a lane march asks of a pixel's
-// stored intervals (ssr_march_lanes.cpp; hssr_march_lanes.cpp writes the same operations out,
-// see there). Compiled for AVX-512 by its own target region, like simd512.h; call it only from
-// code compiled for it.
+// stored intervals (ssr_march_lanes.cpp, hssr_march_lanes.cpp). Compiled for AVX-512 by its own
+// target region, like simd512.h; call it only from code compiled for it.
 #pragma once
 
 #include "layertrace/util/simd512.h"
@@ -23,6 +22,7 @@ inline I firstMetLanes(const F field[8], int k, F zmin, F zmax, M scan, M increa
   for (int i = 0; i < k; ++i) {
     const F front = field[2 * i], back = field[2 * i + 1];
     scan = notGt(scan, front, zmax);  // sorted by front: nothing further can overlap (nor the sentinel)
+    if (!scan.bits) break;  // no lane can still overlap (ssr-layers' lanes: 884 → 756 ms on am_thornish, session 18)
     const M overlap = notLt(scan, back, zmin);
     const M first = overlap & increasing;  // depth grows: the first overlap in front order
     found = sel(first, zero + i, found);
