@@ -61,19 +61,27 @@ Setup& setup(int scene) {
   return s[scene];
 }
 
+/// items [0, n) in batches of 256, `batch(begin, length)`, over all threads (1024 items a task):
+/// how every pass here hands work to a tracer or a march.
+template <class Batch>
+void forBatches(size_t n, Batch&& batch) {
+  tbb::parallel_for(tbb::blocked_range<size_t>(0, n, 1024), [&](const tbb::blocked_range<size_t>& r) {
+    for (size_t b = r.begin(); b < r.end(); b += 256) batch(b, std::min<size_t>(256, r.end() - b));
+  });
+}
+
+/// One uncounted traceBatch pass of `tracer` over `rays` (the counter-free instantiation of the
+/// tracer, trace/tracer.h).
+void tracePass(const lt::Tracer& tracer, const std::vector<lt::Ray>& rays, std::vector<lt::TraceHit>& hits) {
+  forBatches(rays.size(), [&](size_t b, size_t len) {
+    tracer.traceBatch(std::span<const lt::Ray>(&rays[b], len), std::span<lt::TraceHit>(&hits[b], len), {});
+  });
+  benchmark::DoNotOptimize(hits.data());
+}
+
 void traceAll(benchmark::State& state, const lt::Tracer& tracer, const std::vector<lt::Ray>& rays) {
-  // Timed: batches of 256 rays through traceBatch without counters (the counter-free
-  // instantiation of the tracer, trace/tracer.h).
   std::vector<lt::TraceHit> hits(rays.size());
-  for (auto _ : state) {
-    tbb::parallel_for(tbb::blocked_range<size_t>(0, rays.size(), 1024), [&](const tbb::blocked_range<size_t>& r) {
-      for (size_t b = r.begin(); b < r.end(); b += 256) {
-        const size_t len = std::min<size_t>(256, r.end() - b);
-        tracer.traceBatch(std::span<const lt::Ray>(&rays[b], len), std::span<lt::TraceHit>(&hits[b], len), {});
-      }
-    });
-    benchmark::DoNotOptimize(hits.data());
-  }
+  for (auto _ : state) tracePass(tracer, rays, hits);
   // Counted once, outside the timing.
   std::vector<lt::RayCounters> counters(rays.size());
   tracer.traceBatch(rays, hits, counters);
@@ -142,14 +150,11 @@ void BM_HssrLanes(benchmark::State& state) {
   const int W = f.camera.width(), H = f.camera.height();
   auto pass = [&](bool lanes) {
     const auto t0 = std::chrono::steady_clock::now();
-    tbb::parallel_for(tbb::blocked_range<size_t>(0, segs.size(), 1024), [&](const tbb::blocked_range<size_t>& r) {
-      for (size_t b = r.begin(); b < r.end(); b += 256) {
-        const size_t len = std::min<size_t>(256, r.end() - b);
-        const auto in = std::span<const lt::ScreenSegment>(&segs[b], len);
-        const auto o = std::span<lt::MarchHit>(&out[b], len);
-        if (lanes) lt::hssrMarchBatch(s.pyramid, 5, 2, in, W, H, o);
-        else lt::hssrMarchEach(s.pyramid, 5, 2, in, W, H, o);
-      }
+    forBatches(segs.size(), [&](size_t b, size_t len) {
+      const auto in = std::span<const lt::ScreenSegment>(&segs[b], len);
+      const auto o = std::span<lt::MarchHit>(&out[b], len);
+      if (lanes) lt::hssrMarchBatch(s.pyramid, 5, 2, in, W, H, o);
+      else lt::hssrMarchEach(s.pyramid, 5, 2, in, W, H, o);
     });
     return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
   };
@@ -168,14 +173,11 @@ void BM_SsrLanes(benchmark::State& state) {
   std::vector<lt::TraceHit> hits(s.rays.size());
   auto pass = [&](bool lanes) {
     const auto t0 = std::chrono::steady_clock::now();
-    tbb::parallel_for(tbb::blocked_range<size_t>(0, s.rays.size(), 1024), [&](const tbb::blocked_range<size_t>& r) {
-      for (size_t b = r.begin(); b < r.end(); b += 256) {
-        const size_t len = std::min<size_t>(256, r.end() - b);
-        const auto in = std::span<const lt::Ray>(&s.rays[b], len);
-        const auto o = std::span<lt::TraceHit>(&hits[b], len);
-        if (lanes) t.traceBatch(in, o, {});
-        else t.TracerImpl<lt::SsrTracer>::traceBatch(in, o, {});
-      }
+    forBatches(s.rays.size(), [&](size_t b, size_t len) {
+      const auto in = std::span<const lt::Ray>(&s.rays[b], len);
+      const auto o = std::span<lt::TraceHit>(&hits[b], len);
+      if (lanes) t.traceBatch(in, o, {});
+      else t.TracerImpl<lt::SsrTracer>::traceBatch(in, o, {});
     });
     return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
   };
@@ -201,13 +203,7 @@ void BM_HssrAgainstEmbree(benchmark::State& state) {
   auto pass = [&](int v) {
     const lt::Tracer& t = v == 0 ? static_cast<const lt::Tracer&>(e) : h;
     const auto t0 = std::chrono::steady_clock::now();
-    tbb::parallel_for(tbb::blocked_range<size_t>(0, s.rays.size(), 1024), [&](const tbb::blocked_range<size_t>& r) {
-      for (size_t b = r.begin(); b < r.end(); b += 256) {
-        const size_t len = std::min<size_t>(256, r.end() - b);
-        t.traceBatch(std::span<const lt::Ray>(&s.rays[b], len), std::span<lt::TraceHit>(&hits[b], len), {});
-      }
-    });
-    benchmark::DoNotOptimize(hits.data());
+    tracePass(t, s.rays, hits);
     return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
   };
   const std::vector<double> m = timeAlternating(state, {"embree", "hssr"}, pass);

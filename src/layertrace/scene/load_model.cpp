@@ -79,10 +79,10 @@ Material convertMaterial(const aiMaterial* am) {
   return m;
 }
 
-/// The accumulated transform of a named node (identity if the name is not found).
-glm::mat4 nodeTransform(const aiScene* as, const aiString& name) {
+/// The accumulated transform of node `n` (identity for none).
+glm::mat4 nodeTransform(const aiNode* n) {
   glm::mat4 chain(1.0f);
-  for (const aiNode* n = as->mRootNode->FindNode(name); n; n = n->mParent) chain = toGlm(n->mTransformation) * chain;
+  for (; n; n = n->mParent) chain = toGlm(n->mTransformation) * chain;
   return chain;
 }
 
@@ -449,18 +449,17 @@ Scene convertScene(const aiScene* as, const std::string& path, const std::string
   // Cameras and point lights placed by their nodes.
   for (unsigned i = 0; i < as->mNumCameras; ++i) {
     const aiCamera* ac = as->mCameras[i];
-    const glm::mat4 m = transform * nodeTransform(as, ac->mName);
+    const aiNode* node = as->mRootNode->FindNode(ac->mName);
+    const glm::mat4 m = transform * nodeTransform(node);
     CameraDesc cd;
     cd.name = ac->mName.length ? ac->mName.C_Str() : cat("camera", i);
     glm::vec3 pos(ac->mPosition.x, ac->mPosition.y, ac->mPosition.z);
     // assimp 5.2's glTF 2 importer (Debian 12's) also copies the camera node's translation into
     // mPosition, which is relative to that node: the translation counted twice (assimp issue
     // #5054, fixed in 5.3 where mPosition is 0). A glTF camera's position is its node's.
-    if ((ext == ".gltf" || ext == ".glb") && as->mRootNode) {
-      if (const aiNode* n = as->mRootNode->FindNode(ac->mName);
-          n && pos == glm::vec3(n->mTransformation.a4, n->mTransformation.b4, n->mTransformation.c4))
-        pos = glm::vec3(0.0f);
-    }
+    if ((ext == ".gltf" || ext == ".glb") && node &&
+        pos == glm::vec3(node->mTransformation.a4, node->mTransformation.b4, node->mTransformation.c4))
+      pos = glm::vec3(0.0f);
     const glm::vec3 look(ac->mLookAt.x, ac->mLookAt.y, ac->mLookAt.z);
     cd.eye = glm::vec3(m * glm::vec4(pos, 1.0f));
     cd.target = glm::vec3(m * glm::vec4(pos + look, 1.0f));
@@ -473,7 +472,7 @@ Scene convertScene(const aiScene* as, const std::string& path, const std::string
   for (unsigned i = 0; i < as->mNumLights; ++i) {
     const aiLight* al = as->mLights[i];
     if (al->mType != aiLightSource_POINT) continue;
-    const glm::mat4 m = transform * nodeTransform(as, al->mName);
+    const glm::mat4 m = transform * nodeTransform(as->mRootNode->FindNode(al->mName));
     scene.lights.push_back({glm::vec3(m * glm::vec4(al->mPosition.x, al->mPosition.y, al->mPosition.z, 1.0f)),
                             glm::vec3(al->mColorDiffuse.r, al->mColorDiffuse.g, al->mColorDiffuse.b)});
   }
