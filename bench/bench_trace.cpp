@@ -25,6 +25,9 @@
 
 namespace {
 
+/// The HSSR passes here use the default pyramid (τ 25, PyramidConfig's levels) and n_up 2.
+constexpr int kLevels = lt::PyramidConfig{}.levels;
+
 struct Setup {
   lt::Frame frame;
   std::vector<lt::Ray> rays;
@@ -55,7 +58,7 @@ Setup& setup(int scene) {
         r.maxDistance = maxDist;
         s[scene].rays.push_back(r);
       }
-    s[scene].pyramid = lt::buildIntervalPyramid(f.layers, f.camera, lt::PyramidConfig{5, 25.0f});
+    s[scene].pyramid = lt::buildIntervalPyramid(f.layers, f.camera, lt::PyramidConfig{});
     ready[scene] = true;
   }
   return s[scene];
@@ -103,7 +106,7 @@ void BM_Ssr(benchmark::State& state) {
 
 void BM_Hssr(benchmark::State& state) {
   Setup& s = setup(int(state.range(0)));
-  const lt::HssrTracer t(s.frame.camera, s.frame.layers, s.pyramid, lt::HssrConfig{2, 5});
+  const lt::HssrTracer t(s.frame.camera, s.frame.layers, s.pyramid, lt::HssrConfig{2, kLevels});
   traceAll(state, t, s.rays);
 }
 
@@ -153,13 +156,13 @@ void BM_HssrLanes(benchmark::State& state) {
     forBatches(segs.size(), [&](size_t b, size_t len) {
       const auto in = std::span<const lt::ScreenSegment>(&segs[b], len);
       const auto o = std::span<lt::MarchHit>(&out[b], len);
-      if (lanes) lt::hssrMarchBatch(s.pyramid, 5, 2, in, W, H, o);
-      else lt::hssrMarchEach(s.pyramid, 5, 2, in, W, H, o);
+      if (lanes) lt::hssrMarchBatch(s.pyramid, kLevels, 2, in, W, H, o);
+      else lt::hssrMarchEach(s.pyramid, kLevels, 2, in, W, H, o);
     });
     return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
   };
   timeOneAgainstLanes(state, pass);
-  state.counters["lanes_on"] = lt::hssrLanesAvailable(s.pyramid, 5);
+  state.counters["lanes_on"] = lt::hssrLanesAvailable(s.pyramid, kLevels);
 }
 
 /// SSR (seed 001) over the same rays, one ray at a time (the one-ray path of TracerImpl) against
@@ -191,14 +194,14 @@ void BM_Embree(benchmark::State& state) {
   traceAll(state, t, s.rays);
 }
 
-/// HSSR (τ 25, 5 levels, n_up 2) and plain single-ray Embree on the same rays, alternating in
+/// HSSR (τ 25, the default levels, n_up 2) and plain single-ray Embree on the same rays, alternating in
 /// every round (timeAlternating): the ratio issue 14's target is about, robust to a machine
 /// whose speed drifts between runs. Arg: scene.
 void BM_HssrAgainstEmbree(benchmark::State& state) {
   Setup& s = setup(int(state.range(0)));
   const lt::EmbreeScene embree(s.frame.scene, lt::EmbreeScene::Mode::Fast);
   const lt::EmbreeTracer e("embree", s.frame.scene, s.frame.camera, embree);
-  const lt::HssrTracer h(s.frame.camera, s.frame.layers, s.pyramid, lt::HssrConfig{2, 5});
+  const lt::HssrTracer h(s.frame.camera, s.frame.layers, s.pyramid, lt::HssrConfig{2, kLevels});
   std::vector<lt::TraceHit> hits(s.rays.size());
   auto pass = [&](int v) {
     const lt::Tracer& t = v == 0 ? static_cast<const lt::Tracer&>(e) : h;
@@ -286,7 +289,7 @@ void BM_GridBatch(benchmark::State& state) {
 void BM_HierarchyBuild(benchmark::State& state) {
   Setup& s = setup(int(state.range(0)));
   for (auto _ : state) {
-    lt::IntervalPyramid p = lt::buildIntervalPyramid(s.frame.layers, s.frame.camera, lt::PyramidConfig{5, 25.0f});
+    lt::IntervalPyramid p = lt::buildIntervalPyramid(s.frame.layers, s.frame.camera, lt::PyramidConfig{});
     benchmark::DoNotOptimize(p.levels.data());
   }
   state.counters["raster_ms"] = s.frame.rasterMs;

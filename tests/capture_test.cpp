@@ -496,14 +496,14 @@ TEST(Capture, TheFramesPyramidIsBuiltByTheCaptureAndReused) {
     f.thickness = 0.05f;
     FrameOptions o;
     o.width = 203, o.height = 117, o.thickness = 0.05f;
-    o.pyramid = PyramidConfig{5, 25.0f};
+    o.pyramid = PyramidConfig{};  // (the tracers' default: the held tracer below takes it)
     o.pyramidPerTile = perTile;
     rasterizeFrame(o, f);
     ASSERT_TRUE(f.pyramid);
     EXPECT_TRUE(samePyramid(*f.pyramid, buildIntervalPyramid(f.layers, f.camera, *o.pyramid))) << perTile;
     EXPECT_EQ(f.pyramidFor(*o.pyramid), f.pyramid);
-    EXPECT_EQ(f.pyramidFor(PyramidConfig{5, 10.0f}), nullptr);
-    EXPECT_EQ(f.pyramidFor(PyramidConfig{4, 25.0f}), nullptr);
+    EXPECT_EQ(f.pyramidFor(PyramidConfig{o.pyramid->levels, 10.0f}), nullptr);
+    EXPECT_EQ(f.pyramidFor(PyramidConfig{o.pyramid->levels - 1, 25.0f}), nullptr);
     TracerOptions to;
     to.pyramid = *o.pyramid;
     EXPECT_EQ(buildTracer("hssr", f, to).pyramid, f.pyramid);
