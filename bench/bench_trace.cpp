@@ -194,9 +194,9 @@ void BM_Embree(benchmark::State& state) {
   traceAll(state, t, s.rays);
 }
 
-/// HSSR (τ 25, the default levels, n_up 2) and plain single-ray Embree on the same rays, alternating in
-/// every round (timeAlternating): the ratio issue 14's target is about, robust to a machine
-/// whose speed drifts between runs. Arg: scene.
+/// HSSR (τ 25, the default levels, n_up 2) and plain single-ray Embree on the same rays,
+/// alternating in every round (timeAlternating): the ratio issue 14's target is about, robust to
+/// a machine whose speed drifts between runs. Arg: scene.
 void BM_HssrAgainstEmbree(benchmark::State& state) {
   Setup& s = setup(int(state.range(0)));
   const lt::EmbreeScene embree(s.frame.scene, lt::EmbreeScene::Mode::Fast);

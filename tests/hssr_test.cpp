@@ -5,6 +5,7 @@
 #include <bit>
 #include <cstdio>
 #include <random>
+#include <set>
 
 #include <tbb/parallel_for.h>
 
@@ -102,12 +103,14 @@ void expectLanesEqualMarch(const Frame& f, const IntervalPyramid& p, int levels,
 
 /// The fast march (incremental spans, κ-domain fixed-slot coarse cells, sentinels) against the
 /// reference march it replaced: the same level-0 pixel, interval and entry parameter, bit for
-/// bit, for the oracle (1 level) and the hierarchical march, on `rays` and their mirror bounces.
+/// bit, for the oracle (1 level) and the hierarchical march, on `rays` and their mirror bounces;
+/// the paper's 5 levels, the default (PyramidConfig, 7 since session 19) and the lanes' most (8).
 void expectSameAsReference(const Frame& f, size_t count) {
   const uint64_t seed = test::testSeed() + 7;
   std::vector<Ray> rays = test::sampleRays(f, count, seed);
   const int W = f.camera.width(), H = f.camera.height();
-  for (int levels : {1, 3, 5, 8}) {
+  std::set<int> levelCounts{1, 3, 5, PyramidConfig{}.levels, 8};
+  for (int levels : levelCounts) {
     const IntervalPyramid p = buildIntervalPyramid(f.layers, f.camera, PyramidConfig{levels, 25.0f});
     for (int nUp : {1, 2}) {
       std::atomic<size_t> mismatches{0}, firstBad{rays.size()}, hits{0};

@@ -114,8 +114,9 @@ TEST(SceneJson, MirroringTransformsKeepFrontFacesOutward) {
 }
 
 // A scene file's cameras come first, before the cameras of the models it loads: the default
-// view (the first camera) is the one the file names; a glTF camera sits at its node. (2CylinderEngine.glb carries its own camera,
-// and `compare scenes/engine.json` without --camera looked through it instead of "interior".)
+// view (the first camera) is the one the file names; a glTF camera sits at its node.
+// (2CylinderEngine.glb carries its own camera, and `compare scenes/engine.json` without
+// --camera looked through it instead of "interior".)
 TEST(SceneJson, OwnCamerasComeBeforeTheModelsCameras) {
   test::TempDir dir;
   test::writeTriangleWithCamera(dir / "tri.gltf");
