@@ -171,6 +171,13 @@ class IrregularGrid {
   GeoHit finish(const Walk& w) const;
   template <bool AnyHit, class Out>
   void traverseBatch(std::span<const Query> queries, Out out) const;
+  /// traverseBatch's answers with sixteen rays in the lanes of AVX-512 registers (where the CPU
+  /// has them, lanesAvailable): the exit, the next voxel and the voxel-map lookup of sixteen
+  /// cells at once, each lane's triangles tested by testCell. Writes hits (closest) or anyHits.
+  template <bool AnyHit>
+  void traverseLanes(std::span<const Query> queries, std::span<GeoHit> hits, std::span<uint8_t> anyHits) const;
+  bool lanesAvailable() const;
+  struct GridLanes;
   void packForTraversal();
 
   const Scene* scene_;

@@ -91,6 +91,11 @@ inline I sel(M m, I a, I b) { return (I)_mm512_mask_blend_epi32(m.bits, (__m512i
 inline F vmax(F a, F b) { return (F)_mm512_mask_max_ps((__m512)a, 0xffff, (__m512)b, (__m512)a); }
 inline F vmin(F a, F b) { return (F)_mm512_mask_min_ps((__m512)a, 0xffff, (__m512)b, (__m512)a); }
 
+/// std::max / std::min of int32 lanes, and floor (round toward −∞) of float lanes.
+inline I imax(I a, I b) { return (I)_mm512_mask_max_epi32((__m512i)a, 0xffff, (__m512i)a, (__m512i)b); }
+inline I imin(I a, I b) { return (I)_mm512_mask_min_epi32((__m512i)a, 0xffff, (__m512i)a, (__m512i)b); }
+inline F vfloor(F a) { return (F)_mm512_mask_roundscale_ps((__m512)a, 0xffff, (__m512)a, _MM_FROUND_TO_NEG_INF | _MM_FROUND_NO_EXC); }
+
 /// Blocks (128 bits) 0 and 2 of a, then 0 and 2 of b; blocks13: 1 and 3 of each.
 inline F blocks02(F a, F b) { return __builtin_shufflevector(a, b, 0, 1, 2, 3, 8, 9, 10, 11, 16, 17, 18, 19, 24, 25, 26, 27); }
 inline F blocks13(F a, F b) { return __builtin_shufflevector(a, b, 4, 5, 6, 7, 12, 13, 14, 15, 20, 21, 22, 23, 28, 29, 30, 31); }
