@@ -290,32 +290,117 @@ void IrregularGrid::traverseLanes(std::span<const Query> queries, std::span<GeoH
     if (AnyHit) anyHits[i] = h.hit();
     else hits[i] = h;
   };
+  // The voxel map (leafIndex) for the lanes of `m`: the top cell's leaf offset and shifts, then
+  // the leaf's cell record.
+  auto lookup = [&](const I v[3], M m) {
+    const I zero = I{};
+    const I mask = zero + ((1 << depth_) - 1);
+    const I top = ((v[2] >> depth_) * top_[1] + (v[1] >> depth_)) * top_[0] + (v[0] >> depth_);
+    const I topByte = sel(m, top, zero) * int32_t(sizeof(TopCell));
+    const I offset = (I)_mm512_mask_i32gather_epi32((__m512i)zero, m.bits, (__m512i)topByte, topWords, 1);
+    const I shifts = (I)_mm512_mask_i32gather_epi32((__m512i)zero, m.bits, (__m512i)topByte, topWords + 1, 1);
+    const I byte = zero + 0xff, s0 = shifts & byte, s1 = (shifts >> 8) & byte, s2 = (shifts >> 16) & byte;
+    const I bits1 = (shifts >> 24) & byte, bits2 = bits1 + (depth_ - s1);  // d0 and d0 + d1, d_a = D − shift_a
+    const I l0 = (v[0] & mask) >> s0, l1 = (v[1] & mask) >> s1, l2 = (v[2] & mask) >> s2;  // (non-negative: >> is logical)
+    const I leaf = offset + (((l2 << bits2) + (l1 << bits1)) + l0);
+    return (I)_mm512_mask_i32gather_epi32((__m512i)zero, m.bits, (__m512i)sel(m, leaf, zero), leaves, 4);
+  };
+  // Rays enter the lanes from a buffer that `enter` fills for sixteen queries at once: the clip to
+  // the grid's box, the first voxel and its cell, the watertight test's shear — enter's and
+  // WatertightRay's expressions in lanes, with selects for their branches.
+  struct alignas(64) Entered {
+    float o[3][GridLanes::kL], d[3][GridLanes::kL], inv[3][GridLanes::kL], tnear[GridLanes::kL], tfar[GridLanes::kL], t1[GridLanes::kL], sx[GridLanes::kL], sy[GridLanes::kL];
+    int32_t v[3][GridLanes::kL], k[3][GridLanes::kL];
+    uint32_t unit[GridLanes::kL];
+    uint32_t in = 0;  ///< the queries that enter the grid
+    size_t first = 0, count = 0, taken = 0;  ///< queries [first, first + count), `taken` of them used
+  } ent;
+  static_assert(sizeof(Query) == 8 * sizeof(float), "a query is one 32-byte row");
   size_t next = 0;
+  auto enterSixteen = [&] {
+    constexpr float inf = std::numeric_limits<float>::infinity();
+    const size_t n = std::min<size_t>(GridLanes::kL, queries.size() - next);
+    ent.first = next, ent.count = n, ent.taken = 0;
+    next += n;
+    F r[8];
+    for (int j = 0; j < 8; ++j) {
+      F8 lo{}, hi{};
+      if (size_t(j) < n) std::memcpy(&lo, &queries[ent.first + size_t(j)], sizeof lo);
+      if (size_t(j) + 8 < n) std::memcpy(&hi, &queries[ent.first + size_t(j) + 8], sizeof hi);
+      r[j] = joinRows(lo, hi);
+    }
+    F q[8];
+    transposeRows8(r, q);
+    const F* o = q;
+    const F* d = q + 3;
+    F t0 = q[6], t1 = q[7], inv[3];
+    for (int a = 0; a < 3; ++a) {
+      inv[a] = 1.0f / d[a];
+      F lo = (lo_[a] - o[a]) * inv[a], hi = (hi_[a] - o[a]) * inv[a];
+      const M swap = gt(lo, hi);
+      const F near = sel(swap, hi, lo), far = sel(swap, lo, hi);
+      lo = sel(eq(near, near), near, F{} - inf);  // 0 · inf
+      hi = sel(eq(far, far), far, F{} + inf);
+      t0 = vmax(t0, lo);
+      t1 = vmin(t1, hi);
+    }
+    const M in = M{__mmask16((1u << n) - 1u)} & ~gt(t0, t1);
+    I v[3];
+    for (int a = 0; a < 3; ++a) {
+      const F p = ((o[a] + d[a] * t0) - lo_[a]) * invVoxel_[a];
+      v[a] = imin(imax(__builtin_convertvector(vfloor(p), I), I{}), I{} + (virt_[a] - 1));  // std::clamp
+      store(ent.o[a], o[a]), store(ent.d[a], d[a]), store(ent.inv[a], inv[a]), store(ent.v[a], v[a]);
+    }
+    store(ent.tnear, q[6]), store(ent.tfar, q[7]), store(ent.t1, t1);
+    store(ent.unit, lookup(v, in));
+    // WatertightRay: z along the largest |d|, x and y after it, swapped where d_z < 0.
+    const I zero = I{}, one = zero + 1, two = zero + 2;
+    const F ax = vabs(d[0]), ay = vabs(d[1]), az = vabs(d[2]);
+    const I kz = sel(ge(ax, ay), sel(ge(ax, az), zero, two), sel(ge(ay, az), one, two));
+    I kx = sel(eq(kz, two), zero, kz + 1);
+    I ky = sel(eq(kx, two), zero, kx + 1);
+    auto pick = [&](I k) { return sel(eq(k, zero), d[0], sel(eq(k, one), d[1], d[2])); };
+    const F dz = pick(kz);
+    const M flip = lt(dz, F{});
+    const I kx0 = kx;
+    kx = sel(flip, ky, kx), ky = sel(flip, kx0, ky);
+    store(ent.sx, pick(kx) / dz), store(ent.sy, pick(ky) / dz);
+    store(ent.k[0], kx), store(ent.k[1], ky), store(ent.k[2], kz);
+    ent.in = in.bits;
+  };
   auto fill = [&](GridLanes& ln, int j) {
     ln.ray[j] = -1;
     ln.unit[j] = 0;  // an empty lane reads cell 0 (a valid record) and stays out of every mask
-    while (next < queries.size()) {
-      const Query& q = queries[next];
-      const size_t i = next++;
-      Walk& w = ln.walk[j];
-      if (!enter(w, q.origin, q.dir, q.tnear, q.tfar)) {
+    for (;;) {
+      if (ent.taken == ent.count) {
+        if (next == queries.size()) return false;
+        enterSixteen();
+        for (uint32_t m = ent.in; m; m &= m - 1) prefetchCell(&walkCell(ent.unit[__builtin_ctz(m)]));
+      }
+      const size_t e = ent.taken++, i = ent.first + e;
+      if (!(ent.in >> e & 1)) {
         output(i, GeoHit{});
         continue;
       }
-      for (int a = 0; a < 3; ++a) ln.o[a][j] = w.o[a], ln.d[a][j] = w.d[a], ln.inv[a][j] = w.inv[a], ln.v[a][j] = w.v[a];
-      ln.t1[j] = w.t1;
+      Walk& w = ln.walk[j];
+      for (int a = 0; a < 3; ++a) {
+        ln.o[a][j] = ent.o[a][e], ln.d[a][j] = ent.d[a][e], ln.inv[a][j] = ent.inv[a][e], ln.v[a][j] = ent.v[a][e];
+        w.ray.o[a] = ent.o[a][e], w.ray.d[a] = ent.d[a][e];
+      }
+      w.ray.kx = ent.k[0][e], w.ray.ky = ent.k[1][e], w.ray.kz = ent.k[2][e], w.ray.sx = ent.sx[e], w.ray.sy = ent.sy[e];
+      w.tnear = ent.tnear[e], w.bestT = ent.tfar[e];
+      w.best = GeoHit{};
+      ln.t1[j] = ent.t1[e];
       ln.step[j] = 0;
       ln.ray[j] = int32_t(i);
-      ln.unit[j] = walkLeaf_[leafIndex(w.v)];
-      prefetchCell(&walkCell(ln.unit[j]));
+      ln.unit[j] = ent.unit[e];
       return true;
     }
-    return false;
   };
   auto done = [&](GridLanes& ln, int j) { output(size_t(ln.ray[j]), AnyHit ? ln.walk[j].best : finish(ln.walk[j])); };
   auto step = [&](GridLanes& ln) -> uint32_t {
     constexpr float inf = std::numeric_limits<float>::infinity();
-    const I zero = I{}, minusOne = zero - 1;
+    const I zero = I{};
     const M live = ge(load<I>(ln.ray), zero);
     // The lanes' cell records (exit box and reference count): one 32-byte row per lane.
     F r[8];
@@ -356,17 +441,7 @@ void IrregularGrid::traverseLanes(std::span<const Query> queries, std::span<GeoH
       more = andNot(more, onAxis[a] & outside(v[a], zero + virt_[a]));
       store(ln.v[a], sel(more, v[a], vOld));
     }
-    // The voxel map (leafIndex): the top cell's leaf offset and shifts, then the leaf's record.
-    const I mask = zero + ((1 << depth_) - 1);
-    const I top = ((v[2] >> depth_) * top_[1] + (v[1] >> depth_)) * top_[0] + (v[0] >> depth_);
-    const I topByte = sel(more, top, zero) * int32_t(sizeof(TopCell));
-    const I offset = (I)_mm512_mask_i32gather_epi32((__m512i)minusOne, more.bits, (__m512i)topByte, topWords, 1);
-    const I shifts = (I)_mm512_mask_i32gather_epi32((__m512i)zero, more.bits, (__m512i)topByte, topWords + 1, 1);
-    const I byte = zero + 0xff, s0 = shifts & byte, s1 = (shifts >> 8) & byte, s2 = (shifts >> 16) & byte;
-    const I bits1 = (shifts >> 24) & byte, bits2 = bits1 + (depth_ - s1);  // d0 and d0 + d1, d_a = D − shift_a
-    const I l0 = (v[0] & mask) >> s0, l1 = (v[1] & mask) >> s1, l2 = (v[2] & mask) >> s2;  // (non-negative: >> is logical)
-    const I leaf = offset + (((l2 << bits2) + (l1 << bits1)) + l0);
-    const I nextUnit = (I)_mm512_mask_i32gather_epi32((__m512i)zero, more.bits, (__m512i)sel(more, leaf, zero), leaves, 4);
+    const I nextUnit = lookup(v, more);
     // Each lane's triangles, by testCell (the next cells' loads are under way meanwhile).
     uint32_t finished = 0;
     for (uint32_t m = live.bits; m; m &= m - 1) {

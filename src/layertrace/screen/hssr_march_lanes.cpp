@@ -32,7 +32,6 @@ namespace {
 
 using namespace simd512;
 
-inline F vabs(F a) { return (F)((I)a & 0x7fffffff); }
 inline I lookup(I index, const int32_t* table16) { return __builtin_shuffle(load<I>(table16), index); }
 inline Q lookup(Q index, const int64_t* table8) { return __builtin_shuffle(load<Q>(table8), index); }
 inline Q lowHalf(I v) { return __builtin_convertvector(__builtin_shufflevector(v, v, 0, 1, 2, 3, 4, 5, 6, 7), Q); }

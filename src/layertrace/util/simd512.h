@@ -94,6 +94,8 @@ inline F vmin(F a, F b) { return (F)_mm512_mask_min_ps((__m512)a, 0xffff, (__m51
 /// std::max / std::min of int32 lanes, and floor (round toward −∞) of float lanes.
 inline I imax(I a, I b) { return (I)_mm512_mask_max_epi32((__m512i)a, 0xffff, (__m512i)a, (__m512i)b); }
 inline I imin(I a, I b) { return (I)_mm512_mask_min_epi32((__m512i)a, 0xffff, (__m512i)a, (__m512i)b); }
+/// |a| (the sign bit cleared, as std::abs).
+inline F vabs(F a) { return (F)((I)a & 0x7fffffff); }
 inline F vfloor(F a) { return (F)_mm512_mask_roundscale_ps((__m512)a, 0xffff, (__m512)a, _MM_FROUND_TO_NEG_INF | _MM_FROUND_NO_EXC); }
 
 /// Blocks (128 bits) 0 and 2 of a, then 0 and 2 of b; blocks13: 1 and 3 of each.
