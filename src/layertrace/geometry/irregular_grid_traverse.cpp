@@ -69,6 +69,12 @@ struct IrregularGrid::Walk {
   WatertightRay ray;
   float tnear, t1, bestT, tExit;
   GeoHit best;
+  /// The block and lane of the closest hit so far: finish() takes its normal from the block's
+  /// vertices (the scene's positions, copied), which the test has just read, instead of
+  /// looking the triangle up in the scene — two dependent misses per ray (5–6 % of the lanes'
+  /// time on diffuse rays).
+  const TriangleBlock* bestBlock;
+  int bestLane;
   int v[3];      ///< the voxel of the cell to visit next
   int step;      ///< cells visited
   uint32_t cell; ///< walk_ unit of the cell to visit next
@@ -151,7 +157,8 @@ inline bool IrregularGrid::testCell(Walk& w, const TraversalCell& c, bool more) 
         w.best.t = t[l], w.best.triangle = tri;
         return true;
       }
-      if (t[l] < w.bestT || (t[l] == w.bestT && tri < w.best.triangle)) w.bestT = t[l], w.best.t = t[l], w.best.triangle = tri;
+      if (t[l] < w.bestT || (t[l] == w.bestT && tri < w.best.triangle))
+        w.bestT = t[l], w.best.t = t[l], w.best.triangle = tri, w.bestBlock = &b, w.bestLane = l;
     }
   }
   return (w.best.hit() && w.bestT <= w.tExit) || !more;  // the closest hit lies inside this cell
@@ -160,8 +167,11 @@ inline bool IrregularGrid::testCell(Walk& w, const TraversalCell& c, bool more) 
 inline GeoHit IrregularGrid::finish(const Walk& w) const {
   GeoHit best = w.best;
   if (best.hit()) {
-    const glm::uvec3 i = scene_->triangles[best.triangle];
-    best.ng = glm::cross(scene_->positions[i.y] - scene_->positions[i.x], scene_->positions[i.z] - scene_->positions[i.x]);
+    const TriangleBlock& b = *w.bestBlock;
+    const int l = w.bestLane;
+    glm::vec3 p[3];
+    for (int v = 0; v < 3; ++v) p[v] = {b.v[v][0][l], b.v[v][1][l], b.v[v][2][l]};
+    best.ng = glm::cross(p[1] - p[0], p[2] - p[0]);  // as from the scene's positions: the same floats
   }
   return best;
 }
