@@ -286,7 +286,9 @@ struct IrregularGrid::GridLanes {
   alignas(64) uint32_t unit[kL];  ///< walk_ unit of the cell each lane visits next
   alignas(64) int32_t ray[kL];    ///< the query's index; −1 for an empty lane
   alignas(64) int32_t leaf[kL];   ///< the pending lanes' next leaf (walkLeaf_ index)
-  int32_t step[kL];
+  alignas(64) int32_t step[kL];
+  alignas(64) float bestT[kL];    ///< the walks' bestT, for the lanes answered without testCell
+  __mmask16 hasBest = 0;          ///< lanes whose walk has a hit
   __mmask16 pending = 0;          ///< lanes whose next cell is still to be read from their leaf
   Walk walk[kL];  ///< what testCell and finish read (the ray, its best hit, the cell's exit)
 };
@@ -402,6 +404,8 @@ void IrregularGrid::traverseLanes(std::span<const Query> queries, std::span<GeoH
       w.ray.kx = ent.k[0][e], w.ray.ky = ent.k[1][e], w.ray.kz = ent.k[2][e], w.ray.sx = ent.sx[e], w.ray.sy = ent.sy[e];
       w.tnear = ent.tnear[e], w.bestT = ent.tfar[e];
       w.best = GeoHit{};
+      ln.bestT[j] = ent.tfar[e];
+      ln.hasBest &= __mmask16(~(1u << j));
       ln.t1[j] = ent.t1[e];
       ln.step[j] = 0;
       ln.ray[j] = int32_t(i);
@@ -454,14 +458,26 @@ void IrregularGrid::traverseLanes(std::span<const Query> queries, std::span<GeoH
       store(ln.v[a], sel(more, v[a], vOld));
     }
     store(ln.leaf, leafOf(v, more));
-    // Each lane's triangles, by testCell.
-    uint32_t finished = 0;
-    for (uint32_t m = live.bits; m; m &= m - 1) {
+    // The lanes in empty cells are answered here, as testCell answers them — the closest hit so
+    // far lies inside this cell, or there is no next cell — and the others' triangles are tested
+    // by testCell itself, lane after lane.
+    const M tested = ne(live, (I)field[6], zero);
+    const M empty = andNot(live, tested);
+    const M answered = andNot(empty, more) | le(empty & M{ln.hasBest}, load<F>(ln.bestT), tExit);
+    uint32_t finished = answered.bits;
+    for (uint32_t m = tested.bits; m; m &= m - 1) {
       const int j = __builtin_ctz(m);
       Walk& w = ln.walk[j];
       w.tExit = ln.tExit[j];
-      if (testCell<AnyHit>(w, walkCell(ln.unit[j]), (more.bits >> j) & 1) || ++ln.step[j] == maxSteps) finished |= 1u << j;
+      if (testCell<AnyHit>(w, walkCell(ln.unit[j]), (more.bits >> j) & 1)) finished |= 1u << j;
+      ln.bestT[j] = w.bestT;
+      ln.hasBest |= __mmask16(w.best.hit()) << j;
     }
+    // The step cap (a safety net: the steps move forward), as traverse() counts it.
+    const M stepped = andNot(live, M{__mmask16(finished)});
+    const I steps = load<I>(ln.step) + 1;
+    store(ln.step, sel(stepped, steps, load<I>(ln.step)));
+    finished |= eq(stepped, steps, zero + maxSteps).bits;
     ln.pending = andNot(more, M{__mmask16(finished)}).bits;
     for (uint32_t m = ln.pending; m; m &= m - 1) __builtin_prefetch(&walkLeaf_[uint32_t(ln.leaf[__builtin_ctz(m)])]);
     return finished;

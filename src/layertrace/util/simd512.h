@@ -67,6 +67,7 @@ inline M lt(M m, F a, F b) { return {_mm512_mask_cmp_ps_mask(m.bits, (__m512)a, 
 inline M le(M m, F a, F b) { return {_mm512_mask_cmp_ps_mask(m.bits, (__m512)a, (__m512)b, _CMP_LE_OQ)}; }
 inline M eq(M m, F a, F b) { return {_mm512_mask_cmp_ps_mask(m.bits, (__m512)a, (__m512)b, _CMP_EQ_OQ)}; }
 inline M lt(M m, I a, I b) { return {_mm512_mask_cmplt_epi32_mask(m.bits, (__m512i)a, (__m512i)b)}; }
+inline M eq(M m, I a, I b) { return {_mm512_mask_cmpeq_epi32_mask(m.bits, (__m512i)a, (__m512i)b)}; }
 inline M ge(M m, I a, I b) { return {_mm512_mask_cmpge_epi32_mask(m.bits, (__m512i)a, (__m512i)b)}; }
 inline M ne(M m, I a, I b) { return {_mm512_mask_cmpneq_epi32_mask(m.bits, (__m512i)a, (__m512i)b)}; }
 /// m & ~gt(a, b), m & ~lt(a, b), m & ~ge(a, b): the negated predicates are unordered (true on NaN), as ~ is.
