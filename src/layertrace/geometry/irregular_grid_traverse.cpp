@@ -272,10 +272,10 @@ void IrregularGrid::traverseBatch(std::span<const Query> queries, Out out) const
 // it and the voxel-map lookup (with its triangle tests skipped, an AO ray costs 85 % of its full
 // time) — and sixteen rays' walks are the same operations on different data: here they run in
 // lanes, with exitCell's float expressions in the same order and selects for its branches, the
-// top cells and leaves gathered. Each lane's triangles are then tested by testCell itself, one
-// lane after the other, so the answers are the one-ray traversal's bit for bit (the batch tests
-// compare them). Two groups of lanes step in turn: each step prefetches its lanes' next cells
-// while the other group's step runs.
+// top cells and leaves gathered, and rays enter sixteen at a time. Lanes in an empty cell are
+// answered in the registers by testCell's rule; the others' triangles are tested by testCell
+// itself, one lane after the other — so the answers are the one-ray traversal's bit for bit (the
+// batch tests compare them). Three groups of lanes step in turn (traverseLanes says why).
 #pragma GCC push_options
 #pragma GCC target("avx512f,avx512vl,avx512bw,avx512dq")
 
@@ -322,10 +322,11 @@ void IrregularGrid::traverseLanes(std::span<const Query> queries, std::span<GeoH
   // Rays enter the lanes from a buffer that `enter` fills for sixteen queries at once: the clip to
   // the grid's box, the first voxel and its cell, the watertight test's shear — enter's and
   // WatertightRay's expressions in lanes, with selects for their branches.
+  constexpr int kL = GridLanes::kL;  // (not the class's kLanes: a triangle block's four)
   struct alignas(64) Entered {
-    float o[3][GridLanes::kL], d[3][GridLanes::kL], inv[3][GridLanes::kL], tnear[GridLanes::kL], tfar[GridLanes::kL], t1[GridLanes::kL], sx[GridLanes::kL], sy[GridLanes::kL];
-    int32_t v[3][GridLanes::kL], k[3][GridLanes::kL];
-    uint32_t unit[GridLanes::kL];
+    float o[3][kL], d[3][kL], inv[3][kL], tnear[kL], tfar[kL], t1[kL], sx[kL], sy[kL];
+    int32_t v[3][kL], k[3][kL];  ///< the first voxel; the shear's axes kx, ky, kz
+    uint32_t unit[kL];
     uint32_t in = 0;  ///< the queries that enter the grid
     size_t first = 0, count = 0, taken = 0;  ///< queries [first, first + count), `taken` of them used
   } ent;
@@ -333,7 +334,7 @@ void IrregularGrid::traverseLanes(std::span<const Query> queries, std::span<GeoH
   size_t next = 0;
   auto enterSixteen = [&] {
     constexpr float inf = std::numeric_limits<float>::infinity();
-    const size_t n = std::min<size_t>(GridLanes::kL, queries.size() - next);
+    const size_t n = std::min<size_t>(kL, queries.size() - next);
     ent.first = next, ent.count = n, ent.taken = 0;
     next += n;
     F r[8];
@@ -499,7 +500,7 @@ void IrregularGrid::traverseLanes(std::span<const Query> queries, std::span<GeoH
   GridLanes lanes[kGroups]{};
   int live = 0;
   for (GridLanes& ln : lanes)
-    for (int j = 0; j < GridLanes::kL; ++j) live += fill(ln, j);
+    for (int j = 0; j < kL; ++j) live += fill(ln, j);
   while (live > 0)
     for (int g = 0; g < kGroups; ++g) {
       GridLanes& ln = lanes[g];
@@ -519,11 +520,12 @@ template void IrregularGrid::traverseLanes<true>(std::span<const Query>, std::sp
 #pragma GCC pop_options
 #endif
 
-/// The lanes need AVX-512 and 32-bit lane arithmetic for the voxel map's indices.
+/// The lanes need AVX-512, a cell 0 for empty lanes to read, and voxel-map indices (top cells'
+/// byte offsets, leaves) that fit 32-bit lanes.
 bool IrregularGrid::lanesAvailable() const {
 #if LT_SIMD512
   return simd512Available() && !walk_.empty() && topCells_.size() * sizeof(TopCell) < (size_t(1) << 31) &&
-         walkLeaf_.size() < (size_t(1) << 31) && size_t(virt_[0]) * size_t(virt_[1]) * size_t(virt_[2]) > 0;
+         walkLeaf_.size() < (size_t(1) << 31);
 #else
   return false;
 #endif
