@@ -26,6 +26,15 @@ struct Agreement {
   double fraction() const { return rays ? double(agree) / double(rays) : 1.0; }
 };
 
+/// Bit for bit: the same floats, not merely equal ones (−0 ≠ +0).
+bool sameBits(glm::vec3 a, glm::vec3 b) {
+  return std::bit_cast<uint32_t>(a.x) == std::bit_cast<uint32_t>(b.x) && std::bit_cast<uint32_t>(a.y) == std::bit_cast<uint32_t>(b.y) &&
+         std::bit_cast<uint32_t>(a.z) == std::bit_cast<uint32_t>(b.z);
+}
+bool sameBits(const GeoHit& a, const GeoHit& b) {
+  return a.triangle == b.triangle && std::bit_cast<uint32_t>(a.t) == std::bit_cast<uint32_t>(b.t) && sameBits(a.ng, b.ng);
+}
+
 bool sameHit(const GeoHit& a, const GeoHit& b) {
   if (a.hit() != b.hit()) return false;
   if (!a.hit()) return true;
@@ -129,11 +138,6 @@ GeoHit referenceTraverse(const IrregularGrid& g, const Scene& scene, glm::vec3 o
 /// longer than the rays in flight; returns the number of differing answers. Every closest hit's
 /// normal must also be the scene triangle's (v1 − v0) × (v2 − v0), to the bit.
 size_t batchDifferences(const Scene& scene, const IrregularGrid& grid, const std::vector<IrregularGrid::Query>& q) {
-  auto same = [](const GeoHit& a, const GeoHit& b) {
-    return a.triangle == b.triangle && std::bit_cast<uint32_t>(a.t) == std::bit_cast<uint32_t>(b.t) &&
-           std::bit_cast<uint32_t>(a.ng.x) == std::bit_cast<uint32_t>(b.ng.x) &&
-           std::bit_cast<uint32_t>(a.ng.y) == std::bit_cast<uint32_t>(b.ng.y) && std::bit_cast<uint32_t>(a.ng.z) == std::bit_cast<uint32_t>(b.ng.z);
-  };
   std::vector<GeoHit> one(q.size());
   std::vector<uint8_t> oneAny(q.size());
   for (size_t i = 0; i < q.size(); ++i) {
@@ -144,19 +148,22 @@ size_t batchDifferences(const Scene& scene, const IrregularGrid& grid, const std
   for (const GeoHit& h : one)
     if (h.hit()) {
       const glm::uvec3 ix = scene.triangles[h.triangle];
-      const glm::vec3 ng = glm::cross(scene.positions[ix.y] - scene.positions[ix.x], scene.positions[ix.z] - scene.positions[ix.x]);
-      differ += std::bit_cast<uint32_t>(ng.x) != std::bit_cast<uint32_t>(h.ng.x) ||
-                std::bit_cast<uint32_t>(ng.y) != std::bit_cast<uint32_t>(h.ng.y) || std::bit_cast<uint32_t>(ng.z) != std::bit_cast<uint32_t>(h.ng.z);
+      differ += !sameBits(h.ng, glm::cross(scene.positions[ix.y] - scene.positions[ix.x], scene.positions[ix.z] - scene.positions[ix.x]));
     }
   for (size_t batch : {size_t(1), size_t(5), size_t(16), size_t(17), size_t(256), q.size()}) {
     for (size_t b = 0; b < q.size(); b += batch) {
       const size_t n = std::min(batch, q.size() - b);
       const std::span<const IrregularGrid::Query> chunk(&q[b], n);
-      std::vector<GeoHit> hits(n);
-      std::vector<uint8_t> any(n, 7);
+      // The batch (AVX-512 lanes where the CPU has them) and the portable batch.
+      std::vector<GeoHit> hits(n), portable(n);
+      std::vector<uint8_t> any(n, 7), portableAny(n, 7);
       grid.intersect(chunk, hits);
       grid.occluded(chunk, any);
-      for (size_t i = 0; i < n; ++i) differ += !same(hits[i], one[b + i]) + (any[i] != oneAny[b + i]);
+      grid.intersectPortable(chunk, portable);
+      grid.occludedPortable(chunk, portableAny);
+      for (size_t i = 0; i < n; ++i)
+        differ += !sameBits(hits[i], one[b + i]) + (any[i] != oneAny[b + i]) + !sameBits(portable[i], one[b + i]) +
+                  (portableAny[i] != oneAny[b + i]);
     }
   }
   return differ;
@@ -634,8 +641,7 @@ TEST_P(RealSceneGrid, RaysThroughVoxelEdgesEndAndAgreeWithEmbree) {
   std::vector<GeoHit> batch(queries.size());
   grid.intersect(queries, batch);
   size_t differ = 0;
-  for (size_t i = 0; i < queries.size(); ++i)
-    differ += batch[i].triangle != one[i].triangle || std::bit_cast<uint32_t>(batch[i].t) != std::bit_cast<uint32_t>(one[i].t);
+  for (size_t i = 0; i < queries.size(); ++i) differ += !sameBits(batch[i], one[i]);
   EXPECT_EQ(differ, 0u) << "batch answers differing from the one-ray traversal, of " << rays << " rays";
 }
 

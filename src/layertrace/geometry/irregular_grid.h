@@ -93,9 +93,15 @@ class IrregularGrid {
   /// The answers of intersect / occluded for many rays, bit for bit, with several rays in flight
   /// (uncounted): each ray's next cell is prefetched while the other rays of its group step, so
   /// the traversal's chain of dependent loads (leaf → cell → triangles) overlaps across rays
-  /// instead of stalling each ray (issue 14: incoherent rays were latency-bound).
+  /// instead of stalling each ray (issue 14: incoherent rays were latency-bound). Sixteen rays per
+  /// AVX-512 register where the CPU has them, the portable batch below elsewhere.
   void intersect(std::span<const Query> queries, std::span<GeoHit> hits) const;
   void occluded(std::span<const Query> queries, std::span<uint8_t> hits) const;
+  /// The batch without the AVX-512 lanes (sixteen scalar rays in flight), on every CPU: what the
+  /// batch queries run where the CPU has no AVX-512, and what the tests hold to the one-ray
+  /// traversal there too.
+  void intersectPortable(std::span<const Query> queries, std::span<GeoHit> hits) const;
+  void occludedPortable(std::span<const Query> queries, std::span<uint8_t> hits) const;
 
   const GridStats& stats() const { return stats_; }
   size_t memoryBytes() const;

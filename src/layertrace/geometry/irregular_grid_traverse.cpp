@@ -539,17 +539,25 @@ LT_CPU_DISPATCH bool IrregularGrid::occluded(glm::vec3 origin, glm::vec3 dir, fl
   return traverse<true>(origin, dir, tnear, tfar, counts).hit();
 }
 
-LT_CPU_DISPATCH void IrregularGrid::intersect(std::span<const Query> queries, std::span<GeoHit> hits) const {
+void IrregularGrid::intersect(std::span<const Query> queries, std::span<GeoHit> hits) const {
 #if LT_SIMD512
   if (lanesAvailable()) return traverseLanes<false>(queries, hits, {});
 #endif
-  traverseBatch<false>(queries, [&hits](size_t i, const GeoHit& h) { hits[i] = h; });
+  intersectPortable(queries, hits);
 }
 
-LT_CPU_DISPATCH void IrregularGrid::occluded(std::span<const Query> queries, std::span<uint8_t> hits) const {
+void IrregularGrid::occluded(std::span<const Query> queries, std::span<uint8_t> hits) const {
 #if LT_SIMD512
   if (lanesAvailable()) return traverseLanes<true>(queries, {}, hits);
 #endif
+  occludedPortable(queries, hits);
+}
+
+LT_CPU_DISPATCH void IrregularGrid::intersectPortable(std::span<const Query> queries, std::span<GeoHit> hits) const {
+  traverseBatch<false>(queries, [&hits](size_t i, const GeoHit& h) { hits[i] = h; });
+}
+
+LT_CPU_DISPATCH void IrregularGrid::occludedPortable(std::span<const Query> queries, std::span<uint8_t> hits) const {
   traverseBatch<true>(queries, [&hits](size_t i, const GeoHit& h) { hits[i] = h.hit(); });
 }
 
