@@ -168,6 +168,69 @@ TEST(Hssr, LanesEqualMarchForFewerLayers) {
     }
 }
 
+/// Axis-parallel segments (rows and columns: a level camera's reflections off walls parallel
+/// to its axis and off a level floor — 6 % of am_thornish's reflection rays) through the lanes,
+/// which substitute p0 and invD on the flat axis instead of special-casing it: bit for bit
+/// hssrMarch, with p0 on pixel centres, on integer boundaries (where a careless substitution
+/// would form 0 · ∞) and anywhere between, from surfaces and from outside, both directions, and
+/// rows/columns near the view's borders and on every pyramid level's partial cells.
+TEST(Hssr, LanesEqualMarchOnAxisParallelSegments) {
+  FrameOptions o;
+  o.scenePath = test::sourceDir() + "/scenes/default.json";
+  o.width = 317, o.height = 179;
+  const Frame f = buildFrame(o);
+  const int W = f.camera.width(), H = f.camera.height();
+  std::mt19937 rng(uint32_t(test::testSeed() + 13));
+  std::uniform_real_distribution<float> unit(0.0f, 1.0f);
+  // k = 1/z between the nearest and farthest stored depths, so the segments pass through layers.
+  float zMin = 1e30f, zMax = 0.0f;
+  for (int y = 0; y < H; ++y)
+    for (int x = 0; x < W; ++x)
+      for (int l = 0; l < f.layers.countAt(x, y); ++l) {
+        const float z = f.layers.pixel(x, y)[l].depth;
+        zMin = std::min(zMin, z), zMax = std::max(zMax, z);
+      }
+  ASSERT_LT(zMin, zMax);
+  auto coord = [&](int extent) {
+    const float v = unit(rng) * float(extent);
+    switch (rng() % 4) {
+      case 0: return std::floor(v) + 0.5f;                      // a pixel centre
+      case 1: return std::floor(v);                             // a pixel boundary
+      case 2: return float(rng() % 4 == 0 ? 0 : extent) - 0.25f * unit(rng);  // at a border
+      default: return v;
+    }
+  };
+  std::vector<ScreenSegment> segs;
+  for (int i = 0; i < 40000; ++i) {
+    ScreenSegment s;
+    s.valid = true;
+    s.clippedStart = rng() % 3 == 0;
+    s.p0 = {coord(W), coord(H)};
+    s.p1 = s.p0;
+    if (i % 2) s.p1.x = unit(rng) * float(W); else s.p1.y = unit(rng) * float(H);
+    if (s.p1 == s.p0) continue;
+    s.k0 = 1.0f / (zMin + unit(rng) * (zMax - zMin)), s.k1 = 1.0f / (zMin + unit(rng) * (zMax - zMin));
+    segs.push_back(s);
+  }
+  for (int levels : {1, 3, PyramidConfig{}.levels, 8}) {
+    const IntervalPyramid p = buildIntervalPyramid(f.layers, f.camera, PyramidConfig{levels, 25.0f});
+    for (int nUp : {1, 2}) {
+      std::vector<MarchHit> lanes(segs.size());
+      hssrMarchBatch(p, levels, nUp, segs, W, H, lanes);
+      size_t differ = 0, first = segs.size(), hits = 0;
+      for (size_t i = 0; i < segs.size(); ++i) {
+        NoCounters c;
+        const MarchHit a = hssrMarch(p, levels, nUp, segs[i], W, H, c), b = lanes[i];
+        hits += a.hit();
+        if (a.x != b.x || a.y != b.y || a.interval != b.interval || std::bit_cast<uint32_t>(a.s) != std::bit_cast<uint32_t>(b.s))
+          ++differ, first = std::min(first, i);
+      }
+      EXPECT_GT(hits, segs.size() / 10) << "too few hits to mean anything";
+      EXPECT_EQ(differ, 0u) << "levels " << levels << " n_up " << nUp << " first segment " << first << " of " << segs.size();
+    }
+  }
+}
+
 TEST(Hssr, MatchesExhaustiveOracleOnDefaultScene) {
   FrameOptions o;
   o.scenePath = test::sourceDir() + "/scenes/default.json";

@@ -75,7 +75,12 @@ bool start(Lanes& ln, int j, const IntervalPyramid& pyramid, const Tables& tb, c
   }
   const hssr_detail::MarchStart st(seg, W, H);
   const Line& line = st.line;
-  if (line.stepX == 0 || line.stepY == 0) {  // axis-parallel (and single-pixel) lines: the scalar march
+  // An axis-parallel line (6 % of am_thornish's reflection rays: walls parallel to the view
+  // axis reflect into rows, a level floor into columns) runs in the lanes too; a single-pixel
+  // line, or a flat axis too far out for the substitution below to be exact, runs hssrMarch.
+  const bool flatX = line.stepX == 0, flatY = line.stepY == 0;
+  constexpr float kExactHalf = 4194304.0f;  // 2^22: floor(p) + 0.5 is exact below it
+  if ((flatX && flatY) || (flatX && !(std::abs(line.p0.x) < kExactHalf)) || (flatY && !(std::abs(line.p0.y) < kExactHalf))) {
     NoCounters none;
     out = hssrMarch(pyramid, tb.levels, tb.nUp, seg, W, H, none);
     return false;
@@ -86,6 +91,15 @@ bool start(Lanes& ln, int j, const IntervalPyramid& pyramid, const Tables& tb, c
   }
   const int cx = st.cx, cy = st.cy;
   ln.p0x[j] = line.p0.x, ln.p0y[j] = line.p0.y, ln.invDx[j] = line.invDx, ln.invDy[j] = line.invDy;
+  // Along a flat axis hssrMarch keeps the span (−∞, +∞) of the column (row) holding p0 and never
+  // steps across it; a descent keeps the child on p0's side of the midline. The lanes compute
+  // every crossing as (boundary − p0) · invD: with p0 moved to the middle of its pixel (no
+  // integer boundary changes side, none equals it, so no 0 · ∞) and invD = −∞, a boundary
+  // ahead of p0 crosses at −∞ and one behind at +∞ — exactly the spans and child choice of
+  // hssrMarch's childSlab (tested bit for bit), with no flat-axis case in the step.
+  constexpr float inf = std::numeric_limits<float>::infinity();
+  if (flatX) ln.p0x[j] = std::floor(line.p0.x) + 0.5f, ln.invDx[j] = -inf;
+  if (flatY) ln.p0y[j] = std::floor(line.p0.y) + 0.5f, ln.invDy[j] = -inf;
   ln.stepX[j] = line.stepX, ln.stepY[j] = line.stepY;
   ln.xIn[j] = st.sp.xIn, ln.xOut[j] = st.sp.xOut, ln.yIn[j] = st.sp.yIn, ln.yOut[j] = st.sp.yOut;
   ln.k0[j] = st.k0, ln.dk[j] = st.dk, ln.invDk[j] = st.invDk, ln.invAbsDk[j] = st.invAbsDk;
