@@ -1,6 +1,6 @@
 // Issues 3 §6 and 4 §6: one-bounce mirror reflection rays from every covered pixel of the
 // FZK-Haus and am_thornish interiors (1280×720, k = 4), the same rays through every tracer:
-// ssr at strides 1, 2, 4, 8; ssr-layers at strides 1, 2, 3, 4, 8; hssr (τ 25, 5 levels, n_up 2).
+// ssr at strides 1, 2, 4, 8; ssr-layers at strides 1, 2, 3, 4, 8; hssr (the default τ and levels, n_up 2).
 // Counters: MRays/s, mean DDA iterations per ray, hit fraction; Embree (the project's scene) on
 // the same rays as the baseline; the hybrid (issue 15: hssr + embree, certified answers) with
 // the share of rays each half answered; HSSR against Embree alternating round by round on the
@@ -25,7 +25,7 @@
 
 namespace {
 
-/// The HSSR passes here use the default pyramid (τ 25, PyramidConfig's levels) and n_up 2.
+/// The HSSR passes here use the default pyramid (PyramidConfig: τ 4, 7 levels) and n_up 2.
 constexpr int kLevels = lt::PyramidConfig{}.levels;
 
 struct Setup {
@@ -194,7 +194,7 @@ void BM_Embree(benchmark::State& state) {
   traceAll(state, t, s.rays);
 }
 
-/// HSSR (τ 25, the default levels, n_up 2) and plain single-ray Embree on the same rays,
+/// HSSR (the default τ and levels, n_up 2) and plain single-ray Embree on the same rays,
 /// alternating in every round (timeAlternating): the ratio issue 14's target is about, robust to
 /// a machine whose speed drifts between runs. Arg: scene.
 void BM_HssrAgainstEmbree(benchmark::State& state) {

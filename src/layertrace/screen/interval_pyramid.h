@@ -24,8 +24,15 @@ struct PyramidConfig {
   /// 1.11× FZK-Haus, 1.06× am_thornish against 5 levels; 6 and 8 no better than 7).
   int levels = 7;
   /// τ as a multiple of the projected pixel footprint at the interval's start depth, for a
-  /// level-L cell 2^L pixels wide (seed 000 §4.3: "25 times the projected pixel-footprint").
-  float tau = 25.0f;
+  /// level-L cell 2^L pixels wide. Seed 000 §4.3 uses 25 ("25 times the projected pixel-
+  /// footprint"); answers are the same for any τ (tested for 1–128). Choice: 4. A smaller τ
+  /// leaves fewer gaps filled, so fewer false descents — with the lanes and 7 levels the steps
+  /// per one-bounce reflection ray fall from 26.4 to 24.6 on FZK-Haus and 29.4 to 24.3 on
+  /// am_thornish (`bench --experiment tau`: within 1 % of τ = 1's count), and HSSR's time
+  /// against plain Embree in `compare` (5 runs each, session 21) goes 0.97 → 1.07× on FZK-Haus,
+  /// 0.98 → 1.10× on am_thornish, 1.66 → 1.67× on engine; below 4 nothing more is gained,
+  /// while the cells hold more intervals (FZK-Haus level 1: 514 k at 25, 713 k at 4, 728 k at 1).
+  float tau = 4.0f;
   bool operator==(const PyramidConfig&) const = default;
 };
 
@@ -37,7 +44,8 @@ struct PyramidConfig {
 /// holds more than kSlots intervals merges the two separated by the smallest depth gap until
 /// kSlots remain (choice: a fixed size removes the dependent offset load; merging only widens
 /// intervals, so the cell still covers its children — hssr-pitfalls §3 — and answers cannot
-/// change; on the real views at 1280×720, τ = 25: 0.01–0.32 % of level-1 cells, ≤ 0.13 % above).
+/// change; on the real views at 1280×720, τ = 25: 0.01–0.32 % of level-1 cells, ≤ 0.13 % above;
+/// more at the default τ = 4, which merges less before the slots run out).
 struct alignas(32) CoarseCell {
   static constexpr int kSlots = 4;
   float kFront[kSlots];  ///< 1 / front depth (the larger κ)

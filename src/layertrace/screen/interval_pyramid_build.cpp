@@ -59,7 +59,7 @@ void mergeChildren(Interval* children, size_t n, float tauPerDepth, std::vector<
 /// One cell's CSR intervals (sorted by front, disjoint) as a fixed-slot κ cell (CoarseCell).
 CoarseCell toCoarseCell(const Interval* first, const Interval* last, std::vector<Interval>& scratch) {
   size_t n = size_t(last - first);
-  if (n > size_t(CoarseCell::kSlots)) {  // rare (≤ 0.32 % of level-1 cells): merge in a copy
+  if (n > size_t(CoarseCell::kSlots)) {  // rare (≤ 0.32 % of level-1 cells at τ = 25): merge in a copy
     scratch.assign(first, last);
     while (scratch.size() > size_t(CoarseCell::kSlots)) {
       // Merge the neighbours separated by the smallest gap: the union still covers both.
