@@ -111,7 +111,7 @@ void addTracerOptions(CLI::App* app, lt::TracerOptions& t) {
   app->add_option("--max-steps", t.ssr.maxSteps, "ssr: step limit (0 = to the viewport edge)")->capture_default_str();
   app->add_option("--tau", t.pyramid.tau, "hssr: merge threshold in pixel footprints")->capture_default_str();
   app->add_option("--levels", t.pyramid.levels, "hssr: pyramid levels incl. level 0")->capture_default_str();
-  app->add_option("--n-up", t.hssr.nUp, "hssr: cells without overlap before ascending")->capture_default_str();
+  app->add_option("--n-up", t.hssr.nUp, "hssr: cells without overlap before ascending (sooner on entering a new parent cell)")->capture_default_str();
   app->add_option("--lambda-h", t.quadtree.lambdaH, "quadtree: zero one-sided depth derivatives above this (seed 002 Alg. 1)")->capture_default_str();
   app->add_option("--lambda-d", t.quadtree.lambdaD, "quadtree: Laplacian discontinuity threshold (seed 002 Alg. 1)")->capture_default_str();
   app->add_option("--gamma-norm", t.quadtree.gammaNorm, "quadtree: merge planes whose normals differ by less (1 - dot)")->capture_default_str();

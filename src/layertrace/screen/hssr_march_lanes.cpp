@@ -248,6 +248,7 @@ __attribute__((noinline)) uint32_t step(Lanes& ln, const Tables& tb) {
     const I size = one << L;
     const M exitX = le(xOut, yOut);  // ties step in x first (hssr-pitfalls §7)
     const M mx = move & exitX, my = andNot(move, exitX);
+    const I parentX = cx >> 1, parentY = cy >> 1;
     cx = sel(mx, cx + stepX, cx);
     cy = sel(my, cy + stepY, cy);
     const F nextX = (__builtin_convertvector(sel(posX, cx + 1, cx) * size, F) - p0x) * invDx;
@@ -256,7 +257,8 @@ __attribute__((noinline)) uint32_t step(Lanes& ln, const Tables& tb) {
     yIn = sel(my, yOut, yIn), yOut = sel(my, nextY, yOut);
     misses = sel(move, misses + 1, misses);
     const I Lu = L + 1, px = cx >> 1, py = cy >> 1;
-    M up = lt(ge(move, misses, zero + tb.nUp), Lu, zero + tb.levels);
+    // (after n_up misses, or on entering another parent cell: hssrMarch's rule)
+    M up = lt(ge(move, misses, zero + tb.nUp) | ne(move, px, parentX) | ne(move, py, parentY), Lu, zero + tb.levels);
     // seed 000 §5.2: only ascend when the coarser cell does not overlap the origin pixel.
     up = ne(up, load<I>(ln.ox) >> Lu, px) | ne(up, load<I>(ln.oy) >> Lu, py);
     up = lt(lt(up, px, lookup(Lu, tb.width)), py, lookup(Lu, tb.height)) & ge(cx, zero) & ge(cy, zero);
