@@ -6,6 +6,7 @@
 #include <glm/geometric.hpp>
 
 #include "layertrace/raster/fragment.h"
+#include "layertrace/util/in_place.h"
 
 namespace lt {
 
@@ -66,7 +67,7 @@ void EmbreePacketTracer::traceBatch(std::span<const Ray> rays, std::span<TraceHi
   packets(rays, [&](const glm::vec3* o, const glm::vec3* d, const float* tnear, const float* tfar, size_t n, size_t b) {
     GeoHit g[16];
     embree_.intersectPackets(o, d, tnear, tfar, n, g);
-    for (size_t i = 0; i < n; ++i) hits[b + i] = single_.hits().makeHit(rays[b + i], g[i]);
+    for (size_t i = 0; i < n; ++i) assignInPlace(hits[b + i], [&] { return single_.hits().makeHit(rays[b + i], g[i]); });
   });
 }
 
@@ -98,7 +99,7 @@ void GridTracer::traceBatch(std::span<const Ray> rays, std::span<TraceHit> hits,
   chunks(rays, [&](std::span<const IrregularGrid::Query> q, size_t b) {
     GeoHit g[kChunk];
     accel().intersect(q, std::span<GeoHit>(g, q.size()));
-    for (size_t i = 0; i < q.size(); ++i) hits[b + i] = this->hits().makeHit(rays[b + i], g[i]);
+    for (size_t i = 0; i < q.size(); ++i) assignInPlace(hits[b + i], [&] { return this->hits().makeHit(rays[b + i], g[i]); });
   });
 }
 

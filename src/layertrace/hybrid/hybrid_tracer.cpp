@@ -10,6 +10,7 @@
 #include "layertrace/geometry/ray_triangle.h"
 #include "layertrace/screen/screen_segment.h"
 #include "layertrace/util/error.h"
+#include "layertrace/util/in_place.h"
 
 namespace lt {
 
@@ -256,7 +257,7 @@ void HybridTracer::run(Query q, std::span<const Ray> rays, std::span<TraceHit> h
     const GeoHit& b = s.best[i];
     if (!b.hit()) hits[i] = TraceHit{};
     else if (q == Query::Any) hits[i] = GeometricHits::occludedHit(true);
-    else hits[i] = hits_.makeHit(rays[i], b);
+    else assignInPlace(hits[i], [&] { return hits_.makeHit(rays[i], b); });
   }
   for (size_t j = 0; j < s.geoRays.size(); ++j)
     if (s.geoHits[j].hit) hits[s.geoIndex[j]] = s.geoHits[j];

@@ -8,6 +8,7 @@
 #include "layertrace/screen/hssr_march_lanes.h"
 #include "layertrace/screen/screen_segment.h"
 #include "layertrace/util/error.h"
+#include "layertrace/util/in_place.h"
 
 namespace lt {
 
@@ -33,7 +34,9 @@ void HssrTracer::traceBatch(std::span<const Ray> rays, std::span<TraceHit> hits,
   thread_local std::vector<MarchHit> marched;
   segs.resize(rays.size());
   marched.resize(rays.size());
-  for (size_t i = 0; i < rays.size(); ++i) segs[i] = makeScreenSegment(camera_, rays[i]);
+  // (results constructed in place, util/in_place.h: assigned, they were ~60 % of this
+  // function's samples, FZK-Haus)
+  for (size_t i = 0; i < rays.size(); ++i) assignInPlace(segs[i], [&] { return makeScreenSegment(camera_, rays[i]); });
   hssrMarchBatch(pyramid_, levels_, config_.nUp, segs, camera_.width(), camera_.height(), marched);
   // The hit fragments are scattered over the layer arrays: ask for all of them before reading
   // any, so that their cache misses overlap (3–5 % of HSSR's time, measured by alternating
@@ -46,7 +49,7 @@ void HssrTracer::traceBatch(std::span<const Ray> rays, std::span<TraceHit> hits,
     }
   for (size_t i = 0; i < rays.size(); ++i) {
     const MarchHit& m = marched[i];
-    hits[i] = m.hit() ? fragmentHit(camera_, layers_, m.x, m.y, m.interval) : TraceHit{};
+    assignInPlace(hits[i], [&] { return m.hit() ? fragmentHit(camera_, layers_, m.x, m.y, m.interval) : TraceHit{}; });
   }
 }
 

@@ -12,6 +12,7 @@
 #pragma once
 
 #include <cstdint>
+#include <new>
 #include <span>
 
 #include <glm/vec3.hpp>
@@ -138,7 +139,10 @@ class Tracer {
 
 inline void Tracer::traceBatch(std::span<const Ray> rays, std::span<TraceHit> hits, std::span<RayCounters> counters) const {
   RayCounters scratch;
-  for (size_t i = 0; i < rays.size(); ++i) hits[i] = trace(rays[i], counters.empty() ? scratch : counters[i]);
+  // (each hit constructed in place, as util/in_place.h's assignInPlace does — this header is
+  // installed on its own, so it spells the placement new out)
+  for (size_t i = 0; i < rays.size(); ++i)
+    ::new (static_cast<void*>(&hits[i])) TraceHit(trace(rays[i], counters.empty() ? scratch : counters[i]));
 }
 
 /// The tracer implementations' common base (CRTP): Derived provides
@@ -172,13 +176,14 @@ class TracerImpl : public Tracer {
 
  private:
   const Derived& self() const { return static_cast<const Derived&>(*this); }
+  // (hits constructed in place, as in Tracer::traceBatch)
   template <class F>
   static void run(std::span<const Ray> rays, std::span<TraceHit> hits, std::span<RayCounters> counters, F&& f) {
     if (kCountersCompiled && !counters.empty()) {
-      for (size_t i = 0; i < rays.size(); ++i) hits[i] = f(rays[i], counters[i]);
+      for (size_t i = 0; i < rays.size(); ++i) ::new (static_cast<void*>(&hits[i])) TraceHit(f(rays[i], counters[i]));
     } else {
       NoCounters none;
-      for (size_t i = 0; i < rays.size(); ++i) hits[i] = f(rays[i], none);
+      for (size_t i = 0; i < rays.size(); ++i) ::new (static_cast<void*>(&hits[i])) TraceHit(f(rays[i], none));
     }
   }
 };
