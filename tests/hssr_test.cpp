@@ -104,14 +104,17 @@ void expectLanesEqualMarch(const Frame& f, const IntervalPyramid& p, int levels,
 /// The fast march (incremental spans, κ-domain fixed-slot coarse cells, sentinels) against the
 /// reference march it replaced: the same level-0 pixel, interval and entry parameter, bit for
 /// bit, for the oracle (1 level) and the hierarchical march, on `rays` and their mirror bounces;
-/// the paper's 5 levels, the default (PyramidConfig, 7 since session 19) and the lanes' most (8).
+/// the paper's 5 levels, the default (PyramidConfig, 7 since session 19) and the lanes' most (8);
+/// the paper's τ (25) and the default (4 since session 21).
 void expectSameAsReference(const Frame& f, size_t count) {
   const uint64_t seed = test::testSeed() + 7;
   std::vector<Ray> rays = test::sampleRays(f, count, seed);
   const int W = f.camera.width(), H = f.camera.height();
-  std::set<int> levelCounts{1, 3, 5, PyramidConfig{}.levels, 8};
-  for (int levels : levelCounts) {
-    const IntervalPyramid p = buildIntervalPyramid(f.layers, f.camera, PyramidConfig{levels, 25.0f});
+  std::vector<std::pair<float, int>> configs;  // (τ, levels)
+  for (float tau : std::set<float>{25.0f, PyramidConfig{}.tau})
+    for (int levels : std::set<int>{1, 3, 5, PyramidConfig{}.levels, 8}) configs.emplace_back(tau, levels);
+  for (const auto& [tau, levels] : configs) {
+    const IntervalPyramid p = buildIntervalPyramid(f.layers, f.camera, PyramidConfig{levels, tau});
     for (int nUp : {1, 2}) {
       std::atomic<size_t> mismatches{0}, firstBad{rays.size()}, hits{0};
       parallelFor(size_t(0), rays.size(), [&](size_t i) {
@@ -127,7 +130,8 @@ void expectSameAsReference(const Frame& f, size_t count) {
         }
       });
       EXPECT_GT(hits.load(), rays.size() / 10) << "too few hits to mean anything";
-      EXPECT_EQ(mismatches.load(), 0u) << "levels " << levels << " n_up " << nUp << " first ray " << firstBad.load() << " seed " << seed;
+      EXPECT_EQ(mismatches.load(), 0u) << "tau " << tau << " levels " << levels << " n_up " << nUp << " first ray " << firstBad.load()
+                                  << " seed " << seed;
       expectLanesEqualMarch(f, p, levels, nUp, rays);
     }
     // The uncounted batch runs the copy compiled for this CPU (util/cpu_dispatch.h): the same
@@ -141,7 +145,7 @@ void expectSameAsReference(const Frame& f, size_t count) {
       const TraceHit one = t.trace(rays[i], c);
       differ += one.hit != batch[i].hit || one.x != batch[i].x || one.y != batch[i].y || one.layer != batch[i].layer;
     }
-    EXPECT_EQ(differ, 0u) << "levels " << levels;
+    EXPECT_EQ(differ, 0u) << "tau " << tau << " levels " << levels;
   }
 }
 
@@ -194,8 +198,8 @@ TEST(Hssr, LanesEqualMarchOnAxisParallelSegments) {
   auto coord = [&](int extent) {
     const float v = unit(rng) * float(extent);
     switch (rng() % 4) {
-      case 0: return std::floor(v) + 0.5f;                      // a pixel centre
-      case 1: return std::floor(v);                             // a pixel boundary
+      case 0: return std::floor(v) + 0.5f;  // a pixel centre
+      case 1: return std::floor(v);         // a pixel boundary
       case 2: return float(rng() % 4 == 0 ? 0 : extent) - 0.25f * unit(rng);  // at a border
       default: return v;
     }
@@ -207,13 +211,16 @@ TEST(Hssr, LanesEqualMarchOnAxisParallelSegments) {
     s.clippedStart = rng() % 3 == 0;
     s.p0 = {coord(W), coord(H)};
     s.p1 = s.p0;
-    if (i % 2) s.p1.x = unit(rng) * float(W); else s.p1.y = unit(rng) * float(H);
+    if (i % 2)
+      s.p1.x = unit(rng) * float(W);
+    else
+      s.p1.y = unit(rng) * float(H);
     if (s.p1 == s.p0) continue;
     s.k0 = 1.0f / (zMin + unit(rng) * (zMax - zMin)), s.k1 = 1.0f / (zMin + unit(rng) * (zMax - zMin));
     segs.push_back(s);
   }
   for (int levels : {1, 3, PyramidConfig{}.levels, 8}) {
-    const IntervalPyramid p = buildIntervalPyramid(f.layers, f.camera, PyramidConfig{levels, 25.0f});
+    const IntervalPyramid p = buildIntervalPyramid(f.layers, f.camera, PyramidConfig{levels, PyramidConfig{}.tau});
     for (int nUp : {1, 2}) {
       std::vector<MarchHit> lanes(segs.size());
       hssrMarchBatch(p, levels, nUp, segs, W, H, lanes);
