@@ -77,10 +77,9 @@ bool start(Lanes& ln, int j, const IntervalPyramid& pyramid, const Tables& tb, c
   const Line& line = st.line;
   // An axis-parallel line (6 % of am_thornish's reflection rays: walls parallel to the view
   // axis reflect into rows, a level floor into columns) runs in the lanes too; a single-pixel
-  // line, or a flat axis too far out for the substitution below to be exact, runs hssrMarch.
+  // line runs hssrMarch.
   const bool flatX = line.stepX == 0, flatY = line.stepY == 0;
-  constexpr float kExactHalf = 4194304.0f;  // 2^22: floor(p) + 0.5 is exact below it
-  if ((flatX && flatY) || (flatX && !(std::abs(line.p0.x) < kExactHalf)) || (flatY && !(std::abs(line.p0.y) < kExactHalf))) {
+  if (flatX && flatY) {
     NoCounters none;
     out = hssrMarch(pyramid, tb.levels, tb.nUp, seg, W, H, none);
     return false;
@@ -94,7 +93,8 @@ bool start(Lanes& ln, int j, const IntervalPyramid& pyramid, const Tables& tb, c
   // Along a flat axis hssrMarch keeps the span (−∞, +∞) of the column (row) holding p0 and never
   // steps across it; a descent keeps the child on p0's side of the midline. The lanes compute
   // every crossing as (boundary − p0) · invD: with p0 moved to the middle of its pixel (no
-  // integer boundary changes side, none equals it, so no 0 · ∞) and invD = −∞, a boundary
+  // integer boundary changes side, none equals it, so no 0 · ∞; exact, as p0 lies in the view
+  // — meetsNoCell above — and views are narrower than 2^22: hssrLanesAvailable) and invD = −∞, a boundary
   // ahead of p0 crosses at −∞ and one behind at +∞ — exactly the spans and child choice of
   // hssrMarch's childSlab (tested bit for bit), with no flat-axis case in the step.
   constexpr float inf = std::numeric_limits<float>::infinity();
@@ -345,7 +345,9 @@ void marchLanes(const IntervalPyramid& pyramid, int levels, int nUp, std::span<c
 
 bool hssrLanesAvailable(const IntervalPyramid& pyramid, int levels) {
 #if LT_HSSR_LANES
+  constexpr int kExactHalf = 1 << 22;  // floor(p) + 0.5 is exact for 0 ≤ p < 2^22 (start's flat axes)
   return simd512Available() && pyramid.base && pyramid.base->k >= 1 && pyramid.base->k <= 4 && levels >= 1 && levels <= 8 &&
+         pyramid.base->width < kExactHalf && pyramid.base->height < kExactHalf &&
          levels <= pyramid.levelCount() && pyramid.levels[0].width == pyramid.base->width &&
          pyramid.levels[0].height == pyramid.base->height;
 #else

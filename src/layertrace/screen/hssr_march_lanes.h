@@ -9,8 +9,10 @@
 // Same answers bit for bit as hssrMarch on every segment (tested on the default scene and the
 // real scenes for 1, 3, 5 and 8 levels): every lane runs hssrMarch's own operations — the same
 // float expressions in the same order, std::min/max/clamp's select rules, no FMA (the project
-// compiles with -ffp-contract=off) — and the rare cases the lanes leave out run hssrMarch
-// itself: axis-parallel lines, and a descent whose rounding left s outside every child.
+// compiles with -ffp-contract=off), axis-parallel lines through a substitution that gives the
+// flat axis's crossings the values of hssrMarch's flat-axis branches (start(), session 21) — and
+// the rare cases the lanes leave out run hssrMarch itself: single-pixel lines, and a descent
+// whose rounding left s outside every child.
 #pragma once
 
 #include <span>
@@ -21,8 +23,9 @@ namespace lt {
 
 /// Whether hssrMarchBatch runs in lanes for this pyramid on this CPU: x86-64 with AVX-512
 /// F/VL/BW/DQ, a GCC build (the lane code is GCC vector extensions), k ≤ 4 (a pixel's
-/// intervals are one 32-byte record, like a coarse cell) and at most 8 levels. Otherwise the
-/// batch runs hssrMarch one segment after the other.
+/// intervals are one 32-byte record, like a coarse cell), at most 8 levels and a view narrower
+/// and lower than 2^22 pixels (for the axis-parallel lines' substitution; views are at most
+/// 32768). Otherwise the batch runs hssrMarch one segment after the other.
 bool hssrLanesAvailable(const IntervalPyramid& pyramid, int levels);
 
 /// out[i] = hssrMarch(pyramid, levels, nUp, segs[i], W, H) for every valid segment, {} for an
