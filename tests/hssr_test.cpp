@@ -72,9 +72,17 @@ void expectExact(const Frame& f, size_t count) {
     }
 }
 
+/// hssrMarch's counters reduced to the cells it tests: what hssrMarchBatch's `cells` reports.
+struct CellCount : NoCounters {
+  uint32_t cells = 0;
+  void iteration(int = 0) { ++cells; }
+};
+
 /// The lane march (hssr_march_lanes.h: sixteen rays at a time with lane refill, AVX-512)
 /// against hssrMarch one ray at a time: the same pixel, interval and entry parameter bit for
-/// bit, in batches of several sizes (a batch shorter than the lanes, the renderer's 256, all).
+/// bit, in batches of several sizes (a batch shorter than the lanes, the renderer's 256, all) —
+/// and the same traversal: as many cells tested per ray (hits do not depend on the ascent and
+/// descent rules, so a lane step that dropped one would pass the hit comparison).
 void expectLanesEqualMarch(const Frame& f, const IntervalPyramid& p, int levels, int nUp, const std::vector<Ray>& rays) {
   const int W = f.camera.width(), H = f.camera.height();
   std::vector<ScreenSegment> segs(rays.size());
@@ -82,22 +90,30 @@ void expectLanesEqualMarch(const Frame& f, const IntervalPyramid& p, int levels,
   if (!hssrLanesAvailable(p, levels)) std::printf("[  NOTE    ] no AVX-512 lanes here: hssrMarchBatch runs hssrMarch\n");
   for (size_t batch : {size_t(5), size_t(256), segs.size()}) {
     std::vector<MarchHit> lanes(segs.size());
+    std::vector<uint32_t> laneCells(segs.size());
     for (size_t b = 0; b < segs.size(); b += batch) {
       const size_t n = std::min(batch, segs.size() - b);
-      hssrMarchBatch(p, levels, nUp, std::span(segs).subspan(b, n), W, H, std::span(lanes).subspan(b, n));
+      hssrMarchBatch(p, levels, nUp, std::span(segs).subspan(b, n), W, H, std::span(lanes).subspan(b, n),
+                     std::span(laneCells).subspan(b, n));
     }
-    size_t differ = 0, first = segs.size(), hits = 0;
+    size_t differ = 0, first = segs.size(), hits = 0, cellsDiffer = 0, firstCells = segs.size();
+    uint64_t cells = 0;
     for (size_t i = 0; i < segs.size(); ++i) {
-      NoCounters c;
+      CellCount c;
       const MarchHit a = segs[i].valid ? hssrMarch(p, levels, nUp, segs[i], W, H, c) : MarchHit{}, b = lanes[i];
       hits += a.hit();
+      cells += c.cells;
       if (a.x != b.x || a.y != b.y || a.interval != b.interval || std::bit_cast<uint32_t>(a.s) != std::bit_cast<uint32_t>(b.s)) {
         ++differ;
         first = std::min(first, i);
       }
+      if (c.cells != laneCells[i]) ++cellsDiffer, firstCells = std::min(firstCells, i);
     }
     EXPECT_GT(hits, segs.size() / 10) << "too few hits to mean anything";
+    EXPECT_GT(cells, 2 * segs.size()) << "too few cells per ray to mean anything";
     EXPECT_EQ(differ, 0u) << "levels " << levels << " n_up " << nUp << " batch " << batch << " first ray " << first;
+    EXPECT_EQ(cellsDiffer, 0u) << "cells tested: levels " << levels << " n_up " << nUp << " batch " << batch << " first ray "
+                               << firstCells;
   }
 }
 
@@ -223,17 +239,20 @@ TEST(Hssr, LanesEqualMarchOnAxisParallelSegments) {
     const IntervalPyramid p = buildIntervalPyramid(f.layers, f.camera, PyramidConfig{levels, PyramidConfig{}.tau});
     for (int nUp : {1, 2}) {
       std::vector<MarchHit> lanes(segs.size());
-      hssrMarchBatch(p, levels, nUp, segs, W, H, lanes);
-      size_t differ = 0, first = segs.size(), hits = 0;
+      std::vector<uint32_t> laneCells(segs.size());
+      hssrMarchBatch(p, levels, nUp, segs, W, H, lanes, laneCells);
+      size_t differ = 0, first = segs.size(), hits = 0, cellsDiffer = 0;
       for (size_t i = 0; i < segs.size(); ++i) {
-        NoCounters c;
+        CellCount c;
         const MarchHit a = hssrMarch(p, levels, nUp, segs[i], W, H, c), b = lanes[i];
         hits += a.hit();
         if (a.x != b.x || a.y != b.y || a.interval != b.interval || std::bit_cast<uint32_t>(a.s) != std::bit_cast<uint32_t>(b.s))
           ++differ, first = std::min(first, i);
+        cellsDiffer += c.cells != laneCells[i];
       }
       EXPECT_GT(hits, segs.size() / 10) << "too few hits to mean anything";
       EXPECT_EQ(differ, 0u) << "levels " << levels << " n_up " << nUp << " first segment " << first << " of " << segs.size();
+      EXPECT_EQ(cellsDiffer, 0u) << "cells tested: levels " << levels << " n_up " << nUp;
     }
   }
 }

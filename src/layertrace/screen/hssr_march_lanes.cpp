@@ -14,9 +14,25 @@
 
 namespace lt {
 
+namespace {
+/// hssrMarch's counters reduced to the cells it tests (hssrMarchBatch's `cells`).
+struct CellCount : NoCounters {
+  uint32_t cells = 0;
+  void iteration(int = 0) { ++cells; }
+};
+}  // namespace
+
 /// The portable path (and the reference the lanes are measured against).
 LT_CPU_DISPATCH void hssrMarchEach(const IntervalPyramid& pyramid, int levels, int nUp, std::span<const ScreenSegment> segs, int W,
-                               int H, std::span<MarchHit> out) {
+                               int H, std::span<MarchHit> out, std::span<uint32_t> cells) {
+  if (!cells.empty()) {
+    for (size_t i = 0; i < segs.size(); ++i) {
+      CellCount c;
+      out[i] = segs[i].valid ? hssrMarch(pyramid, levels, nUp, segs[i], W, H, c) : MarchHit{};
+      cells[i] = c.cells;
+    }
+    return;
+  }
   NoCounters none;
   for (size_t i = 0; i < segs.size(); ++i) out[i] = segs[i].valid ? hssrMarch(pyramid, levels, nUp, segs[i], W, H, none) : MarchHit{};
 }
@@ -45,7 +61,8 @@ struct alignas(64) Lanes {
   float xIn[kLanes], xOut[kLanes], yIn[kLanes], yOut[kLanes];
   float k0[kLanes], dk[kLanes], invDk[kLanes], invAbsDk[kLanes], pixelBackoff[kLanes], kScale[kLanes];
   float s[kLanes], sStart[kLanes], cornerLeft[kLanes];
-  int32_t L[kLanes], cx[kLanes], cy[kLanes], ox[kLanes], oy[kLanes], misses[kLanes], guard[kLanes];
+  int32_t L[kLanes], cx[kLanes], cy[kLanes], ox[kLanes], oy[kLanes], misses[kLanes];
+  int32_t guard[kLanes];  ///< cells tested so far (hssrMarch's loop counter and c.iteration count)
   __mmask16 increasing;  ///< lanes whose depth grows along the ray (hssr-pitfalls §6)
   int32_t ray[kLanes];  ///< the segment's index in the batch; −1 for an empty lane
   int64_t offset[kLanes];  ///< byte offset of the lane's current record from Tables::origin
@@ -66,9 +83,11 @@ struct Tables {
 
 /// Sets lane j up for segment `i`, as hssrMarch does before its loop. Returns false (and
 /// writes out[i]) when the ray is answered without marching or is left to hssrMarch.
+/// `cells` (may be null) gets the cells tested for a ray answered here.
 bool start(Lanes& ln, int j, const IntervalPyramid& pyramid, const Tables& tb, const ScreenSegment& seg, int i, int W, int H,
-           MarchHit& out) {
+           MarchHit& out, uint32_t* cells) {
   using hssr_detail::Line;
+  if (cells) *cells = 0;
   if (!seg.valid) {
     out = {};
     return false;
@@ -80,8 +99,9 @@ bool start(Lanes& ln, int j, const IntervalPyramid& pyramid, const Tables& tb, c
   // line runs hssrMarch.
   const bool flatX = line.stepX == 0, flatY = line.stepY == 0;
   if (flatX && flatY) {
-    NoCounters none;
-    out = hssrMarch(pyramid, tb.levels, tb.nUp, seg, W, H, none);
+    CellCount c;
+    out = hssrMarch(pyramid, tb.levels, tb.nUp, seg, W, H, c);
+    if (cells) *cells = c.cells;
     return false;
   }
   if (st.meetsNoCell) {
@@ -276,7 +296,7 @@ __attribute__((noinline)) uint32_t step(Lanes& ln, const Tables& tb) {
 
   store(ln.xIn, xIn), store(ln.xOut, xOut), store(ln.yIn, yIn), store(ln.yOut, yOut);
   store(ln.s, s), store(ln.cornerLeft, cornerLeft);
-  store(ln.L, L), store(ln.cx, cx), store(ln.cy, cy), store(ln.misses, misses), store(ln.guard, guard + 1);
+  store(ln.L, L), store(ln.cx, cx), store(ln.cy, cy), store(ln.misses, misses), store(ln.guard, sel(act, guard + 1, guard));
   store(ln.interval, found);
   store(ln.hitS, s0);
   ln.hitMask = hit.bits, ln.bailMask = bail.bits;
@@ -298,7 +318,7 @@ __attribute__((noinline)) uint32_t step(Lanes& ln, const Tables& tb) {
 
 /// The batch through the lanes: refill every lane that finished with the next segment.
 void marchLanes(const IntervalPyramid& pyramid, int levels, int nUp, std::span<const ScreenSegment> segs, int W, int H,
-                std::span<MarchHit> out) {
+                std::span<MarchHit> out, std::span<uint32_t> cells) {
   const IntervalLayers& level0 = *pyramid.base;
   Tables tb;
   tb.levels = levels, tb.nUp = nUp, tb.k = level0.k, tb.safety = 8 * (W + H) * levels + 64;
@@ -321,7 +341,7 @@ void marchLanes(const IntervalPyramid& pyramid, int levels, int nUp, std::span<c
     ln.offset[j] = 0;
     while (next < segs.size()) {
       const int i = int(next++);
-      if (start(ln, j, pyramid, tb, segs[size_t(i)], i, W, H, out[size_t(i)])) return true;
+      if (start(ln, j, pyramid, tb, segs[size_t(i)], i, W, H, out[size_t(i)], cells.empty() ? nullptr : &cells[size_t(i)])) return true;
     }
     return false;
   };
@@ -330,11 +350,14 @@ void marchLanes(const IntervalPyramid& pyramid, int levels, int nUp, std::span<c
     if (ln.hitMask >> j & 1) {
       out[i] = MarchHit{ln.cx[j], ln.cy[j], ln.interval[j], ln.hitS[j]};
     } else if (ln.bailMask >> j & 1) {
-      NoCounters none;
-      out[i] = hssrMarch(pyramid, levels, nUp, segs[i], W, H, none);
+      CellCount c;
+      out[i] = hssrMarch(pyramid, levels, nUp, segs[i], W, H, c);
+      if (!cells.empty()) cells[i] = uint32_t(ln.guard[j]) + c.cells;
+      return;
     } else {
       out[i] = {};
     }
+    if (!cells.empty()) cells[i] = uint32_t(ln.guard[j]);
   };
   runLaneGroups(lanes, fill, [&](Lanes& ln) { return step(ln, tb); }, done, [](Lanes&) {});
 }
@@ -357,11 +380,11 @@ bool hssrLanesAvailable(const IntervalPyramid& pyramid, int levels) {
 }
 
 void hssrMarchBatch(const IntervalPyramid& pyramid, int levels, int nUp, std::span<const ScreenSegment> segs, int W, int H,
-                    std::span<MarchHit> out) {
+                    std::span<MarchHit> out, std::span<uint32_t> cells) {
 #if LT_HSSR_LANES
-  if (hssrLanesAvailable(pyramid, levels)) return marchLanes(pyramid, levels, nUp, segs, W, H, out);
+  if (hssrLanesAvailable(pyramid, levels)) return marchLanes(pyramid, levels, nUp, segs, W, H, out, cells);
 #endif
-  hssrMarchEach(pyramid, levels, nUp, segs, W, H, out);
+  hssrMarchEach(pyramid, levels, nUp, segs, W, H, out, cells);
 }
 
 }  // namespace lt
