@@ -47,8 +47,14 @@ Setup& setup(int scene) {
     s[scene].frame = lt::buildFrame(o);
     const lt::Frame& f = s[scene].frame;
     const float maxDist = f.scene.bounds().diagonal();
-    for (int y = 0; y < f.camera.height(); ++y)
-      for (int x = 0; x < f.camera.width(); ++x) {
+    // In 8×8 pixel tiles, row by row of tiles, as the renderer lays its rays out (render/effects.cpp):
+    // neighbouring rays of a batch then share cells as they do in `render` and `compare`.
+    constexpr int kTile = 8;
+    const int W = f.camera.width(), H = f.camera.height();
+    for (int ty = 0; ty < H; ty += kTile)
+      for (int tx = 0; tx < W; tx += kTile)
+        for (int y = ty; y < std::min(ty + kTile, H); ++y)
+          for (int x = tx; x < std::min(tx + kTile, W); ++x) {
         if (!f.layers.countAt(x, y)) continue;
         const lt::FragmentNode& fr = f.layers.pixel(x, y)[0];
         lt::Ray r;

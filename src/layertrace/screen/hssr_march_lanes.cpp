@@ -331,13 +331,13 @@ void marchLanes(const IntervalPyramid& pyramid, int levels, int nUp, std::span<c
     tb.base[L] = int64_t(reinterpret_cast<uintptr_t>(data) - reinterpret_cast<uintptr_t>(tb.origin));
     tb.recordBytes[L] = L == 0 ? int64_t(sizeof(Interval)) * level0.k : int64_t(sizeof(CoarseCell));
   }
-  // Groups of lanes stepped in turn: each step prefetches its lanes' next records, and the other
-  // groups' steps hide their latency. Session 11 (bench_trace BM_HssrLanes, FZK-Haus): one group
-  // 1.16–1.22× the one-ray march, two 1.31–1.37×, three and four no better than two. Session 22,
-  // with a cheaper step (session 18: 16 % fewer instructions, so less work to hide a miss behind):
-  // three groups 8 % faster than two on one core (BM_HssrLanes FZK-Haus, 7 alternating rounds
-  // under taskset: median 185.7 → 170.3 ms, faster in every round), four 171.8.
-  Lanes lanes[3];
+  // Two groups of lanes stepped in turn: each step prefetches its lanes' next records, and the
+  // other group's step hides their latency (bench_trace BM_HssrLanes, FZK-Haus: one group 1.16–
+  // 1.22× the one-ray march, two 1.31–1.37×, three and four no better than two). Session 22,
+  // again: three groups were 8 % faster than two in BM_HssrLanes on one core, equal in
+  // BM_HssrAgainstEmbree with the renderer's tile order, but 15–25 % slower in `compare`
+  // (engine, 5 alternating runs: hssr 1.67 → 1.36×, hiz 0.52 → 0.38× plain Embree) — two stay.
+  Lanes lanes[2];
   size_t next = 0;
   auto fill = [&](Lanes& ln, int j) {
     ln.ray[j] = -1;
