@@ -72,12 +72,6 @@ void expectExact(const Frame& f, size_t count) {
     }
 }
 
-/// hssrMarch's counters reduced to the cells it tests: what hssrMarchBatch's `cells` reports.
-struct CellCount : NoCounters {
-  uint32_t cells = 0;
-  void iteration(int = 0) { ++cells; }
-};
-
 /// The lane march (hssr_march_lanes.h: sixteen rays at a time with lane refill, AVX-512)
 /// against hssrMarch one ray at a time: the same pixel, interval and entry parameter bit for
 /// bit, in batches of several sizes (a batch shorter than the lanes, the renderer's 256, all) —
@@ -99,7 +93,7 @@ void expectLanesEqualMarch(const Frame& f, const IntervalPyramid& p, int levels,
     size_t differ = 0, first = segs.size(), hits = 0, cellsDiffer = 0, firstCells = segs.size();
     uint64_t cells = 0;
     for (size_t i = 0; i < segs.size(); ++i) {
-      CellCount c;
+      MarchCellCount c;
       const MarchHit a = segs[i].valid ? hssrMarch(p, levels, nUp, segs[i], W, H, c) : MarchHit{}, b = lanes[i];
       hits += a.hit();
       cells += c.cells;
@@ -243,7 +237,7 @@ TEST(Hssr, LanesEqualMarchOnAxisParallelSegments) {
       hssrMarchBatch(p, levels, nUp, segs, W, H, lanes, laneCells);
       size_t differ = 0, first = segs.size(), hits = 0, cellsDiffer = 0;
       for (size_t i = 0; i < segs.size(); ++i) {
-        CellCount c;
+        MarchCellCount c;
         const MarchHit a = hssrMarch(p, levels, nUp, segs[i], W, H, c), b = lanes[i];
         hits += a.hit();
         if (a.x != b.x || a.y != b.y || a.interval != b.interval || std::bit_cast<uint32_t>(a.s) != std::bit_cast<uint32_t>(b.s))

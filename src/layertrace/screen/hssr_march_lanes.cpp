@@ -14,20 +14,12 @@
 
 namespace lt {
 
-namespace {
-/// hssrMarch's counters reduced to the cells it tests (hssrMarchBatch's `cells`).
-struct CellCount : NoCounters {
-  uint32_t cells = 0;
-  void iteration(int = 0) { ++cells; }
-};
-}  // namespace
-
 /// The portable path (and the reference the lanes are measured against).
 LT_CPU_DISPATCH void hssrMarchEach(const IntervalPyramid& pyramid, int levels, int nUp, std::span<const ScreenSegment> segs, int W,
                                int H, std::span<MarchHit> out, std::span<uint32_t> cells) {
   if (!cells.empty()) {
     for (size_t i = 0; i < segs.size(); ++i) {
-      CellCount c;
+      MarchCellCount c;
       out[i] = segs[i].valid ? hssrMarch(pyramid, levels, nUp, segs[i], W, H, c) : MarchHit{};
       cells[i] = c.cells;
     }
@@ -99,7 +91,7 @@ bool start(Lanes& ln, int j, const IntervalPyramid& pyramid, const Tables& tb, c
   // line runs hssrMarch.
   const bool flatX = line.stepX == 0, flatY = line.stepY == 0;
   if (flatX && flatY) {
-    CellCount c;
+    MarchCellCount c;
     out = hssrMarch(pyramid, tb.levels, tb.nUp, seg, W, H, c);
     if (cells) *cells = c.cells;
     return false;
@@ -353,7 +345,7 @@ void marchLanes(const IntervalPyramid& pyramid, int levels, int nUp, std::span<c
     if (ln.hitMask >> j & 1) {
       out[i] = MarchHit{ln.cx[j], ln.cy[j], ln.interval[j], ln.hitS[j]};
     } else if (ln.bailMask >> j & 1) {
-      CellCount c;
+      MarchCellCount c;
       out[i] = hssrMarch(pyramid, levels, nUp, segs[i], W, H, c);
       if (!cells.empty()) cells[i] = uint32_t(ln.guard[j]) + c.cells;
       return;

@@ -15,11 +15,20 @@
 // whose rounding left s outside every child.
 #pragma once
 
+#include <cstdint>
 #include <span>
 
 #include "layertrace/screen/hssr_march.h"
+#include "layertrace/trace/tracer.h"
 
 namespace lt {
+
+/// hssrMarch's counters reduced to the cells it tests (c.iteration() calls): what
+/// hssrMarchBatch's `cells` reports per ray.
+struct MarchCellCount : NoCounters {
+  uint32_t cells = 0;
+  void iteration(int = 0) { ++cells; }
+};
 
 /// Whether hssrMarchBatch runs in lanes for this pyramid on this CPU: x86-64 with AVX-512
 /// F/VL/BW/DQ, a GCC build (the lane code is GCC vector extensions), k ≤ 4 (a pixel's
