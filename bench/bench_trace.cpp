@@ -55,15 +55,15 @@ Setup& setup(int scene) {
       for (int tx = 0; tx < W; tx += kTile)
         for (int y = ty; y < std::min(ty + kTile, H); ++y)
           for (int x = tx; x < std::min(tx + kTile, W); ++x) {
-        if (!f.layers.countAt(x, y)) continue;
-        const lt::FragmentNode& fr = f.layers.pixel(x, y)[0];
-        lt::Ray r;
-        r.origin = f.camera.rayThrough({x + 0.5f, y + 0.5f}) * fr.depth;
-        const glm::vec3 v = glm::normalize(r.origin), n = lt::decodeOctahedral(fr.normal);
-        r.dir = glm::reflect(v, glm::dot(n, v) > 0.0f ? -n : n);
-        r.maxDistance = maxDist;
-        s[scene].rays.push_back(r);
-      }
+            if (!f.layers.countAt(x, y)) continue;
+            const lt::FragmentNode& fr = f.layers.pixel(x, y)[0];
+            lt::Ray r;
+            r.origin = f.camera.rayThrough({x + 0.5f, y + 0.5f}) * fr.depth;
+            const glm::vec3 v = glm::normalize(r.origin), n = lt::decodeOctahedral(fr.normal);
+            r.dir = glm::reflect(v, glm::dot(n, v) > 0.0f ? -n : n);
+            r.maxDistance = maxDist;
+            s[scene].rays.push_back(r);
+          }
     s[scene].pyramid = lt::buildIntervalPyramid(f.layers, f.camera, lt::PyramidConfig{});
     ready[scene] = true;
   }

@@ -17,16 +17,19 @@ namespace lt {
 /// The portable path (and the reference the lanes are measured against).
 LT_CPU_DISPATCH void hssrMarchEach(const IntervalPyramid& pyramid, int levels, int nUp, std::span<const ScreenSegment> segs, int W,
                                int H, std::span<MarchHit> out, std::span<uint32_t> cells) {
-  if (!cells.empty()) {
-    for (size_t i = 0; i < segs.size(); ++i) {
+  auto march = [&](size_t i, auto& counters) {
+    return segs[i].valid ? hssrMarch(pyramid, levels, nUp, segs[i], W, H, counters) : MarchHit{};
+  };
+  for (size_t i = 0; i < segs.size(); ++i) {
+    if (cells.empty()) {
+      NoCounters none;  // (the reference bench_trace times: no counting)
+      out[i] = march(i, none);
+    } else {
       MarchCellCount c;
-      out[i] = segs[i].valid ? hssrMarch(pyramid, levels, nUp, segs[i], W, H, c) : MarchHit{};
+      out[i] = march(i, c);
       cells[i] = c.cells;
     }
-    return;
   }
-  NoCounters none;
-  for (size_t i = 0; i < segs.size(); ++i) out[i] = segs[i].valid ? hssrMarch(pyramid, levels, nUp, segs[i], W, H, none) : MarchHit{};
 }
 
 #if LT_HSSR_LANES
@@ -342,17 +345,17 @@ void marchLanes(const IntervalPyramid& pyramid, int levels, int nUp, std::span<c
   };
   auto done = [&](const Lanes& ln, int j) {
     const size_t i = size_t(ln.ray[j]);
+    uint32_t tested = uint32_t(ln.guard[j]);
     if (ln.hitMask >> j & 1) {
       out[i] = MarchHit{ln.cx[j], ln.cy[j], ln.interval[j], ln.hitS[j]};
     } else if (ln.bailMask >> j & 1) {
       MarchCellCount c;
       out[i] = hssrMarch(pyramid, levels, nUp, segs[i], W, H, c);
-      if (!cells.empty()) cells[i] = uint32_t(ln.guard[j]) + c.cells;
-      return;
+      tested = c.cells;  // the march that answered (the lane's steps are dropped with its state)
     } else {
       out[i] = {};
     }
-    if (!cells.empty()) cells[i] = uint32_t(ln.guard[j]);
+    if (!cells.empty()) cells[i] = tested;
   };
   runLaneGroups(lanes, fill, [&](Lanes& ln) { return step(ln, tb); }, done, [](Lanes&) {});
 }

@@ -39,9 +39,9 @@ bool hssrLanesAvailable(const IntervalPyramid& pyramid, int levels);
 
 /// out[i] = hssrMarch(pyramid, levels, nUp, segs[i], W, H) for every valid segment, {} for an
 /// invalid one; no counters (uncounted batches only). With `cells` (as long as `segs`), also
-/// cells[i] = the cells the march tested for segs[i]: hssrMarch's c.iteration() count where it
-/// runs one ray, the lane's steps (plus hssrMarch's count where a lane handed its ray over, see
-/// above). Answers do not depend on the traversal, so only this lets the tests hold the lanes to
+/// cells[i] = the cells the march that answered segs[i] tested: hssrMarch's c.iteration() count
+/// where it runs the ray (one ray at a time, or a case the lanes hand over, above), else the
+/// lane's steps — the same number when the lanes follow hssrMarch's traversal. Answers do not depend on the traversal, so only this lets the tests hold the lanes to
 /// hssrMarch's traversal (its ascent and descent rules) and not only to its hits.
 void hssrMarchBatch(const IntervalPyramid& pyramid, int levels, int nUp, std::span<const ScreenSegment> segs, int W, int H,
                     std::span<MarchHit> out, std::span<uint32_t> cells = {});
