@@ -106,6 +106,44 @@ TEST(TraceInterface, EmbreePacketsAnswerAsSingleRays) {
   }
 }
 
+// The geometric tracers' bare closest hits (the hybrid's windows) are their traced hits before
+// the TraceHit is built: makeHit of each is the one-ray answer bit for bit, counted or not, in
+// batches of any length, and the counted path counts as the one-ray path does.
+TEST(TraceInterface, GeoHitsAreTheTracersHits) {
+  const Frame f = defaultFrame();
+  std::vector<Ray> rays = test::sampleRays(f, 3000, test::testSeed() + 2);
+  for (size_t i = 0; i < rays.size(); i += 3) rays[i].maxDistance *= 0.05f;
+  const BuiltTracer embree = buildTracer("embree", f, TracerOptions{});
+  const BuiltTracer grid = buildTracer("grid", f, TracerOptions{});
+  const EmbreePacketTracer packets(f.scene, f.camera, *embree.embree);
+  const GeometricHits made(f.scene, f.camera);
+  for (const Tracer* t : std::initializer_list<const Tracer*>{embree.tracer.get(), grid.tracer.get(), &packets}) {
+    SCOPED_TRACE(t->name());
+    const auto* bare = dynamic_cast<const GeoHitQueries*>(t);
+    ASSERT_NE(bare, nullptr);
+    for (const bool counted : {false, true}) {
+      std::vector<GeoHit> g(rays.size());
+      std::vector<RayCounters> c(counted ? rays.size() : 0);
+      for (size_t b = 0; b < rays.size(); b += 37) {
+        const size_t n = std::min<size_t>(37, rays.size() - b);
+        bare->intersectBatch(std::span<const Ray>(&rays[b], n), std::span<GeoHit>(&g[b], n),
+                             counted ? std::span<RayCounters>(&c[b], n) : std::span<RayCounters>());
+      }
+      size_t hits = 0, differ = 0, countsDiffer = 0;
+      for (size_t i = 0; i < rays.size(); ++i) {
+        RayCounters one;
+        const TraceHit h = t->trace(rays[i], one);
+        hits += h.hit;
+        differ += !sameHit(h, made.makeHit(rays[i], g[i]));
+        if (counted && kCountersCompiled) countsDiffer += one.iterations != c[i].iterations || one.giveUps != c[i].giveUps;
+      }
+      EXPECT_GT(hits, rays.size() / 4);
+      EXPECT_EQ(differ, 0u) << "of " << rays.size() << " rays, counted " << counted;
+      EXPECT_EQ(countsDiffer, 0u) << "of " << rays.size() << " rays";
+    }
+  }
+}
+
 /// Records every event, and re-traces its ray with the one-ray path to check the answer.
 class RecordingObserver : public RayObserver {
  public:

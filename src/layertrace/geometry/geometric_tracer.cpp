@@ -71,6 +71,13 @@ void EmbreePacketTracer::traceBatch(std::span<const Ray> rays, std::span<TraceHi
   });
 }
 
+void EmbreePacketTracer::intersectBatch(std::span<const Ray> rays, std::span<GeoHit> hits, std::span<RayCounters> counters) const {
+  if (kCountersCompiled && !counters.empty()) return single_.intersectBatch(rays, hits, counters);
+  packets(rays, [&](const glm::vec3* o, const glm::vec3* d, const float* tnear, const float* tfar, size_t n, size_t b) {
+    embree_.intersectPackets(o, d, tnear, tfar, n, &hits[b]);
+  });
+}
+
 void EmbreePacketTracer::occludedBatch(std::span<const Ray> rays, std::span<TraceHit> hits, std::span<RayCounters> counters) const {
   if (kCountersCompiled && !counters.empty()) return TracerImpl::occludedBatch(rays, hits, counters);
   packets(rays, [&](const glm::vec3* o, const glm::vec3* d, const float* tnear, const float* tfar, size_t n, size_t b) {
@@ -101,6 +108,11 @@ void GridTracer::traceBatch(std::span<const Ray> rays, std::span<TraceHit> hits,
     accel().intersect(q, std::span<GeoHit>(g, q.size()));
     for (size_t i = 0; i < q.size(); ++i) assignInPlace(hits[b + i], [&] { return this->hits().makeHit(rays[b + i], g[i]); });
   });
+}
+
+void GridTracer::intersectBatch(std::span<const Ray> rays, std::span<GeoHit> hits, std::span<RayCounters> counters) const {
+  if (kCountersCompiled && !counters.empty()) return GeometricTracer::intersectBatch(rays, hits, counters);
+  chunks(rays, [&](std::span<const IrregularGrid::Query> q, size_t b) { accel().intersect(q, hits.subspan(b, q.size())); });
 }
 
 void GridTracer::occludedBatch(std::span<const Ray> rays, std::span<TraceHit> hits, std::span<RayCounters> counters) const {

@@ -45,12 +45,22 @@ class GeometricHits {
   std::vector<uint32_t> packed_;  ///< per material: albedo + specular as stored in fragments
 };
 
+/// Closest hits without building a TraceHit: where each ray stops and on which triangle, for a
+/// caller that needs no more (the hybrid's windows, which only decide where a ray's answer lies).
+/// GeometricHits::makeHit(rays[i], hits[i]) is the tracer's traceBatch answer bit for bit
+/// (TraceInterface.GeoHitsAreTheTracersHits). `counters` as in Tracer::traceBatch.
+class GeoHitQueries {
+ public:
+  virtual ~GeoHitQueries() = default;
+  virtual void intersectBatch(std::span<const Ray> rays, std::span<GeoHit> hits, std::span<RayCounters> counters) const = 0;
+};
+
 /// A geometric acceleration structure as a tracer: Accel is EmbreeScene ("embree": one
 /// rtcIntersect1 / rtcOccluded1 per ray, counted as one iteration) or IrregularGrid ("grid":
 /// iterations count visited cells). Both answer world-space queries
 ///   intersect(origin, dir, tnear, tfar, TraversalCounts*) and occluded(…, TraversalCounts*).
 template <class Accel>
-class GeometricTracer : public TracerImpl<GeometricTracer<Accel>> {
+class GeometricTracer : public TracerImpl<GeometricTracer<Accel>>, public GeoHitQueries {
  public:
   GeometricTracer(const char* name, const Scene& scene, const Camera& camera, const Accel& accel)
       : name_(name), hits_(scene, camera), accel_(accel) {}
@@ -59,7 +69,16 @@ class GeometricTracer : public TracerImpl<GeometricTracer<Accel>> {
   const Accel& accel() const { return accel_; }
   template <class C>
   TraceHit traceImpl(const Ray& ray, C& c) const {
-    return hits_.makeHit(ray, query(ray, c, [this](auto... a) { return accel_.intersect(a...); }));
+    return hits_.makeHit(ray, intersect(ray, c));
+  }
+  template <class C>
+  GeoHit intersect(const Ray& ray, C& c) const {
+    return query(ray, c, [this](auto... a) { return accel_.intersect(a...); });
+  }
+  void intersectBatch(std::span<const Ray> rays, std::span<GeoHit> hits, std::span<RayCounters> counters) const override {
+    NoCounters none;
+    for (size_t i = 0; i < rays.size(); ++i)
+      hits[i] = kCountersCompiled && !counters.empty() ? intersect(rays[i], counters[i]) : intersect(rays[i], none);
   }
   template <class C>
   TraceHit occludedImpl(const Ray& ray, C& c) const {
@@ -91,6 +110,7 @@ class GridTracer : public GeometricTracer<IrregularGrid> {
       : GeometricTracer<IrregularGrid>("grid", scene, camera, grid) {}
   void traceBatch(std::span<const Ray> rays, std::span<TraceHit> hits, std::span<RayCounters> counters) const override;
   void occludedBatch(std::span<const Ray> rays, std::span<TraceHit> hits, std::span<RayCounters> counters) const override;
+  void intersectBatch(std::span<const Ray> rays, std::span<GeoHit> hits, std::span<RayCounters> counters) const override;
 
  private:
   static constexpr size_t kChunk = 256;
@@ -104,7 +124,7 @@ class GridTracer : public GeometricTracer<IrregularGrid> {
 /// Embree on the same rays (issue 14 §4), and the hybrid's geometric half. Counted runs trace
 /// one ray at a time. Answers are Embree's, packet or not (TraceInterface.EmbreePacketsAnswerAsSingleRays,
 /// bit for bit; geobench and compare report the agreement too).
-class EmbreePacketTracer : public TracerImpl<EmbreePacketTracer> {
+class EmbreePacketTracer : public TracerImpl<EmbreePacketTracer>, public GeoHitQueries {
  public:
   EmbreePacketTracer(const Scene& scene, const Camera& camera, const EmbreeScene& embree)
       : single_("embree-packet16", scene, camera, embree), embree_(embree) {}
@@ -119,6 +139,7 @@ class EmbreePacketTracer : public TracerImpl<EmbreePacketTracer> {
   }
   void traceBatch(std::span<const Ray> rays, std::span<TraceHit> hits, std::span<RayCounters> counters) const override;
   void occludedBatch(std::span<const Ray> rays, std::span<TraceHit> hits, std::span<RayCounters> counters) const override;
+  void intersectBatch(std::span<const Ray> rays, std::span<GeoHit> hits, std::span<RayCounters> counters) const override;
 
  private:
   /// Calls f(origins, dirs, tnear, tfar, n, offset) for each packet of up to 16 rays.

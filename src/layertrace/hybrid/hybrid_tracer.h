@@ -103,8 +103,10 @@ class HybridTracer : public Tracer {
  private:
   struct Scratch;
   void run(Query q, std::span<const Ray> rays, std::span<TraceHit> hits, std::span<RayCounters> counters) const;
-  /// The geometric tracer on s.geoRays; counts go to the rays of s.geoIndex.
+  /// The geometric tracer on s.geoRays into s.geoHits; counts go to the rays of s.geoIndex.
   void geoQuery(Query q, Scratch& s, std::span<RayCounters> counters) const;
+  /// The same for closest hits into s.geoBare, without building TraceHits (geoBare_ only).
+  void geoBareQuery(Scratch& s, std::span<RayCounters> counters) const;
   /// [from, to] of `ray` as a ray from free space (its hits' points are camera-space points of
   /// the original ray).
   static Ray segment(const Ray& ray, float from, float to);
@@ -123,6 +125,9 @@ class HybridTracer : public Tracer {
   const KnownSpace& known_;
   const Tracer& screen_;
   const Tracer& geo_;
+  /// geo_'s bare closest hits where it has them, else null: a window only decides where a ray
+  /// stops, so its TraceHit is not built (session 24, hybrid_tracer.cpp).
+  const GeoHitQueries* geoBare_;
   GeometricHits hits_;
   Bounds bounds_;
   float worldMargin_ = 0.0f;  ///< > 0: the screen tracer answers in world space (see the constructor)
@@ -131,6 +136,7 @@ class HybridTracer : public Tracer {
   struct Scratch {
     std::vector<Ray> screenRays, geoRays;
     std::vector<TraceHit> screenHits, geoHits;
+    std::vector<GeoHit> geoBare;
     std::vector<float> from;  ///< per ray: where geometry must take over (+∞: answered)
     std::vector<float> windowEnd;  ///< per ray: where the origin's geometric window ends (≤ 0: none)
     std::vector<ScreenSegment> segs;  ///< per ray: its screen segment (where a window or a check needs it)
