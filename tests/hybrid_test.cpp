@@ -17,6 +17,7 @@
 #include "layertrace/pipeline/tracer_factory.h"
 #include "layertrace/raster/unsampled.h"
 #include "layertrace/scene/load.h"
+#include "layertrace/screen/screen_segment.h"
 #include "test_util.h"
 
 namespace lt {
@@ -468,6 +469,22 @@ TEST(Hybrid, RealScenesCorrectShareAtLeast99_99Percent) {
       }
       EXPECT_EQ(differ, 0u);
       EXPECT_GT(unknown, rays.size() / 100) << "too few rays leave known space to mean anything";
+      // The segments the batch hands back (the hybrid's, not made twice) are makeScreenSegment's,
+      // and asking for them changes no boundary.
+      std::vector<KnownSpace::Boundary> again(rays.size());
+      std::vector<ScreenSegment> segs(rays.size());
+      known.boundaries(rays, again, segs);
+      const auto bits = [](float v) { return std::bit_cast<uint32_t>(v); };
+      size_t segsDiffer = 0, boundariesDiffer = 0;
+      for (size_t i = 0; i < rays.size(); ++i) {
+        const ScreenSegment a = makeScreenSegment(f.camera, rays[i]), &b = segs[i];
+        segsDiffer += bits(a.p0.x) != bits(b.p0.x) || bits(a.p0.y) != bits(b.p0.y) || bits(a.p1.x) != bits(b.p1.x) ||
+                      bits(a.p1.y) != bits(b.p1.y) || bits(a.k0) != bits(b.k0) || bits(a.k1) != bits(b.k1) || a.valid != b.valid ||
+                      a.clippedStart != b.clippedStart || a.startOutside != b.startOutside || a.clippedEnd != b.clippedEnd;
+        boundariesDiffer += bits(again[i].knownUntil) != bits(batch[i].knownUntil) || bits(again[i].geoFrom) != bits(batch[i].geoFrom);
+      }
+      EXPECT_EQ(segsDiffer, 0u);
+      EXPECT_EQ(boundariesDiffer, 0u);
     }
     for (const char* screen : {"hssr", "ldc"}) {
       SCOPED_TRACE(screen);

@@ -134,9 +134,11 @@ void HybridTracer::run(Query q, std::span<const Ray> rays, std::span<TraceHit> h
   s.best.assign(n, GeoHit{});
   const bool world = worldMargin_ > 0.0f;
   if (world) std::fill(s.from.begin(), s.from.end(), kInf);  // the screen tracer knows all space
+  s.segs.resize(n);
+  bool segsMade = false;  // by the known space, which makes them anyway
   if (!world) {
     s.boundaries.resize(n);
-    if (counters.empty()) known_.boundaries(rays, s.boundaries);
+    if (counters.empty()) known_.boundaries(rays, s.boundaries, s.segs), segsMade = true;
     else
       for (size_t i = 0; i < n; ++i) s.boundaries[i] = known_.boundary(rays[i], counters[i]);
   }
@@ -147,15 +149,14 @@ void HybridTracer::run(Query q, std::span<const Ray> rays, std::span<TraceHit> h
   // nearest depth in each pixel (known_space.h), for a pixel or two — 74 % of the screen hits of
   // FZK-Haus's reflection rays lay inside the window and were rejected by the exact check.
   s.windowEnd.assign(n, -1.0f);
-  s.segs.resize(n);
   for (size_t i = 0; i < n; ++i) {
     const Ray& r = rays[i];
     int x, y;
     const bool onScreen = r.startsOnSurface && camera_.pixelOf(r.origin, x, y);
     // The ray's pixels, made once: for the origin's window and a screen hit's check (a world
     // tracer's hits need none).
-    if (onScreen || !world) s.segs[i] = makeScreenSegment(camera_, r);
-    if (onScreen) s.windowEnd[i] = std::max(rayParamsAroundPixel(camera_, r, s.segs[i], x, y, kPixelMargin).after, worldMargin_);
+    if (!segsMade && (onScreen || !world)) s.segs[i] = makeScreenSegment(camera_, r);
+    if (onScreen) s.windowEnd[i] = std::max(rayParamAfterPixel(camera_, r, s.segs[i], x, y, kPixelMargin), worldMargin_);
     else if (world && r.startsOnSurface) s.windowEnd[i] = worldMargin_;
   }
   for (size_t i = 0; i < n && !world; ++i) {

@@ -124,17 +124,24 @@ KnownSpace::Boundary KnownSpace::boundary(const Ray& ray, C& c) const {
   return finish(ray, seg, m);
 }
 
-void KnownSpace::boundaries(std::span<const Ray> rays, std::span<Boundary> out) const {
-  thread_local std::vector<ScreenSegment> segs;
+void KnownSpace::boundaries(std::span<const Ray> rays, std::span<Boundary> out, std::span<ScreenSegment> segments) const {
+  thread_local std::vector<ScreenSegment> own;
   thread_local std::vector<MarchHit> marched;
-  segs.resize(rays.size());
+  thread_local std::vector<uint8_t> valid;
+  if (segments.empty()) own.resize(rays.size()), segments = own;
+  std::span<ScreenSegment> segs = segments;
   marched.assign(rays.size(), MarchHit{});
+  valid.resize(rays.size());
   for (size_t i = 0; i < rays.size(); ++i) {
     segs[i] = makeScreenSegment(camera_, rays[i]);
+    valid[i] = segs[i].valid;
     segs[i].valid = segs[i].valid && !segs[i].startOutside;  // rule 1 answers these: not marched
   }
   if (pyramid_.levelCount() > 0) hssrMarchBatch(pyramid_, pyramid_.levelCount(), 1, segs, camera_.width(), camera_.height(), marched);
-  for (size_t i = 0; i < rays.size(); ++i) out[i] = segs[i].valid ? finish(rays[i], segs[i], marched[i]) : Boundary{};
+  for (size_t i = 0; i < rays.size(); ++i) {
+    out[i] = segs[i].valid ? finish(rays[i], segs[i], marched[i]) : Boundary{};
+    segs[i].valid = valid[i] != 0;  // the caller's segments are makeScreenSegment's
+  }
 }
 
 KnownSpace::Boundary KnownSpace::finish(const Ray& ray, const ScreenSegment& seg, const MarchHit& m) const {

@@ -29,6 +29,7 @@
 #include "layertrace/scene/camera.h"
 #include "layertrace/screen/hssr_march.h"
 #include "layertrace/screen/interval_pyramid.h"
+#include "layertrace/screen/screen_segment.h"
 #include "layertrace/trace/tracer.h"
 
 namespace lt {
@@ -79,7 +80,9 @@ class KnownSpace {
   Boundary boundary(const Ray& ray, C& counters) const;
   /// boundary() of every ray of a batch, uncounted: the rule-3 marches run together through
   /// hssrMarchBatch (AVX-512 lanes where the CPU has them; the same answers bit for bit).
-  void boundaries(std::span<const Ray> rays, std::span<Boundary> out) const;
+  /// `segments`, when not empty (one per ray), receives makeScreenSegment of each ray, made here
+  /// anyway: the caller need not make them again.
+  void boundaries(std::span<const Ray> rays, std::span<Boundary> out, std::span<ScreenSegment> segments = {}) const;
 
   size_t memoryBytes() const { return pyramid_.memoryBytes(); }
   double buildMs() const { return buildMs_; }

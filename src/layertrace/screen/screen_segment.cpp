@@ -80,9 +80,11 @@ float ScreenSegment::pixelParam(float pixels) const {
   return pixels / std::max({std::abs(d.x), std::abs(d.y), 1e-6f});
 }
 
-ParamSpan rayParamsAroundPixel(const Camera& camera, const Ray& ray, const ScreenSegment& seg, int x, int y, float margin) {
-  if (!seg.valid) return {0.0f, ray.maxDistance};
-  // Liang–Barsky: where the 2D segment enters and leaves the pixel's square.
+namespace {
+
+/// Liang–Barsky: the screen parameters where the 2D segment enters and leaves pixel (x, y)'s
+/// square.
+glm::vec2 pixelParams(const ScreenSegment& seg, int x, int y) {
   const glm::vec2 d = seg.p1 - seg.p0;
   float sIn = 0.0f, sOut = 1.0f;
   for (int a = 0; a < 2; ++a) {
@@ -92,9 +94,26 @@ ParamSpan rayParamsAroundPixel(const Camera& camera, const Ray& ray, const Scree
     sIn = std::max(sIn, std::min(s0, s1));
     sOut = std::min(sOut, std::max(s0, s1));
   }
+  return {sIn, sOut};
+}
+
+/// The ray parameter `m` (screen parameter) after the segment leaves a pixel at sOut.
+float paramAfter(const Camera& camera, const Ray& ray, const ScreenSegment& seg, float sOut, float m) {
+  return !seg.clippedEnd && sOut + m >= 1.0f ? ray.maxDistance : rayParamAt(camera, ray, seg, std::clamp(sOut + m, 0.0f, 1.0f));
+}
+
+}  // namespace
+
+float rayParamAfterPixel(const Camera& camera, const Ray& ray, const ScreenSegment& seg, int x, int y, float margin) {
+  if (!seg.valid) return ray.maxDistance;
+  return paramAfter(camera, ray, seg, pixelParams(seg, x, y).y, seg.pixelParam(margin));
+}
+
+ParamSpan rayParamsAroundPixel(const Camera& camera, const Ray& ray, const ScreenSegment& seg, int x, int y, float margin) {
+  if (!seg.valid) return {0.0f, ray.maxDistance};
+  const glm::vec2 s = pixelParams(seg, x, y);
   const float m = seg.pixelParam(margin);
-  const float after = !seg.clippedEnd && sOut + m >= 1.0f ? ray.maxDistance : rayParamAt(camera, ray, seg, std::clamp(sOut + m, 0.0f, 1.0f));
-  return {rayParamAt(camera, ray, seg, std::clamp(sIn - m, 0.0f, 1.0f)), after};
+  return {rayParamAt(camera, ray, seg, std::clamp(s.x - m, 0.0f, 1.0f)), paramAfter(camera, ray, seg, s.y, m)};
 }
 
 }  // namespace lt

@@ -54,5 +54,7 @@ struct ParamSpan {
 };
 /// `seg` = makeScreenSegment(camera, ray).
 ParamSpan rayParamsAroundPixel(const Camera& camera, const Ray& ray, const ScreenSegment& seg, int x, int y, float margin);
+/// rayParamsAroundPixel(…).after alone.
+float rayParamAfterPixel(const Camera& camera, const Ray& ray, const ScreenSegment& seg, int x, int y, float margin);
 
 }  // namespace lt
