@@ -3,7 +3,8 @@
 // ssr at strides 1, 2, 4, 8; ssr-layers at strides 1, 2, 3, 4, 8; hssr (the default τ and levels, n_up 2).
 // Counters: MRays/s, mean DDA iterations per ray, hit fraction; Embree (the project's scene) on
 // the same rays as the baseline; the hybrid (issue 15: hssr + embree, certified answers) with
-// the share of rays each half answered; HSSR against Embree alternating round by round on the
+// the share of rays each half answered — hybrid and Embree also on one AO ray per pixel (any
+// hit, 5 % of the scene's diagonal); HSSR against Embree alternating round by round on the
 // FZK-Haus, am_thornish and engine interiors (BM_HssrAgainstEmbree). Hierarchy build time is
 // measured beside raster and sort.
 #include <algorithm>
@@ -31,6 +32,9 @@ constexpr int kLevels = lt::PyramidConfig{}.levels;
 struct Setup {
   lt::Frame frame;
   std::vector<lt::Ray> rays;
+  /// One ambient-occlusion ray per covered pixel, in the same order: cosine-distributed about the
+  /// stored normal (turned to the eye), 5 % of the scene's diagonal long (render's default).
+  std::vector<lt::Ray> aoRays;
   lt::IntervalPyramid pyramid;
 };
 
@@ -47,6 +51,8 @@ Setup& setup(int scene) {
     s[scene].frame = lt::buildFrame(o);
     const lt::Frame& f = s[scene].frame;
     const float maxDist = f.scene.bounds().diagonal();
+    uint32_t seed = 1;
+    const auto uniform = [&seed] { return float((seed = seed * 1664525u + 1013904223u) >> 8) * 0x1p-24f; };
     // In 8×8 pixel tiles, row by row of tiles, as the renderer lays its rays out (render/effects.cpp):
     // neighbouring rays of a batch then share cells as they do in `render` and `compare`.
     constexpr int kTile = 8;
@@ -63,6 +69,12 @@ Setup& setup(int scene) {
             r.dir = glm::reflect(v, glm::dot(n, v) > 0.0f ? -n : n);
             r.maxDistance = maxDist;
             s[scene].rays.push_back(r);
+            const glm::vec3 nf = glm::dot(n, v) > 0.0f ? -n : n;
+            const glm::vec3 t = glm::normalize(std::abs(nf.x) > 0.5f ? glm::cross(nf, {0, 1, 0}) : glm::cross(nf, {1, 0, 0})), b = glm::cross(nf, t);
+            const float r1 = uniform(), rr = std::sqrt(r1), phi = 6.2831853f * uniform();
+            r.dir = glm::normalize(t * (rr * std::cos(phi)) + b * (rr * std::sin(phi)) + nf * std::sqrt(std::max(0.0f, 1.0f - r1)));
+            r.maxDistance = 0.05f * maxDist;
+            s[scene].aoRays.push_back(r);
           }
     s[scene].pyramid = lt::buildIntervalPyramid(f.layers, f.camera, lt::PyramidConfig{});
     ready[scene] = true;
@@ -81,19 +93,20 @@ void forBatches(size_t n, Batch&& batch) {
 
 /// One uncounted traceBatch pass of `tracer` over `rays` (the counter-free instantiation of the
 /// tracer, trace/tracer.h).
-void tracePass(const lt::Tracer& tracer, const std::vector<lt::Ray>& rays, std::vector<lt::TraceHit>& hits) {
+void tracePass(const lt::Tracer& tracer, const std::vector<lt::Ray>& rays, std::vector<lt::TraceHit>& hits,
+               lt::Query q = lt::Query::Closest) {
   forBatches(rays.size(), [&](size_t b, size_t len) {
-    tracer.traceBatch(std::span<const lt::Ray>(&rays[b], len), std::span<lt::TraceHit>(&hits[b], len), {});
+    tracer.query(q, std::span<const lt::Ray>(&rays[b], len), std::span<lt::TraceHit>(&hits[b], len), {});
   });
   benchmark::DoNotOptimize(hits.data());
 }
 
-void traceAll(benchmark::State& state, const lt::Tracer& tracer, const std::vector<lt::Ray>& rays) {
+void traceAll(benchmark::State& state, const lt::Tracer& tracer, const std::vector<lt::Ray>& rays, lt::Query q = lt::Query::Closest) {
   std::vector<lt::TraceHit> hits(rays.size());
-  for (auto _ : state) tracePass(tracer, rays, hits);
+  for (auto _ : state) tracePass(tracer, rays, hits, q);
   // Counted once, outside the timing.
   std::vector<lt::RayCounters> counters(rays.size());
-  tracer.traceBatch(rays, hits, counters);
+  tracer.query(q, rays, hits, counters);
   uint64_t iterations = 0, hit = 0;
   for (size_t i = 0; i < rays.size(); ++i) iterations += counters[i].iterations, hit += hits[i].hit;
   state.counters["MRays/s"] = benchmark::Counter(double(rays.size()) * 1e-6, benchmark::Counter::kIsIterationInvariantRate);
@@ -193,11 +206,13 @@ void BM_SsrLanes(benchmark::State& state) {
   timeOneAgainstLanes(state, pass);
 }
 
+/// Args: scene, ray set (as BM_Hybrid).
 void BM_Embree(benchmark::State& state) {
   Setup& s = setup(int(state.range(0)));
   const lt::EmbreeScene embree(s.frame.scene, lt::EmbreeScene::Mode::Fast);
   const lt::EmbreeTracer t("embree", s.frame.scene, s.frame.camera, embree);
-  traceAll(state, t, s.rays);
+  const bool ao = state.range(1) != 0;
+  traceAll(state, t, ao ? s.aoRays : s.rays, ao ? lt::Query::Any : lt::Query::Closest);
 }
 
 /// HSSR (the default τ and levels, n_up 2) and plain single-ray Embree on the same rays,
@@ -219,11 +234,13 @@ void BM_HssrAgainstEmbree(benchmark::State& state) {
   state.counters["hssr_x_embree"] = m[0] / m[1];
 }
 
+/// Args: scene, ray set (0: the reflection rays, closest hit; 1: the AO rays, any hit).
 void BM_Hybrid(benchmark::State& state) {
   Setup& s = setup(int(state.range(0)));
   const lt::BuiltTracer b = lt::buildTracer("hybrid", s.frame, lt::TracerOptions{});
   const auto& hybrid = dynamic_cast<const lt::HybridTracer&>(*b.tracer);
-  traceAll(state, hybrid, s.rays);
+  const bool ao = state.range(1) != 0;
+  traceAll(state, hybrid, ao ? s.aoRays : s.rays, ao ? lt::Query::Any : lt::Query::Closest);
   const lt::HybridStats h = hybrid.stats();
   state.counters["screen%"] = 100.0 * h.screenFraction();
   state.counters["geo%"] = 100.0 * h.geoFraction();
@@ -306,9 +323,9 @@ void BM_HierarchyBuild(benchmark::State& state) {
 BENCHMARK(BM_Hssr)->Arg(0)->Arg(1)->Unit(benchmark::kMillisecond)->UseRealTime();
 BENCHMARK(BM_HssrLanes)->Arg(0)->Arg(1)->Iterations(9)->Unit(benchmark::kMillisecond)->UseRealTime();
 BENCHMARK(BM_SsrLanes)->ArgsProduct({{0, 1}, {0, 1}, {1}})->Iterations(5)->Unit(benchmark::kMillisecond)->UseRealTime();
-BENCHMARK(BM_Embree)->Arg(0)->Arg(1)->Unit(benchmark::kMillisecond)->UseRealTime();
+BENCHMARK(BM_Embree)->ArgsProduct({{0, 1}, {0, 1}})->Unit(benchmark::kMillisecond)->UseRealTime();
 BENCHMARK(BM_HssrAgainstEmbree)->DenseRange(0, 2)->Iterations(9)->Unit(benchmark::kMillisecond)->UseRealTime();
-BENCHMARK(BM_Hybrid)->Arg(0)->Arg(1)->Unit(benchmark::kMillisecond)->UseRealTime();
+BENCHMARK(BM_Hybrid)->ArgsProduct({{0, 1}, {0, 1}})->Unit(benchmark::kMillisecond)->UseRealTime();
 BENCHMARK(BM_Ssr)
     ->ArgsProduct({{0, 1}, {1, 2, 3, 4, 8}, {1}})
     ->Unit(benchmark::kMillisecond)
