@@ -29,6 +29,16 @@ namespace {
 /// The HSSR passes here use the default pyramid (PyramidConfig: τ 4, 7 levels) and n_up 2.
 constexpr int kLevels = lt::PyramidConfig{}.levels;
 
+/// A uniform number in [0, 1) from a linear congruential generator (deterministic ray sets).
+float uniform(uint32_t& seed) { return float((seed = seed * 1664525u + 1013904223u) >> 8) * 0x1p-24f; }
+
+/// A cosine-distributed unit direction about the unit normal n.
+glm::vec3 cosineAround(glm::vec3 n, uint32_t& seed) {
+  const glm::vec3 t = glm::normalize(std::abs(n.x) > 0.5f ? glm::cross(n, {0, 1, 0}) : glm::cross(n, {1, 0, 0})), b = glm::cross(n, t);
+  const float r1 = uniform(seed), r = std::sqrt(r1), phi = 6.2831853f * uniform(seed);
+  return glm::normalize(t * (r * std::cos(phi)) + b * (r * std::sin(phi)) + n * std::sqrt(std::max(0.0f, 1.0f - r1)));
+}
+
 struct Setup {
   lt::Frame frame;
   std::vector<lt::Ray> rays;
@@ -52,7 +62,6 @@ Setup& setup(int scene) {
     const lt::Frame& f = s[scene].frame;
     const float maxDist = f.scene.bounds().diagonal();
     uint32_t seed = 1;
-    const auto uniform = [&seed] { return float((seed = seed * 1664525u + 1013904223u) >> 8) * 0x1p-24f; };
     // In 8×8 pixel tiles, row by row of tiles, as the renderer lays its rays out (render/effects.cpp):
     // neighbouring rays of a batch then share cells as they do in `render` and `compare`.
     constexpr int kTile = 8;
@@ -66,13 +75,11 @@ Setup& setup(int scene) {
             lt::Ray r;
             r.origin = f.camera.rayThrough({x + 0.5f, y + 0.5f}) * fr.depth;
             const glm::vec3 v = glm::normalize(r.origin), n = lt::decodeOctahedral(fr.normal);
-            r.dir = glm::reflect(v, glm::dot(n, v) > 0.0f ? -n : n);
+            const glm::vec3 facing = glm::dot(n, v) > 0.0f ? -n : n;
+            r.dir = glm::reflect(v, facing);
             r.maxDistance = maxDist;
             s[scene].rays.push_back(r);
-            const glm::vec3 nf = glm::dot(n, v) > 0.0f ? -n : n;
-            const glm::vec3 t = glm::normalize(std::abs(nf.x) > 0.5f ? glm::cross(nf, {0, 1, 0}) : glm::cross(nf, {1, 0, 0})), b = glm::cross(nf, t);
-            const float r1 = uniform(), rr = std::sqrt(r1), phi = 6.2831853f * uniform();
-            r.dir = glm::normalize(t * (rr * std::cos(phi)) + b * (rr * std::sin(phi)) + nf * std::sqrt(std::max(0.0f, 1.0f - r1)));
+            r.dir = cosineAround(facing, seed);
             r.maxDistance = 0.05f * maxDist;
             s[scene].aoRays.push_back(r);
           }
@@ -260,7 +267,6 @@ void BM_GridBatch(benchmark::State& state) {
   const float diag = scene.bounds().diagonal();
   std::vector<lt::IrregularGrid::Query> q;
   uint32_t seed = 1;
-  auto uniform = [&seed] { return float((seed = seed * 1664525u + 1013904223u) >> 8) * 0x1p-24f; };
   for (int y = 0; y < cam.height(); ++y)
     for (int x = 0; x < cam.width(); ++x) {
       const glm::vec3 o = cam.desc().eye, d = glm::normalize(cam.dirToWorld(cam.rayThrough({x + 0.5f, y + 0.5f})));
@@ -272,9 +278,7 @@ void BM_GridBatch(benchmark::State& state) {
       if (!h.hit()) continue;
       glm::vec3 n = glm::normalize(h.ng);
       if (glm::dot(n, d) > 0.0f) n = -n;
-      const glm::vec3 t = glm::normalize(std::abs(n.x) > 0.5f ? glm::cross(n, {0, 1, 0}) : glm::cross(n, {1, 0, 0})), b = glm::cross(n, t);
-      const float r1 = uniform(), r = std::sqrt(r1), phi = 6.2831853f * uniform();
-      const glm::vec3 dir = glm::normalize(t * (r * std::cos(phi)) + b * (r * std::sin(phi)) + n * std::sqrt(std::max(0.0f, 1.0f - r1)));
+      const glm::vec3 dir = cosineAround(n, seed);
       q.push_back({o + d * h.t, dir, 1e-4f * diag, set == 1 ? 0.05f * diag : 1e30f});
     }
   std::vector<float> answer(q.size());

@@ -95,7 +95,7 @@ Ray HybridTracer::segment(const Ray& ray, float from, float to) {
 namespace {
 
 /// query(rays, out, counters) over the scratch's geometric rays; their counts go to the rays of
-/// `index` they belong to.
+/// s.geoIndex they belong to.
 template <class Out, class Scratch, class F>
 void countedGeo(Scratch& s, std::vector<Out>& out, std::span<RayCounters> counters, F&& query) {
   out.resize(s.geoRays.size());
