@@ -343,7 +343,7 @@ namespace {
 TEST(CliCompare, WritesTheCompareSchemaImagesAndReport) {
   test::TempDir dir;
   ASSERT_NO_FATAL_FAILURE(expectRuns("compare " + kDefault + " --width 200 --height 112 --tracers ssr,hssr --quiet -o " + (dir / "c") +
-                             " --report " + (dir / "r") + " --stats " + (dir / "s.json") + " --check-oracle"));
+                             " --report " + (dir / "r") + " --stats " + (dir / "s.json") + " --check-oracle --check-exhaustive"));
   const auto j = readJson(dir / "c/compare.json");
   EXPECT_EQ(readJson(dir / "s.json"), j);
   for (const char* t : {"ssr", "hssr"}) {
