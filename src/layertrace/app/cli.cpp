@@ -206,8 +206,8 @@ int runCli(int argc, const char* const* argv, CliMode mode) {
   compareCmd->add_option("--report", compare.report, "also write an HTML report (one self-contained page) to this folder");
   // compare checks every image-space ray against the exhaustive oracle anyway (exhaustive_mismatch
   // per tracer); the flag is accepted so that the tracer options of DESIGN.md work everywhere.
-  compareCmd->add_flag("--check-exhaustive", compare.checkExhaustive,
-                       "accepted for symmetry with render: compare always checks image-space rays against the exhaustive oracle");
+  compareCmd->add_flag("--check-exhaustive")
+      ->description("accepted for symmetry with render: compare always checks image-space rays against the exhaustive oracle");
   compareCmd->add_flag("--check-oracle", compare.checkOracle,
                        "also check every image-space ray against the independent oracle (slow; oracle_mismatch)");
 

@@ -81,7 +81,6 @@ struct CompareOptions {
   TracerOptions options;
   std::string report;  ///< --report DIR: one HTML page with images and the table
   bool checkOracle = false;  ///< --check-oracle: every image-space ray against the independent oracle too
-  bool checkExhaustive = false;  ///< --check-exhaustive: accepted; the exhaustive oracle always checks compare's rays
 };
 
 struct BenchOptions {
