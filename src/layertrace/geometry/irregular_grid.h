@@ -56,7 +56,7 @@ struct GridConfig {
   /// released code expands partially): a face may also sweep into a neighbour B whose
   /// references are not a subset of A's, as long as every primitive of B that overlaps the
   /// swept part of B is referenced by A. On by default: 5–10 % faster traversal on the real
-  /// scenes for ~10–30 % more build time, the same agreement with Embree (README).
+  /// scenes for ~10–30 % more build time, the same agreement with Embree (docs/grid.md).
   bool partialExpansion = true;
 };
 

@@ -4,7 +4,7 @@
 // are independent, so their loads overlap and the branches become lane masks. A lane whose ray
 // ends takes the next ray of the batch (lane refill), so the lanes stay busy however unequal
 // the rays' lengths. Measured on this project's real views: the march 1.3–1.4× faster than one
-// ray at a time (bench_trace BM_HssrLanes; the README's issue-14 section has the steps).
+// ray at a time (bench_trace BM_HssrLanes; docs/measurements.md, "Where HSSR's time goes", has the steps).
 //
 // Same answers bit for bit as hssrMarch on every segment (tested on the default scene and the
 // real scenes for 1, 3, 5 and 8 levels): every lane runs hssrMarch's own operations — the same
