@@ -273,13 +273,17 @@ TEST(CliRender, HybridStatsSayWhoAnsweredTheRays) {
                                      (dir / "h.png") + " --stats " + (dir / "h.json")));
   const auto j = readJson(dir / "h.json");
   const auto& h = j["hybrid"];
-  for (const char* k : {"screen_fraction", "geo_fraction", "geo_length_mean", "screen_ms", "geo_ms"}) ASSERT_TRUE(h.contains(k)) << k;
+  for (const char* k : {"screen_fraction", "geo_fraction", "geo_length_mean", "screen_ms", "geo_ms", "window_queries_per_ray", "geo_queries_per_ray"})
+    ASSERT_TRUE(h.contains(k)) << k;
   EXPECT_EQ(h["rays"], j["rays"]["count"]);
   EXPECT_NEAR(h["screen_fraction"].get<double>() + h["geo_fraction"].get<double>(), 1.0, 1e-9);
   EXPECT_GT(h["screen_fraction"].get<double>(), 0.1);
   EXPECT_GT(h["geo_fraction"].get<double>(), 0.01);
   EXPECT_GT(h["geo_length_mean"].get<double>(), 0.0);
   EXPECT_LE(h["geo_length_mean"].get<double>(), 1.0);
+  // Every ray handed to geometry is one query; the windows come on top.
+  EXPECT_NEAR(h["geo_queries_per_ray"].get<double>(), h["geo_fraction"].get<double>() + h["window_queries_per_ray"].get<double>(), 1e-9);
+  EXPECT_GT(h["window_queries_per_ray"].get<double>(), 0.0);
 }
 
 // Issue 12 §4: `layertrace ldc` shows what the layered depth cube captured, and its stats block

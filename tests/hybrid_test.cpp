@@ -212,6 +212,32 @@ TEST(Hybrid, RejectsThicknessFalseHitsAndContinuesWhereKnowledgeEnds) {
   EXPECT_LT(s.geoLengthMean(), 1.0);
 }
 
+// Issue 15 §3: `geo_queries_per_ray` counts every query the geometric half answered — the
+// windows that certify screen answers and the remainders — which is what the hybrid pays on top
+// of its march (plain Embree: one query per ray). A wrapper records each ray it is asked.
+TEST(Hybrid, CountsEveryGeometricQuery) {
+  Scene scene = makeBox({-5, -3, -12}, {5, 4, 3});
+  scene.append(makeBox({-1, -3, -7}, {1.5f, -1, -5}));
+  scene.finalize("room");
+  const Frame f = test::frameOf(scene, test::originCamera(60.0f, 0.05f, 100.0f), 96, 72, 4, 0.1f);
+  const std::vector<Ray> rays = test::sampleRays(f, 2000, test::testSeed());
+  TracerOptions o;
+  const BuiltTracer hssr = buildTracer("hssr", f, o), embree = buildReference(f);
+  const KnownSpace known(f.camera, CaptureCoverage{f.layers, f.lists.complexity, false}, f.scene.bounds());
+  for (const Query q : {Query::Closest, Query::Any}) {
+    const RecordingTracer geo(*embree.tracer);
+    const HybridTracer hybrid(f.scene, f.camera, f.layers, known, *hssr.tracer, geo);
+    std::vector<TraceHit> answers(rays.size());
+    if (q == Query::Closest) hybrid.traceBatch(rays, answers, {});
+    else hybrid.occludedBatch(rays, answers, {});
+    const HybridStats s = hybrid.stats();
+    EXPECT_EQ(s.windowQueries + s.geoRays, geo.rays.size());
+    EXPECT_GT(s.windowQueries, rays.size() / 2) << "surface rays: the origin's window at least";
+    EXPECT_GT(s.geoRays, 0u);
+    EXPECT_DOUBLE_EQ(s.geoQueriesPerRay(), double(geo.rays.size()) / double(rays.size()));
+  }
+}
+
 /// Answers agree when they name the same triangle or the same distance (1e-4 relative).
 bool sameAnswer(const Ray& r, const TraceHit& a, const TraceHit& b) {
   if (a.hit != b.hit) return false;

@@ -94,6 +94,8 @@ nlohmann::json hybridStats(const BuiltTracer& built, const TracerOptions& o) {
           {"screen_hit_fraction", double(h.screenHits) / rays},
           {"certain_miss_fraction", double(h.certainMisses) / rays},
           {"rejected_hit_fraction", double(h.rejectedHits) / rays},  // thickness false hits caught by the exact check
+          {"window_queries_per_ray", double(h.windowQueries) / rays},  // geometric windows certifying screen answers
+          {"geo_queries_per_ray", h.geoQueriesPerRay()},  // windows + remainders; plain Embree: 1
           {"screen_ms", h.screenMs},  // summed over threads: the split, not wall time
           {"window_ms", h.windowMs},  // geometric windows certifying screen answers
           {"geo_ms", h.geoMs},

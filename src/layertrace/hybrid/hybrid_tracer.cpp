@@ -223,6 +223,7 @@ void HybridTracer::run(Query q, std::span<const Ray> rays, std::span<TraceHit> h
     s.geoRays.push_back(segment(r, uncertainEmptySpace_ ? 0.0f : std::min(v.t, span.before), to));
     s.geoIndex.push_back(uint32_t(i));
   }
+  sum.windowQueries += s.geoRays.size();
   const auto t1 = Clock::now();
   // A window's hit is the answer: the origin window precedes everything else on the ray, and
   // the space before a hit window is known to be empty. `point` is the hit's camera-space point.
@@ -306,6 +307,7 @@ HybridStats HybridTracer::stats() const {
     h.certainMisses += s.certainMisses;
     h.geoRays += s.geoRays;
     h.rejectedHits += s.rejectedHits;
+    h.windowQueries += s.windowQueries;
     h.geoLengthSum += s.geoLengthSum;
     h.screenMs += s.screenMs;
     h.windowMs += s.windowMs;

@@ -62,6 +62,9 @@ struct HybridStats {
   uint64_t screenHits = 0;
   uint64_t certainMisses = 0;    ///< answered by a miss in known space (any-hit queries only)
   uint64_t geoRays = 0;          ///< handed to the geometric tracer
+  /// Geometric window queries (the origin's pixel, a checked hit's surroundings): with geoRays,
+  /// every query the geometric tracer answered — plain Embree answers each ray with one.
+  uint64_t windowQueries = 0;
   uint64_t rejectedHits = 0;     ///< of those: screen hits the exact check rejected
   double geoLengthSum = 0.0;     ///< geometric segment length / the ray's length in the scene
   /// Wall time summed over the threads' batches: screen march and checks, the geometric
@@ -70,6 +73,7 @@ struct HybridStats {
   double screenFraction() const { return rays ? double(screenHits + certainMisses) / double(rays) : 0.0; }
   double geoFraction() const { return rays ? double(geoRays) / double(rays) : 0.0; }
   double geoLengthMean() const { return geoRays ? geoLengthSum / double(geoRays) : 0.0; }
+  double geoQueriesPerRay() const { return rays ? double(windowQueries + geoRays) / double(rays) : 0.0; }
 };
 
 class HybridTracer : public Tracer {
@@ -147,7 +151,7 @@ class HybridTracer : public Tracer {
   };
   mutable tbb::enumerable_thread_specific<Scratch> scratch_;
   struct Sums {
-    uint64_t rays = 0, screenHits = 0, certainMisses = 0, geoRays = 0, rejectedHits = 0;
+    uint64_t rays = 0, screenHits = 0, certainMisses = 0, geoRays = 0, rejectedHits = 0, windowQueries = 0;
     double geoLengthSum = 0.0, screenMs = 0.0, windowMs = 0.0, geoMs = 0.0;
   };
   mutable tbb::enumerable_thread_specific<Sums> sums_;
