@@ -1,8 +1,15 @@
 // Scene loading: JSON composition, built-in shapes, and every kind of bad input.
+#include <algorithm>
+#include <cmath>
+#include <cstring>
 #include <fstream>
+#include <map>
 #include <random>
 
+#include <zlib.h>
+
 #include <glm/geometric.hpp>
+#include <glm/gtc/matrix_transform.hpp>
 
 #include "layertrace/scene/load.h"
 #include "layertrace/util/error.h"
@@ -207,6 +214,160 @@ namespace {
 
 // recentre: a scene far from the origin moves next to it by a shift that leaves every vertex
 // exact (origin + new position == old position, in double); a scene near the origin stays.
+/// A Quake 3 map (IBSP 46) with a drawn texture and a nodraw one (surface flag 0x80), one polygon
+/// triangle, an arch patch of 5 × 3 control points (two Bézier patches side by side: a half
+/// cylinder of radius 1 around the y axis, y from 0 to 2, normals outward) and a nodraw 3 × 3
+/// patch; the other lumps empty.
+std::string mapWithPatches() {
+  auto u32 = [](std::string& s, int32_t v) {
+    for (int i = 0; i < 4; ++i) s += char((uint32_t(v) >> (8 * i)) & 0xFF);
+  };
+  auto f32 = [&](std::string& s, float v) {
+    int32_t bits;
+    std::memcpy(&bits, &v, 4);
+    u32(s, bits);
+  };
+  std::string textures;
+  for (const auto& [name, flags] : {std::pair{"t/wall", 0}, std::pair{"t/caulk", 0x80}}) {
+    std::string t(name);
+    t.resize(64, '\0');
+    u32(t, flags), u32(t, 1);
+    textures += t;
+  }
+  std::string vertices;
+  auto vertex = [&](glm::vec3 p, glm::vec3 n) {
+    std::string v;
+    for (int a = 0; a < 3; ++a) f32(v, p[a]);
+    v.resize(28, '\0');
+    for (int a = 0; a < 3; ++a) f32(v, n[a]);
+    v.resize(44, '\0');
+    vertices += v;
+  };
+  for (glm::vec3 p : {glm::vec3(5, 0, 0), glm::vec3(6, 0, 0), glm::vec3(5, 1, 0)}) vertex(p, {0, 0, 1});
+  const glm::vec2 arch[5] = {{1, 0}, {1, 1}, {0, 1}, {-1, 1}, {-1, 0}};  // (x, z)
+  for (int row = 0; row < 3; ++row)
+    for (const glm::vec2 c : arch) vertex({c.x, float(row), c.y}, glm::normalize(glm::vec3(c.x, 0.0f, c.y)));
+  for (int row = 0; row < 3; ++row)
+    for (int col = 0; col < 3; ++col) vertex({float(col), float(row), 3.0f}, {0, 0, 1});
+  std::string meshVerts, faces;
+  for (int v = 0; v < 3; ++v) u32(meshVerts, v);
+  auto face = [&](int texture, int type, int vertex0, int count, int meshVerts0, int meshCount, int w, int h) {
+    std::string f;
+    for (int32_t x : {texture, -1, type, vertex0, count, meshVerts0, meshCount, -1}) u32(f, x);
+    f.resize(96, '\0');
+    u32(f, w), u32(f, h);
+    faces += f;
+  };
+  face(0, 1, 0, 3, 0, 3, 0, 0);
+  face(0, 2, 3, 15, 0, 0, 5, 3);
+  face(1, 2, 18, 9, 0, 0, 3, 3);
+  std::string bsp = "IBSP";
+  u32(bsp, 46);
+  int32_t offset = 8 + 8 * 17;
+  std::string body;
+  for (int l = 0; l < 17; ++l) {
+    const std::string& data = l == 1 ? textures : l == 10 ? vertices : l == 11 ? meshVerts : l == 13 ? faces : std::string();
+    u32(bsp, offset + int32_t(body.size())), u32(bsp, int32_t(data.size()));
+    body += data;
+  }
+  return bsp + body;
+}
+
+/// A zip archive holding `data` as one stored entry named `name`.
+std::string storedZip(const std::string& name, const std::string& data) {
+  auto u16 = [](std::string& s, uint16_t v) { s += char(v & 0xFF), s += char(v >> 8); };
+  auto u32 = [&](std::string& s, uint32_t v) { u16(s, uint16_t(v & 0xFFFF)), u16(s, uint16_t(v >> 16)); };
+  const auto crc = uint32_t(crc32(0, reinterpret_cast<const Bytef*>(data.data()), uInt(data.size())));
+  const auto size = uint32_t(data.size());
+  std::string z;
+  u32(z, 0x04034b50), u16(z, 20), u16(z, 0), u16(z, 0), u16(z, 0), u16(z, 0), u32(z, crc), u32(z, size), u32(z, size);
+  u16(z, uint16_t(name.size())), u16(z, 0);
+  z += name + data;
+  const auto cd = uint32_t(z.size());
+  u32(z, 0x02014b50), u16(z, 20), u16(z, 20), u16(z, 0), u16(z, 0), u16(z, 0), u16(z, 0), u32(z, crc), u32(z, size), u32(z, size);
+  u16(z, uint16_t(name.size())), u16(z, 0), u16(z, 0), u16(z, 0), u16(z, 0), u32(z, 0), u32(z, 0);
+  z += name;
+  const uint32_t cdSize = uint32_t(z.size()) - cd;
+  u32(z, 0x06054b50), u16(z, 0), u16(z, 0), u16(z, 1), u16(z, 1), u32(z, cdSize), u32(z, cd), u16(z, 0);
+  return z;
+}
+
+/// The arch's cross-section: two quadratic Béziers in (x, z), in double.
+glm::dvec2 archAt(double s) {
+  const glm::dvec2 p[5] = {{1, 0}, {1, 1}, {0, 1}, {-1, 1}, {-1, 0}};
+  const int k = s < 0.5 ? 0 : 2;
+  const double t = s < 0.5 ? 2 * s : 2 * s - 1;
+  return (1 - t) * (1 - t) * p[k] + 2 * t * (1 - t) * p[k + 1] + t * t * p[k + 2];
+}
+
+/// Distance from (x, z) to the arch's cross-section (sampled finely).
+double distanceToArch(glm::dvec2 q) {
+  double best = 1e30;
+  for (int i = 0; i <= 20000; ++i) best = std::min(best, glm::length(q - archAt(i / 20000.0)));
+  return best;
+}
+
+// DATA.md: assimp 5.2's importer drops Quake 3's curved surfaces. They are tessellated from the
+// map: on the Bézier surface, within the tolerance, one watertight grid across both patches,
+// front faces toward the control points' normals; nodraw patches (collision only) are skipped.
+TEST(SceneQuake3, PatchesAreTessellatedOnTheirSurfaceWithinTheTolerance) {
+  const std::string map = mapWithPatches();
+  const auto* bytes = reinterpret_cast<const unsigned char*>(map.data());
+  size_t previous = 0;
+  for (const float tolerance : {0.1f, 0.01f, 0.001f}) {
+    SCOPED_TRACE(tolerance);
+    const Quake3Patches p = tessellateQuake3Patches(bytes, map.size(), tolerance);
+    ASSERT_EQ(p.keys, std::vector<std::string>{"0.-1"}) << "the nodraw patch (texture 1) is skipped";
+    ASSERT_EQ(p.triKey.size(), p.triangles.size());
+    EXPECT_GT(p.triangles.size(), previous) << "a smaller tolerance takes more triangles";
+    previous = p.triangles.size();
+    for (const glm::vec3& v : p.positions) {
+      EXPECT_LT(distanceToArch({v.x, v.z}), 1e-4) << v.x << "," << v.y << "," << v.z;
+      EXPECT_TRUE(v.y >= 0.0f && v.y <= 2.0f);
+    }
+    for (const glm::vec3 corner : {glm::vec3(1, 0, 0), glm::vec3(-1, 0, 0), glm::vec3(0, 0, 1)})  // the patches' corners at y = 0
+      EXPECT_NE(std::find(p.positions.begin(), p.positions.end(), corner), p.positions.end()) << "control corners are exact";
+    std::map<std::pair<uint32_t, uint32_t>, int> edges;
+    for (const glm::uvec3& t : p.triangles) {
+      const glm::vec3 a = p.positions[t.x], b = p.positions[t.y], c = p.positions[t.z], centroid = (a + b + c) / 3.0f;
+      EXPECT_GT(glm::dot(glm::cross(b - a, c - a), glm::vec3(centroid.x, 0.0f, centroid.z)), 0.0f) << "front faces outward";
+      EXPECT_LT(distanceToArch({centroid.x, centroid.z}), double(tolerance) + 1e-5);
+      for (int e = 0; e < 3; ++e) ++edges[std::minmax(t[e], t[(e + 1) % 3])];
+    }
+    // Watertight: an edge used once lies on the grid's border (y = 0 or 2, or the arch's ends).
+    for (const auto& [edge, uses] : edges) {
+      ASSERT_LE(uses, 2);
+      if (uses == 1) {
+        const glm::vec3 a = p.positions[edge.first], b = p.positions[edge.second];
+        const auto at = [](float v, float x) { return std::abs(v - x) < 1e-5f; };
+        const bool border = (at(a.y, 0.0f) && at(b.y, 0.0f)) || (at(a.y, 2.0f) && at(b.y, 2.0f)) || (at(a.z, 0.0f) && at(b.z, 0.0f));
+        EXPECT_TRUE(border) << "a crack between " << a.x << "," << a.y << "," << a.z << " and " << b.x << "," << b.y << "," << b.z;
+      }
+    }
+  }
+}
+
+// Through the loader: a .pk3 holding the map gives assimp's polygon plus the patch, in the
+// material assimp named for the same key, transformed with the model.
+TEST(SceneQuake3, AnArchivesPatchesJoinTheImportersGeometry) {
+  test::TempDir dir;
+  const std::string map = mapWithPatches(), path = dir / "arch.pk3";
+  std::ofstream(path, std::ios::binary) << storedZip("maps/arch.bsp", map);
+  const Quake3Patches p = tessellateQuake3Patches(reinterpret_cast<const unsigned char*>(map.data()), map.size(), 1.0f);
+  const glm::mat4 move = glm::translate(glm::mat4(1.0f), glm::vec3(10.0f, 0.0f, 0.0f));
+  const Scene s = loadModel(path, move);
+  ASSERT_EQ(s.triangleCount(), 1 + p.triangles.size());
+  size_t onArch = 0;
+  for (size_t t = 0; t < s.triangleCount(); ++t) {
+    EXPECT_EQ(s.materials[s.triMaterial[t]].name, "0.-1") << "one material for the polygon and the patch";
+    const glm::vec3 c = (s.positions[s.triangles[t].x] + s.positions[s.triangles[t].y] + s.positions[s.triangles[t].z]) / 3.0f;
+    onArch += distanceToArch({c.x - 10.0f, c.z}) < 1.0 + 1e-4 && c.z >= 0.0f && c.x < 11.5f;
+  }
+  EXPECT_EQ(onArch, p.triangles.size());
+  EXPECT_EQ(s.bounds().hi.x, 16.0f);  // the polygon, moved
+  EXPECT_EQ(s.bounds().lo.x, 9.0f);   // the arch's end, moved
+}
+
 TEST(SceneRecentre, MovesOnlyFarScenesAndKeepsEveryVertexExact) {
   std::mt19937 rng(7);
   std::uniform_real_distribution<float> u(-1.0f, 1.0f);

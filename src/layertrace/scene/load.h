@@ -6,8 +6,10 @@
 #include <cstddef>
 #include <cstdint>
 #include <string>
+#include <vector>
 
 #include <glm/mat4x4.hpp>
+#include <glm/vec3.hpp>
 
 #include "layertrace/scene/scene.h"
 
@@ -38,6 +40,21 @@ void checkQuake3Archive(const std::string& path, uint64_t maxTotalBytes);
 /// inside the file and whose faces index existing vertices, mesh vertices, textures and
 /// lightmaps — what assimp's Q3BSP importer reads without checking (scene/quake3_bsp.cpp).
 void validateQuake3Bsp(const unsigned char* data, size_t size, const std::string& name);
+
+/// The curved surfaces of a Quake 3 map, which assimp 5.2's importer drops (am_thornish loses 520,
+/// its arches and columns): every face of type 2 is a grid of width × height control points
+/// (both odd), (width − 1)/2 × (height − 1)/2 biquadratic Bézier patches sharing their border
+/// rows. Each grid is tessellated whole, so patches that share a border share its vertices.
+struct Quake3Patches {
+  std::vector<glm::vec3> positions, normals;  ///< map coordinates; normals interpolated from the control points'
+  std::vector<glm::uvec3> triangles;          ///< counter-clockwise seen from the side the normals point to
+  std::vector<uint32_t> triKey;               ///< per triangle, an index into keys
+  /// The names assimp's importer gives the faces' materials: "texture.lightmap" (its createKey).
+  std::vector<std::string> keys;
+};
+/// `data` must pass validateQuake3Bsp (checked again). `tolerance`: the largest distance (map
+/// units) between a patch and its triangles, where 64 segments per patch side reach it.
+Quake3Patches tessellateQuake3Patches(const unsigned char* data, size_t size, float tolerance);
 
 /// InputError naming `name` when an OFF file's header (the first 4 KiB of `data`) declares more
 /// vertices or faces than `size` bytes of text can hold: assimp's OFF importer would otherwise

@@ -5,6 +5,7 @@
 #include <fstream>
 #include <functional>
 #include <iterator>
+#include <map>
 #include <memory>
 #include <sstream>
 #include <vector>
@@ -194,7 +195,8 @@ const aiScene* guardedImport(std::unique_ptr<Assimp::Importer>& importer, const 
 }
 
 /// `ext`: the file's extension, lower case with its dot (".obj"), which decides the importer's quirks.
-Scene convertScene(const aiScene* as, const std::string& path, const std::string& name, const std::string& ext, const glm::mat4& transform);
+Scene convertScene(const aiScene* as, const std::string& path, const std::string& name, const std::string& ext, const glm::mat4& transform,
+                   const Quake3Patches* patches = nullptr);
 
 uint32_t le32(const unsigned char* p) { return uint32_t(p[0]) | uint32_t(p[1]) << 8 | uint32_t(p[2]) << 16 | uint32_t(p[3]) << 24; }
 uint16_t le16(const unsigned char* p) { return uint16_t(p[0] | p[1] << 8); }
@@ -309,6 +311,30 @@ void checkMaps(ZipDirectory& zip, const std::string& path) {
     }
 }
 
+/// The map assimp's importer reads from an archive (Q3BSPFileImporter::findFirstMapInArchive):
+/// over the entries with data, by name with '\\' as '/' and leading '.' and '/' removed
+/// (ZipArchiveIOSystem's SimplifyFilename, a repeated name keeping its first entry), in byte
+/// order (its std::map), the first whose extension is "bsp" in any case and whose name contains
+/// "maps/" and ".bsp". Empty when there is none.
+std::vector<unsigned char> importersMap(ZipDirectory& zip) {
+  std::map<std::string, const ZipEntry*> names;
+  for (const ZipEntry& z : zip.entries) {
+    if (z.unpacked == 0) continue;
+    std::string name = z.name;
+    std::replace(name.begin(), name.end(), '\\', '/');
+    name.erase(0, std::min(name.find_first_not_of("./"), name.size()));
+    names.emplace(name, &z);
+  }
+  for (const auto& [name, z] : names)
+    if (endsWithBsp(name) && name.find("maps/") != std::string::npos && name.find(".bsp") != std::string::npos) return zip.contents(*z);
+  return {};
+}
+
+/// The largest distance between a Quake 3 patch and its triangles, in map units — our choice (the
+/// format leaves it to the engine, whose default is 4): every Quake 3 map has the same unit,
+/// about an inch, and at 1 unit a curve stays within a pixel of its triangles from a few metres.
+constexpr float kPatchTolerance = 1.0f;
+
 }  // namespace
 
 void checkArchiveSizes(const std::string& path, uint64_t maxTotalBytes) { checkSizes(ZipDirectory(path), path, maxTotalBytes); }
@@ -354,7 +380,13 @@ Scene loadModel(const std::string& path, const glm::mat4& transform) {
   std::transform(ext.begin(), ext.end(), ext.begin(), [](unsigned char ch) { return std::tolower(ch); });
   const bool q3 = isQuake3(ext);
   // assimp inflates archive entries into memory: refuse what declares more than it could hold.
-  if (ext == ".pk3") checkQuake3Archive(path, kMaxArchiveBytes);
+  std::vector<unsigned char> map;  // a Quake 3 map, for the curved surfaces assimp drops
+  if (ext == ".pk3") {
+    ZipDirectory zip(path);
+    checkSizes(zip, path, kMaxArchiveBytes);
+    checkMaps(zip, path);
+    map = importersMap(zip);
+  }
   if (ext == ".off") {
     std::ifstream in(path, std::ios::binary);
     std::string head(4096, '\0');
@@ -364,13 +396,14 @@ Scene loadModel(const std::string& path, const glm::mat4& transform) {
   }
   if (ext == ".bsp") {
     std::ifstream in(path, std::ios::binary);
-    const std::vector<unsigned char> bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
-    validateQuake3Bsp(bytes.data(), bytes.size(), path);
+    map.assign(std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>());
+    validateQuake3Bsp(map.data(), map.size(), path);
   }
   auto importer = std::make_unique<Assimp::Importer>();
   const unsigned flags = configureImporter(*importer, q3);
   const aiScene* as = guardedImport(importer, path, [&] { return importer->ReadFile(path, flags); });
-  return convertScene(as, path, fs::path(path).stem().string(), ext, transform);
+  const Quake3Patches patches = map.empty() ? Quake3Patches{} : tessellateQuake3Patches(map.data(), map.size(), kPatchTolerance);
+  return convertScene(as, path, fs::path(path).stem().string(), ext, transform, &patches);
 }
 
 Scene loadModelFromMemory(const void* data, size_t size, const std::string& formatHint, const std::string& source) {
@@ -387,7 +420,36 @@ Scene loadModelFromMemory(const void* data, size_t size, const std::string& form
 
 namespace {
 
-Scene convertScene(const aiScene* as, const std::string& path, const std::string& name, const std::string& ext, const glm::mat4& transform) {
+/// Appends a Quake 3 map's tessellated curved surfaces, transformed by `m`, each in the material
+/// assimp made for the same key (it makes one for every key, patches' too; one it did not make
+/// is added, coloured by its name as the others are).
+void addPatches(Scene& scene, const Quake3Patches& p, const glm::mat4& m) {
+  std::vector<uint32_t> material(p.keys.size());
+  for (size_t k = 0; k < p.keys.size(); ++k) {
+    const auto it = std::find_if(scene.materials.begin(), scene.materials.end(), [&](const Material& x) { return x.name == p.keys[k]; });
+    material[k] = uint32_t(it - scene.materials.begin());
+    if (it == scene.materials.end()) {
+      Material added{p.keys[k]};
+      added.albedo = colorFromName(added.name), added.specular = 0.1f;
+      scene.materials.push_back(added);
+    }
+  }
+  const glm::mat3 nm = glm::inverseTranspose(glm::mat3(m));
+  const bool mirrored = glm::determinant(glm::mat3(m)) < 0.0f;  // keeps each triangle's front side (convertScene)
+  const auto base = uint32_t(scene.positions.size());
+  for (size_t v = 0; v < p.positions.size(); ++v) {
+    scene.positions.push_back(glm::vec3(m * glm::vec4(p.positions[v], 1.0f)));
+    scene.normals.push_back(nm * p.normals[v]);  // zero length → derived from faces in finalize()
+  }
+  for (size_t t = 0; t < p.triangles.size(); ++t) {
+    const glm::uvec3 c = p.triangles[t] + base;
+    scene.triangles.push_back(mirrored ? glm::uvec3(c.x, c.z, c.y) : c);
+    scene.triMaterial.push_back(material[p.triKey[t]]);
+  }
+}
+
+Scene convertScene(const aiScene* as, const std::string& path, const std::string& name, const std::string& ext, const glm::mat4& transform,
+                   const Quake3Patches* patches) {
   const bool q3 = isQuake3(ext);
   Scene scene;
   scene.name = name;
@@ -445,6 +507,7 @@ Scene convertScene(const aiScene* as, const std::string& path, const std::string
       if (node->mChildren[c]) visit(node->mChildren[c], m);
   };
   visit(as->mRootNode, transform);
+  if (patches && !patches->triangles.empty()) addPatches(scene, *patches, transform * toGlm(as->mRootNode->mTransformation));
 
   // Cameras and point lights placed by their nodes.
   for (unsigned i = 0; i < as->mNumCameras; ++i) {
