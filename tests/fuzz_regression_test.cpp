@@ -55,26 +55,6 @@ TEST(FuzzRegressionDeathTest, AnImporterThatNeverFinishesIsStopped) {
       ::testing::ExitedWithCode(2), "scene loop.ply: the model importer did not finish in time");
 }
 
-/// A zip archive with one stored entry "maps/x.bsp" holding `data`, whose central directory
-/// declares `declared` bytes uncompressed.
-std::string zipWithDeclaredSize(const std::string& data, uint32_t declared) {
-  auto u16 = [](std::string& s, uint16_t v) { s += char(v & 0xFF), s += char(v >> 8); };
-  auto u32 = [&](std::string& s, uint32_t v) { u16(s, uint16_t(v & 0xFFFF)), u16(s, uint16_t(v >> 16)); };
-  const std::string name = "maps/x.bsp";
-  std::string z;
-  u32(z, 0x04034b50), u16(z, 20), u16(z, 0), u16(z, 0), u16(z, 0), u16(z, 0), u32(z, 0);
-  u32(z, uint32_t(data.size())), u32(z, declared), u16(z, uint16_t(name.size())), u16(z, 0);
-  z += name + data;
-  const uint32_t cd = uint32_t(z.size());
-  u32(z, 0x02014b50), u16(z, 20), u16(z, 20), u16(z, 0), u16(z, 0), u16(z, 0), u16(z, 0), u32(z, 0);
-  u32(z, uint32_t(data.size())), u32(z, declared), u16(z, uint16_t(name.size())), u16(z, 0), u16(z, 0);
-  u16(z, 0), u16(z, 0), u32(z, 0), u32(z, 0);
-  z += name;
-  const uint32_t cdSize = uint32_t(z.size()) - cd;
-  u32(z, 0x06054b50), u16(z, 0), u16(z, 0), u16(z, 1), u16(z, 1), u32(z, cdSize), u32(z, cd), u16(z, 0);
-  return z;
-}
-
 /// The message of the InputError `f` throws; a test failure (and "") when it throws none.
 template <class F>
 std::string inputErrorOf(F&& f) {
@@ -96,8 +76,8 @@ void expectMentions(const std::string& message, std::initializer_list<const char
 TEST(FuzzRegression, ZipBombPk3IsRefusedBeforeImport) {
   test::TempDir dir;
   const std::string bomb = dir / "bomb.pk3", small = dir / "small.pk3";
-  std::ofstream(bomb, std::ios::binary) << zipWithDeclaredSize(std::string(16, 'x'), 3u << 30);
-  std::ofstream(small, std::ios::binary) << zipWithDeclaredSize(std::string(200, 'x'), 200);
+  std::ofstream(bomb, std::ios::binary) << test::storedZip("maps/x.bsp", std::string(16, 'x'), 3u << 30);
+  std::ofstream(small, std::ios::binary) << test::storedZip("maps/x.bsp", std::string(200, 'x'));
   expectMentions(inputErrorOf([&] { loadModel(bomb); }), {"zip bomb", "bomb.pk3"});
   EXPECT_NO_THROW(checkArchiveSizes(small, 200));
   EXPECT_THROW(checkArchiveSizes(small, 199), InputError);  // the total limit, exactly
@@ -120,23 +100,11 @@ TEST(FuzzRegression, MalformedQuake3MapsAreRefusedBeforeImport) {
 /// A one-triangle Quake 3 map (IBSP 46): one texture, three vertices, three mesh vertices, one
 /// polygon face; the other lumps empty.
 std::string tinyBsp() {
-  auto u32 = [](std::string& s, int32_t v) {
-    for (int i = 0; i < 4; ++i) s += char((uint32_t(v) >> (8 * i)) & 0xFF);
-  };
-  std::string textures(72, '\0'), vertices(3 * 44, '\0'), meshVerts, face;
-  for (int v = 0; v < 3; ++v) u32(meshVerts, v);
-  for (int32_t x : {0, -1, 1, 0, 3, 0, 3, -1}) u32(face, x);  // texture, effect, type 1, vertex 0+3, mesh vertex 0+3, lightmap
+  std::string meshVerts, face;
+  for (int v = 0; v < 3; ++v) test::appendLe32(meshVerts, uint32_t(v));
+  for (int32_t x : {0, -1, 1, 0, 3, 0, 3, -1}) test::appendLe32(face, uint32_t(x));  // texture, effect, type 1, vertex 0+3, mesh vertex 0+3, lightmap
   face.resize(104, '\0');
-  std::string bsp = "IBSP";
-  u32(bsp, 46);
-  int32_t offset = 8 + 8 * 17;
-  std::string body;
-  for (int l = 0; l < 17; ++l) {
-    const std::string& data = l == 1 ? textures : l == 10 ? vertices : l == 11 ? meshVerts : l == 13 ? face : std::string();
-    u32(bsp, offset + int32_t(body.size())), u32(bsp, int32_t(data.size()));
-    body += data;
-  }
-  return bsp + body;
+  return test::quake3Map({{1, std::string(72, '\0')}, {10, std::string(3 * 44, '\0')}, {11, meshVerts}, {13, face}});
 }
 
 void setI32(std::string& s, size_t at, int32_t v) {

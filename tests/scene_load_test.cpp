@@ -6,7 +6,6 @@
 #include <map>
 #include <random>
 
-#include <zlib.h>
 
 #include <glm/geometric.hpp>
 #include <glm/gtc/matrix_transform.hpp>
@@ -219,19 +218,16 @@ namespace {
 /// cylinder of radius 1 around the y axis, y from 0 to 2, normals outward) and a nodraw 3 × 3
 /// patch; the other lumps empty.
 std::string mapWithPatches() {
-  auto u32 = [](std::string& s, int32_t v) {
-    for (int i = 0; i < 4; ++i) s += char((uint32_t(v) >> (8 * i)) & 0xFF);
-  };
-  auto f32 = [&](std::string& s, float v) {
-    int32_t bits;
+  auto f32 = [](std::string& s, float v) {
+    uint32_t bits;
     std::memcpy(&bits, &v, 4);
-    u32(s, bits);
+    test::appendLe32(s, bits);
   };
   std::string textures;
-  for (const auto& [name, flags] : {std::pair{"t/wall", 0}, std::pair{"t/caulk", 0x80}}) {
+  for (const auto& [name, flags] : {std::pair{"t/wall", 0u}, std::pair{"t/caulk", 0x80u}}) {
     std::string t(name);
     t.resize(64, '\0');
-    u32(t, flags), u32(t, 1);
+    test::appendLe32(t, flags), test::appendLe32(t, 1);
     textures += t;
   }
   std::string vertices;
@@ -250,46 +246,18 @@ std::string mapWithPatches() {
   for (int row = 0; row < 3; ++row)
     for (int col = 0; col < 3; ++col) vertex({float(col), float(row), 3.0f}, {0, 0, 1});
   std::string meshVerts, faces;
-  for (int v = 0; v < 3; ++v) u32(meshVerts, v);
-  auto face = [&](int texture, int type, int vertex0, int count, int meshVerts0, int meshCount, int w, int h) {
+  for (uint32_t v = 0; v < 3; ++v) test::appendLe32(meshVerts, v);
+  auto face = [&](int texture, int type, int vertex0, int count, int meshCount, int w, int h) {
     std::string f;
-    for (int32_t x : {texture, -1, type, vertex0, count, meshVerts0, meshCount, -1}) u32(f, x);
+    for (int32_t x : {texture, -1, type, vertex0, count, 0, meshCount, -1}) test::appendLe32(f, uint32_t(x));
     f.resize(96, '\0');
-    u32(f, w), u32(f, h);
+    test::appendLe32(f, uint32_t(w)), test::appendLe32(f, uint32_t(h));
     faces += f;
   };
-  face(0, 1, 0, 3, 0, 3, 0, 0);
-  face(0, 2, 3, 15, 0, 0, 5, 3);
-  face(1, 2, 18, 9, 0, 0, 3, 3);
-  std::string bsp = "IBSP";
-  u32(bsp, 46);
-  int32_t offset = 8 + 8 * 17;
-  std::string body;
-  for (int l = 0; l < 17; ++l) {
-    const std::string& data = l == 1 ? textures : l == 10 ? vertices : l == 11 ? meshVerts : l == 13 ? faces : std::string();
-    u32(bsp, offset + int32_t(body.size())), u32(bsp, int32_t(data.size()));
-    body += data;
-  }
-  return bsp + body;
-}
-
-/// A zip archive holding `data` as one stored entry named `name`.
-std::string storedZip(const std::string& name, const std::string& data) {
-  auto u16 = [](std::string& s, uint16_t v) { s += char(v & 0xFF), s += char(v >> 8); };
-  auto u32 = [&](std::string& s, uint32_t v) { u16(s, uint16_t(v & 0xFFFF)), u16(s, uint16_t(v >> 16)); };
-  const auto crc = uint32_t(crc32(0, reinterpret_cast<const Bytef*>(data.data()), uInt(data.size())));
-  const auto size = uint32_t(data.size());
-  std::string z;
-  u32(z, 0x04034b50), u16(z, 20), u16(z, 0), u16(z, 0), u16(z, 0), u16(z, 0), u32(z, crc), u32(z, size), u32(z, size);
-  u16(z, uint16_t(name.size())), u16(z, 0);
-  z += name + data;
-  const auto cd = uint32_t(z.size());
-  u32(z, 0x02014b50), u16(z, 20), u16(z, 20), u16(z, 0), u16(z, 0), u16(z, 0), u16(z, 0), u32(z, crc), u32(z, size), u32(z, size);
-  u16(z, uint16_t(name.size())), u16(z, 0), u16(z, 0), u16(z, 0), u16(z, 0), u32(z, 0), u32(z, 0);
-  z += name;
-  const uint32_t cdSize = uint32_t(z.size()) - cd;
-  u32(z, 0x06054b50), u16(z, 0), u16(z, 0), u16(z, 1), u16(z, 1), u32(z, cdSize), u32(z, cd), u16(z, 0);
-  return z;
+  face(0, 1, 0, 3, 3, 0, 0);   // the polygon
+  face(0, 2, 3, 15, 0, 5, 3);  // the arch
+  face(1, 2, 18, 9, 0, 3, 3);  // the nodraw patch
+  return test::quake3Map({{1, textures}, {10, vertices}, {11, meshVerts}, {13, faces}});
 }
 
 /// The arch's cross-section: two quadratic Béziers in (x, z), in double.
@@ -352,7 +320,7 @@ TEST(SceneQuake3, PatchesAreTessellatedOnTheirSurfaceWithinTheTolerance) {
 TEST(SceneQuake3, AnArchivesPatchesJoinTheImportersGeometry) {
   test::TempDir dir;
   const std::string map = mapWithPatches(), path = dir / "arch.pk3";
-  std::ofstream(path, std::ios::binary) << storedZip("maps/arch.bsp", map);
+  std::ofstream(path, std::ios::binary) << test::storedZip("maps/arch.bsp", map);
   const Quake3Patches p = tessellateQuake3Patches(reinterpret_cast<const unsigned char*>(map.data()), map.size(), 1.0f);
   const glm::mat4 move = glm::translate(glm::mat4(1.0f), glm::vec3(10.0f, 0.0f, 0.0f));
   const Scene s = loadModel(path, move);

@@ -10,6 +10,7 @@
 
 #include <sys/wait.h>
 #include <unistd.h>
+#include <zlib.h>
 
 namespace lt::test {
 namespace fs = std::filesystem;
@@ -156,6 +157,41 @@ Ray freeRay(glm::vec3 origin, glm::vec3 dir, float maxDistance) {
   r.maxDistance = maxDistance;
   r.startsOnSurface = false;
   return r;
+}
+
+void appendLe32(std::string& s, uint32_t v) {
+  for (int i = 0; i < 4; ++i) s += char((v >> (8 * i)) & 0xFF);
+}
+
+std::string quake3Map(const std::map<int, std::string>& lumps) {
+  std::string map = "IBSP", body;
+  appendLe32(map, 46);
+  const uint32_t start = 8 + 8 * 17;
+  for (int l = 0; l < 17; ++l) {
+    const auto it = lumps.find(l);
+    const std::string& data = it == lumps.end() ? std::string() : it->second;
+    appendLe32(map, start + uint32_t(body.size())), appendLe32(map, uint32_t(data.size()));
+    body += data;
+  }
+  return map + body;
+}
+
+std::string storedZip(const std::string& name, const std::string& data, std::optional<uint32_t> declared) {
+  auto u16 = [](std::string& s, uint16_t v) { s += char(v & 0xFF), s += char(v >> 8); };
+  const auto crc = uint32_t(crc32(0, reinterpret_cast<const Bytef*>(data.data()), uInt(data.size())));
+  const auto packed = uint32_t(data.size()), unpacked = declared.value_or(packed);
+  std::string z;
+  appendLe32(z, 0x04034b50), u16(z, 20), u16(z, 0), u16(z, 0), u16(z, 0), u16(z, 0);
+  appendLe32(z, crc), appendLe32(z, packed), appendLe32(z, unpacked), u16(z, uint16_t(name.size())), u16(z, 0);
+  z += name + data;
+  const auto directory = uint32_t(z.size());
+  appendLe32(z, 0x02014b50), u16(z, 20), u16(z, 20), u16(z, 0), u16(z, 0), u16(z, 0), u16(z, 0);
+  appendLe32(z, crc), appendLe32(z, packed), appendLe32(z, unpacked), u16(z, uint16_t(name.size())), u16(z, 0), u16(z, 0);
+  u16(z, 0), u16(z, 0), appendLe32(z, 0), appendLe32(z, 0);
+  z += name;
+  const uint32_t directorySize = uint32_t(z.size()) - directory;
+  appendLe32(z, 0x06054b50), u16(z, 0), u16(z, 0), u16(z, 1), u16(z, 1), appendLe32(z, directorySize), appendLe32(z, directory), u16(z, 0);
+  return z;
 }
 
 }  // namespace lt::test

@@ -4,6 +4,8 @@
 #include <cstdlib>
 #include <filesystem>
 #include <random>
+#include <map>
+#include <optional>
 #include <string>
 
 #include <gtest/gtest.h>
@@ -62,6 +64,17 @@ Frame frameOf(const Scene& scene, const CameraDesc& view, int W, int H, int k = 
 /// Every pixel's list holds the same fragments (depth, normal, albedo, triangle) in the same
 /// order in both, wherever in their storage the nodes lie.
 ::testing::AssertionResult sameListContents(const FragmentLists& a, const FragmentLists& b);
+
+/// A Quake 3 map (IBSP 46) whose lumps hold the given bytes (lump number → records); the
+/// other lumps are empty.
+std::string quake3Map(const std::map<int, std::string>& lumps);
+
+/// A zip archive with one stored entry `name` holding `data`; its headers declare `declared`
+/// bytes uncompressed (default: the real size).
+std::string storedZip(const std::string& name, const std::string& data, std::optional<uint32_t> declared = {});
+
+/// Appends `v` to `s` as 4 little-endian bytes (Quake 3 maps and zip headers).
+void appendLe32(std::string& s, uint32_t v);
 
 /// Seed for randomized tests: LAYERTRACE_TEST_SEED or a fixed default; printed on failure.
 uint64_t testSeed();
