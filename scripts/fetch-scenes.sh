@@ -40,15 +40,21 @@ extract glmark2-data usr/share/glmark2/models/bunny.obj "$DATA/models/bunny.obj"
 extract embree-tools usr/share/doc/embree3/models/cornell_box.obj "$DATA/models/cornell_box.obj"
 extract embree-tools usr/share/doc/embree3/models/cornell_box.mtl "$DATA/models/cornell_box.mtl"
 
-# am_thornish: assimp reads only the first maps/*.bsp of an archive, so repack the one map
-# into its own uncompressed .pk3.
-if [ ! -s "$DATA/models/am_thornish.pk3" ]; then
+# OpenArena maps: assimp reads only the first maps/*.bsp of an archive, so each map is repacked
+# into its own uncompressed .pk3. am_thornish is the hall of the README's tables; oa_shouse has
+# drawn Bézier patches (arches, pipes), which the loader tessellates.
+repack_map() {
+  local map=$1 dest="$DATA/models/$1.pk3"
+  [ -s "$dest" ] && return 0
   extract openarena-088-data usr/share/games/openarena/baseoa/pak6-patch088.pk3 "$DATA/debs/pak6-patch088.pk3"
+  local tmp
   tmp=$(mktemp -d)
-  unzip -q -o "$DATA/debs/pak6-patch088.pk3" maps/am_thornish.bsp -d "$tmp"
-  (cd "$tmp" && zip -q -0 map.pk3 maps/am_thornish.bsp)
-  mv "$tmp/map.pk3" "$DATA/models/am_thornish.pk3.tmp" && mv "$DATA/models/am_thornish.pk3.tmp" "$DATA/models/am_thornish.pk3"
+  unzip -q -o "$DATA/debs/pak6-patch088.pk3" "maps/$map.bsp" -d "$tmp"
+  (cd "$tmp" && zip -q -0 map.pk3 "maps/$map.bsp")
+  mv "$tmp/map.pk3" "$dest.tmp" && mv "$dest.tmp" "$dest"
   rm -rf "$tmp"
-  echo "fetch-scenes: $DATA/models/am_thornish.pk3"
-fi
+  echo "fetch-scenes: $dest"
+}
+repack_map am_thornish
+repack_map oa_shouse
 echo "fetch-scenes: all scenes present in $DATA/models"
