@@ -334,6 +334,14 @@ TEST(SceneQuake3, AnArchivesPatchesJoinTheImportersGeometry) {
   EXPECT_EQ(onArch, p.triangles.size());
   EXPECT_EQ(s.bounds().hi.x, 16.0f);  // the polygon, moved
   EXPECT_EQ(s.bounds().lo.x, 9.0f);   // the arch's end, moved
+  // A mirroring transform keeps the patch's front faces outward, as it does the importer's.
+  const Scene mirrored = loadModel(path, glm::scale(glm::mat4(1.0f), glm::vec3(-1.0f, 1.0f, 1.0f)));
+  ASSERT_EQ(mirrored.triangleCount(), s.triangleCount());
+  for (size_t t = 1; t < mirrored.triangleCount(); ++t) {  // the polygon comes first
+    const glm::vec3 a = mirrored.positions[mirrored.triangles[t].x], b = mirrored.positions[mirrored.triangles[t].y],
+                    c = mirrored.positions[mirrored.triangles[t].z], centroid = (a + b + c) / 3.0f;
+    EXPECT_GT(glm::dot(glm::cross(b - a, c - a), glm::vec3(centroid.x, 0.0f, centroid.z)), 0.0f) << t;
+  }
 }
 
 TEST(SceneRecentre, MovesOnlyFarScenesAndKeepsEveryVertexExact) {

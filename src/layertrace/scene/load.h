@@ -63,7 +63,8 @@ Quake3Patches tessellateQuake3Patches(const unsigned char* data, size_t size, fl
 void validateOffHeader(const char* data, size_t size, const std::string& name);
 
 /// Loads a model from memory through assimp; `formatHint` is the file extension without the dot
-/// ("obj", "glb", …), `source` names the input in error messages.
+/// ("obj", "glb", …), `source` names the input in error messages. A Quake 3 archive comes back as
+/// assimp reads it, without the curved surfaces loadModel adds.
 Scene loadModelFromMemory(const void* data, size_t size, const std::string& formatHint, const std::string& source);
 
 /// Loads a JSON scene file composing models, shapes, materials, lights and cameras.
