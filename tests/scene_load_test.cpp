@@ -3,6 +3,7 @@
 #include <cmath>
 #include <cstring>
 #include <fstream>
+#include <iterator>
 #include <map>
 #include <random>
 
@@ -12,6 +13,7 @@
 
 #include "layertrace/scene/load.h"
 #include "layertrace/util/error.h"
+#include "layertrace/util/image.h"
 #include "test_util.h"
 
 namespace lt {
@@ -342,6 +344,76 @@ TEST(SceneQuake3, AnArchivesPatchesJoinTheImportersGeometry) {
                     c = mirrored.positions[mirrored.triangles[t].z], centroid = (a + b + c) / 3.0f;
     EXPECT_GT(glm::dot(glm::cross(b - a, c - a), glm::vec3(centroid.x, 0.0f, centroid.z)), 0.0f) << t;
   }
+}
+
+// A material's diffuse texture gives its albedo the texture's mean colour (averaged in linear
+// space, times the material's colour); a texture that cannot be read leaves a colour derived from
+// its name, and the model still loads.
+TEST(SceneLoad, TexturedMaterialsTakeTheTexturesMeanColour) {
+  test::TempDir dir;
+  const uint8_t texels[] = {255, 0, 0, 0, 0, 255, 255, 255, 255, 0, 0, 0};  // red, blue, white, black
+  writePngBytes(dir / "tex.png", 2, 2, 3, texels);
+  std::ofstream(dir / "m.mtl") << "newmtl white\nKd 1 1 1\nmap_Kd tex.png\n"
+                                  "newmtl grey\nKd 0.5 0.5 0.5\nmap_Kd tex.png\n"
+                                  "newmtl lost\nKd 1 1 1\nmap_Kd missing.png\n";
+  std::ofstream(dir / "m.obj") << "mtllib m.mtl\nv 0 0 0\nv 1 0 0\nv 0 1 0\nv 1 1 0\n"
+                                  "usemtl white\nf 1 2 3\nusemtl grey\nf 2 4 3\nusemtl lost\nf 1 3 4\n";
+  const Scene s = loadModel(dir / "m.obj");
+  std::map<std::string, glm::vec3> albedo;
+  for (const Material& m : s.materials) albedo[m.name] = m.albedo;
+  const glm::vec3 mean(0.5f, 0.25f, 0.5f);  // (1 + 0 + 1 + 0) / 4 red, (0 + 0 + 1 + 0) / 4 green, …
+  for (int c = 0; c < 3; ++c) {
+    EXPECT_NEAR(albedo["white"][c], mean[c], 1e-6f) << c;
+    EXPECT_NEAR(albedo["grey"][c], 0.5f * mean[c], 1e-6f) << c;
+  }
+  EXPECT_NE(albedo["lost"], glm::vec3(1.0f)) << "an unreadable texture: a colour from its name";
+  EXPECT_NE(albedo["lost"], mean);
+  // The header is read first: an image above the pixel limit is not decoded.
+  const std::string png = [&] {
+    std::ifstream in(dir / "tex.png", std::ios::binary);
+    return std::string((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  }();
+  const auto* bytes = reinterpret_cast<const uint8_t*>(png.data());
+  EXPECT_TRUE(meanColorOfEncoded(bytes, png.size(), 4).has_value());
+  EXPECT_FALSE(meanColorOfEncoded(bytes, png.size(), 3).has_value());
+  EXPECT_FALSE(meanColorOfEncoded(bytes, png.size() / 2).has_value()) << "a truncated image does not decode";
+}
+
+std::string base64(const std::string& bytes) {
+  static const char* digits = "ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789+/";
+  std::string out;
+  for (size_t i = 0; i < bytes.size(); i += 3) {
+    const size_t n = std::min<size_t>(3, bytes.size() - i);
+    uint32_t v = 0;
+    for (size_t k = 0; k < 3; ++k) v = v << 8 | (k < n ? uint32_t(uint8_t(bytes[i + k])) : 0u);
+    for (size_t k = 0; k < 4; ++k) out += k <= n ? digits[(v >> (18 - 6 * k)) & 63] : '=';
+  }
+  return out;
+}
+
+// The same for a texture embedded in the model (a glTF image as a data URI, assimp's "*0"), times
+// the material's base colour factor.
+TEST(SceneLoad, EmbeddedTexturesGiveTheirMeanColourToo) {
+  test::TempDir dir;
+  const uint8_t texels[] = {255, 0, 0, 0, 0, 255, 255, 255, 255, 0, 0, 0};
+  writePngBytes(dir / "tex.png", 2, 2, 3, texels);
+  std::ifstream in(dir / "tex.png", std::ios::binary);
+  const std::string png((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  std::string positions;
+  for (float v : {0.0f, 0.0f, 0.0f, 1.0f, 0.0f, 0.0f, 0.0f, 1.0f, 0.0f}) positions.append(reinterpret_cast<const char*>(&v), 4);
+  std::ofstream(dir / "t.gltf") << R"({"asset": {"version": "2.0"}, "scene": 0, "scenes": [{"nodes": [0]}], "nodes": [{"mesh": 0}],
+    "meshes": [{"primitives": [{"attributes": {"POSITION": 0}, "material": 0}]}],
+    "materials": [{"name": "tex", "pbrMetallicRoughness": {"baseColorTexture": {"index": 0}, "baseColorFactor": [1, 0.5, 1, 1]}}],
+    "textures": [{"source": 0}], "images": [{"uri": "data:image/png;base64,)" + base64(png) + R"("}],
+    "buffers": [{"byteLength": 36, "uri": "data:application/octet-stream;base64,)" + base64(positions) + R"("}],
+    "bufferViews": [{"buffer": 0, "byteOffset": 0, "byteLength": 36}],
+    "accessors": [{"bufferView": 0, "componentType": 5126, "count": 3, "type": "VEC3", "min": [0, 0, 0], "max": [1, 1, 0]}]})";
+  const Scene s = loadModel(dir / "t.gltf");
+  const auto m = std::find_if(s.materials.begin(), s.materials.end(), [](const Material& x) { return x.name == "tex"; });
+  ASSERT_NE(m, s.materials.end());
+  EXPECT_NEAR(m->albedo.x, 0.5f, 1e-6f);
+  EXPECT_NEAR(m->albedo.y, 0.125f, 1e-6f);
+  EXPECT_NEAR(m->albedo.z, 0.5f, 1e-6f);
 }
 
 TEST(SceneRecentre, MovesOnlyFarScenesAndKeepsEveryVertexExact) {

@@ -7,6 +7,7 @@
 #include <iterator>
 #include <map>
 #include <memory>
+#include <optional>
 #include <sstream>
 #include <vector>
 
@@ -29,6 +30,7 @@
 
 #include "layertrace/scene/load.h"
 #include "layertrace/util/error.h"
+#include "layertrace/util/image.h"
 #include "layertrace/util/memory.h"
 
 namespace lt {
@@ -42,7 +44,7 @@ glm::mat4 toGlm(const aiMatrix4x4& m) {
 }
 
 /// A stable, pleasant colour from a texture name: models whose materials only name textures
-/// (Quake 3 maps) still get distinguishable surfaces. Textures themselves are not decoded.
+/// that cannot be read (Quake 3 maps, missing files) still get distinguishable surfaces.
 glm::vec3 colorFromName(const std::string& name) {
   const size_t h = std::hash<std::string>{}(name);
   const float hue = float(h % 360u) / 60.0f;
@@ -52,7 +54,49 @@ glm::vec3 colorFromName(const std::string& name) {
   return 0.25f + 0.5f * c;  // muted: keep albedo well inside (0, 1)
 }
 
-Material convertMaterial(const aiMaterial* am) {
+/// The mean colours of the textures a model's materials name, each decoded once: embedded in the
+/// model (assimp's "*N", or by file name) or a file beside it (`modelDir`; none for a model read
+/// from memory). A texture that is missing or does not decode has no colour.
+class TextureColours {
+ public:
+  TextureColours(const aiScene* as, std::string modelDir) : as_(as), dir_(std::move(modelDir)) {}
+
+  std::optional<glm::vec3> operator()(const std::string& name) {
+    const auto [it, added] = cache_.try_emplace(name);
+    if (added) it->second = decode(name);
+    return it->second;
+  }
+
+ private:
+  std::optional<glm::vec3> decode(const std::string& name) const {
+    if (const aiTexture* t = as_->GetEmbeddedTexture(name.c_str())) {
+      if (!t->pcData) return std::nullopt;
+      if (t->mHeight == 0) return meanColorOfEncoded(reinterpret_cast<const uint8_t*>(t->pcData), t->mWidth);
+      std::vector<uint8_t> rgb;  // raw texels: ARGB8888 as b, g, r, a bytes
+      const size_t n = size_t(t->mWidth) * size_t(t->mHeight);
+      rgb.reserve(3 * n);
+      for (size_t i = 0; i < n; ++i) rgb.insert(rgb.end(), {t->pcData[i].r, t->pcData[i].g, t->pcData[i].b});
+      return meanColorOfPixels(rgb.data(), n, 3);
+    }
+    if (dir_.empty()) return std::nullopt;
+    std::string file = name;
+    std::replace(file.begin(), file.end(), '\\', '/');
+    const fs::path path = fs::path(file).is_absolute() ? fs::path(file) : fs::path(dir_) / file;
+    std::error_code ec;
+    if (!fs::is_regular_file(path, ec)) return std::nullopt;
+    const uintmax_t size = fs::file_size(path, ec);
+    if (ec || size > (uintmax_t(256) << 20)) return std::nullopt;
+    std::ifstream in(path, std::ios::binary);
+    const std::vector<uint8_t> bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+    return meanColorOfEncoded(bytes.data(), bytes.size());
+  }
+
+  const aiScene* as_;
+  std::string dir_;
+  std::map<std::string, std::optional<glm::vec3>> cache_;
+};
+
+Material convertMaterial(const aiMaterial* am, TextureColours& textures) {
   Material m;
   aiString name;
   if (am->Get(AI_MATKEY_NAME, name) == AI_SUCCESS) m.name = name.C_Str();
@@ -63,9 +107,13 @@ Material convertMaterial(const aiMaterial* am) {
     haveColor = true;
   }
   aiString tex;
-  if (am->GetTexture(aiTextureType_DIFFUSE, 0, &tex) == AI_SUCCESS && tex.length > 0) {
-    // A texture multiplies a (usually white) colour: use a colour derived from its name instead.
-    if (!haveColor || m.albedo == glm::vec3(1.0f)) m.albedo = colorFromName(tex.C_Str());
+  if ((am->GetTexture(aiTextureType_BASE_COLOR, 0, &tex) == AI_SUCCESS || am->GetTexture(aiTextureType_DIFFUSE, 0, &tex) == AI_SUCCESS) &&
+      tex.length > 0) {
+    // A texture multiplies the colour (glTF's base colour factor, OBJ's Kd; usually white): one
+    // albedo per material, so its mean colour stands for it. One that cannot be read gets a
+    // colour derived from its name, so that surfaces stay distinguishable.
+    if (const std::optional<glm::vec3> mean = textures(tex.C_Str())) m.albedo = glm::clamp((haveColor ? m.albedo : glm::vec3(1.0f)) * *mean, 0.0f, 1.0f);
+    else if (!haveColor || m.albedo == glm::vec3(1.0f)) m.albedo = colorFromName(tex.C_Str());
   }
   aiColor4D s;
   if (am->Get(AI_MATKEY_COLOR_SPECULAR, s) == AI_SUCCESS)
@@ -195,8 +243,9 @@ const aiScene* guardedImport(std::unique_ptr<Assimp::Importer>& importer, const 
 }
 
 /// `ext`: the file's extension, lower case with its dot (".obj"), which decides the importer's quirks.
+/// `modelDir`: where the model's texture files are looked for (empty: nowhere, a model read from memory).
 Scene convertScene(const aiScene* as, const std::string& path, const std::string& name, const std::string& ext, const glm::mat4& transform,
-                   const Quake3Patches* patches = nullptr);
+                   const std::string& modelDir, const Quake3Patches* patches = nullptr);
 
 uint32_t le32(const unsigned char* p) { return uint32_t(p[0]) | uint32_t(p[1]) << 8 | uint32_t(p[2]) << 16 | uint32_t(p[3]) << 24; }
 uint16_t le16(const unsigned char* p) { return uint16_t(p[0] | p[1] << 8); }
@@ -402,8 +451,10 @@ Scene loadModel(const std::string& path, const glm::mat4& transform) {
   auto importer = std::make_unique<Assimp::Importer>();
   const unsigned flags = configureImporter(*importer, q3);
   const aiScene* as = guardedImport(importer, path, [&] { return importer->ReadFile(path, flags); });
+  const fs::path parent = fs::path(path).parent_path();
+  const std::string modelDir = parent.empty() ? std::string(".") : parent.string();  // texture files are looked for beside the model
   const Quake3Patches patches = map.empty() ? Quake3Patches{} : tessellateQuake3Patches(map.data(), map.size(), kPatchTolerance);
-  return convertScene(as, path, fs::path(path).stem().string(), ext, transform, &patches);
+  return convertScene(as, path, fs::path(path).stem().string(), ext, transform, modelDir, &patches);
 }
 
 Scene loadModelFromMemory(const void* data, size_t size, const std::string& formatHint, const std::string& source) {
@@ -415,7 +466,7 @@ Scene loadModelFromMemory(const void* data, size_t size, const std::string& form
   const unsigned flags = configureImporter(*importer, q3);
   const aiScene* as =
       guardedImport(importer, source, [&] { return importer->ReadFileFromMemory(data, size, flags, hint.c_str()); });
-  return convertScene(as, source, source, "." + hint, glm::mat4(1.0f));
+  return convertScene(as, source, source, "." + hint, glm::mat4(1.0f), "");
 }
 
 namespace {
@@ -449,12 +500,13 @@ void addPatches(Scene& scene, const Quake3Patches& p, const glm::mat4& m) {
 }
 
 Scene convertScene(const aiScene* as, const std::string& path, const std::string& name, const std::string& ext, const glm::mat4& transform,
-                   const Quake3Patches* patches) {
+                   const std::string& modelDir, const Quake3Patches* patches) {
   const bool q3 = isQuake3(ext);
   Scene scene;
   scene.name = name;
+  TextureColours textures(as, modelDir);
   for (unsigned i = 0; i < as->mNumMaterials; ++i) {
-    Material m = convertMaterial(as->mMaterials[i]);
+    Material m = convertMaterial(as->mMaterials[i], textures);
     // Quake 3 surfaces are textured shaders without colours: colour them by shader name.
     if (q3) m.albedo = colorFromName(m.name), m.specular = 0.1f;
     scene.materials.push_back(m);
