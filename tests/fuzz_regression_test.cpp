@@ -55,6 +55,22 @@ TEST(FuzzRegressionDeathTest, AnImporterThatNeverFinishesIsStopped) {
       ::testing::ExitedWithCode(2), "scene loop.ply: the model importer did not finish in time");
 }
 
+// fuzz_model: an OFF header counting 1.1·10³³ faces was refused with a message that converted
+// the count to an integer (undefined behaviour, UBSan in the fuzz build); the count is now said
+// as it was read.
+TEST(FuzzRegression, AnOffCountBeyondIntegersIsRefusedByName) {
+  const std::string bytes = slurpFile(test::sourceDir() + "/tests/fuzz_regressions/model/off-huge-count.bin");
+  ASSERT_GT(bytes.size(), 1u);
+  ASSERT_EQ(bytes[0] % 20, 3) << "format index 3 of fuzz_model.cpp: off";
+  try {
+    loadModelFromMemory(bytes.data() + 1, bytes.size() - 1, "off", "huge.off");
+    FAIL() << "no InputError";
+  } catch (const InputError& e) {
+    const std::string what = e.what();
+    EXPECT_NE(what.find("scene huge.off: the OFF header declares 3 vertices and 1.11111e+33 faces"), std::string::npos) << what;
+  }
+}
+
 /// The message of the InputError `f` throws; a test failure (and "") when it throws none.
 template <class F>
 std::string inputErrorOf(F&& f) {

@@ -414,9 +414,11 @@ void validateOffHeader(const char* data, size_t size, const std::string& name) {
     std::istringstream counts(line);
     double vertices = 0.0, faces = 0.0;
     if (!(counts >> vertices >> faces)) return;
+    // A count beyond 2^64 is said as a double (converting it would be undefined: fuzz_model).
+    const auto said = [](double count) { return count < 1e19 ? cat(uint64_t(std::max(count, 0.0))) : cat(count); };
     if (vertices * 6.0 + faces * 8.0 > double(size))
-      inputError("scene ", name, ": the OFF header declares ", uint64_t(std::max(vertices, 0.0)), " vertices and ",
-                 uint64_t(std::max(faces, 0.0)), " faces, more than its ", size, " bytes can hold (malformed model)");
+      inputError("scene ", name, ": the OFF header declares ", said(vertices), " vertices and ", said(faces), " faces, more than its ",
+                 size, " bytes can hold (malformed model)");
     return;
   }
 }
