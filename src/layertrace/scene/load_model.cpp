@@ -397,30 +397,44 @@ void checkQuake3Archive(const std::string& path, uint64_t maxTotalBytes) {
 void setModelImportTimeout(unsigned seconds) { gImportTimeout = seconds; }
 
 void validateOffHeader(const char* data, size_t size, const std::string& name) {
-  // The header: an optional keyword line (OFF, COFF, NOFF, STOFF, 4OFF…), comments (#), then
-  // "vertices faces [edges]". A vertex takes at least 6 bytes of text ("0 0 0\n"), a face 8
-  // ("3 0 1 2\n"). Anything that does not parse is left to assimp.
+  // The header: an optional keyword (OFF, COFF, NOFF, STOFF, 4OFF…), comments (#), then
+  // "vertices faces [edges]" — on the keyword's line, the next lines, or split between them
+  // (assimp reads "OFF5555…\n3" as 5555… vertices and 3 faces: fuzz_model). A vertex takes at
+  // least 6 bytes of text ("0 0 0\n"), a face 8 ("3 0 1 2\n"). Anything that does not parse is
+  // left to assimp.
   std::istringstream in(std::string(data, std::min<size_t>(size, 4096)));
   std::string line;
-  while (std::getline(in, line)) {
+  std::vector<double> counts;
+  bool first = true;
+  while (counts.size() < 2 && std::getline(in, line)) {
     const size_t start = line.find_first_not_of(" \t\r");
     if (start == std::string::npos || line[start] == '#') continue;
-    if (!std::isdigit(static_cast<unsigned char>(line[start]))) {  // the keyword; counts may follow it
+    if (first && !std::isdigit(static_cast<unsigned char>(line[start]))) {  // the keyword; counts may follow it
       const size_t off = line.find("OFF");
       if (off == std::string::npos) return;
       line = line.substr(off + 3);
-      if (line.find_first_not_of(" \t\r") == std::string::npos) continue;
     }
-    std::istringstream counts(line);
-    double vertices = 0.0, faces = 0.0;
-    if (!(counts >> vertices >> faces)) return;
-    // A count beyond 2^64 is said as a double (converting it would be undefined: fuzz_model).
-    const auto said = [](double count) { return count < 1e19 ? cat(uint64_t(std::max(count, 0.0))) : cat(count); };
-    if (vertices * 6.0 + faces * 8.0 > double(size))
-      inputError("scene ", name, ": the OFF header declares ", said(vertices), " vertices and ", said(faces), " faces, more than its ",
-                 size, " bytes can hold (malformed model)");
-    return;
+    first = false;
+    std::istringstream tokens(line);
+    std::string token;
+    while (counts.size() < 2 && tokens >> token) {
+      size_t used = 0;
+      double v = 0.0;
+      try {
+        v = std::stod(token, &used);
+      } catch (const std::exception&) {
+        return;  // no number (std::stod also throws beyond double's range: assimp's to judge)
+      }
+      counts.push_back(v);  // a number's leading digits, as assimp's strtoul10 reads them ("1111(100")
+    }
   }
+  if (counts.size() < 2) return;
+  const double vertices = counts[0], faces = counts[1];
+  // A count beyond 2^64 is said as a double (converting it would be undefined: fuzz_model).
+  const auto said = [](double count) { return count < 1e19 ? cat(uint64_t(std::max(count, 0.0))) : cat(count); };
+  if (vertices * 6.0 + faces * 8.0 > double(size))
+    inputError("scene ", name, ": the OFF header declares ", said(vertices), " vertices and ", said(faces), " faces, more than its ", size,
+               " bytes can hold (malformed model)");
 }
 
 Scene loadModel(const std::string& path, const glm::mat4& transform) {
