@@ -55,44 +55,6 @@ TEST(FuzzRegressionDeathTest, AnImporterThatNeverFinishesIsStopped) {
       ::testing::ExitedWithCode(2), "scene loop.ply: the model importer did not finish in time");
 }
 
-// fuzz_model: an OFF header counting 1.1·10³³ faces was refused with a message that converted
-// the count to an integer (undefined behaviour, UBSan in the fuzz build); the count is now said
-// as it was read.
-TEST(FuzzRegression, AnOffCountBeyondIntegersIsRefusedByName) {
-  const std::string bytes = slurpFile(test::sourceDir() + "/tests/fuzz_regressions/model/off-huge-count.bin");
-  ASSERT_GT(bytes.size(), 1u);
-  ASSERT_EQ(bytes[0] % 20, 3) << "format index 3 of fuzz_model.cpp: off";
-  try {
-    loadModelFromMemory(bytes.data() + 1, bytes.size() - 1, "off", "huge.off");
-    FAIL() << "no InputError";
-  } catch (const InputError& e) {
-    const std::string what = e.what();
-    EXPECT_NE(what.find("scene huge.off: the OFF header declares 3 vertices and 1.11111e+33 faces"), std::string::npos) << what;
-  }
-}
-
-// fuzz_model: "OFF5555…5\n3 1 0" — the vertex count glued to the keyword and the face count on
-// the next line — escaped the header check, and assimp reserved 45 GB for the vertices (ASan:
-// out of memory; a Release build got std::bad_alloc). The counts are now read across lines.
-TEST(FuzzRegression, AnOffCountGluedToTheKeywordIsChecked) {
-  const std::string bytes = slurpFile(test::sourceDir() + "/tests/fuzz_regressions/model/off-count-after-keyword.bin");
-  ASSERT_GT(bytes.size(), 1u);
-  ASSERT_EQ(bytes[0] % 20, 3) << "format index 3 of fuzz_model.cpp: off";
-  try {
-    loadModelFromMemory(bytes.data() + 1, bytes.size() - 1, "off", "glued.off");
-    ADD_FAILURE() << "no InputError";
-  } catch (const InputError& e) {
-    const std::string what = e.what();
-    EXPECT_NE(what.find("scene glued.off: the OFF header declares 5.55556e+37 vertices and 3 faces"), std::string::npos) << what;
-  }
-  // A well-formed header in any of these layouts still loads.
-  for (const char* text : {"OFF\n3 1 0\n0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n", "OFF 3 1 0\n0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n",
-                           "OFF\n# comment\n3\n1 0\n0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n", "3 1 0\n0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n"}) {
-    const std::string off = text;
-    EXPECT_EQ(loadModelFromMemory(off.data(), off.size(), "off", "ok.off").triangleCount(), 1u) << off;
-  }
-}
-
 /// The message of the InputError `f` throws; a test failure (and "") when it throws none.
 template <class F>
 std::string inputErrorOf(F&& f) {
@@ -104,6 +66,37 @@ std::string inputErrorOf(F&& f) {
   ADD_FAILURE() << "no InputError";
   return "";
 }
+
+/// The InputError message of a fuzz_model crash input of the OFF format (format index 3), loaded
+/// under `name`.
+std::string offRegressionError(const std::string& file, const std::string& name) {
+  const std::string bytes = slurpFile(test::sourceDir() + "/tests/fuzz_regressions/model/" + file);
+  EXPECT_EQ(bytes.size() > 1 ? bytes[0] % 20 : -1, 3) << "format index 3 of fuzz_model.cpp: off";
+  return inputErrorOf([&] { loadModelFromMemory(bytes.data() + 1, bytes.size() - 1, "off", name); });
+}
+
+// fuzz_model: an OFF header counting 1.1·10³³ faces was refused with a message that converted
+// the count to an integer (undefined behaviour, UBSan in the fuzz build); the count is now said
+// as it was read.
+TEST(FuzzRegression, AnOffCountBeyondIntegersIsRefusedByName) {
+  const std::string what = offRegressionError("off-huge-count.bin", "huge.off");
+  EXPECT_NE(what.find("scene huge.off: the OFF header declares 3 vertices and 1.11111e+33 faces"), std::string::npos) << what;
+}
+
+// fuzz_model: "OFF5555…5\n3 1 0" — the vertex count glued to the keyword and the face count on
+// the next line — escaped the header check, and assimp reserved 45 GB for the vertices (ASan:
+// out of memory; a Release build got std::bad_alloc). The counts are now read across lines.
+TEST(FuzzRegression, AnOffCountGluedToTheKeywordIsChecked) {
+  const std::string what = offRegressionError("off-count-after-keyword.bin", "glued.off");
+  EXPECT_NE(what.find("scene glued.off: the OFF header declares 5.55556e+37 vertices and 3 faces"), std::string::npos) << what;
+  // A well-formed header in any of these layouts still loads.
+  for (const char* text : {"OFF\n3 1 0\n0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n", "OFF 3 1 0\n0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n",
+                           "OFF\n# comment\n3\n1 0\n0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n", "3 1 0\n0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n"}) {
+    const std::string off = text;
+    EXPECT_EQ(loadModelFromMemory(off.data(), off.size(), "off", "ok.off").triangleCount(), 1u) << off;
+  }
+}
+
 
 void expectMentions(const std::string& message, std::initializer_list<const char*> needles) {
   for (const char* n : needles) EXPECT_NE(message.find(n), std::string::npos) << n << ": " << message;
