@@ -60,7 +60,7 @@ std::array<float, 3> bernstein(float t) {
 /// unbounded grids (their memory is checked too).
 int segmentsFor(float deviation, float tolerance) {
   const float l = std::ceil(std::sqrt(deviation / (4.0f * tolerance)));
-  return l >= 64.0f ? 64 : std::max(1, int(l));
+  return l < 64.0f ? std::max(1, int(l)) : 64;  // (a NaN from non-finite control points: 64; finalize() refuses the map)
 }
 
 }  // namespace
