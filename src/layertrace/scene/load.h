@@ -34,8 +34,9 @@ inline constexpr uint64_t kMaxArchiveBytes = uint64_t(4) << 30;
 /// InputError naming `path` when its central directory breaks the limits above or is malformed.
 void checkArchiveSizes(const std::string& path, uint64_t maxTotalBytes);
 /// checkArchiveSizes, then every .bsp inside the archive through validateQuake3Bsp (InputError
-/// naming the archive and the map); one read of the central directory.
-void checkQuake3Archive(const std::string& path, uint64_t maxTotalBytes);
+/// naming the archive and the map); one read of the central directory, each map inflated once.
+/// Returns the bytes of the map assimp's importer reads from the archive (empty: none).
+std::vector<unsigned char> checkQuake3Archive(const std::string& path, uint64_t maxTotalBytes);
 /// InputError naming `name` unless `data` is a Quake 3 map (IBSP 46) whose lump directory lies
 /// inside the file and whose faces index existing vertices, mesh vertices, textures and
 /// lightmaps — what assimp's Q3BSP importer reads without checking (scene/quake3_bsp.cpp).

@@ -352,20 +352,12 @@ void checkSizes(const ZipDirectory& zip, const std::string& path, uint64_t maxTo
     inputError("scene ", path, ": archive declares ", total, " bytes uncompressed, more than the limit of ", maxTotalBytes);
 }
 
-void checkMaps(ZipDirectory& zip, const std::string& path) {
-  for (const ZipEntry& z : zip.entries)
-    if (endsWithBsp(z.name)) {
-      const std::vector<unsigned char> bsp = zip.contents(z);
-      validateQuake3Bsp(bsp.data(), bsp.size(), path + ":" + z.name);
-    }
-}
-
 /// The map assimp's importer reads from an archive (Q3BSPFileImporter::findFirstMapInArchive):
 /// over the entries with data, by name with '\\' as '/' and leading '.' and '/' removed
 /// (ZipArchiveIOSystem's SimplifyFilename, a repeated name keeping its first entry), in byte
 /// order (its std::map), the first whose extension is "bsp" in any case and whose name contains
-/// "maps/" and ".bsp". Empty when there is none.
-std::vector<unsigned char> importersMap(ZipDirectory& zip) {
+/// "maps/" and ".bsp". None when there is none.
+const ZipEntry* importersMap(const ZipDirectory& zip) {
   std::map<std::string, const ZipEntry*> names;
   for (const ZipEntry& z : zip.entries) {
     if (z.unpacked == 0) continue;
@@ -375,8 +367,22 @@ std::vector<unsigned char> importersMap(ZipDirectory& zip) {
     names.emplace(name, &z);
   }
   for (const auto& [name, z] : names)
-    if (endsWithBsp(name) && name.find("maps/") != std::string::npos && name.find(".bsp") != std::string::npos) return zip.contents(*z);
-  return {};
+    if (endsWithBsp(name) && name.find("maps/") != std::string::npos && name.find(".bsp") != std::string::npos) return z;
+  return nullptr;
+}
+
+/// Every .bsp of the archive through validateQuake3Bsp, each inflated once; returns the bytes of
+/// the map the importer reads (importersMap), empty when there is none.
+std::vector<unsigned char> checkMaps(ZipDirectory& zip, const std::string& path) {
+  const ZipEntry* read = importersMap(zip);
+  std::vector<unsigned char> map;
+  for (const ZipEntry& z : zip.entries)
+    if (endsWithBsp(z.name)) {
+      std::vector<unsigned char> bsp = zip.contents(z);
+      validateQuake3Bsp(bsp.data(), bsp.size(), path + ":" + z.name);
+      if (&z == read) map = std::move(bsp);
+    }
+  return map;
 }
 
 /// The largest distance between a Quake 3 patch and its triangles, in map units — our choice (the
@@ -388,10 +394,10 @@ constexpr float kPatchTolerance = 1.0f;
 
 void checkArchiveSizes(const std::string& path, uint64_t maxTotalBytes) { checkSizes(ZipDirectory(path), path, maxTotalBytes); }
 
-void checkQuake3Archive(const std::string& path, uint64_t maxTotalBytes) {
+std::vector<unsigned char> checkQuake3Archive(const std::string& path, uint64_t maxTotalBytes) {
   ZipDirectory zip(path);
   checkSizes(zip, path, maxTotalBytes);
-  checkMaps(zip, path);
+  return checkMaps(zip, path);
 }
 
 void setModelImportTimeout(unsigned seconds) { gImportTimeout = seconds; }
@@ -446,12 +452,7 @@ Scene loadModel(const std::string& path, const glm::mat4& transform) {
   const bool q3 = isQuake3(ext);
   // assimp inflates archive entries into memory: refuse what declares more than it could hold.
   std::vector<unsigned char> map;  // a Quake 3 map, for the curved surfaces assimp drops
-  if (ext == ".pk3") {
-    ZipDirectory zip(path);
-    checkSizes(zip, path, kMaxArchiveBytes);
-    checkMaps(zip, path);
-    map = importersMap(zip);
-  }
+  if (ext == ".pk3") map = checkQuake3Archive(path, kMaxArchiveBytes);
   if (ext == ".off") {
     std::ifstream in(path, std::ios::binary);
     std::string head(4096, '\0');
