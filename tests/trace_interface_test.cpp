@@ -1,11 +1,13 @@
 // The tracing core (trace/): every tracer's batch paths answer exactly as its one-ray reference
 // path, counted or not; effects report every traced ray to an observer without changing the
 // image; and the source tree keeps the layering of DESIGN.md.
+#include <bit>
 #include <cstring>
 #include <filesystem>
 #include <fstream>
 #include <map>
 #include <mutex>
+#include <random>
 
 #include "layertrace/pipeline/tracer_factory.h"
 #include "layertrace/render/effects.h"
@@ -106,10 +108,14 @@ TEST(TraceInterface, EmbreePacketsAnswerAsSingleRays) {
   }
 }
 
-// The geometric tracers' bare closest hits (the hybrid's windows) are their traced hits before
-// the TraceHit is built: makeHit of each is the one-ray answer bit for bit, counted or not, in
-// batches of any length, and the counted path counts as the one-ray path does.
-TEST(TraceInterface, GeoHitsAreTheTracersHits) {
+// The geometric tracers' segment queries (GeoHitQueries, the hybrid's geometric half). Whole rays
+// (no `from`): makeHit of each bare hit is the one-ray answer bit for bit, counted or not, in
+// batches of any length, and the counted path counts as the one-ray path does. Segments started
+// at from[i] are the whole ray started later: where its hit lies past from[i], the segment finds
+// that hit bit for bit — from 0, from just before the hit (within the 1e-4 relative origin offset
+// a ray moved to from[i] skips: session 27), from anywhere before it — and where it lies before
+// from[i], the segment's hit lies past from[i]. Any hits are the closest hits' verdicts.
+TEST(TraceInterface, GeoSegmentsAreTheWholeRaysHits) {
   const Frame f = defaultFrame();
   std::vector<Ray> rays = test::sampleRays(f, 3000, test::testSeed() + 2);
   for (size_t i = 0; i < rays.size(); i += 3) rays[i].maxDistance *= 0.05f;
@@ -117,29 +123,70 @@ TEST(TraceInterface, GeoHitsAreTheTracersHits) {
   const BuiltTracer grid = buildTracer("grid", f, TracerOptions{});
   const EmbreePacketTracer packets(f.scene, f.camera, *embree.embree);
   const GeometricHits made(f.scene, f.camera);
+  // Queries in batches of 37 (partial packets and chunks).
+  const auto batches = [&](auto&& query, bool counted, std::vector<RayCounters>& c) {
+    c.assign(counted ? rays.size() : 0, RayCounters{});
+    for (size_t b = 0; b < rays.size(); b += 37) {
+      const size_t n = std::min<size_t>(37, rays.size() - b);
+      query(b, n, counted ? std::span<RayCounters>(&c[b], n) : std::span<RayCounters>());
+    }
+  };
   for (const Tracer* t : std::initializer_list<const Tracer*>{embree.tracer.get(), grid.tracer.get(), &packets}) {
     SCOPED_TRACE(t->name());
-    const auto* bare = dynamic_cast<const GeoHitQueries*>(t);
-    ASSERT_NE(bare, nullptr);
+    const auto* geo = dynamic_cast<const GeoHitQueries*>(t);
+    ASSERT_NE(geo, nullptr);
+    std::vector<GeoHit> whole(rays.size());
+    std::vector<RayCounters> c;
     for (const bool counted : {false, true}) {
-      std::vector<GeoHit> g(rays.size());
-      std::vector<RayCounters> c(counted ? rays.size() : 0);
-      for (size_t b = 0; b < rays.size(); b += 37) {
-        const size_t n = std::min<size_t>(37, rays.size() - b);
-        bare->intersectBatch(std::span<const Ray>(&rays[b], n), std::span<GeoHit>(&g[b], n),
-                             counted ? std::span<RayCounters>(&c[b], n) : std::span<RayCounters>());
-      }
+      batches([&](size_t b, size_t n, std::span<RayCounters> cs) {
+        geo->intersectSegments(std::span<const Ray>(&rays[b], n), {}, std::span<GeoHit>(&whole[b], n), cs);
+      }, counted, c);
       size_t hits = 0, differ = 0, countsDiffer = 0;
       for (size_t i = 0; i < rays.size(); ++i) {
         RayCounters one;
         const TraceHit h = t->trace(rays[i], one);
         hits += h.hit;
-        differ += !sameHit(h, made.makeHit(rays[i], g[i]));
+        differ += !sameHit(h, made.makeHit(rays[i], whole[i]));
         if (counted && kCountersCompiled) countsDiffer += one.iterations != c[i].iterations || one.giveUps != c[i].giveUps;
       }
       EXPECT_GT(hits, rays.size() / 4);
       EXPECT_EQ(differ, 0u) << "of " << rays.size() << " rays, counted " << counted;
       EXPECT_EQ(countsDiffer, 0u) << "of " << rays.size() << " rays";
+    }
+    std::mt19937_64 rng(test::testSeed());
+    std::uniform_real_distribution<float> u(0.0f, 1.0f);
+    std::vector<float> from(rays.size());
+    for (size_t i = 0; i < rays.size(); ++i) {
+      const float end = whole[i].hit() ? whole[i].t : rays[i].maxDistance;
+      const float before[] = {0.0f, end * (1.0f - 2e-5f), end * u(rng), end * (1.0f + 1e-5f)};
+      from[i] = before[i % 4];
+    }
+    for (const bool counted : {false, true}) {
+      std::vector<GeoHit> seg(rays.size());
+      std::vector<uint8_t> blocked(rays.size());
+      batches([&](size_t b, size_t n, std::span<RayCounters> cs) {
+        geo->intersectSegments(std::span<const Ray>(&rays[b], n), std::span<const float>(&from[b], n), std::span<GeoHit>(&seg[b], n), cs);
+      }, counted, c);
+      batches([&](size_t b, size_t n, std::span<RayCounters> cs) {
+        geo->occludedSegments(std::span<const Ray>(&rays[b], n), std::span<const float>(&from[b], n),
+                              std::span<uint8_t>(&blocked[b], n), cs);
+      }, counted, c);
+      size_t kept = 0, justBefore = 0, differ = 0, early = 0, anyDiffer = 0;
+      for (size_t i = 0; i < rays.size(); ++i) {
+        const float start = std::max(from[i], made.originOffset(rays[i]));
+        if (whole[i].hit() && whole[i].t > start) {
+          ++kept;
+          justBefore += i % 4 == 1;
+          differ += seg[i].triangle != whole[i].triangle || std::bit_cast<uint32_t>(seg[i].t) != std::bit_cast<uint32_t>(whole[i].t);
+        } else {
+          early += seg[i].hit() && !(seg[i].t >= start);
+        }
+        anyDiffer += (blocked[i] != 0) != seg[i].hit();
+      }
+      EXPECT_GT(justBefore, rays.size() / 20) << "too few segments start just before their hit";
+      EXPECT_EQ(differ, 0u) << "of " << kept << " segments holding the whole ray's hit, counted " << counted;
+      EXPECT_EQ(early, 0u);
+      EXPECT_EQ(anyDiffer, 0u) << "of " << rays.size() << " segments, counted " << counted;
     }
   }
 }

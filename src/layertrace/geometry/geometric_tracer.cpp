@@ -47,7 +47,7 @@ TraceHit GeometricHits::makeHit(const Ray& ray, const GeoHit& g) const {
 }
 
 template <class F>
-void EmbreePacketTracer::packets(std::span<const Ray> rays, F f) const {
+void EmbreePacketTracer::packets(std::span<const Ray> rays, std::span<const float> from, F f) const {
   const Camera& cam = single_.hits().camera();
   for (size_t b = 0; b < rays.size(); b += 16) {
     const size_t n = std::min<size_t>(16, rays.size() - b);
@@ -56,7 +56,7 @@ void EmbreePacketTracer::packets(std::span<const Ray> rays, F f) const {
     for (size_t i = 0; i < n; ++i) {
       const Ray& r = rays[b + i];
       o[i] = cam.toWorld(r.origin), d[i] = cam.dirToWorld(r.dir);
-      tnear[i] = single_.hits().originOffset(r), tfar[i] = r.maxDistance;
+      tnear[i] = segmentStart(from, b + i, single_.hits().originOffset(r)), tfar[i] = r.maxDistance;
     }
     f(o, d, tnear, tfar, n, b);
   }
@@ -64,38 +64,49 @@ void EmbreePacketTracer::packets(std::span<const Ray> rays, F f) const {
 
 void EmbreePacketTracer::traceBatch(std::span<const Ray> rays, std::span<TraceHit> hits, std::span<RayCounters> counters) const {
   if (kCountersCompiled && !counters.empty()) return TracerImpl::traceBatch(rays, hits, counters);
-  packets(rays, [&](const glm::vec3* o, const glm::vec3* d, const float* tnear, const float* tfar, size_t n, size_t b) {
+  packets(rays, {}, [&](const glm::vec3* o, const glm::vec3* d, const float* tnear, const float* tfar, size_t n, size_t b) {
     GeoHit g[16];
     embree_.intersectPackets(o, d, tnear, tfar, n, g);
     for (size_t i = 0; i < n; ++i) assignInPlace(hits[b + i], [&] { return single_.hits().makeHit(rays[b + i], g[i]); });
   });
 }
 
-void EmbreePacketTracer::intersectBatch(std::span<const Ray> rays, std::span<GeoHit> hits, std::span<RayCounters> counters) const {
-  if (kCountersCompiled && !counters.empty()) return single_.intersectBatch(rays, hits, counters);
-  packets(rays, [&](const glm::vec3* o, const glm::vec3* d, const float* tnear, const float* tfar, size_t n, size_t b) {
+void EmbreePacketTracer::intersectSegments(std::span<const Ray> rays, std::span<const float> from, std::span<GeoHit> hits,
+                                           std::span<RayCounters> counters) const {
+  if (kCountersCompiled && !counters.empty()) return single_.intersectSegments(rays, from, hits, counters);
+  packets(rays, from, [&](const glm::vec3* o, const glm::vec3* d, const float* tnear, const float* tfar, size_t n, size_t b) {
     embree_.intersectPackets(o, d, tnear, tfar, n, &hits[b]);
   });
 }
 
 void EmbreePacketTracer::occludedBatch(std::span<const Ray> rays, std::span<TraceHit> hits, std::span<RayCounters> counters) const {
   if (kCountersCompiled && !counters.empty()) return TracerImpl::occludedBatch(rays, hits, counters);
-  packets(rays, [&](const glm::vec3* o, const glm::vec3* d, const float* tnear, const float* tfar, size_t n, size_t b) {
+  packets(rays, {}, [&](const glm::vec3* o, const glm::vec3* d, const float* tnear, const float* tfar, size_t n, size_t b) {
     bool blocked[16];
     embree_.occludedPackets(o, d, tnear, tfar, n, blocked);
     for (size_t i = 0; i < n; ++i) hits[b + i] = GeometricHits::occludedHit(blocked[i]);
   });
 }
 
+void EmbreePacketTracer::occludedSegments(std::span<const Ray> rays, std::span<const float> from, std::span<uint8_t> blocked,
+                                          std::span<RayCounters> counters) const {
+  if (kCountersCompiled && !counters.empty()) return single_.occludedSegments(rays, from, blocked, counters);
+  packets(rays, from, [&](const glm::vec3* o, const glm::vec3* d, const float* tnear, const float* tfar, size_t n, size_t b) {
+    bool any[16];
+    embree_.occludedPackets(o, d, tnear, tfar, n, any);
+    for (size_t i = 0; i < n; ++i) blocked[b + i] = any[i];
+  });
+}
+
 template <class F>
-void GridTracer::chunks(std::span<const Ray> rays, F f) const {
+void GridTracer::chunks(std::span<const Ray> rays, std::span<const float> from, F f) const {
   const Camera& cam = hits().camera();
   IrregularGrid::Query q[kChunk];
   for (size_t b = 0; b < rays.size(); b += kChunk) {
     const size_t n = std::min(kChunk, rays.size() - b);
     for (size_t i = 0; i < n; ++i) {
       const Ray& r = rays[b + i];
-      q[i] = {cam.toWorld(r.origin), cam.dirToWorld(r.dir), hits().originOffset(r), r.maxDistance};
+      q[i] = {cam.toWorld(r.origin), cam.dirToWorld(r.dir), segmentStart(from, b + i, hits().originOffset(r)), r.maxDistance};
     }
     f(std::span<const IrregularGrid::Query>(q, n), b);
   }
@@ -103,25 +114,32 @@ void GridTracer::chunks(std::span<const Ray> rays, F f) const {
 
 void GridTracer::traceBatch(std::span<const Ray> rays, std::span<TraceHit> hits, std::span<RayCounters> counters) const {
   if (kCountersCompiled && !counters.empty()) return GeometricTracer::traceBatch(rays, hits, counters);
-  chunks(rays, [&](std::span<const IrregularGrid::Query> q, size_t b) {
+  chunks(rays, {}, [&](std::span<const IrregularGrid::Query> q, size_t b) {
     GeoHit g[kChunk];
     accel().intersect(q, std::span<GeoHit>(g, q.size()));
     for (size_t i = 0; i < q.size(); ++i) assignInPlace(hits[b + i], [&] { return this->hits().makeHit(rays[b + i], g[i]); });
   });
 }
 
-void GridTracer::intersectBatch(std::span<const Ray> rays, std::span<GeoHit> hits, std::span<RayCounters> counters) const {
-  if (kCountersCompiled && !counters.empty()) return GeometricTracer::intersectBatch(rays, hits, counters);
-  chunks(rays, [&](std::span<const IrregularGrid::Query> q, size_t b) { accel().intersect(q, hits.subspan(b, q.size())); });
+void GridTracer::intersectSegments(std::span<const Ray> rays, std::span<const float> from, std::span<GeoHit> hits,
+                                   std::span<RayCounters> counters) const {
+  if (kCountersCompiled && !counters.empty()) return GeometricTracer::intersectSegments(rays, from, hits, counters);
+  chunks(rays, from, [&](std::span<const IrregularGrid::Query> q, size_t b) { accel().intersect(q, hits.subspan(b, q.size())); });
 }
 
 void GridTracer::occludedBatch(std::span<const Ray> rays, std::span<TraceHit> hits, std::span<RayCounters> counters) const {
   if (kCountersCompiled && !counters.empty()) return GeometricTracer::occludedBatch(rays, hits, counters);
-  chunks(rays, [&](std::span<const IrregularGrid::Query> q, size_t b) {
+  chunks(rays, {}, [&](std::span<const IrregularGrid::Query> q, size_t b) {
     uint8_t blocked[kChunk];
     accel().occluded(q, std::span<uint8_t>(blocked, q.size()));
     for (size_t i = 0; i < q.size(); ++i) hits[b + i] = GeometricHits::occludedHit(blocked[i] != 0);
   });
+}
+
+void GridTracer::occludedSegments(std::span<const Ray> rays, std::span<const float> from, std::span<uint8_t> blocked,
+                                  std::span<RayCounters> counters) const {
+  if (kCountersCompiled && !counters.empty()) return GeometricTracer::occludedSegments(rays, from, blocked, counters);
+  chunks(rays, from, [&](std::span<const IrregularGrid::Query> q, size_t b) { accel().occluded(q, blocked.subspan(b, q.size())); });
 }
 
 }  // namespace lt

@@ -45,14 +45,33 @@ class GeometricHits {
   std::vector<uint32_t> packed_;  ///< per material: albedo + specular as stored in fragments
 };
 
-/// Closest hits without building a TraceHit: where each ray stops and on which triangle, for a
-/// caller that needs no more (the hybrid's windows, which only decide where a ray's answer lies).
-/// GeometricHits::makeHit(rays[i], hits[i]) is the tracer's traceBatch answer bit for bit
-/// (TraceInterface.GeoHitsAreTheTracersHits). `counters` as in Tracer::traceBatch.
+/// Queries about segments of rays, without building a TraceHit: where each ray stops past a given
+/// point and on which triangle, or whether anything blocks it there — for a caller that needs no
+/// more (the hybrid: its windows only decide where a ray's answer lies, its remainders continue a
+/// ray where screen space lost knowledge).
+///
+/// Ray i is traced from t = from[i] (its origin offset where that is larger; an empty `from`:
+/// the origin offset, a whole ray) to its maxDistance. It is the very float ray a whole-ray query
+/// traces, only started later (Embree's and the grid's tnear), so a hit past from[i] is the
+/// whole ray's hit bit for bit. A ray moved to its segment's start would not be: it is another
+/// float ray, and its own origin offset (1e-4 of its distance from the eye) skips the segment's
+/// first stretch — on assimp's cube_tristrips.dae seen from 135 units, 0.0135 units, through
+/// which 50 reflection rays' hits fell (session 27). GeometricHits::makeHit(rays[i], hits[i]) is
+/// the tracer's traceBatch answer bit for bit (TraceInterface.GeoHitsAreTheTracersHits).
+/// `counters` as in Tracer::traceBatch.
 class GeoHitQueries {
  public:
   virtual ~GeoHitQueries() = default;
-  virtual void intersectBatch(std::span<const Ray> rays, std::span<GeoHit> hits, std::span<RayCounters> counters) const = 0;
+  virtual void intersectSegments(std::span<const Ray> rays, std::span<const float> from, std::span<GeoHit> hits,
+                                 std::span<RayCounters> counters) const = 0;
+  /// blocked[i] = 1 where something lies on ray i's segment.
+  virtual void occludedSegments(std::span<const Ray> rays, std::span<const float> from, std::span<uint8_t> blocked,
+                                std::span<RayCounters> counters) const = 0;
+  /// Where a segment of `ray` starting at `from` (empty: 0) begins for a tracer whose origin
+  /// offset is `offset`.
+  static float segmentStart(std::span<const float> from, size_t i, float offset) {
+    return from.empty() ? offset : std::max(offset, from[i]);
+  }
 };
 
 /// A geometric acceleration structure as a tracer: Accel is EmbreeScene ("embree": one
@@ -72,25 +91,42 @@ class GeometricTracer : public TracerImpl<GeometricTracer<Accel>>, public GeoHit
     return hits_.makeHit(ray, intersect(ray, c));
   }
   template <class C>
-  GeoHit intersect(const Ray& ray, C& c) const {
-    return query(ray, c, [this](auto... a) { return accel_.intersect(a...); });
+  GeoHit intersect(const Ray& ray, C& c, float from = 0.0f) const {
+    return query(ray, c, from, [this](auto... a) { return accel_.intersect(a...); });
   }
-  void intersectBatch(std::span<const Ray> rays, std::span<GeoHit> hits, std::span<RayCounters> counters) const override {
-    NoCounters none;
-    for (size_t i = 0; i < rays.size(); ++i)
-      hits[i] = kCountersCompiled && !counters.empty() ? intersect(rays[i], counters[i]) : intersect(rays[i], none);
+  template <class C>
+  bool occluded(const Ray& ray, C& c, float from = 0.0f) const {
+    return query(ray, c, from, [this](auto... a) { return accel_.occluded(a...); });
+  }
+  void intersectSegments(std::span<const Ray> rays, std::span<const float> from, std::span<GeoHit> hits,
+                         std::span<RayCounters> counters) const override {
+    perRay(rays, from, counters, [&](size_t i, float start, auto& c) { hits[i] = intersect(rays[i], c, start); });
+  }
+  void occludedSegments(std::span<const Ray> rays, std::span<const float> from, std::span<uint8_t> blocked,
+                        std::span<RayCounters> counters) const override {
+    perRay(rays, from, counters, [&](size_t i, float start, auto& c) { blocked[i] = occluded(rays[i], c, start); });
   }
   template <class C>
   TraceHit occludedImpl(const Ray& ray, C& c) const {
-    return GeometricHits::occludedHit(query(ray, c, [this](auto... a) { return accel_.occluded(a...); }));
+    return GeometricHits::occludedHit(occluded(ray, c));
   }
 
  private:
+  /// f(i, from, counters) for each ray, counted where `counters` is given.
+  template <class F>
+  static void perRay(std::span<const Ray> rays, std::span<const float> from, std::span<RayCounters> counters, F&& f) {
+    NoCounters none;
+    for (size_t i = 0; i < rays.size(); ++i) {
+      const float start = from.empty() ? 0.0f : from[i];
+      if (kCountersCompiled && !counters.empty()) f(i, start, counters[i]);
+      else f(i, start, none);
+    }
+  }
   template <class C, class Q>
-  auto query(const Ray& ray, C& c, Q&& q) const {
+  auto query(const Ray& ray, C& c, float from, Q&& q) const {
     const Camera& cam = hits_.camera();
     TraversalCounts n;
-    const auto answer = q(cam.toWorld(ray.origin), cam.dirToWorld(ray.dir), hits_.originOffset(ray), ray.maxDistance,
+    const auto answer = q(cam.toWorld(ray.origin), cam.dirToWorld(ray.dir), std::max(hits_.originOffset(ray), from), ray.maxDistance,
                           C::kEnabled ? &n : nullptr);
     c.addIterations(std::max(n.steps, 1u));
     if (n.giveUps) c.giveUp();
@@ -110,13 +146,17 @@ class GridTracer : public GeometricTracer<IrregularGrid> {
       : GeometricTracer<IrregularGrid>("grid", scene, camera, grid) {}
   void traceBatch(std::span<const Ray> rays, std::span<TraceHit> hits, std::span<RayCounters> counters) const override;
   void occludedBatch(std::span<const Ray> rays, std::span<TraceHit> hits, std::span<RayCounters> counters) const override;
-  void intersectBatch(std::span<const Ray> rays, std::span<GeoHit> hits, std::span<RayCounters> counters) const override;
+  void intersectSegments(std::span<const Ray> rays, std::span<const float> from, std::span<GeoHit> hits,
+                         std::span<RayCounters> counters) const override;
+  void occludedSegments(std::span<const Ray> rays, std::span<const float> from, std::span<uint8_t> blocked,
+                        std::span<RayCounters> counters) const override;
 
  private:
   static constexpr size_t kChunk = 256;
-  /// Calls f(queries, first) for each chunk of up to kChunk rays, as world-space grid queries.
+  /// Calls f(queries, first) for each chunk of up to kChunk rays, as world-space grid queries
+  /// from each ray's segment start (GeoHitQueries).
   template <class F>
-  void chunks(std::span<const Ray> rays, F f) const;
+  void chunks(std::span<const Ray> rays, std::span<const float> from, F f) const;
 };
 
 /// Plain Embree with 16-wide packets (rtcIntersect16 / rtcOccluded16): each batch is cut into
@@ -139,12 +179,16 @@ class EmbreePacketTracer : public TracerImpl<EmbreePacketTracer>, public GeoHitQ
   }
   void traceBatch(std::span<const Ray> rays, std::span<TraceHit> hits, std::span<RayCounters> counters) const override;
   void occludedBatch(std::span<const Ray> rays, std::span<TraceHit> hits, std::span<RayCounters> counters) const override;
-  void intersectBatch(std::span<const Ray> rays, std::span<GeoHit> hits, std::span<RayCounters> counters) const override;
+  void intersectSegments(std::span<const Ray> rays, std::span<const float> from, std::span<GeoHit> hits,
+                         std::span<RayCounters> counters) const override;
+  void occludedSegments(std::span<const Ray> rays, std::span<const float> from, std::span<uint8_t> blocked,
+                        std::span<RayCounters> counters) const override;
 
  private:
-  /// Calls f(origins, dirs, tnear, tfar, n, offset) for each packet of up to 16 rays.
+  /// Calls f(origins, dirs, tnear, tfar, n, offset) for each packet of up to 16 rays, tnear at
+  /// each ray's segment start (GeoHitQueries).
   template <class F>
-  void packets(std::span<const Ray> rays, F f) const;
+  void packets(std::span<const Ray> rays, std::span<const float> from, F f) const;
   EmbreeTracer single_;  ///< the one-ray path, and the hit construction the packets share
   const EmbreeScene& embree_;
 };

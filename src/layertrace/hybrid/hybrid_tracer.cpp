@@ -27,7 +27,7 @@ double msBetween(std::chrono::steady_clock::time_point a, std::chrono::steady_cl
 }  // namespace
 
 HybridTracer::HybridTracer(const Scene& scene, const Camera& camera, const LayerArrays& layers, const KnownSpace& known,
-                           const Tracer& screen, const Tracer& geo, float worldMargin, bool uncertainEmptySpace)
+                           const Tracer& screen, const GeoHitQueries& geo, float worldMargin, bool uncertainEmptySpace)
     : scene_(scene),
       offsetUnit_(GeometricHits::offsetUnit(scene)),
       camera_(camera),
@@ -35,7 +35,6 @@ HybridTracer::HybridTracer(const Scene& scene, const Camera& camera, const Layer
       known_(known),
       screen_(screen),
       geo_(geo),
-      geoBare_(dynamic_cast<const GeoHitQueries*>(&geo)),
       hits_(scene, camera),
       bounds_(scene.bounds()),
       worldMargin_(worldMargin),
@@ -92,32 +91,29 @@ Ray HybridTracer::segment(const Ray& ray, float from, float to) {
   return g;
 }
 
-namespace {
+void HybridTracer::askGeo(Scratch& s, const Ray& ray, size_t i, float from, float to) {
+  Ray g = ray;
+  g.maxDistance = to;
+  s.geoRays.push_back(g);
+  s.geoFrom.push_back(from);
+  s.geoIndex.push_back(uint32_t(i));
+}
 
-/// query(rays, out, counters) over the scratch's geometric rays; their counts go to the rays of
-/// s.geoIndex they belong to.
-template <class Out, class Scratch, class F>
-void countedGeo(Scratch& s, std::vector<Out>& out, std::span<RayCounters> counters, F&& query) {
-  out.resize(s.geoRays.size());
-  if (counters.empty()) return query(std::span<const Ray>(s.geoRays), std::span<Out>(out), std::span<RayCounters>());
-  std::vector<RayCounters>& gc = s.geoCounters;
-  gc.assign(s.geoRays.size(), RayCounters{});
-  query(std::span<const Ray>(s.geoRays), std::span<Out>(out), std::span<RayCounters>(gc));
-  for (size_t j = 0; j < gc.size(); ++j) {
+void HybridTracer::geoQuery(Query q, Scratch& s, std::span<RayCounters> counters) const {
+  const size_t m = s.geoRays.size();
+  std::span<RayCounters> gc;
+  if (!counters.empty()) s.geoCounters.assign(m, RayCounters{}), gc = s.geoCounters;
+  if (q == Query::Closest) s.geoBare.resize(m), geo_.intersectSegments(s.geoRays, s.geoFrom, s.geoBare, gc);
+  else s.geoBlocked.resize(m), geo_.occludedSegments(s.geoRays, s.geoFrom, s.geoBlocked, gc);
+  for (size_t j = 0; j < gc.size(); ++j) {  // each query's counts go to the ray it belongs to
     RayCounters& c = counters[s.geoIndex[j]];
     c.addIterations(gc[j].iterations);
     c.giveUps += gc[j].giveUps;
   }
 }
 
-}  // namespace
-
-void HybridTracer::geoQuery(Query q, Scratch& s, std::span<RayCounters> counters) const {
-  countedGeo(s, s.geoHits, counters, [&](auto rays, auto out, auto c) { geo_.query(q, rays, out, c); });
-}
-
-void HybridTracer::geoBareQuery(Scratch& s, std::span<RayCounters> counters) const {
-  countedGeo(s, s.geoBare, counters, [&](auto rays, auto out, auto c) { geoBare_->intersectBatch(rays, out, c); });
+bool HybridTracer::geoHit(Query q, const Scratch& s, size_t j) {
+  return q == Query::Closest ? s.geoBare[j].hit() : s.geoBlocked[j] != 0;
 }
 
 void HybridTracer::run(Query q, std::span<const Ray> rays, std::span<TraceHit> hits, std::span<RayCounters> counters) const {
@@ -170,12 +166,11 @@ void HybridTracer::run(Query q, std::span<const Ray> rays, std::span<TraceHit> h
   // 3 and 6: the exact checks, and the windows geometry certifies. A window query is short —
   // a few pixels of the ray — and costs a fraction of a whole geometric ray.
   s.geoRays.clear();
+  s.geoFrom.clear();
   s.geoIndex.clear();
   uint64_t rejected = 0;
   const auto originWindow = [&](size_t i) {  // 6
-    if (s.windowEnd[i] <= 0.0f) return;
-    s.geoRays.push_back(segment(rays[i], 0.0f, s.windowEnd[i]));
-    s.geoIndex.push_back(uint32_t(i));
+    if (s.windowEnd[i] > 0.0f) askGeo(s, rays[i], i, 0.0f, s.windowEnd[i]);
   };
   for (size_t i = 0; i < n; ++i) {
     const Ray& r = rays[i];
@@ -191,8 +186,7 @@ void HybridTracer::run(Query q, std::span<const Ray> rays, std::span<TraceHit> h
       const float tScreen = glm::dot(sh.point - r.origin, r.dir);
       s.from[i] = 0.0f;
       const float from = uncertainEmptySpace_ ? 0.0f : std::max(0.0f, tScreen - worldMargin_);
-      s.geoRays.push_back(segment(r, from, std::min(tScreen + worldMargin_, r.maxDistance)));
-      s.geoIndex.push_back(uint32_t(i));
+      askGeo(s, r, i, from, std::min(tScreen + worldMargin_, r.maxDistance));
       continue;
     }
     // 3: the ray against the triangles of the hit pixel's layers up to the hit one, anywhere
@@ -220,36 +214,25 @@ void HybridTracer::run(Query q, std::span<const Ray> rays, std::span<TraceHit> h
     // nearest hit is the answer — a neighbour triangle the samples missed may come first — and
     // nothing there rejects the hit like a missing crossing.
     const float to = std::min(std::max(span.after, v.t * (1.0f + 1e-5f)), r.maxDistance);
-    s.geoRays.push_back(segment(r, uncertainEmptySpace_ ? 0.0f : std::min(v.t, span.before), to));
-    s.geoIndex.push_back(uint32_t(i));
+    askGeo(s, r, i, uncertainEmptySpace_ ? 0.0f : std::min(v.t, span.before), to);
   }
   sum.windowQueries += s.geoRays.size();
   const auto t1 = Clock::now();
   // A window's hit is the answer: the origin window precedes everything else on the ray, and
-  // the space before a hit window is known to be empty. `point` is the hit's camera-space point.
-  const auto windowHit = [&](size_t j, glm::vec3 point, uint32_t triangle) {
+  // the space before a hit window is known to be empty. Its t is the whole ray's (GeoHitQueries).
+  geoQuery(q, s, counters);
+  for (size_t j = 0; j < s.geoRays.size(); ++j) {
+    if (!geoHit(q, s, j)) continue;
     const uint32_t i = s.geoIndex[j];
     GeoHit& b = s.best[i];
     s.from[i] = kInf;
-    if (q == Query::Any) {  // occluded: any-hit answers name no blocker (trace/tracer.h)
-      b.t = 0.0f, b.triangle = 0;
-      return;
-    }
-    const float t = glm::dot(point - rays[i].origin, rays[i].dir);
-    if (!b.hit() || t <= b.t) b.t = t, b.triangle = triangle;
-  };
-  if (q == Query::Closest && geoBare_) {
-    geoBareQuery(s, counters);
-    for (size_t j = 0; j < s.geoRays.size(); ++j)  // the point as GeometricHits::makeHit computes it
-      if (const GeoHit& g = s.geoBare[j]; g.hit()) windowHit(j, s.geoRays[j].origin + s.geoRays[j].dir * g.t, g.triangle);
-  } else {
-    geoQuery(q == Query::Any ? Query::Any : Query::Closest, s, counters);
-    for (size_t j = 0; j < s.geoRays.size(); ++j)
-      if (const TraceHit& g = s.geoHits[j]; g.hit) windowHit(j, g.point, g.triangle);
+    if (q == Query::Any) b.t = 0.0f, b.triangle = 0;  // occluded: any-hit answers name no blocker (trace/tracer.h)
+    else if (const GeoHit& g = s.geoBare[j]; !b.hit() || g.t <= b.t) b = g;
   }
   const auto t2 = Clock::now();
   // 4–5: certain misses are answered; the rest goes to geometry from where knowledge ended.
   s.geoRays.clear();
+  s.geoFrom.clear();
   s.geoIndex.clear();
   uint64_t screenHits = 0, certainMisses = 0;
   double geoLength = 0.0;
@@ -272,8 +255,7 @@ void HybridTracer::run(Query q, std::span<const Ray> rays, std::span<TraceHit> h
       else ++certainMisses;
       continue;
     }
-    s.geoRays.push_back(segment(r, s.from[i], end));
-    s.geoIndex.push_back(uint32_t(i));
+    askGeo(s, r, i, s.from[i], end);
     const float inScene = lengthInScene(camera_.toWorld(r.origin), camera_.dirToWorld(r.dir), r.maxDistance);
     geoLength += inScene > s.from[i] ? double(std::min(end, inScene) - s.from[i]) / double(inScene) : 0.0;
   }
@@ -286,8 +268,12 @@ void HybridTracer::run(Query q, std::span<const Ray> rays, std::span<TraceHit> h
     else if (q == Query::Any) hits[i] = GeometricHits::occludedHit(true);
     else assignInPlace(hits[i], [&] { return hits_.makeHit(rays[i], b); });
   }
-  for (size_t j = 0; j < s.geoRays.size(); ++j)
-    if (s.geoHits[j].hit) hits[s.geoIndex[j]] = s.geoHits[j];
+  for (size_t j = 0; j < s.geoRays.size(); ++j) {
+    if (!geoHit(q, s, j)) continue;
+    TraceHit& h = hits[s.geoIndex[j]];
+    if (q == Query::Any) h = GeometricHits::occludedHit(true);
+    else assignInPlace(h, [&] { return hits_.makeHit(rays[s.geoIndex[j]], s.geoBare[j]); });
+  }
   sum.rays += n;
   sum.screenHits += screenHits;
   sum.certainMisses += certainMisses;

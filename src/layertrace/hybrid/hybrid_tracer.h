@@ -25,6 +25,8 @@
 //     is certified by geometry from the origin — 0.1 % of reflection rays on the real views.
 //  5. Otherwise the geometric tracer continues from KnownSpace's geoFrom (one pixel before the
 //     knowledge ended) to the ray's end — not from the origin: the known part was answered.
+//     It continues the very ray, started there (GeoHitQueries' segments), so what it finds past
+//     geoFrom is plain Embree's answer for the whole ray bit for bit; so do the windows.
 //  6. Screen tracers never test the ray's own pixel (seed 000 §5.1): a geometric window covers
 //     the ray from its origin to two pixels past its pixel, and the screen march starts where
 //     the window ends.
@@ -95,7 +97,7 @@ class HybridTracer : public Tracer {
   /// remainder after knowledge ended), and a hit's window reaches back to the origin: the screen
   /// tracer proposes, geometry certifies.
   HybridTracer(const Scene& scene, const Camera& camera, const LayerArrays& layers, const KnownSpace& known, const Tracer& screen,
-               const Tracer& geo, float worldMargin = 0.0f, bool uncertainEmptySpace = false);
+               const GeoHitQueries& geo, float worldMargin = 0.0f, bool uncertainEmptySpace = false);
   const char* name() const override { return "hybrid"; }
   TraceHit trace(const Ray& ray, RayCounters& counters) const override;
   void traceBatch(std::span<const Ray> rays, std::span<TraceHit> hits, std::span<RayCounters> counters) const override;
@@ -107,12 +109,16 @@ class HybridTracer : public Tracer {
  private:
   struct Scratch;
   void run(Query q, std::span<const Ray> rays, std::span<TraceHit> hits, std::span<RayCounters> counters) const;
-  /// The geometric tracer on s.geoRays into s.geoHits; counts go to the rays of s.geoIndex.
+  /// Queues [from, to] of ray i (its `ray`) for the geometric tracer: the same ray, started at
+  /// `from` (GeoHitQueries: its hits are the whole ray's bit for bit).
+  static void askGeo(Scratch& s, const Ray& ray, size_t i, float from, float to);
+  /// The geometric tracer on the queued segments: closest hits into s.geoBare or any hits into
+  /// s.geoBlocked; counts go to the rays of s.geoIndex.
   void geoQuery(Query q, Scratch& s, std::span<RayCounters> counters) const;
-  /// The same for closest hits into s.geoBare, without building TraceHits (geoBare_ only).
-  void geoBareQuery(Scratch& s, std::span<RayCounters> counters) const;
-  /// [from, to] of `ray` as a ray from free space (its hits' points are camera-space points of
-  /// the original ray).
+  /// Did queued segment j of geoQuery's last run hit?
+  static bool geoHit(Query q, const Scratch& s, size_t j);
+  /// [from, to] of `ray` as a ray from free space, for the screen tracer (its hits' points are
+  /// camera-space points of the original ray).
   static Ray segment(const Ray& ray, float from, float to);
   /// Ray (world space) against one scene triangle, t in (tmin, tmax].
   bool hitsTriangle(glm::vec3 o, glm::vec3 d, uint32_t triangle, float tmin, float tmax, float& t) const;
@@ -128,24 +134,28 @@ class HybridTracer : public Tracer {
   const LayerArrays& layers_;
   const KnownSpace& known_;
   const Tracer& screen_;
-  const Tracer& geo_;
-  /// geo_'s bare closest hits where it has them, else null: a window only decides where a ray
-  /// stops, so its TraceHit is not built (session 24, hybrid_tracer.cpp).
-  const GeoHitQueries* geoBare_;
+  /// Bare hits of segments: a window only decides where a ray stops, so its TraceHit is not built
+  /// (session 24), and a segment is its whole ray started later (session 27).
+  const GeoHitQueries& geo_;
   GeometricHits hits_;
   Bounds bounds_;
   float worldMargin_ = 0.0f;  ///< > 0: the screen tracer answers in world space (see the constructor)
   bool uncertainEmptySpace_ = false;
 
   struct Scratch {
-    std::vector<Ray> screenRays, geoRays;
-    std::vector<TraceHit> screenHits, geoHits;
+    std::vector<Ray> screenRays;
+    std::vector<TraceHit> screenHits;
+    /// The queued geometric segments: whole rays (maxDistance = the segment's end), where each
+    /// starts, and the ray each belongs to; the answers of geoQuery.
+    std::vector<Ray> geoRays;
+    std::vector<float> geoFrom;
+    std::vector<uint32_t> geoIndex;
     std::vector<GeoHit> geoBare;
+    std::vector<uint8_t> geoBlocked;
     std::vector<float> from;  ///< per ray: where geometry must take over (+∞: answered)
     std::vector<float> windowEnd;  ///< per ray: where the origin's geometric window ends (≤ 0: none)
     std::vector<ScreenSegment> segs;  ///< per ray: its screen segment (where a window or a check needs it)
     std::vector<KnownSpace::Boundary> boundaries;
-    std::vector<uint32_t> geoIndex;
     std::vector<GeoHit> best;
     std::vector<RayCounters> geoCounters;
   };

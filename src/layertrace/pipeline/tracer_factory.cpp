@@ -132,7 +132,9 @@ BuiltTracer buildTracer(const std::string& name, const Frame& frame, const Trace
     // The quad-tree marches thin planes, not solid intervals, and the LDC samples surfaces in
     // texels that can miss a thin one: what they call empty is not certain (the LDC's wrong hits
     // on the real views, 0.05–0.15 %, were surfaces its texels missed before a certified hit).
-    b.tracer = std::make_unique<HybridTracer>(frame.scene, frame.camera, frame.layers, *b.known, *b.parts[0].tracer, *b.parts[1].tracer,
+    const auto* geo = dynamic_cast<const GeoHitQueries*>(b.parts[1].tracer.get());
+    if (!geo) throw InternalError("hybrid: the geometric tracer answers no segment queries");
+    b.tracer = std::make_unique<HybridTracer>(frame.scene, frame.camera, frame.layers, *b.known, *b.parts[0].tracer, *geo,
                                               worldMargin, o.hybridScreen == "quadtree" || ldc);
   } else {
     inputError("--tracer ", name, ": unknown (use ", kTracerNames, ")");
