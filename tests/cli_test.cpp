@@ -467,6 +467,18 @@ namespace {
 // Issue 10 §5: on a scene without mirror materials the final images of all tracers are the same
 // (nothing reflects), but the traced radiance differs: psnr_traced_db is finite and tells the
 // tracers apart.
+// A view that shows nothing casts no rays: the table says so and prints no class shares (0 %
+// correct of no rays would read as a failure).
+TEST(CliCompare, ViewWithoutRaysSaysSo) {
+  test::TempDir dir;
+  std::string err, out;
+  const std::string args = "compare " + kDefault + " --eye 0,0,1000 --target 0,0,2000 --width 64 --height 36 --tracers hssr,hybrid -o " + (dir / "c");
+  ASSERT_EQ(test::runCli(args, &err, &out), 0) << err;
+  EXPECT_NE(out.find("no rays: no covered pixel of this view casts reflection rays"), std::string::npos) << out;
+  EXPECT_EQ(out.find('%'), std::string::npos) << out;
+  EXPECT_EQ(readJson(dir / "c/compare.json")["reference"]["rays"], 0);
+}
+
 TEST(CliCompare, TracedPsnrIsFiniteAndDiffersWithoutMirrorMaterials) {
   ASSERT_TRUE(test::haveFetchedScenes()) << "run scripts/fetch-scenes.sh";
   test::TempDir dir;

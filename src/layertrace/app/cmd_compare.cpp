@@ -158,7 +158,10 @@ int runCompare(const CompareOptions& o) {
   for (const std::string& name : o.tracers) {
     const nlohmann::json& t = stats["compare"][name];
     table << std::left << std::setw(12) << name << std::right << std::fixed;
-    for (int c = 0; c < kRayClasses; ++c) table << std::setw(10) << std::setprecision(2) << 100.0 * t[rayClassName(RayClass(c))].get<double>() << "%";
+    for (int c = 0; c < kRayClasses; ++c) {  // shares of no rays are not 0 %: a dash
+      if (ref.rays == 0) table << std::setw(11) << "-";
+      else table << std::setw(10) << std::setprecision(2) << 100.0 * t[rayClassName(RayClass(c))].get<double>() << "%";
+    }
     table << std::setw(11)
           << (t.contains("oracle_mismatch")       ? std::to_string(t["oracle_mismatch"].get<uint64_t>())
               : t.contains("exhaustive_mismatch") ? std::to_string(t["exhaustive_mismatch"].get<uint64_t>()) + "ᵉ"
@@ -183,8 +186,11 @@ int runCompare(const CompareOptions& o) {
   if (!o.run.quiet) {
     std::cout << "compare: " << frame.scene.name << " " << frame.camera.width() << "x" << frame.camera.height() << " "
               << effectName(ec.effect) << ", reference embree (" << ref.rays << " rays, " << ref.traceMs << " ms; 16-wide packets "
-              << packet.traceMs << " ms)\n"
-              << table.str() << "  wrote " << images.size() << " images and compare.json to " << outDir << "\n";
+              << packet.traceMs << " ms)\n";
+    if (ref.rays == 0)
+      std::cout << "  no rays: no covered pixel of this view casts " << effectName(ec.effect)
+                << " rays (nothing in view, or no surface with the material the effect needs)\n";
+    std::cout << table.str() << "  wrote " << images.size() << " images and compare.json to " << outDir << "\n";
   }
   return 0;
 }
