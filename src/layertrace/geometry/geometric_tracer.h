@@ -57,7 +57,7 @@ class GeometricHits {
 /// float ray, and its own origin offset (1e-4 of its distance from the eye) skips the segment's
 /// first stretch — on assimp's cube_tristrips.dae seen from 135 units, 0.0135 units, through
 /// which 50 reflection rays' hits fell (session 27). GeometricHits::makeHit(rays[i], hits[i]) is
-/// the tracer's traceBatch answer bit for bit (TraceInterface.GeoHitsAreTheTracersHits).
+/// the tracer's traceBatch answer bit for bit (TraceInterface.GeoSegmentsAreTheWholeRaysHits).
 /// `counters` as in Tracer::traceBatch.
 class GeoHitQueries {
  public:
