@@ -56,7 +56,7 @@ void EmbreePacketTracer::packets(std::span<const Ray> rays, std::span<const floa
     for (size_t i = 0; i < n; ++i) {
       const Ray& r = rays[b + i];
       o[i] = cam.toWorld(r.origin), d[i] = cam.dirToWorld(r.dir);
-      tnear[i] = segmentStart(from, b + i, single_.hits().originOffset(r)), tfar[i] = r.maxDistance;
+      tnear[i] = segmentStart(from.empty() ? 0.0f : from[b + i], single_.hits().originOffset(r), o[i]), tfar[i] = r.maxDistance;
     }
     f(o, d, tnear, tfar, n, b);
   }
@@ -106,7 +106,8 @@ void GridTracer::chunks(std::span<const Ray> rays, std::span<const float> from, 
     const size_t n = std::min(kChunk, rays.size() - b);
     for (size_t i = 0; i < n; ++i) {
       const Ray& r = rays[b + i];
-      q[i] = {cam.toWorld(r.origin), cam.dirToWorld(r.dir), segmentStart(from, b + i, hits().originOffset(r)), r.maxDistance};
+      const glm::vec3 o = cam.toWorld(r.origin);
+      q[i] = {o, cam.dirToWorld(r.dir), segmentStart(from.empty() ? 0.0f : from[b + i], hits().originOffset(r), o), r.maxDistance};
     }
     f(std::span<const IrregularGrid::Query>(q, n), b);
   }

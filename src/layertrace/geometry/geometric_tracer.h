@@ -3,9 +3,11 @@
 #pragma once
 
 #include <algorithm>
+#include <limits>
 #include <memory>
 #include <vector>
 
+#include <glm/common.hpp>
 #include <glm/geometric.hpp>
 
 #include "layertrace/geometry/embree_scene.h"
@@ -50,15 +52,21 @@ class GeometricHits {
 /// more (the hybrid: its windows only decide where a ray's answer lies, its remainders continue a
 /// ray where screen space lost knowledge).
 ///
-/// Ray i is traced from t = from[i] (its origin offset where that is larger; an empty `from`:
-/// the origin offset, a whole ray) to its maxDistance. It is the very float ray a whole-ray query
-/// traces, only started later (Embree's and the grid's tnear), so a hit past from[i] is the
-/// whole ray's hit bit for bit. A ray moved to its segment's start would not be: it is another
-/// float ray, and its own origin offset (1e-4 of its distance from the eye) skips the segment's
-/// first stretch — on assimp's cube_tristrips.dae seen from 135 units, 0.0135 units, through
-/// which 50 reflection rays' hits fell (session 27). GeometricHits::makeHit(rays[i], hits[i]) is
-/// the tracer's traceBatch answer bit for bit (TraceInterface.GeoSegmentsAreTheWholeRaysHits).
-/// `counters` as in Tracer::traceBatch.
+/// Ray i is traced from t = from[i] to its maxDistance (an empty `from`: from its origin offset, a
+/// whole ray). It is the very float ray a whole-ray query traces, started later (Embree's and the
+/// grid's tnear), so a hit at or past from[i] is the whole ray's hit bit for bit (an exact tie
+/// between two triangles at one t may name the other one). Two things make that hold:
+///  - the ray is not moved to its segment's start: a moved ray is another float ray, and its own
+///    origin offset (1e-4 of its distance from the eye) skips the segment's first stretch — on
+///    assimp's cube_tristrips.dae seen from 135 units, 0.0135 units, through which 50 reflection
+///    rays' hits fell (session 27);
+///  - tnear lies a little before from[i] (segmentSlack): plain Embree's box and triangle tests
+///    round at the scale of the ray's coordinates, so a tnear a few ulps of them before a hit
+///    culls it (a segment starting 7·10⁻⁸ before a hit 0.0035 along a ray found nothing).
+///    A segment may therefore also return a hit up to that slack before from[i] — a real
+///    intersection of the whole ray.
+/// GeometricHits::makeHit(rays[i], hits[i]) is the tracer's traceBatch answer bit for bit
+/// (TraceInterface.GeoSegmentsAreTheWholeRaysHits). `counters` as in Tracer::traceBatch.
 class GeoHitQueries {
  public:
   virtual ~GeoHitQueries() = default;
@@ -67,10 +75,16 @@ class GeoHitQueries {
   /// blocked[i] = 1 where something lies on ray i's segment.
   virtual void occludedSegments(std::span<const Ray> rays, std::span<const float> from, std::span<uint8_t> blocked,
                                 std::span<RayCounters> counters) const = 0;
-  /// Where a segment of `ray` starting at `from` (empty: 0) begins for a tracer whose origin
-  /// offset is `offset`.
-  static float segmentStart(std::span<const float> from, size_t i, float offset) {
-    return from.empty() ? offset : std::max(offset, from[i]);
+  /// How far before `from` a segment's tnear lies, for a ray from world-space `origin`: 64 float
+  /// epsilons of the largest coordinate the ray has there (its direction has unit length).
+  static float segmentSlack(glm::vec3 origin, float from) {
+    const glm::vec3 a = glm::abs(origin);
+    return 64.0f * std::numeric_limits<float>::epsilon() * (std::max({a.x, a.y, a.z}) + from);
+  }
+  /// The tnear of a segment starting at `from` (0: a whole ray) for a tracer whose origin offset
+  /// is `offset`.
+  static float segmentStart(float from, float offset, glm::vec3 origin) {
+    return from > 0.0f ? std::max(offset, from - segmentSlack(origin, from)) : offset;
   }
 };
 
@@ -126,8 +140,9 @@ class GeometricTracer : public TracerImpl<GeometricTracer<Accel>>, public GeoHit
   auto query(const Ray& ray, C& c, float from, Q&& q) const {
     const Camera& cam = hits_.camera();
     TraversalCounts n;
-    const auto answer = q(cam.toWorld(ray.origin), cam.dirToWorld(ray.dir), std::max(hits_.originOffset(ray), from), ray.maxDistance,
-                          C::kEnabled ? &n : nullptr);
+    const glm::vec3 o = cam.toWorld(ray.origin);
+    const auto answer =
+        q(o, cam.dirToWorld(ray.dir), segmentStart(from, hits_.originOffset(ray), o), ray.maxDistance, C::kEnabled ? &n : nullptr);
     c.addIterations(std::max(n.steps, 1u));
     if (n.giveUps) c.giveUp();
     return answer;
