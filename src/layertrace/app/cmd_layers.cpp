@@ -57,7 +57,8 @@ int runLayers(const LayersOptions& o) {
                        {"pixels_fewer_fragments", v.fewerFragments},
                        {"pixels_more_fragments", v.moreFragments},
                        {"pixels_depth_mismatch", v.depthMismatch},
-                       {"relative_depth_tolerance", kVerifyRelativeTolerance}};
+                       {"relative_depth_tolerance", kVerifyRelativeTolerance},
+                       {"conditioning_epsilons", kVerifyConditioningEpsilons}};
   }
 
   // Images: everything is computed before the first file is written.

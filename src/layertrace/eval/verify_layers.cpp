@@ -6,12 +6,25 @@
 #include <algorithm>
 #include <atomic>
 #include <cmath>
+#include <limits>
 
+#include <glm/common.hpp>
 #include <glm/geometric.hpp>
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>
 
 namespace lt {
+
+float verifyDepthTolerance(float depth, glm::vec3 eye, glm::vec3 dir, glm::vec3 normal) {
+  const float length = glm::length(dir), n = glm::length(normal);
+  const float cosine = n > 0.0f && length > 0.0f ? std::abs(glm::dot(normal, dir)) / (n * length) : 1.0f;
+  const glm::vec3 extent = glm::max(glm::abs(eye), glm::abs(eye + dir * depth));
+  const float magnitude = std::max({extent.x, extent.y, extent.z});
+  // Distance along the ray ε·M / cos θ, as depth (dir has unit depth component).
+  const float conditioning = kVerifyConditioningEpsilons * std::numeric_limits<float>::epsilon() * magnitude /
+                             (std::max(cosine, 1e-6f) * std::max(length, 1.0f));
+  return kVerifyRelativeTolerance * depth + conditioning;
+}
 
 VerifyResult verifyLayers(const FragmentLists& lists, const Camera& camera, const EmbreeScene& embree, const Scene* frontFacesOf) {
   LT_CHECK(lists.head.size() == size_t(lists.width) * size_t(lists.height), lists.head.size());  // needs the list pipeline
@@ -46,7 +59,7 @@ VerifyResult verifyLayers(const FragmentLists& lists, const Camera& camera, cons
         } else {
           bool ok = true;
           for (size_t i = 0; i < frags.size() && ok; ++i)
-            ok = std::abs(frags[i] - hits[i].t) <= kVerifyRelativeTolerance * hits[i].t;
+            ok = std::abs(frags[i] - hits[i].t) <= verifyDepthTolerance(hits[i].t, eye, dir, hits[i].ng);
           ok ? ++m : ++d;
         }
       }
