@@ -56,7 +56,7 @@ void EmbreePacketTracer::packets(std::span<const Ray> rays, std::span<const floa
     for (size_t i = 0; i < n; ++i) {
       const Ray& r = rays[b + i];
       o[i] = cam.toWorld(r.origin), d[i] = cam.dirToWorld(r.dir);
-      tnear[i] = segmentStart(from.empty() ? 0.0f : from[b + i], single_.hits().originOffset(r), o[i]), tfar[i] = r.maxDistance;
+      tnear[i] = segmentStart(startOf(from, b + i), single_.hits().originOffset(r), o[i]), tfar[i] = r.maxDistance;
     }
     f(o, d, tnear, tfar, n, b);
   }
@@ -107,7 +107,7 @@ void GridTracer::chunks(std::span<const Ray> rays, std::span<const float> from, 
     for (size_t i = 0; i < n; ++i) {
       const Ray& r = rays[b + i];
       const glm::vec3 o = cam.toWorld(r.origin);
-      q[i] = {o, cam.dirToWorld(r.dir), segmentStart(from.empty() ? 0.0f : from[b + i], hits().originOffset(r), o), r.maxDistance};
+      q[i] = {o, cam.dirToWorld(r.dir), segmentStart(startOf(from, b + i), hits().originOffset(r), o), r.maxDistance};
     }
     f(std::span<const IrregularGrid::Query>(q, n), b);
   }

@@ -86,6 +86,8 @@ class GeoHitQueries {
   static float segmentStart(float from, float offset, glm::vec3 origin) {
     return from > 0.0f ? std::max(offset, from - segmentSlack(origin, from)) : offset;
   }
+  /// Where segment i starts: from[i], or 0 (a whole ray) when `from` is empty.
+  static float startOf(std::span<const float> from, size_t i) { return from.empty() ? 0.0f : from[i]; }
 };
 
 /// A geometric acceleration structure as a tracer: Accel is EmbreeScene ("embree": one
@@ -131,9 +133,8 @@ class GeometricTracer : public TracerImpl<GeometricTracer<Accel>>, public GeoHit
   static void perRay(std::span<const Ray> rays, std::span<const float> from, std::span<RayCounters> counters, F&& f) {
     NoCounters none;
     for (size_t i = 0; i < rays.size(); ++i) {
-      const float start = from.empty() ? 0.0f : from[i];
-      if (kCountersCompiled && !counters.empty()) f(i, start, counters[i]);
-      else f(i, start, none);
+      if (kCountersCompiled && !counters.empty()) f(i, startOf(from, i), counters[i]);
+      else f(i, startOf(from, i), none);
     }
   }
   template <class C, class Q>
