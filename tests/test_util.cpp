@@ -177,20 +177,29 @@ std::string quake3Map(const std::map<int, std::string>& lumps) {
 }
 
 std::string storedZip(const std::string& name, const std::string& data, std::optional<uint32_t> declared) {
+  return storedZip({{name, data}}, declared);
+}
+
+std::string storedZip(const std::vector<std::pair<std::string, std::string>>& entries, std::optional<uint32_t> declared) {
   auto u16 = [](std::string& s, uint16_t v) { s += char(v & 0xFF), s += char(v >> 8); };
-  const auto crc = uint32_t(crc32(0, reinterpret_cast<const Bytef*>(data.data()), uInt(data.size())));
-  const auto packed = uint32_t(data.size()), unpacked = declared.value_or(packed);
-  std::string z;
-  appendLe32(z, 0x04034b50), u16(z, 20), u16(z, 0), u16(z, 0), u16(z, 0), u16(z, 0);
-  appendLe32(z, crc), appendLe32(z, packed), appendLe32(z, unpacked), u16(z, uint16_t(name.size())), u16(z, 0);
-  z += name + data;
-  const auto directory = uint32_t(z.size());
-  appendLe32(z, 0x02014b50), u16(z, 20), u16(z, 20), u16(z, 0), u16(z, 0), u16(z, 0), u16(z, 0);
-  appendLe32(z, crc), appendLe32(z, packed), appendLe32(z, unpacked), u16(z, uint16_t(name.size())), u16(z, 0), u16(z, 0);
-  u16(z, 0), u16(z, 0), appendLe32(z, 0), appendLe32(z, 0);
-  z += name;
-  const uint32_t directorySize = uint32_t(z.size()) - directory;
-  appendLe32(z, 0x06054b50), u16(z, 0), u16(z, 0), u16(z, 1), u16(z, 1), appendLe32(z, directorySize), appendLe32(z, directory), u16(z, 0);
+  std::string z, directory;
+  for (const auto& [name, data] : entries) {
+    const auto crc = uint32_t(crc32(0, reinterpret_cast<const Bytef*>(data.data()), uInt(data.size())));
+    const auto packed = uint32_t(data.size()), unpacked = declared.value_or(packed), local = uint32_t(z.size());
+    appendLe32(z, 0x04034b50), u16(z, 20), u16(z, 0), u16(z, 0), u16(z, 0), u16(z, 0);
+    appendLe32(z, crc), appendLe32(z, packed), appendLe32(z, unpacked), u16(z, uint16_t(name.size())), u16(z, 0);
+    z += name + data;
+    appendLe32(directory, 0x02014b50), u16(directory, 20), u16(directory, 20), u16(directory, 0), u16(directory, 0), u16(directory, 0);
+    u16(directory, 0), appendLe32(directory, crc), appendLe32(directory, packed), appendLe32(directory, unpacked);
+    u16(directory, uint16_t(name.size())), u16(directory, 0), u16(directory, 0), u16(directory, 0), u16(directory, 0);
+    appendLe32(directory, 0), appendLe32(directory, local);
+    directory += name;
+  }
+  const auto start = uint32_t(z.size());
+  const auto count = uint16_t(entries.size());
+  z += directory;
+  appendLe32(z, 0x06054b50), u16(z, 0), u16(z, 0), u16(z, count), u16(z, count), appendLe32(z, uint32_t(directory.size()));
+  appendLe32(z, start), u16(z, 0);
   return z;
 }
 

@@ -7,6 +7,8 @@
 #include <map>
 #include <optional>
 #include <string>
+#include <utility>
+#include <vector>
 
 #include <gtest/gtest.h>
 
@@ -72,6 +74,8 @@ std::string quake3Map(const std::map<int, std::string>& lumps);
 /// A zip archive with one stored entry `name` holding `data`; its headers declare `declared`
 /// bytes uncompressed (default: the real size).
 std::string storedZip(const std::string& name, const std::string& data, std::optional<uint32_t> declared = {});
+/// The same with several stored entries (name, data), in this order.
+std::string storedZip(const std::vector<std::pair<std::string, std::string>>& entries, std::optional<uint32_t> declared = {});
 
 /// Appends `v` to `s` as 4 little-endian bytes (Quake 3 maps and zip headers).
 void appendLe32(std::string& s, uint32_t v);

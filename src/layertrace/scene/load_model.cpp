@@ -24,6 +24,7 @@
 #include <assimp/Importer.hpp>
 #include <assimp/postprocess.h>
 #include <assimp/scene.h>
+#include <assimp/version.h>
 #include <glm/geometric.hpp>
 #include <glm/trigonometric.hpp>
 #include <glm/gtc/matrix_inverse.hpp>
@@ -218,11 +219,46 @@ unsigned configureImporter(Assimp::Importer& importer, bool q3) {
                   aiProcess_SortByPType;  // our reader checks indices itself; assimp's validation rejects files with an empty mesh
 }
 
+/// Destroys an importer under the import guard too: some importers build scenes that crash
+/// assimp's own destructor (assimp 5.2.5's 3MF reader on its test model cube_gears_prod_req.3mf:
+/// "free(): invalid pointer" in aiScene::~aiScene, found by session 28's sweep), which is as much a
+/// malformed model as a crash while reading.
+struct GuardedImporterDelete {
+  std::string source;
+  void operator()(Assimp::Importer* importer) const {
+    const ImportGuard guard(source);
+#ifdef LAYERTRACE_FUZZING
+    if (sigsetjmp(gImportJump, 1) != 0) return;  // crashed: leaked, as in guardedImport
+#endif
+    delete importer;
+  }
+};
+using ImporterPtr = std::unique_ptr<Assimp::Importer, GuardedImporterDelete>;
+
+ImporterPtr makeImporter(const std::string& source) { return ImporterPtr(new Assimp::Importer, GuardedImporterDelete{source}); }
+
+/// assimp before 5.4 lets its 3MF importer hand the scene the package's embedded textures (a
+/// thumbnail, which most 3MF writers add) and then delete them with the package: the scene's
+/// texture pointers dangle, and its destructor frees them a second time ("free(): invalid
+/// pointer" on assimp's own test model cube_gears_prod_req.3mf; fixed upstream in 5.4.0, "Remove
+/// double delete"). Drop that array before anything reads it. Our materials lose nothing: a 3MF
+/// thumbnail is no material's texture, and a texture that cannot be found gives the material's
+/// own colour. Recognised by the extension (or the format hint from memory), which is how assimp
+/// chooses the importer first.
+void dropDanglingTextures(const aiScene* scene, const std::string& ext) {
+  const bool doubleDeletes = aiGetVersionMajor() < 5 || (aiGetVersionMajor() == 5 && aiGetVersionMinor() < 4);
+  if (!scene || ext != ".3mf" || !doubleDeletes) return;
+  auto* owned = const_cast<aiScene*>(scene);  // NOLINT: the importer owns it; we repair what it left behind
+  delete[] owned->mTextures;                  // the array is the scene's; its elements are already freed
+  owned->mTextures = nullptr;
+  owned->mNumTextures = 0;
+}
+
 /// Runs `read` under the import guard; InputError naming `source` when it fails or crashes.
 /// `importer` is owned by the caller; under the fuzzer a crashed import leaves it leaked (its
 /// state is not safe to destroy).
 template <class Read>
-const aiScene* guardedImport(std::unique_ptr<Assimp::Importer>& importer, const std::string& source, Read&& read) {
+const aiScene* guardedImport(ImporterPtr& importer, const std::string& source, Read&& read) {
   const aiScene* as = nullptr;
   {
     const ImportGuard guard(source);
@@ -465,9 +501,13 @@ Scene loadModel(const std::string& path, const glm::mat4& transform) {
     map.assign(std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>());
     validateQuake3Bsp(map.data(), map.size(), path);
   }
-  auto importer = std::make_unique<Assimp::Importer>();
+  ImporterPtr importer = makeImporter(path);
   const unsigned flags = configureImporter(*importer, q3);
-  const aiScene* as = guardedImport(importer, path, [&] { return importer->ReadFile(path, flags); });
+  const aiScene* as = guardedImport(importer, path, [&] {
+    const aiScene* read = importer->ReadFile(path, flags);
+    dropDanglingTextures(read, ext);
+    return read;
+  });
   const fs::path parent = fs::path(path).parent_path();
   const std::string modelDir = parent.empty() ? std::string(".") : parent.string();  // texture files are looked for beside the model
   const Quake3Patches patches = map.empty() ? Quake3Patches{} : tessellateQuake3Patches(map.data(), map.size(), kPatchTolerance);
@@ -479,10 +519,14 @@ Scene loadModelFromMemory(const void* data, size_t size, const std::string& form
   std::transform(hint.begin(), hint.end(), hint.begin(), [](unsigned char ch) { return std::tolower(ch); });
   const bool q3 = isQuake3("." + hint);
   if (hint == "off") validateOffHeader(static_cast<const char*>(data), size, source);
-  auto importer = std::make_unique<Assimp::Importer>();
+  ImporterPtr importer = makeImporter(source);
   const unsigned flags = configureImporter(*importer, q3);
   const aiScene* as =
-      guardedImport(importer, source, [&] { return importer->ReadFileFromMemory(data, size, flags, hint.c_str()); });
+      guardedImport(importer, source, [&] {
+        const aiScene* read = importer->ReadFileFromMemory(data, size, flags, hint.c_str());
+        dropDanglingTextures(read, "." + hint);
+        return read;
+      });
   return convertScene(as, source, source, "." + hint, glm::mat4(1.0f), "");
 }
 
