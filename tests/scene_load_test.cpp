@@ -8,6 +8,7 @@
 #include <random>
 
 
+#include <assimp/material.h>
 #include <glm/geometric.hpp>
 #include <glm/gtc/matrix_transform.hpp>
 
@@ -447,6 +448,37 @@ TEST(SceneLoad, A3mfWithAThumbnailLoads) {
   EXPECT_EQ(fromFile.triangles.size(), 1u);
   const Scene fromMemory = loadModelFromMemory(zip.data(), zip.size(), "3mf", "thumb.3mf");
   EXPECT_EQ(fromMemory.triangles.size(), 1u);
+}
+
+// Material strings are read from the property's bytes: assimp's getter aborts the process on a
+// string stored without its zero byte (assimp 5.2.5's MDL7 reader writes such texture names:
+// session 28's sweep, `broadleavedtreeD.mdl`, status 134), and trusts the stored length.
+TEST(SceneLoad, MaterialStringsWithoutTheirZeroByteAreRead) {
+  aiMaterial m;
+  aiString name("brick");
+  m.AddProperty(&name, AI_MATKEY_NAME);
+  EXPECT_EQ(materialString(&m, AI_MATKEY_NAME), "brick");
+  EXPECT_FALSE(materialString(&m, AI_MATKEY_TEXTURE_DIFFUSE(0)));
+  auto raw = [](uint32_t length, const std::string& bytes) {
+    std::string data(4, '\0');
+    std::memcpy(data.data(), &length, 4);
+    return data + bytes;
+  };
+  const std::string unterminated = raw(8, "wall.tga");  // no zero byte after the name
+  m.AddBinaryProperty(unterminated.data(), unsigned(unterminated.size()), AI_MATKEY_TEXTURE_DIFFUSE(0), aiPTI_String);
+  EXPECT_EQ(materialString(&m, AI_MATKEY_TEXTURE_DIFFUSE(0)), "wall.tga");
+  const std::string overlong = raw(1000, "roof.png");  // declares more bytes than it holds
+  m.AddBinaryProperty(overlong.data(), unsigned(overlong.size()), AI_MATKEY_TEXTURE(aiTextureType_BASE_COLOR, 0), aiPTI_String);
+  EXPECT_EQ(materialString(&m, AI_MATKEY_TEXTURE(aiTextureType_BASE_COLOR, 0)), "roof.png");
+  const std::string stops = raw(9, std::string("a.png\0xyz", 9));  // ends at the first zero byte
+  m.AddBinaryProperty(stops.data(), unsigned(stops.size()), AI_MATKEY_TEXTURE_NORMALS(0), aiPTI_String);
+  EXPECT_EQ(materialString(&m, AI_MATKEY_TEXTURE_NORMALS(0)), "a.png");
+  const std::string tooShort = "ab";  // not even a length
+  m.AddBinaryProperty(tooShort.data(), unsigned(tooShort.size()), AI_MATKEY_TEXTURE_SPECULAR(0), aiPTI_String);
+  EXPECT_FALSE(materialString(&m, AI_MATKEY_TEXTURE_SPECULAR(0)));
+  const float notAString = 2.0f;
+  m.AddProperty(&notAString, 1, AI_MATKEY_TEXTURE_EMISSIVE(0));
+  EXPECT_FALSE(materialString(&m, AI_MATKEY_TEXTURE_EMISSIVE(0)));
 }
 
 TEST(SceneRecentre, MovesOnlyFarScenesAndKeepsEveryVertexExact) {

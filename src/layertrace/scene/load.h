@@ -5,6 +5,7 @@
 
 #include <cstddef>
 #include <cstdint>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -12,6 +13,8 @@
 #include <glm/vec3.hpp>
 
 #include "layertrace/scene/scene.h"
+
+struct aiMaterial;
 
 namespace lt {
 
@@ -21,6 +24,14 @@ Scene loadScene(const std::string& path);
 
 /// Loads one model file through assimp, transformed by `transform`.
 Scene loadModel(const std::string& path, const glm::mat4& transform = glm::mat4(1.0f));
+
+/// A string property of an assimp material (`key`, `semantic`, `index` as assimp's AI_MATKEY_*
+/// macros give them), read from its bytes: assimp's own getter asserts that the stored string
+/// ends in a zero byte and aborts the process when it does not, and some importers store strings
+/// without one (assimp 5.2.5's MDL7 reader: `broadleavedtreeD.mdl` of assimp's test models,
+/// session 28's sweep). Here the length is clamped to the property's bytes and the string ends at
+/// its first zero byte; a property that is not a string is absent.
+std::optional<std::string> materialString(const aiMaterial* material, const char* key, unsigned semantic, unsigned index);
 
 /// An import that runs longer than this is stopped and reported as a malformed model (one line,
 /// status 2); 0 = no limit. Large models import in seconds; an importer stuck in a loop never

@@ -97,24 +97,41 @@ class TextureColours {
   std::map<std::string, std::optional<glm::vec3>> cache_;
 };
 
+}  // namespace
+
+std::optional<std::string> materialString(const aiMaterial* am, const char* key, unsigned semantic, unsigned index) {
+  for (unsigned i = 0; i < am->mNumProperties; ++i) {
+    const aiMaterialProperty* p = am->mProperties[i];
+    if (!p || p->mSemantic != semantic || p->mIndex != index || std::strcmp(p->mKey.C_Str(), key) != 0) continue;
+    if (p->mType != aiPTI_String || !p->mData || p->mDataLength < sizeof(uint32_t)) return std::nullopt;
+    uint32_t length = 0;  // aiString's layout in a property: a 32-bit length, the bytes, a zero byte
+    std::memcpy(&length, p->mData, sizeof length);
+    const char* chars = p->mData + sizeof length;
+    const size_t stored = std::min<size_t>(length, p->mDataLength - sizeof length);
+    return std::string(chars, std::find(chars, chars + stored, '\0'));
+  }
+  return std::nullopt;
+}
+
+namespace {
+
 Material convertMaterial(const aiMaterial* am, TextureColours& textures) {
   Material m;
-  aiString name;
-  if (am->Get(AI_MATKEY_NAME, name) == AI_SUCCESS) m.name = name.C_Str();
+  if (const auto name = materialString(am, AI_MATKEY_NAME)) m.name = *name;
   aiColor4D c;
   bool haveColor = false;
   if (am->Get(AI_MATKEY_BASE_COLOR, c) == AI_SUCCESS || am->Get(AI_MATKEY_COLOR_DIFFUSE, c) == AI_SUCCESS) {
     m.albedo = glm::clamp(glm::vec3(c.r, c.g, c.b), 0.0f, 1.0f);
     haveColor = true;
   }
-  aiString tex;
-  if ((am->GetTexture(aiTextureType_BASE_COLOR, 0, &tex) == AI_SUCCESS || am->GetTexture(aiTextureType_DIFFUSE, 0, &tex) == AI_SUCCESS) &&
-      tex.length > 0) {
+  std::optional<std::string> tex = materialString(am, AI_MATKEY_TEXTURE(aiTextureType_BASE_COLOR, 0));
+  if (!tex) tex = materialString(am, AI_MATKEY_TEXTURE(aiTextureType_DIFFUSE, 0));
+  if (tex && !tex->empty()) {
     // A texture multiplies the colour (glTF's base colour factor, OBJ's Kd; usually white): one
     // albedo per material, so its mean colour stands for it. One that cannot be read gets a
     // colour derived from its name, so that surfaces stay distinguishable.
-    if (const std::optional<glm::vec3> mean = textures(tex.C_Str())) m.albedo = glm::clamp((haveColor ? m.albedo : glm::vec3(1.0f)) * *mean, 0.0f, 1.0f);
-    else if (!haveColor || m.albedo == glm::vec3(1.0f)) m.albedo = colorFromName(tex.C_Str());
+    if (const std::optional<glm::vec3> mean = textures(*tex)) m.albedo = glm::clamp((haveColor ? m.albedo : glm::vec3(1.0f)) * *mean, 0.0f, 1.0f);
+    else if (!haveColor || m.albedo == glm::vec3(1.0f)) m.albedo = colorFromName(*tex);
   }
   aiColor4D s;
   if (am->Get(AI_MATKEY_COLOR_SPECULAR, s) == AI_SUCCESS)
@@ -178,10 +195,15 @@ class ImportGuard {
     sigemptyset(&sa.sa_mask);
     for (int i = 0; i < kCount; ++i) sigaction(kSignals[i], &sa, &old_[i]);
     ::alarm(gImportTimeout);
-    // assimp prints assertion text to stderr before aborting: keep our error to one line.
+    // assimp prints assertion text to stderr before aborting: keep our error to one line. Some
+    // importers also chatter on stdout (the Ogre reader's "Skeleton is not a valid root"), which
+    // --quiet promises to keep silent.
+    std::fflush(stdout);
     std::fflush(stderr);
+    savedOut_ = ::dup(1);
     saved_ = ::dup(2);
     const int devnull = ::open("/dev/null", O_WRONLY);
+    if (savedOut_ >= 0 && devnull >= 0) ::dup2(devnull, 1);
     if (saved_ >= 0 && devnull >= 0) {
       ::dup2(devnull, 2);
       gStderr = saved_;
@@ -189,7 +211,12 @@ class ImportGuard {
     if (devnull >= 0) ::close(devnull);
   }
   ~ImportGuard() {
+    std::fflush(stdout);
     std::fflush(stderr);
+    if (savedOut_ >= 0) {
+      ::dup2(savedOut_, 1);
+      ::close(savedOut_);
+    }
     if (saved_ >= 0) {
       ::dup2(saved_, 2);
       ::close(saved_);
@@ -206,6 +233,7 @@ class ImportGuard {
   static constexpr int kSignals[kCount] = {SIGABRT, SIGSEGV, SIGBUS, SIGFPE, SIGALRM};
   struct sigaction old_[kCount];
   int saved_ = -1;
+  int savedOut_ = -1;
 };
 
 /// The importer settings of every model: post-processing for meshes, raw reads for Quake 3
