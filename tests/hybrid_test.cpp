@@ -3,12 +3,16 @@
 // starting where knowledge ends, exact answers on an analytic room, and the strict-class
 // correct share on the real scenes.
 #include <bit>
+#include <chrono>
 #include <cmath>
 #include <cstdint>
 #include <cstring>
+#include <cstdlib>
+#include <future>
 #include <limits>
 #include <random>
 #include <string>
+#include <thread>
 
 #include <glm/geometric.hpp>
 
@@ -320,6 +324,46 @@ TEST(Hybrid, SurfaceSeenEdgeOnEndsKnowledge) {
     EXPECT_EQ(floorHits, 40) << "precondition: every ray meets the edge-on floor first";
   }
   }
+}
+
+// A thin triangle reaching from beside the view to just in front of the near plane projects
+// ~10⁸ pixels out; the thin-triangle rule sampled its whole projected line every half pixel from
+// there, where adding half a pixel no longer changes a float: the pass never ended (session 28's
+// sweep: assimp's IndexedLineSet.x3d through a 1° lens). The rule now looks at the part inside
+// the guard band, and still marks the triangle's pixels in the view.
+TEST(Hybrid, AThinTriangleProjectedFarOutsideTheViewEnds) {
+  Scene s;
+  // Camera space = world space (the origin camera looks down −z): from 50 units left at 1.1 times
+  // the near distance to the view's centre 10 units away, 0.03 pixels thick there.
+  test::addTriangle(s, {-50.0f, 0.0f, -0.0011f}, {0.001f, 0.0f, -10.0f}, {0.002f, 0.0001f, -10.0f});
+  s.append(makeQuad({-30, -5, -20}, {60, 0, 0}, {0, 10, 0}));
+  s.finalize("thin sliver to the near plane");
+  const int W = 160, H = 48;
+  const Frame f = test::frameOf(s, test::originCamera(1.0f, 0.001f, 100.0f), W, H, 4, 0.05f);
+  ASSERT_LT(f.camera.project(glm::vec3(-50.0f, 0.0f, -0.0011f)).x, -1e8f) << "precondition: projected far out";
+  // Runs on a thread with a deadline, so that the old endless pass fails the test instead of
+  // hanging the suite.
+  auto pass = std::make_shared<std::packaged_task<UnsampledDepths()>>(
+      [&f] { return unsampledDepths(f.scene, f.camera, f.layers, kHybridLastThicknessPx); });
+  std::future<UnsampledDepths> done = pass->get_future();
+  std::thread([pass] { (*pass)(); }).detach();
+  if (done.wait_for(std::chrono::seconds(60)) != std::future_status::ready) {
+    ADD_FAILURE() << "unsampledDepths did not finish in 60 s";
+    std::_Exit(1);  // the pass still runs on the frame: end here
+  }
+  const std::vector<float> unsampled = done.get().unsampled;
+  ASSERT_EQ(unsampled.size(), size_t(W) * size_t(H));
+  // Its line runs along row 23/24 from the left edge to the centre: every pixel there is marked
+  // no deeper than its nearest point, and nothing far from the line is.
+  for (int x = 0; x <= W / 2 - 1; ++x) {
+    const float d = std::min(unsampled[size_t(23) * W + size_t(x)], unsampled[size_t(24) * W + size_t(x)]);
+    EXPECT_LE(d, 0.0011f) << "pixel column " << x;
+  }
+  for (int y = 0; y < H; ++y)
+    for (int x = 0; x < W; ++x)
+      if (y < 21 || y > 26 || x > W / 2 + 3) {
+        EXPECT_EQ(unsampled[size_t(y) * W + size_t(x)], std::numeric_limits<float>::infinity()) << x << "," << y;
+      }
 }
 
 /// Two walls 0.2 apart along the view direction, the eye between them: each is seen at a grazing

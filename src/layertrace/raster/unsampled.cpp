@@ -19,6 +19,9 @@ namespace lt {
 namespace {
 
 constexpr float kInf = std::numeric_limits<float>::infinity();
+/// Projected coordinates beyond this many pixels are clipped to the view's guard band before the
+/// thin-triangle rule samples them: floats there still step by 1/8 pixel.
+constexpr float kFarPixels = float(1 << 20);
 
 /// A convex polygon in screen space with 1/depth at its corners (affine across a triangle's
 /// plane, so exact at every point clipping makes along an edge): (x, y, 1/depth, 1).
@@ -128,21 +131,35 @@ void markUnheldDepths(const glm::vec3 v[3], const LayerArrays& layers, float foc
   }
 }
 
-/// markUnheldDepths over the part of a camera-space polygon (the triangle clipped to the near
-/// plane) inside the view with two pixels of guard band, clipped in camera space so that a
-/// triangle passing next to the eye keeps exact screen coordinates: the side planes x_px = −2,
-/// W + 2 and y_px = −2, H + 2 pass through the eye (perspective).
-template <class Mark, class Front>
-void markUnheldInView(const glm::vec4* polygon, int n, const Camera& camera, const LayerArrays& layers, float lastThicknessPx, Mark&& mark,
-                      Front&& front) {
+/// The part of a camera-space polygon (≤ 4 corners: a triangle clipped to the near plane) inside
+/// the view with two pixels of guard band, clipped in camera space so that a triangle passing
+/// next to the eye keeps exact screen coordinates: the side planes x_px = −2, W + 2 and y_px = −2,
+/// H + 2 (through the eye for a perspective camera, of constant x and y for an orthographic one).
+/// A polygon inside them comes back unchanged. Returns the corners written to `out` (0: none).
+int clipToGuardBand(const glm::vec4* polygon, int n, const Camera& camera, int W, int H, glm::vec4 (&out)[8]) {
   glm::vec4 side[2][8];
   int m = n;
   std::copy(polygon, polygon + n, side[0]);
-  if (!camera.orthographic()) {
-    const float f = camera.focal(), gx = 0.5f * float(layers.width) + 2.0f, gy = 0.5f * float(layers.height) + 2.0f;
-    const glm::vec4 planes[4] = {{f, 0.0f, -gx, 0.0f}, {-f, 0.0f, -gx, 0.0f}, {0.0f, -f, -gy, 0.0f}, {0.0f, f, -gy, 0.0f}};
-    for (int i = 0; i < 4 && m >= 3; ++i) m = raster::clipAgainst(side[i % 2], m, planes[i], side[(i + 1) % 2]);
-  }
+  const float f = camera.focal(), gx = 0.5f * float(W) + 2.0f, gy = 0.5f * float(H) + 2.0f;
+  const glm::vec4 perspective[4] = {{f, 0.0f, -gx, 0.0f}, {-f, 0.0f, -gx, 0.0f}, {0.0f, -f, -gy, 0.0f}, {0.0f, f, -gy, 0.0f}};
+  const glm::vec4 orthographic[4] = {{f, 0.0f, 0.0f, gx}, {-f, 0.0f, 0.0f, gx}, {0.0f, -f, 0.0f, gy}, {0.0f, f, 0.0f, gy}};
+  const glm::vec4* planes = camera.orthographic() ? orthographic : perspective;
+  for (int i = 0; i < 4 && m >= 3; ++i) m = raster::clipAgainst(side[i % 2], m, planes[i], side[(i + 1) % 2]);
+  if (m < 3) return 0;
+  std::copy(side[0], side[0] + m, out);  // four clips: the result is back in side[0]
+  return m;
+}
+
+/// markUnheldDepths over the part of a camera-space polygon (the triangle clipped to the near
+/// plane) inside the view with two pixels of guard band (clipToGuardBand; an orthographic
+/// camera's polygon is taken whole, its projection is affine).
+template <class Mark, class Front>
+void markUnheldInView(const glm::vec4* polygon, int n, const Camera& camera, const LayerArrays& layers, float lastThicknessPx, Mark&& mark,
+                      Front&& front) {
+  glm::vec4 side[1][8];
+  int m = n;
+  std::copy(polygon, polygon + n, side[0]);
+  if (!camera.orthographic()) m = clipToGuardBand(polygon, n, camera, layers.width, layers.height, side[0]);
   for (int h = 0; h + 2 < m; ++h) {  // the clipped polygon as a fan of triangles in its plane
     const int c[3] = {0, h + 1, h + 2};
     glm::vec3 v[3];
@@ -193,21 +210,37 @@ UnsampledDepths unsampledDepths(const Scene& scene, const Camera& camera, const 
     for (int i = 0; i < 3; ++i) cam[i] = glm::vec4(camera.toCamera(world[i]), 1.0f);
     const int n = raster::clipAgainst(cam, 3, glm::vec4(0.0f, 0.0f, -1.0f, -camera.near()), clipped);  // z ≤ −near
     if (n < 2) return;
-    glm::vec2 s[4];
     float nearest = kInf;
-    for (int i = 0; i < n; ++i) s[i] = camera.project(glm::vec3(clipped[i])), nearest = std::min(nearest, -clipped[i].z);
+    for (int i = 0; i < n; ++i) nearest = std::min(nearest, -clipped[i].z);
     auto markPixel = [&](size_t p, float depth) { unsampled.mark(p, depth); };
     markUnheldInView(clipped, n, camera, layers, lastThicknessPx, markPixel, [&](size_t p, float depth) { nearestFront.mark(p, depth); });
+    // The thin-triangle rule looks at the projected polygon — but one reaching close to the eye
+    // plane beside the view lands ~10⁸ pixels out, where the half-pixel steps below no longer
+    // advance a float (an endless loop: session 28's sweep, assimp's IndexedLineSet.x3d through a
+    // 1° lens) and its coordinates carry errors of pixels. Such a polygon is clipped to the guard
+    // band in camera space first. Only then: a polygon clipped there can turn into a sliver along
+    // the band's edge that would mark the border pixels for a surface that never covers them
+    // (tried on every polygon, it moved 10 % of oa_shouse's reflection rays to geometry).
+    glm::vec2 s[8];
+    int m = n;
+    bool far = false;
+    for (int i = 0; i < n; ++i) s[i] = camera.project(glm::vec3(clipped[i])), far |= !(std::max(std::abs(s[i].x), std::abs(s[i].y)) < kFarPixels);
+    if (far) {
+      glm::vec4 inBand[8];
+      m = n < 3 ? 0 : clipToGuardBand(clipped, n, camera, W, H, inBand);
+      for (int i = 0; i < m; ++i) s[i] = camera.project(glm::vec3(inBand[i]));
+    }
+    if (m < 2) return;
     // The two farthest points, and how far the others lie from the line through them.
     int a = 0, b = 1;
     float longest = -1.0f;
-    for (int i = 0; i < n; ++i)
-      for (int j = i + 1; j < n; ++j)
+    for (int i = 0; i < m; ++i)
+      for (int j = i + 1; j < m; ++j)
         if (const float d = glm::length(s[j] - s[i]); d > longest) longest = d, a = i, b = j;
     if (!(longest > 2.0f) || !std::isfinite(longest)) return;  // small (or off to infinity): not ours
     const glm::vec2 axis = (s[b] - s[a]) / longest;
     float width = 0.0f;
-    for (int i = 0; i < n; ++i) width = std::max(width, std::abs(axis.x * (s[i].y - s[a].y) - axis.y * (s[i].x - s[a].x)));
+    for (int i = 0; i < m; ++i) width = std::max(width, std::abs(axis.x * (s[i].y - s[a].y) - axis.y * (s[i].x - s[a].x)));
     if (!(width < 1.0f)) return;  // thick enough that pixel centres sample it along its length
     // The part of the line inside the view (with a pixel's margin), sampled every half pixel.
     const glm::vec2 lo(-1.0f), hi(float(W) + 1.0f, float(H) + 1.0f);
