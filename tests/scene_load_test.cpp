@@ -452,7 +452,8 @@ TEST(SceneLoad, A3mfWithAThumbnailLoads) {
 
 // Material strings are read from the property's bytes: assimp's getter aborts the process on a
 // string stored without its zero byte (assimp 5.2.5's MDL7 reader writes such texture names:
-// session 28's sweep, `broadleavedtreeD.mdl`, status 134), and trusts the stored length.
+// session 28's sweep, `broadleavedtreeD.mdl`, status 134), and trusts the stored length. Its
+// number getters parse strings and abort on the same, so such a number is not read.
 TEST(SceneLoad, MaterialStringsWithoutTheirZeroByteAreRead) {
   aiMaterial m;
   aiString name("brick");
@@ -479,6 +480,25 @@ TEST(SceneLoad, MaterialStringsWithoutTheirZeroByteAreRead) {
   const float notAString = 2.0f;
   m.AddProperty(&notAString, 1, AI_MATKEY_TEXTURE_EMISSIVE(0));
   EXPECT_FALSE(materialString(&m, AI_MATKEY_TEXTURE_EMISSIVE(0)));
+  // Numbers: assimp parses a number stored as a string — it aborts on one without its zero byte,
+  // fails on one number and throws on several — so such a property is not read.
+  EXPECT_FALSE(readableNumber(&m, AI_MATKEY_COLOR_DIFFUSE));
+  const aiColor3D red(1, 0, 0);
+  m.AddProperty(&red, 1, AI_MATKEY_COLOR_DIFFUSE);
+  EXPECT_TRUE(readableNumber(&m, AI_MATKEY_COLOR_DIFFUSE));
+  const std::string number = raw(3, std::string("0.5\0", 4));
+  m.AddBinaryProperty(number.data(), unsigned(number.size()), AI_MATKEY_SHININESS, aiPTI_String);
+  float shininess = 0.0f;
+  EXPECT_NE(m.Get(AI_MATKEY_SHININESS, shininess), AI_SUCCESS);
+  EXPECT_FALSE(readableNumber(&m, AI_MATKEY_SHININESS));
+  const std::string colour = raw(11, std::string("0.5 0.5 0.5\0", 12));
+  m.AddBinaryProperty(colour.data(), unsigned(colour.size()), AI_MATKEY_COLOR_SPECULAR, aiPTI_String);
+  aiColor3D specular;
+  EXPECT_ANY_THROW(m.Get(AI_MATKEY_COLOR_SPECULAR, specular));
+  EXPECT_FALSE(readableNumber(&m, AI_MATKEY_COLOR_SPECULAR));
+  const std::string cut = raw(3, "0.5");  // no zero byte: assimp's getter would abort
+  m.AddBinaryProperty(cut.data(), unsigned(cut.size()), AI_MATKEY_OPACITY, aiPTI_String);
+  EXPECT_FALSE(readableNumber(&m, AI_MATKEY_OPACITY));
 }
 
 TEST(SceneRecentre, MovesOnlyFarScenesAndKeepsEveryVertexExact) {

@@ -32,6 +32,11 @@ Scene loadModel(const std::string& path, const glm::mat4& transform = glm::mat4(
 /// session 28's sweep). Here the length is clamped to the property's bytes and the string ends at
 /// its first zero byte; a property that is not a string is absent.
 std::optional<std::string> materialString(const aiMaterial* material, const char* key, unsigned semantic, unsigned index);
+/// Whether a material property is a number assimp's number getters read: one stored as a string
+/// is not. assimp 5.2.5 parses such a string after asserting (aborting) that it ends in a zero
+/// byte, and then never succeeds: one number fails, several throw (it does not skip the space
+/// between them). False for an absent property too.
+bool readableNumber(const aiMaterial* material, const char* key, unsigned semantic, unsigned index);
 
 /// An import that runs longer than this is stopped and reported as a malformed model (one line,
 /// status 2); 0 = no limit. Large models import in seconds; an importer stuck in a loop never

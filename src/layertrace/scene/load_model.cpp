@@ -113,14 +113,25 @@ std::optional<std::string> materialString(const aiMaterial* am, const char* key,
   return std::nullopt;
 }
 
+bool readableNumber(const aiMaterial* am, const char* key, unsigned semantic, unsigned index) {
+  const aiMaterialProperty* p = nullptr;
+  return aiGetMaterialProperty(am, key, semantic, index, &p) == AI_SUCCESS && p && p->mType != aiPTI_String;
+}
+
 namespace {
+
+/// am->Get for numbers, where readableNumber.
+template <class T>
+bool getNumber(const aiMaterial* am, const char* key, unsigned semantic, unsigned index, T& out) {
+  return readableNumber(am, key, semantic, index) && am->Get(key, semantic, index, out) == AI_SUCCESS;
+}
 
 Material convertMaterial(const aiMaterial* am, TextureColours& textures) {
   Material m;
   if (const auto name = materialString(am, AI_MATKEY_NAME)) m.name = *name;
   aiColor4D c;
   bool haveColor = false;
-  if (am->Get(AI_MATKEY_BASE_COLOR, c) == AI_SUCCESS || am->Get(AI_MATKEY_COLOR_DIFFUSE, c) == AI_SUCCESS) {
+  if (getNumber(am, AI_MATKEY_BASE_COLOR, c) || getNumber(am, AI_MATKEY_COLOR_DIFFUSE, c)) {
     m.albedo = glm::clamp(glm::vec3(c.r, c.g, c.b), 0.0f, 1.0f);
     haveColor = true;
   }
@@ -134,15 +145,15 @@ Material convertMaterial(const aiMaterial* am, TextureColours& textures) {
     else if (!haveColor || m.albedo == glm::vec3(1.0f)) m.albedo = colorFromName(*tex);
   }
   aiColor4D s;
-  if (am->Get(AI_MATKEY_COLOR_SPECULAR, s) == AI_SUCCESS)
+  if (getNumber(am, AI_MATKEY_COLOR_SPECULAR, s))
     m.specular = std::clamp(0.2126f * s.r + 0.7152f * s.g + 0.0722f * s.b, 0.0f, 1.0f);
   float shin = 0.0f;
-  if (am->Get(AI_MATKEY_SHININESS, shin) == AI_SUCCESS && shin > 0.0f) m.shininess = std::min(shin, 1024.0f);
+  if (getNumber(am, AI_MATKEY_SHININESS, shin) && shin > 0.0f) m.shininess = std::min(shin, 1024.0f);
   float opacity = 1.0f;
-  if (am->Get(AI_MATKEY_OPACITY, opacity) == AI_SUCCESS && opacity < 0.999f && opacity >= 0.0f)
+  if (getNumber(am, AI_MATKEY_OPACITY, opacity) && opacity < 0.999f && opacity >= 0.0f)
     m.transmission = 1.0f - opacity;  // glass in IFC/OBJ files: refracts with ior 1.5
   float ior = 0.0f;
-  if (am->Get(AI_MATKEY_REFRACTI, ior) == AI_SUCCESS && ior >= 1.0f && ior <= 4.0f) m.ior = ior;
+  if (getNumber(am, AI_MATKEY_REFRACTI, ior) && ior >= 1.0f && ior <= 4.0f) m.ior = ior;
   return m;
 }
 
