@@ -156,15 +156,15 @@ int clipToGuardBand(const glm::vec4* polygon, int n, const Camera& camera, int W
 template <class Mark, class Front>
 void markUnheldInView(const glm::vec4* polygon, int n, const Camera& camera, const LayerArrays& layers, float lastThicknessPx, Mark&& mark,
                       Front&& front) {
-  glm::vec4 side[1][8];
+  glm::vec4 inView[8];
   int m = n;
-  std::copy(polygon, polygon + n, side[0]);
-  if (!camera.orthographic()) m = clipToGuardBand(polygon, n, camera, layers.width, layers.height, side[0]);
+  std::copy(polygon, polygon + n, inView);
+  if (!camera.orthographic()) m = clipToGuardBand(polygon, n, camera, layers.width, layers.height, inView);
   for (int h = 0; h + 2 < m; ++h) {  // the clipped polygon as a fan of triangles in its plane
     const int c[3] = {0, h + 1, h + 2};
     glm::vec3 v[3];
     for (int i = 0; i < 3; ++i) {
-      const glm::vec3 q(side[0][c[i]]);
+      const glm::vec3 q(inView[c[i]]);
       v[i] = glm::vec3(camera.project(q), 1.0f / std::max(-q.z, camera.near()));
     }
     markUnheldDepths(v, layers, camera.focal(), lastThicknessPx, mark, front);
