@@ -227,7 +227,7 @@ UnsampledDepths unsampledDepths(const Scene& scene, const Camera& camera, const 
     for (int i = 0; i < n; ++i) s[i] = camera.project(glm::vec3(clipped[i])), far |= !(std::max(std::abs(s[i].x), std::abs(s[i].y)) < kFarPixels);
     if (far) {
       glm::vec4 inBand[8];
-      m = n < 3 ? 0 : clipToGuardBand(clipped, n, camera, W, H, inBand);
+      m = clipToGuardBand(clipped, n, camera, W, H, inBand);
       for (int i = 0; i < m; ++i) s[i] = camera.project(glm::vec3(inBand[i]));
     }
     if (m < 2) return;

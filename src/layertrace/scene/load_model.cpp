@@ -293,11 +293,12 @@ void dropDanglingTextures(const aiScene* scene, const std::string& ext) {
   owned->mNumTextures = 0;
 }
 
-/// Runs `read` under the import guard; InputError naming `source` when it fails or crashes.
+/// Runs `read` under the import guard and repairs what the importer of `ext` (".obj", lower case)
+/// leaves behind (dropDanglingTextures); InputError naming `source` when it fails or crashes.
 /// `importer` is owned by the caller; under the fuzzer a crashed import leaves it leaked (its
 /// state is not safe to destroy).
 template <class Read>
-const aiScene* guardedImport(ImporterPtr& importer, const std::string& source, Read&& read) {
+const aiScene* guardedImport(ImporterPtr& importer, const std::string& source, const std::string& ext, Read&& read) {
   const aiScene* as = nullptr;
   {
     const ImportGuard guard(source);
@@ -308,6 +309,7 @@ const aiScene* guardedImport(ImporterPtr& importer, const std::string& source, R
     }
 #endif
     as = read();
+    dropDanglingTextures(as, ext);
   }
   if (!as || !as->mRootNode) {
     std::string why = importer->GetErrorString();
@@ -542,11 +544,7 @@ Scene loadModel(const std::string& path, const glm::mat4& transform) {
   }
   ImporterPtr importer = makeImporter(path);
   const unsigned flags = configureImporter(*importer, q3);
-  const aiScene* as = guardedImport(importer, path, [&] {
-    const aiScene* read = importer->ReadFile(path, flags);
-    dropDanglingTextures(read, ext);
-    return read;
-  });
+  const aiScene* as = guardedImport(importer, path, ext, [&] { return importer->ReadFile(path, flags); });
   const fs::path parent = fs::path(path).parent_path();
   const std::string modelDir = parent.empty() ? std::string(".") : parent.string();  // texture files are looked for beside the model
   const Quake3Patches patches = map.empty() ? Quake3Patches{} : tessellateQuake3Patches(map.data(), map.size(), kPatchTolerance);
@@ -561,11 +559,7 @@ Scene loadModelFromMemory(const void* data, size_t size, const std::string& form
   ImporterPtr importer = makeImporter(source);
   const unsigned flags = configureImporter(*importer, q3);
   const aiScene* as =
-      guardedImport(importer, source, [&] {
-        const aiScene* read = importer->ReadFileFromMemory(data, size, flags, hint.c_str());
-        dropDanglingTextures(read, "." + hint);
-        return read;
-      });
+      guardedImport(importer, source, "." + hint, [&] { return importer->ReadFileFromMemory(data, size, flags, hint.c_str()); });
   return convertScene(as, source, source, "." + hint, glm::mat4(1.0f), "");
 }
 
