@@ -8,7 +8,7 @@ FUZZ_SECONDS ?= 60
 OUT    ?= out
 SCENE  ?= scenes/default.json
 
-.PHONY: deps deps-run build build-cli build-asan build-fuzz build-tsan run test fuzz fetch bench clean
+.PHONY: deps deps-run build build-cli build-asan build-fuzz build-tsan run test check fuzz fetch bench clean
 
 deps:
 	scripts/install-deps.sh
@@ -54,10 +54,9 @@ fetch: deps
 # The main job on the embedded default scene.
 run: build-cli
 	@mkdir -p $(OUT)
-	$(BUILD)/layertrace render $(SCENE) --tracer hssr --effect reflection --bounces 2 \
-	    -o $(OUT)/default_hssr_reflection.png --stats $(OUT)/default_hssr_reflection.json
-	$(BUILD)/layertrace layers $(SCENE) -o $(OUT)/layers --stats $(OUT)/layers.json --verify
-	@echo "wrote $(OUT)/default_hssr_reflection.png (+ .json), $(OUT)/layers/ and $(OUT)/layers.json"
+	$(BUILD)/layertrace render $(SCENE) --tracer hssr --effect reflection --bounces 2 -o $(OUT)/default_hssr_reflection.png
+	$(BUILD)/layertrace layers $(SCENE) -o $(OUT)/layers --verify
+	@echo "wrote $(OUT)/default_hssr_reflection.png (+ .json) and $(OUT)/layers/ (+ layers.json)"
 
 # The whole suite: Release tests (with the fetched scenes, and the install of the static library
 # with the examples built against it) and the unit tests under ASan+UBSan (with the shared library
@@ -73,6 +72,13 @@ test: build build-asan build-tsan build-fuzz fetch
 	cd $(TSAN) && TSAN_OPTIONS="halt_on_error=1 suppressions=$(CURDIR)/scripts/tsan.supp" \
 	    LAYERTRACE_SANITIZED=1 ctest --output-on-failure -j $(JOBS) -L unit
 	scripts/run-fuzz.sh $(FUZZ) 20 json_scene cli
+
+# The contributors' loop: the Release build of the CLI and the unit tests, and the unit and
+# documentation tests (no fetched scenes, no sanitizers). Under 5 minutes after the first build.
+check: deps
+	cmake -S . -B $(BUILD) -DCMAKE_BUILD_TYPE=Release -DBUILD_TESTING=ON >/dev/null
+	cmake --build $(BUILD) -j $(JOBS) --target layertrace layertrace_tests
+	cd $(BUILD) && ctest --output-on-failure -j $(JOBS) -L 'unit|docs'
 
 bench: build fetch
 	$(BUILD)/bench_raster

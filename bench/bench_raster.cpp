@@ -1,6 +1,7 @@
-// Issue 2 §10 and issue 13: raster + sort (list pipeline, and tile-local capture) at 1280×720, k = 4, on the FZK-Haus interior, with 1 and 2 threads,
-// beside Embree collecting the same fragments with all-hit primary rays. Reports ms per frame
-// (Google Benchmark's time) and million fragments per second (counter "Mfrag/s").
+// Raster + sort (list pipeline, and tile-local capture) at 1280×720, k = 4, on the FZK-Haus
+// interior, with 1 and 2 threads, beside Embree collecting the same fragments with all-hit primary
+// rays. Reports ms per frame (Google Benchmark's time) and million fragments per second (counter
+// "Mfrag/s").
 #include <cstdlib>
 #include <filesystem>
 
@@ -11,7 +12,7 @@
 
 #include "layertrace/pipeline/frame.h"
 #include "layertrace/geometry/embree_scene.h"
-#include "layertrace/screen/interval_pyramid.h"
+#include "layertrace/hssr/interval_pyramid.h"
 
 namespace {
 
@@ -64,7 +65,7 @@ struct TileCaptured {
   }
 };
 
-// Issue 13: the tile-local capture, buffers reused from iteration to iteration as in animation.
+// The tile-local capture, buffers reused from iteration to iteration as in animation.
 void BM_TileCapture(benchmark::State& state) {
   tbb::global_control gc(tbb::global_control::max_allowed_parallelism, size_t(state.range(0)));
   lt::Frame& f = fzk();
@@ -79,8 +80,9 @@ void BM_TileCapture(benchmark::State& state) {
   state.counters["tiles_ms"] = st.tilesMs;
 }
 
-// The interval pyramid over the captured layers (seed 000 §4.3), 5 levels, τ = 25: levels 1… over
-// the level 0 the capture wrote, rebuilt in place as the pipeline does frame after frame.
+// The interval pyramid over the captured layers (Hofmann et al. 2017, §4.3), 5 levels, τ = 25:
+// levels 1… over the level 0 the capture wrote, rebuilt in place as the pipeline does frame after
+// frame.
 void BM_Pyramid(benchmark::State& state) {
   tbb::global_control gc(tbb::global_control::max_allowed_parallelism, size_t(state.range(0)));
   lt::Frame& f = fzk();

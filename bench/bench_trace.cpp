@@ -1,8 +1,8 @@
-// Issues 3 §6 and 4 §6: one-bounce mirror reflection rays from every covered pixel of the
+// One-bounce mirror reflection rays from every covered pixel of the
 // FZK-Haus and am_thornish interiors (1280×720, k = 4), the same rays through every tracer:
 // ssr at strides 1, 2, 4, 8; ssr-layers at strides 1, 2, 3, 4, 8; hssr (the default τ and levels, n_up 2).
 // Counters: MRays/s, mean DDA iterations per ray, hit fraction; Embree (the project's scene) on
-// the same rays as the baseline; the hybrid (issue 15: hssr + embree, certified answers) with
+// the same rays as the baseline; the hybrid (hssr + embree, certified answers) with
 // the share of rays each half answered — hybrid and Embree also on one AO ray per pixel (any
 // hit, 5 % of the scene's diagonal); HSSR against Embree alternating round by round on the
 // FZK-Haus, am_thornish and engine interiors (BM_HssrAgainstEmbree). Hierarchy build time is
@@ -18,11 +18,11 @@
 
 #include "layertrace/geometry/geometric_tracer.h"
 #include "layertrace/pipeline/frame.h"
-#include "layertrace/pipeline/tracer_factory.h"
-#include "layertrace/screen/hssr_march_lanes.h"
-#include "layertrace/screen/hssr_tracer.h"
+#include "layertrace/pipeline/tracer_registry.h"
+#include "layertrace/hssr/hssr_march_lanes.h"
+#include "layertrace/hssr/hssr_tracer.h"
 #include "layertrace/screen/screen_segment.h"
-#include "layertrace/screen/ssr_tracer.h"
+#include "layertrace/ssr/ssr_tracer.h"
 
 namespace {
 
@@ -191,8 +191,9 @@ void BM_HssrLanes(benchmark::State& state) {
   state.counters["lanes_on"] = lt::hssrLanesAvailable(s.pyramid, kLevels);
 }
 
-/// SSR (seed 001) over the same rays, one ray at a time (the one-ray path of TracerImpl) against
-/// the AVX-512 lanes (SsrTracer::traceBatch). Args: scene, all layers (ssr-layers), stride.
+/// SSR (McGuire and Mara 2014) over the same rays, one ray at a time (the one-ray path of
+/// TracerImpl) against the AVX-512 lanes (SsrTracer::traceBatch). Args: scene, all layers
+/// (ssr-layers), stride.
 void BM_SsrLanes(benchmark::State& state) {
   Setup& s = setup(int(state.range(0)));
   lt::SsrConfig c;
@@ -223,7 +224,7 @@ void BM_Embree(benchmark::State& state) {
 }
 
 /// HSSR (the default τ and levels, n_up 2) and plain single-ray Embree on the same rays,
-/// alternating in every round (timeAlternating): the ratio issue 14's target is about, robust to
+/// alternating in every round (timeAlternating): the ratio `compare` reports, robust to
 /// a machine whose speed drifts between runs. Arg: scene.
 void BM_HssrAgainstEmbree(benchmark::State& state) {
   Setup& s = setup(int(state.range(0)));
@@ -253,10 +254,10 @@ void BM_Hybrid(benchmark::State& state) {
   state.counters["geo%"] = 100.0 * h.geoFraction();
 }
 
-/// The irregular grid (seed 003) one ray at a time against its batch queries (several rays in
-/// flight), with plain single-ray Embree on the same rays in the same rounds. Args: scene, ray
-/// set (0 primary, 1 AO: any hit within 5 % of the scene's diagonal, 2 diffuse; both
-/// cosine-distributed from the primary hits, as `geobench`).
+/// The irregular grid (Pérard-Gayot et al. 2017) one ray at a time against its batch queries
+/// (several rays in flight), with plain single-ray Embree on the same rays in the same rounds.
+/// Args: scene, ray set (0 primary, 1 AO: any hit within 5 % of the scene's diagonal, 2 diffuse;
+/// both cosine-distributed from the primary hits, as `geobench`).
 void BM_GridBatch(benchmark::State& state) {
   Setup& s = setup(int(state.range(0)));
   const lt::Scene& scene = s.frame.scene;

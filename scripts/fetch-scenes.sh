@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# Fetches the real scenes of DATA.md into data/ (git-ignored), idempotently.
+# Fetches the real scenes of docs/data.md into data/ (git-ignored), idempotently.
 # Debian data packages are downloaded with `apt-get download` and unpacked locally;
 # nothing is installed system-wide. JSON scene files with cameras live in scenes/.
 set -euo pipefail

@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# Issue 18's proof that layertrace is a library a user can install and link: installs the build
+# The proof that layertrace is a library a user can install and link: installs the build
 # folder $1 into a temporary prefix, builds examples/ out of tree against it with
 # find_package(layertrace), runs the three examples, and (for a static library) builds one of them
 # again with nothing but pkg-config. Leaves nothing behind.

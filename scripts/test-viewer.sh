@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# Issue 17's check of the viewer, run under a virtual X server (xvfb-run, Mesa's software
+# A check of the viewer, run under a virtual X server (xvfb-run, Mesa's software
 # OpenGL): the scripted viewer's traced image equals `layertrace render` with the same camera
 # and options (mean absolute difference ≤ 1/255 per channel), and its window screenshot is not
 # blank (the picture and the panel are drawn). $1 = the layertrace binary. Leaves nothing behind.
@@ -11,7 +11,7 @@ tmp=$(mktemp -d)
 trap 'rm -rf "$tmp"' EXIT
 common=(--width 320 --height 180 --tracer hssr --effect reflection --bounces 2 --layers 3 --quiet)
 xvfb-run -a -s "-screen 0 1024x768x24" "$bin" view "$src/scenes/default.json" "${common[@]}" \
-  --frames 3 --screenshot "$tmp/view.png" --screenshot-ui "$tmp/ui.png"
+  --frames 3 -o "$tmp/view.png" --screenshot-ui "$tmp/ui.png"
 "$bin" render "$src/scenes/default.json" "${common[@]}" -o "$tmp/render.png"
 # A scripted screenshot without --frames is refused before any window opens (exit 2, no file).
 if "$bin" view "$src/scenes/default.json" --screenshot "$tmp/bad.png" 2>/dev/null; then

@@ -1,4 +1,4 @@
-// The public API (issue 18, api/layertrace.h): user buffers give the CLI path's answers bit for
+// The public API (api/layertrace.h): user buffers give the CLI path's answers bit for
 // bit, rays in world space give the camera-space answers, every bad argument is named, and the
 // classification is the evaluation's.
 #include <cstring>
@@ -8,7 +8,7 @@
 
 #include "layertrace/api/layertrace.h"
 #include "layertrace/eval/classify.h"
-#include "layertrace/pipeline/tracer_factory.h"
+#include "layertrace/pipeline/tracer_registry.h"
 #include "test_util.h"
 
 namespace lt {
@@ -60,7 +60,7 @@ UserLayers userLayersOf(const LayerArrays& L) {
   return ::testing::AssertionSuccess();
 }
 
-// Issue 18 §5: the layers our pipeline captured, handed to the API as user buffers (k layers,
+// The layers our pipeline captured, handed to the API as user buffers (k layers,
 // and as full fragment lists), give every screen tracer the CLI path's hits bit for bit.
 TEST(Api, UserBuffersGiveTheCliPathsHitsBitForBit) {
   const Frame f = defaultFrame();
@@ -201,7 +201,7 @@ void expectInvalid(const std::string& what, F&& f) {
   }
 }
 
-// Issue 18 §2: inputs are validated, and the exception names the argument.
+// Inputs are validated, and the exception names the argument.
 TEST(Api, BadArgumentsAreNamed) {
   View v;
   v.width = 4, v.height = 2;

@@ -1,4 +1,4 @@
-// Issue 13 §6: the tile-local capture gives the k-layer arrays of the reference pipeline
+// The tile-local capture gives the k-layer arrays of the reference pipeline
 // (rasterize into lists, then sort and truncate) bit for bit, for any tile size and thread count,
 // and reuses its memory from frame to frame.
 #include <algorithm>
@@ -10,12 +10,12 @@
 #include <tbb/global_control.h>
 
 #include "layertrace/pipeline/frame.h"
-#include "layertrace/pipeline/tracer_factory.h"
+#include "layertrace/pipeline/tracer_registry.h"
 #include "layertrace/raster/capture.h"
 #include "layertrace/raster/layer_arrays.h"
 #include "layertrace/raster/rasterizer.h"
-#include "layertrace/screen/interval_pyramid.h"
-#include "layertrace/screen/interval_pyramid_lanes.h"
+#include "layertrace/hssr/interval_pyramid.h"
+#include "layertrace/hssr/interval_pyramid_lanes.h"
 #include "layertrace/util/simd512.h"
 #include "layertrace/util/error.h"
 #include "layertrace/util/parallel.h"
@@ -112,7 +112,7 @@ TEST(Capture, TileLocalEqualsListPipelineBitForBit) {
   EXPECT_GT(ties, 1000u) << "the scene should make the order of equal depths matter";
 }
 
-// Issue 13 §2: with lists asked for, the same pass writes them in exact-size storage; every
+// With lists asked for, the same pass writes them in exact-size storage; every
 // pixel's list equals the reference pool's (same fragments, same order), and the k layers are
 // unchanged.
 TEST(Capture, ListsFromTheTilePassEqualTheReferenceLists) {
@@ -154,7 +154,7 @@ TEST(Capture, OneAndTwoThreadsGiveTheSameBytes) {
   EXPECT_TRUE(sameBytes(one, two));
 }
 
-// Issue 13 §4: the second frame of the same size writes into the memory of the first.
+// The second frame of the same size writes into the memory of the first.
 TEST(Capture, ASecondFrameReusesEveryBuffer) {
   const Scene s = tieSoup(test::testSeed() + 2);
   CameraDesc view = test::originCamera(60.0f, 0.3f, 40.0f);
@@ -245,8 +245,8 @@ TEST(Capture, LevelZeroFromTheTilesEqualsOneFromTheLayers) {
   }
 }
 
-/// Seed 000 §4.3 written as plainly as possible: per cell, gather the 2×2 children's intervals,
-/// stable-sort them by front, merge greedily within τ.
+/// Hofmann et al. 2017, §4.3, written as plainly as possible: per cell, gather the 2×2 children's
+/// intervals, stable-sort them by front, merge greedily within τ.
 std::vector<std::vector<std::vector<Interval>>> plainPyramid(const IntervalLayers& base, const Camera& camera, const PyramidConfig& c) {
   std::vector<std::vector<std::vector<Interval>>> levels(size_t(c.levels));
   int w = base.width, h = base.height;

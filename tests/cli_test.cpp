@@ -1,4 +1,4 @@
-// The CLI contract of DESIGN.md: outputs and stats keys, and bad input → one line, status 2,
+// The CLI contract of docs/cli.md: outputs and stats keys, and bad input → one line, status 2,
 // no output left behind.
 #include <array>
 #include <cmath>
@@ -11,6 +11,7 @@
 
 #include <nlohmann/json.hpp>
 
+#include "layertrace/pipeline/tracer_registry.h"
 #include "layertrace/util/image.h"
 #include "test_util.h"
 
@@ -123,7 +124,7 @@ TEST(CliErrors, BadInputIsOneLineStatusTwoNoOutput) {
   for (const BadCase& c : cases) expectRejected(c, dir);
 }
 
-// Found by a sweep of hand-written scene files and option edges (session 14).
+// Found by a sweep of hand-written scene files and option edges.
 TEST(CliErrors, SweepFindingsAreRefusedByName) {
   test::TempDir dir, in;
   std::ofstream(in / "deep.json") << R"({"objects": [{"box": {"min": )" << std::string(200000, '[') << std::string(200000, ']')
@@ -132,9 +133,9 @@ TEST(CliErrors, SweepFindingsAreRefusedByName) {
   const std::vector<BadCase> cases = {
       {"layers " + in / "deep.json", "nested deeper than 64 levels"},  // crashed (stack overflow)
       {"layers " + in / "box.json", "objects[0].box: box: max must exceed min"},
-      {"render " + kDefault + " --tracer ssr --stride 1e9", "--stride 1e+09"},  // overflowed in the SSR lanes
-      {"render " + kDefault + " --tracer ssr --stride inf", "--stride inf"},
-      {"render " + kDefault + " --tracer hssr --tau inf", "--tau inf"},
+      {"render " + kDefault + " --tracer ssr --stride 1e9", "--ssr-stride 1e+09"},  // overflowed in the SSR lanes
+      {"render " + kDefault + " --tracer ssr --stride inf", "--ssr-stride inf"},
+      {"render " + kDefault + " --tracer hssr --tau inf", "--hssr-tau inf"},
       {"render " + kDefault + " --effect ao --ao-radius inf", "--ao-radius inf"},
       {"render " + kDefault + " --max-distance inf", "--max-distance inf"},
       {"layers " + kDefault + " --eye 1e20,1,0 --target 0,0,0", "too far from the scene"},  // an infinite far plane
@@ -251,8 +252,8 @@ TEST(CliRender, BadTracerAndEffectAreRejected) {
   test::TempDir dir;
   expectRejected({"render " + kDefault + " --tracer bvh", "--tracer bvh"}, dir);
   expectRejected({"render " + kDefault + " --effect glow", "--effect glow"}, dir);
-  expectRejected({"render " + kDefault + " --stride 0", "--stride 0"}, dir);
-  expectRejected({"render " + kDefault + " --n-up 0", "--n-up 0"}, dir);
+  expectRejected({"render " + kDefault + " --ssr-stride 0", "--ssr-stride 0"}, dir);
+  expectRejected({"render " + kDefault + " --hssr-n-up 0", "--hssr-n-up 0"}, dir);
   expectRejected({"render " + kDefault + " --bounces 0", "--bounces 0"}, dir);
   expectRejected({"render " + kDefault + " --tracer hybrid --hybrid-screen ssr", "--hybrid-screen ssr"}, dir);
   expectRejected({"render " + kDefault + " --tracer hybrid --hybrid-geo optix", "--hybrid-geo optix"}, dir);
@@ -260,13 +261,13 @@ TEST(CliRender, BadTracerAndEffectAreRejected) {
   expectRejected({"compare " + kDefault + " --tracers ldc --ldc-epsilon -1", "--ldc-epsilon -1"}, dir);
   expectRejected({"ldc " + kDefault + " --ldc-block-intervals 0", "--ldc-block-intervals 0"}, dir);
   expectRejected({"ldc " + kDefault + " --ldc-block 300", "--ldc-block 300"}, dir);
-  // Issue 16 §3: a memory limit is checked before anything is allocated.
+  // A memory limit is checked before anything is allocated.
   expectRejected({"render " + kDefault + " --max-memory 1M", "--max-memory 1 MiB: --width/--height 1280x720"}, dir);
   expectRejected({"render " + kDefault + " --max-memory lots", "--max-memory lots"}, dir);
   expectRejected({"compare " + kDefault + " --max-memory 0", "--max-memory 0"}, dir);
 }
 
-// Issue 15 §3: the hybrid's stats block (DESIGN.md keys) adds up.
+// The hybrid's stats block (docs/cli.md keys) adds up.
 TEST(CliRender, HybridStatsSayWhoAnsweredTheRays) {
   test::TempDir dir;
   ASSERT_NO_FATAL_FAILURE(expectRuns("render " + kDefault + " --width 160 --height 90 --quiet --tracer hybrid --effect reflection -o " +
@@ -286,7 +287,7 @@ TEST(CliRender, HybridStatsSayWhoAnsweredTheRays) {
   EXPECT_GT(h["window_queries_per_ray"].get<double>(), 0.0);
 }
 
-// Issue 12 §4: `layertrace ldc` shows what the layered depth cube captured, and its stats block
+// `layertrace ldc` shows what the layered depth cube captured, and its stats block
 // accounts for every triangle and byte; `render --tracer ldc` adds the per-ray visits.
 TEST(CliLdc, WritesTheImagesOfEachAxisAndTheStats) {
   test::TempDir dir;
@@ -348,8 +349,8 @@ TEST(CliCompare, WritesTheCompareSchemaImagesAndReport) {
   test::TempDir dir;
   ASSERT_NO_FATAL_FAILURE(expectRuns("compare " + kDefault + " --width 200 --height 112 --tracers ssr,hssr --quiet -o " + (dir / "c") +
                              " --report " + (dir / "r") + " --stats " + (dir / "s.json") + " --check-oracle --check-exhaustive"));
-  const auto j = readJson(dir / "c/compare.json");
-  EXPECT_EQ(readJson(dir / "s.json"), j);
+  const auto j = readJson(dir / "s.json");
+  EXPECT_FALSE(fs::exists(dir / "c/compare.json")) << "--stats names where the statistics go instead";
   for (const char* t : {"ssr", "hssr"}) {
     const auto& c = j["compare"][t];
     double sum = 0.0;
@@ -364,7 +365,7 @@ TEST(CliCompare, WritesTheCompareSchemaImagesAndReport) {
       EXPECT_TRUE(c.contains(k)) << t << " " << k;
   }
   EXPECT_EQ(j["compare"]["hssr"]["exhaustive_mismatch"], 0);
-  // Embree in 16-wide packets traced the same rays with the same answers (issue 14 §4).
+  // Embree in 16-wide packets traced the same rays with the same answers.
   EXPECT_GT(j["reference"]["packet16_trace_ms"].get<double>(), 0.0);
   EXPECT_EQ(j["reference"]["packet16_traced_rmse"].get<double>(), 0.0);
   EXPECT_GT(j["compare"]["ssr"]["iterations_mean"].get<double>(), j["compare"]["hssr"]["iterations_mean"].get<double>());
@@ -431,7 +432,7 @@ TEST(CliGeobench, StatsKeysAndAgreement) {
   for (; std::getline(sweep, line); ++settings) EXPECT_GE(std::stod(line.substr(line.rfind(',') + 1)), 0.9999) << line;
   EXPECT_EQ(settings, 7 * 4);
   test::TempDir clean;
-  expectRejected({"geobench " + kDefault + " --lambda1 0", "--lambda1 0"}, clean);
+  expectRejected({"geobench " + kDefault + " --lambda1 0", "--grid-lambda1 0"}, clean);
 }
 
 }  // namespace
@@ -464,13 +465,13 @@ TEST(CliErrors, OffHeaderDeclaringMoreThanTheFileHoldsIsRefused) {
 namespace lt {
 namespace {
 
-// Issue 10 §5: on a scene without mirror materials the final images of all tracers are the same
+// On a scene without mirror materials the final images of all tracers are the same
 // (nothing reflects), but the traced radiance differs: psnr_traced_db is finite and tells the
 // tracers apart.
 // A view that shows nothing casts no rays: the table says so and prints no class shares (0 %
 // correct of no rays would read as a failure).
 // --quiet keeps stdout silent while a model imports too: assimp 5.2.5's Ogre reader prints
-// "Skeleton is not a valid root" with printf for every skeleton it reads (session 28's sweep,
+// "Skeleton is not a valid root" with printf for every skeleton it reads (found by a sweep of assimp's models,
 // assimp's fish.mesh.xml and ninja.mesh.xml).
 TEST(CliRender, QuietStaysQuietWhileAnImporterChatters) {
   test::TempDir dir, in;
@@ -532,7 +533,7 @@ nlohmann::json benchOnDefaultScene(const std::string& experiment, int w, int h) 
   return readJson(dir / ("b/" + experiment + ".json"));
 }
 
-// Issue 11 §3: bench --experiment warp sweeps offsets × k × screen tracers; holes grow with the
+// bench --experiment warp sweeps offsets × k × screen tracers; holes grow with the
 // offset, never with k for the multi-layer tracers, and are zero without an offset.
 TEST(CliBench, WarpSweepsOffsetsLayersAndTracers) {
   nlohmann::json j;
@@ -555,7 +556,7 @@ TEST(CliBench, WarpSweepsOffsetsLayersAndTracers) {
   EXPECT_GT(far, near);
 }
 
-// Issue 11 (seed 002 gives no γ): bench --experiment gamma sweeps the quad-tree's merge
+// Widmer et al. 2015 give no γ: bench --experiment gamma sweeps the quad-tree's merge
 // thresholds. γ = 0 merges nothing, so it answers exactly as the unmerged tree; looser γ merges
 // plane nodes above level 0.
 TEST(CliBench, GammaSweepsTheQuadtreeMergeThresholds) {
@@ -571,7 +572,7 @@ TEST(CliBench, GammaSweepsTheQuadtreeMergeThresholds) {
   for (const auto& r : rows) EXPECT_GT(r["correct_hit"].get<double>(), 0.3);
 }
 
-// Issue 12 §1–2, 6: bench --experiment ldc sweeps 512² and 1K² × blocks 4, 8, 16 (and the paper's
+// bench --experiment ldc sweeps 512² and 1K² × blocks 4, 8, 16 (and the paper's
 // min/max) beside Embree and HSSR; the blocks change no answer, the finer LDIs store more.
 TEST(CliBench, LdcSweepsResolutionAndBlocks) {
   nlohmann::json j;
@@ -597,7 +598,7 @@ TEST(CliBench, LdcSweepsResolutionAndBlocks) {
 namespace lt {
 namespace {
 
-// Issue 13 §5: bench --experiment capture times raster, sort and pyramid per thread count beside
+// bench --experiment capture times raster, sort and pyramid per thread count beside
 // Embree's all-hit capture of the same pixel-centre rays, which must find the same fragments.
 TEST(CliBench, CaptureAgainstEmbreeAllHitsOfTheSameRays) {
   nlohmann::json j;
@@ -707,6 +708,102 @@ TEST(CliWorld, AFarSceneIsTracedAsWellAsTheSameSceneAtTheOrigin) {
   EXPECT_NEAR(wf["eye"][0].get<double>(), offset[0] + 0.3, 1.0 / 128);
   EXPECT_NEAR(wf["hole_fraction"].get<double>(), wn["hole_fraction"].get<double>(), 0.01);
   EXPECT_NEAR(wf["psnr_db"].get<double>(), wn["psnr_db"].get<double>(), 1.5);
+}
+
+}  // namespace
+}  // namespace lt
+
+namespace lt {
+namespace {
+
+// One output convention (docs/cli.md): -o is the main output, and a command's statistics land
+// beside it without being asked for: <image stem>.json for render, <folder>/<command>.json for
+// the others. --pixelstats and --report without a folder write beside the main output too.
+TEST(CliConvention, StatisticsLandBesideTheMainOutputByDefault) {
+  test::TempDir dir;
+  const std::string small = kDefault + " --width 96 --height 64 --layers 2 --quiet";
+  ASSERT_NO_FATAL_FAILURE(expectRuns("render " + small + " -o " + (dir / "r/img.png") + " --pixelstats"));
+  EXPECT_EQ(readJson(dir / "r/img.json")["width"], 96);
+  EXPECT_TRUE(fs::exists(dir / "r/img_pixelstats/iterations.exr"));
+  ASSERT_NO_FATAL_FAILURE(expectRuns("compare " + small + " --tracers hssr,ssr -o " + (dir / "c") + " --report --pixelstats"));
+  EXPECT_TRUE(readJson(dir / "c/compare.json").contains("compare"));
+  EXPECT_TRUE(fs::exists(dir / "c/index.html"));
+  for (const char* t : {"hssr", "ssr"}) EXPECT_TRUE(fs::exists(dir / ("c/pixelstats/" + std::string(t) + "/iterations.exr"))) << t;
+  // A common option the command has no use for is named in a warning, not passed over in silence.
+  std::string err;
+  ASSERT_EQ(test::runCli("layers " + small + " -o " + (dir / "l") + " --pixelstats --light 1,2,3", &err), 0) << err;
+  EXPECT_NE(err.find("layers does not use --light"), std::string::npos) << err;
+  EXPECT_EQ(readJson(dir / "l/layers.json")["layers"], 2);
+  const Image fragments = readImage(dir / "l/pixelstats/fragments.exr");
+  EXPECT_EQ(fragments.width, 96);
+  ASSERT_NO_FATAL_FAILURE(expectRuns("geobench " + small + " --repeat 1 -o " + (dir / "g")));
+  EXPECT_TRUE(fs::exists(dir / "g/geobench.json"));
+  // --stats names another file: the statistics go there instead.
+  ASSERT_NO_FATAL_FAILURE(expectRuns("layers " + small + " -o " + (dir / "l2") + " --stats " + (dir / "elsewhere.json")));
+  EXPECT_EQ(readJson(dir / "elsewhere.json")["layers"], 2);
+  EXPECT_FALSE(fs::exists(dir / "l2/layers.json"));
+}
+
+/// rays.iterations_mean of a small render with `flags`.
+double iterationsWith(const std::string& flags, const test::TempDir& dir) {
+  const std::string stats = dir / "s.json";
+  std::string err;
+  EXPECT_EQ(test::runCli("render " + kDefault + " --width 96 --height 64 --layers 2 --quiet -o " + (dir / "r.png") + " --stats " + stats +
+                             " " + flags,
+                         &err),
+            0)
+      << flags << "\n"
+      << err;
+  return readJson(stats)["rays"]["iterations_mean"].get<double>();
+}
+
+// Every method parameter has a namespaced flag; its older spelling is a hidden alias that sets
+// the same field (the run's iterations equal, and differ from the default's).
+TEST(CliConvention, OlderFlagSpellingsSetTheSameParameters) {
+  test::TempDir dir;
+  struct Case {
+    std::string tracer, flag, alias, value;
+  };
+  for (const Case& c : {Case{"ssr", "--ssr-stride", "--stride", "4"}, Case{"ssr", "--ssr-max-steps", "--max-steps", "3"},
+                        Case{"hssr", "--hssr-levels", "--levels", "1"}, Case{"hssr", "--hssr-n-up", "--n-up", "6"}}) {
+    const double defaults = iterationsWith("--tracer " + c.tracer, dir);
+    const double named = iterationsWith("--tracer " + c.tracer + " " + c.flag + " " + c.value, dir);
+    const double aliased = iterationsWith("--tracer " + c.tracer + " " + c.alias + " " + c.value, dir);
+    EXPECT_EQ(named, aliased) << c.flag;
+    EXPECT_NE(named, defaults) << c.flag << " had no effect";
+  }
+  // The aliases stay out of the help text; the namespaced flags are in it.
+  std::string out;
+  ASSERT_EQ(test::runCli("render --help", nullptr, &out), 0);
+  EXPECT_NE(out.find("--hssr-tau"), std::string::npos);
+  EXPECT_EQ(out.find("--tau "), std::string::npos);
+}
+
+// `layertrace tracers` lists every tracer of the registry with its parameters and defaults, and
+// `--version` the version CMake gave the project.
+TEST(CliConvention, TracersAndVersionDescribeTheBuild) {
+  std::string out;
+  ASSERT_EQ(test::runCli("tracers", nullptr, &out), 0);
+  for (const TracerEntry& e : tracerRegistry()) EXPECT_NE(out.find(std::string("\n  ") + e.info.name + ": "), std::string::npos) << e.info.name;
+  const TracerOptions defaults;
+  for (const TracerParam& p : tracerParams())
+    EXPECT_NE(out.find(std::string(p.flag) + " " + paramValue(p, defaults) + " "), std::string::npos) << p.flag;
+  for (const char* effect : {"shade", "reflection", "refraction", "ao", "shadow", "warp"}) EXPECT_NE(out.find(effect), std::string::npos);
+  ASSERT_EQ(test::runCli("--version", nullptr, &out), 0);
+  EXPECT_EQ(out.rfind(std::string("layertrace ") + LAYERTRACE_VERSION_TEST + " (commit ", 0), 0u) << out;
+  std::string err;
+  EXPECT_EQ(test::runCli("", &err), 2);
+  EXPECT_NE(err.find("a subcommand is required"), std::string::npos) << err;
+}
+
+// compare checks image-space rays against the exhaustive oracle unless told not to.
+TEST(CliConvention, CompareTheExhaustiveCheckCanBeTurnedOff) {
+  test::TempDir dir;
+  const std::string args = "compare " + kDefault + " --width 96 --height 64 --layers 2 --quiet --tracers hssr -o ";
+  ASSERT_NO_FATAL_FAILURE(expectRuns(args + (dir / "on")));
+  ASSERT_NO_FATAL_FAILURE(expectRuns(args + (dir / "off") + " --no-check-exhaustive"));
+  EXPECT_EQ(readJson(dir / "on/compare.json")["compare"]["hssr"]["exhaustive_mismatch"], 0);
+  EXPECT_FALSE(readJson(dir / "off/compare.json")["compare"]["hssr"].contains("exhaustive_mismatch"));
 }
 
 }  // namespace

@@ -102,7 +102,7 @@ void expectMentions(const std::string& message, std::initializer_list<const char
   for (const char* n : needles) EXPECT_NE(message.find(n), std::string::npos) << n << ": " << message;
 }
 
-// Issue 16: an archive that declares huge sizes (a zip bomb as .pk3) is refused before assimp
+// An archive that declares huge sizes (a zip bomb as .pk3) is refused before assimp
 // inflates it; the limits are checked on the central directory alone.
 TEST(FuzzRegression, ZipBombPk3IsRefusedBeforeImport) {
   test::TempDir dir;

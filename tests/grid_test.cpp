@@ -1,6 +1,6 @@
-// The irregular grid (seed 003) against Embree: closest hits agree (same triangle, or the same
-// distance within 1e-4 relative — two triangles sharing an edge or vertex the ray passes
-// through), any-hit queries agree, and the structure keeps its invariants.
+// The irregular grid (Pérard-Gayot et al. 2017) against Embree: closest hits agree (same triangle,
+// or the same distance within 1e-4 relative — two triangles sharing an edge or vertex the ray
+// passes through), any-hit queries agree, and the structure keeps its invariants.
 #include <atomic>
 #include <bit>
 #include <limits>
@@ -12,7 +12,7 @@
 
 #include "layertrace/pipeline/frame.h"
 #include "layertrace/geometry/embree_scene.h"
-#include "layertrace/geometry/irregular_grid.h"
+#include "layertrace/grid/irregular_grid.h"
 #include "layertrace/geometry/ray_triangle.h"
 #include "layertrace/scene/load.h"
 #include "layertrace/util/parallel.h"
@@ -305,9 +305,9 @@ TEST(Grid, FlatScenesAwayFromTheOriginAgreeWithEmbree) {
 }
 
 /// A flat scene: the top cells are not cubes (one cell high), and each axis is subdivided to its own
-/// depth (irregular_grid.h; seed 003's cubic octree cut the short axis as finely as the long
-/// ones). The leaves are then not cubic in voxels, there are fewer of them, and every voxel still
-/// maps to the cell that contains it; the grid agrees with Embree.
+/// depth (irregular_grid.h; Pérard-Gayot et al. 2017's cubic octree cut the short axis as finely as
+/// the long ones). The leaves are then not cubic in voxels, there are fewer of them, and every
+/// voxel still maps to the cell that contains it; the grid agrees with Embree.
 TEST(Grid, FlatSlabIsSubdividedPerAxisAndAgreesWithEmbree) {
   Scene s;
   std::mt19937 rng(5);
@@ -372,7 +372,7 @@ TEST(Grid, RayStartingOnATriangleDoesNotHitItAtTnear) {
 
 TEST(Grid, CellsPartitionTheVirtualGridAndExpansionKeepsSubsets) {
   const Frame f = defaultSceneFrame();
-  GridConfig whole;  // seed 003's expansion (partial expansion: the next test)
+  GridConfig whole;  // the expansion of Pérard-Gayot et al. 2017 (partial expansion: the next test)
   whole.partialExpansion = false;
   const IrregularGrid grid(f.scene, whole);
   const auto& cells = grid.cells();
@@ -387,7 +387,7 @@ TEST(Grid, CellsPartitionTheVirtualGridAndExpansionKeepsSubsets) {
         for (int i = 0; i < 3; ++i) ASSERT_TRUE(c.lo[i] <= v[i] && v[i] < c.hi[i]);
       }
   // Expansion: every voxel inside a cell's expanded box belongs to a cell whose references are
-  // a subset of that cell's (the traversal-correctness condition of seed 003).
+  // a subset of that cell's (the traversal-correctness condition of Pérard-Gayot et al. 2017).
   const auto& refs = grid.refs();
   forEachExpandedVoxel(grid, 7, [&](size_t, const GridCell& A, const int*, const GridCell& B) {
     ASSERT_TRUE(std::includes(refs.begin() + A.refBegin, refs.begin() + A.refEnd, refs.begin() + B.refBegin, refs.begin() + B.refEnd));
@@ -422,7 +422,7 @@ TEST(Grid, ParallelMergeEqualsSerialOnTheDefaultScene) {
   expectParallelMergeEqualsSerial(f.scene);
 }
 
-// Issue 14: the grid's batch queries (several rays in flight) against its one-ray traversal on
+// The grid's batch queries (several rays in flight) against its one-ray traversal on
 // the default scene — primary rays, diffuse and AO rays from their hits, and the odd ones: rays
 // that miss the grid's box, start outside it, run along an axis (direction components of 0),
 // have an empty range, or start on a triangle.
@@ -547,7 +547,7 @@ void loadParamScene(const std::pair<const char*, const char*>& scene, Frame& f) 
   loadFrameScene(test::realSceneOptions(scene.first, scene.second), f);
 }
 
-// Issue 6 §4: primary, diffuse-bounce and AO rays agree with Embree for ≥ 99.99 % of rays.
+// Primary, diffuse-bounce and AO rays agree with Embree for ≥ 99.99 % of rays.
 // The packed, dispatched traversal against the reference traversal, bit for bit: primary rays
 // and random rays from their hits, closest and any hit.
 TEST_P(RealSceneGrid, PackedTraversalEqualsReference) {
@@ -583,7 +583,7 @@ TEST_P(RealSceneGrid, PackedTraversalEqualsReference) {
   EXPECT_EQ(differ.load(), 0u) << "of " << rays.load() << " rays";
 }
 
-// Issue 14: the batch queries (several rays in flight) answer as the one-ray traversal, bit for
+// The batch queries (several rays in flight) answer as the one-ray traversal, bit for
 // bit, on primary rays and diffuse and AO rays from their hits.
 TEST_P(RealSceneGrid, BatchQueriesAnswerAsOneRay) {
   ASSERT_TRUE(test::haveFetchedScenes()) << "run scripts/fetch-scenes.sh";

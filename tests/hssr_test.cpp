@@ -1,6 +1,6 @@
-// HSSR exactness (seed 000 §4.3: τ affects speed, not results): for every ray, hssr returns the
-// same hit as the exhaustive oracle (the same traversal with one level), for any τ, level count
-// and n_up. Rays: mirror reflections from random covered pixels, and random directions.
+// HSSR exactness (Hofmann et al. 2017, §4.3: τ affects speed, not results): for every ray, hssr
+// returns the same hit as the exhaustive oracle (the same traversal with one level), for any τ,
+// level count and n_up. Rays: mirror reflections from random covered pixels, and random directions.
 #include <atomic>
 #include <bit>
 #include <cstdio>
@@ -12,11 +12,11 @@
 #include <glm/geometric.hpp>
 
 #include "layertrace/pipeline/frame.h"
-#include "layertrace/screen/hssr_march.h"
-#include "layertrace/screen/hssr_march_lanes.h"
-#include "layertrace/screen/hssr_march_reference.h"
-#include "layertrace/screen/hssr_tracer.h"
-#include "layertrace/screen/interval_pyramid.h"
+#include "layertrace/hssr/hssr_march.h"
+#include "layertrace/hssr/hssr_march_lanes.h"
+#include "layertrace/hssr/hssr_march_reference.h"
+#include "layertrace/hssr/hssr_tracer.h"
+#include "layertrace/hssr/interval_pyramid.h"
 #include "layertrace/util/parallel.h"
 #include "test_util.h"
 
@@ -114,8 +114,8 @@ void expectLanesEqualMarch(const Frame& f, const IntervalPyramid& p, int levels,
 /// The fast march (incremental spans, κ-domain fixed-slot coarse cells, sentinels) against the
 /// reference march it replaced: the same level-0 pixel, interval and entry parameter, bit for
 /// bit, for the oracle (1 level) and the hierarchical march, on `rays` and their mirror bounces;
-/// the paper's 5 levels, the default (PyramidConfig, 7 since session 19) and the lanes' most (8);
-/// the paper's τ (25) and the default (4 since session 21).
+/// the paper's 5 levels, the default (PyramidConfig, 7) and the lanes' most (8); the paper's τ
+/// (25) and the default (4).
 void expectSameAsReference(const Frame& f, size_t count) {
   const uint64_t seed = test::testSeed() + 7;
   std::vector<Ray> rays = test::sampleRays(f, count, seed);
@@ -258,7 +258,7 @@ TEST(Hssr, MatchesExhaustiveOracleOnDefaultScene) {
   expectExact(buildFrame(o), 20000);
 }
 
-// Issue 4 §3: ≥ 100 000 rays per real scene (half mirror reflections, half random directions)
+// ≥ 100 000 rays per real scene (half mirror reflections, half random directions)
 // at 1280×720, for τ ∈ {1, 5, 25, 128}, levels ∈ {1 (the oracle), 3, 5, 8}, n_up ∈ {1, 2, 4}.
 class RealSceneHssr : public ::testing::TestWithParam<std::pair<const char*, const char*>> {};
 
@@ -292,7 +292,7 @@ TEST(Hssr, MatchesExhaustiveOracleWithAdaptiveThickness) {
   expectExact(buildFrame(o), 10000);
 }
 
-/// hssr-pitfalls §3: every level-0 interval lies inside one interval of the cell above it, on
+/// The pyramid covers: every level-0 interval lies inside one interval of the cell above it, on
 /// every level (so by induction every level's intervals are covered by every coarser level).
 void expectCovered(const Frame& f) {
   for (float tau : {1.0f, 25.0f, 128.0f}) {

@@ -1,5 +1,5 @@
-// The hybrid tracer (issue 15, hybrid/hybrid_tracer.h) and the certainty rules it rests on
-// (screen/known_space.h): each rule on a constructed scene, the thickness guard, geometry
+// The hybrid tracer (hybrid/hybrid_tracer.h) and the certainty rules it rests on
+// (hybrid/known_space.h): each rule on a constructed scene, the thickness guard, geometry
 // starting where knowledge ends, exact answers on an analytic room, and the strict-class
 // correct share on the real scenes.
 #include <bit>
@@ -19,7 +19,7 @@
 #include "layertrace/eval/classify.h"
 #include "layertrace/geometry/geometric_tracer.h"
 #include "layertrace/geometry/ray_triangle.h"
-#include "layertrace/pipeline/tracer_factory.h"
+#include "layertrace/pipeline/tracer_registry.h"
 #include "layertrace/raster/unsampled.h"
 #include "layertrace/scene/load.h"
 #include "layertrace/screen/screen_segment.h"
@@ -126,8 +126,8 @@ TEST(KnownSpace, SolidIntervalsReachTheNextLayer) {
 
 // A pixel that stores nothing in a --front-faces-only capture is unknown from the near plane
 // (a culled back face may be anywhere), also where an unstored surface crosses it farther away:
-// session 25 found AO rays on assimp's COLLADA.dae passing in front of such a surface through a
-// culled back face, certified as misses, because the solid started at that surface.
+// were the solid to start at that surface, AO rays on assimp's COLLADA.dae would pass in front
+// of such a surface through a culled back face and be certified as misses.
 TEST(KnownSpace, AnEmptyFrontFacesOnlyPixelIsUnknownFromTheNearPlane) {
   const Scene scene = twoWalls();
   const Frame f = test::frameOf(scene, test::originCamera(), 16, 12, 2, 0.1f);
@@ -230,7 +230,7 @@ TEST(Hybrid, RejectsThicknessFalseHitsAndContinuesWhereKnowledgeEnds) {
   EXPECT_LT(s.geoLengthMean(), 1.0);
 }
 
-// Issue 15 §3: `geo_queries_per_ray` counts every query the geometric half answered — the
+// `geo_queries_per_ray` counts every query the geometric half answered — the
 // windows that certify screen answers and the remainders — which is what the hybrid pays on top
 // of its march (plain Embree: one query per ray). A wrapper records each ray it is asked.
 TEST(Hybrid, CountsEveryGeometricQuery) {
@@ -309,7 +309,7 @@ TEST(Hybrid, SurfaceSeenEdgeOnEndsKnowledge) {
   for (const char* screen : {"hssr", "hiz", "quadtree"}) {
     SCOPED_TRACE(screen);
     TracerOptions o;
-    o.hybridScreen = screen;
+    o.hybrid.screen = screen;
     const BuiltTracer hybrid = buildTracer("hybrid", f, o);
     int floorHits = 0;
     for (int i = 0; i < 40; ++i) {
@@ -328,9 +328,9 @@ TEST(Hybrid, SurfaceSeenEdgeOnEndsKnowledge) {
 
 // A thin triangle reaching from beside the view to just in front of the near plane projects
 // ~10⁸ pixels out; the thin-triangle rule sampled its whole projected line every half pixel from
-// there, where adding half a pixel no longer changes a float: the pass never ended (session 28's
-// sweep: assimp's IndexedLineSet.x3d through a 1° lens). The rule now looks at the part inside
-// the guard band, and still marks the triangle's pixels in the view.
+// there, where adding half a pixel no longer changes a float: the pass never ended (found by a
+// sweep of assimp's models: IndexedLineSet.x3d through a 1° lens). The rule now looks at the part
+// inside the guard band, and still marks the triangle's pixels in the view.
 TEST(Hybrid, AThinTriangleProjectedFarOutsideTheViewEnds) {
   Scene s;
   // Camera space = world space (the origin camera looks down −z): from 50 units left at 1.1 times
@@ -368,7 +368,7 @@ TEST(Hybrid, AThinTriangleProjectedFarOutsideTheViewEnds) {
 
 /// Two walls 0.2 apart along the view direction, the eye between them: each is seen at a grazing
 /// angle, its depth changing by tens of footprints across one pixel near the centre of the view
-/// (the camera inside assimp's ClearCoatTest.gltf plate, session 16).
+/// (the camera inside assimp's ClearCoatTest.gltf plate).
 Scene corridor() {
   Scene s = makeQuad({-0.1f, -5, -0.001f}, {0, 10, 0}, {0, 0, -30});
   s.append(makeQuad({0.1f, -5, -0.001f}, {0, 0, -30}, {0, 10, 0}));
@@ -432,7 +432,7 @@ TEST(Hybrid, SurfaceSeenAtAGrazingAngleIsNotCrossedUnseen) {
 
 // A screen hit's crossing is only a candidate: our ray–triangle test widens edges by 1e-6 of
 // the barycentrics (ray_triangle.h), Embree does not, so a ray passing a wall's outer edge by less
-// than that is a crossing for the one and not the other. Geometry decides (session 16: 0.15 % of
+// than that is a crossing for the one and not the other. Geometry decides (measured: 0.15 % of
 // regr01.obj's reflection rays took such crossings).
 TEST(Hybrid, ACrossingIsCertifiedByGeometry) {
   const CameraDesc view = test::originCamera(60.0f, 0.05f, 100.0f);
@@ -477,14 +477,14 @@ TEST(Hybrid, AnalyticRoomGivesTheGeometricAnswers) {
   const Frame f = test::frameOf(scene, view, 160, 120, 4, 0.1f);
   const std::vector<Ray> rays = test::sampleRays(f, 6000, test::testSeed());
   // The quad-tree marches its own thin planes (no solid intervals), so a ray can pass a stored
-  // surface between two of its samples: geometry certifies its empty space too (session 16;
-  // before, 98 % was its bound here).
+  // surface between two of its samples: geometry certifies its empty space too (without that,
+  // 98 % was its bound here).
   for (const auto& [screen, geometric] : {std::pair{"hssr", "embree"}, std::pair{"hiz", "embree"}, std::pair{"quadtree", "embree"},
                                          std::pair{"hssr", "grid"}, std::pair{"ldc", "embree"}, std::pair{"hssr", "embree-robust"}}) {
     SCOPED_TRACE(std::string(screen) + " + " + geometric);
     TracerOptions o;
-    o.hybridScreen = screen;
-    o.hybridGeo = geometric;
+    o.hybrid.screen = screen;
+    o.hybrid.geo = geometric;
     const BuiltTracer hybrid = buildTracer("hybrid", f, o);
     const BuiltTracer reference = std::string(geometric) == "grid" ? buildTracer("grid", f, o) : buildReference(f);
     std::vector<TraceHit> answers(rays.size()), truth(rays.size());
@@ -493,7 +493,7 @@ TEST(Hybrid, AnalyticRoomGivesTheGeometricAnswers) {
     size_t same = 0;
     for (size_t i = 0; i < rays.size(); ++i) same += sameAnswer(rays[i], answers[i], truth[i]);
     EXPECT_GE(double(same), 0.999 * double(rays.size()));
-    // The geometric half traces whole rays from where it takes over (session 27), so every
+    // The geometric half traces whole rays from where it takes over, so every
     // answer is that tracer's own whole-ray answer bit for bit: where the hybrid answers, it does
     // so as its geometric half would have.
     // (The reference is the geometric half itself for grid and embree-robust.)
@@ -519,7 +519,7 @@ TEST(Hybrid, AnalyticRoomGivesTheGeometricAnswers) {
   }
 }
 
-// Session 17: `--hybrid-geo embree-robust`. Every answer the hybrid returns is its geometric
+// `--hybrid-geo embree-robust`: every answer the hybrid returns is its geometric
 // half's, so with robust Embree (the grader's reference) it answers as the reference does where
 // plain Embree does not: rays from inside a closed sphere aimed exactly at its vertices and edge
 // points, which plain Embree lets through its shared edges.
@@ -548,7 +548,7 @@ TEST(Hybrid, RobustGeometricHalfAnswersAsTheReferenceAtSharedEdges) {
   robust.tracer->traceBatch(rays, truth, {});
   auto agreeing = [&](const char* geo) {
     TracerOptions o;
-    o.hybridGeo = geo;
+    o.hybrid.geo = geo;
     const BuiltTracer hybrid = buildTracer("hybrid", f, o);
     hybrid.tracer->traceBatch(rays, answers, {});
     size_t same = 0;
@@ -561,7 +561,7 @@ TEST(Hybrid, RobustGeometricHalfAnswersAsTheReferenceAtSharedEdges) {
   EXPECT_EQ(agreeing("embree-robust"), rays.size()) << "plain Embree as the geometric half: " << plain << " of " << rays.size();
 }
 
-// Session 27: the geometric half continues the very ray a whole-ray query traces (GeoHitQueries),
+// The geometric half continues the very ray a whole-ray query traces (GeoHitQueries),
 // not a ray moved to where knowledge ended, whose own origin offset (1e-4 of its distance from the
 // eye) skipped the first stretch of the remainder. Found on assimp's cube_tristrips.dae: the
 // camera inside a 100-unit box looking into a far corner 135 units away, where reflection rays
@@ -592,9 +592,9 @@ TEST(Hybrid, RemaindersContinueTheWholeRay) {
   EXPECT_GT(dynamic_cast<const HybridTracer&>(*hybrid.tracer).stats().geoFraction(), 0.1) << "precondition: remainders";
 }
 
-// Issue 15's accuracy target on real views: ≥ 99.5 % of one-bounce reflection rays in the
-// strict correct classes (correct hit or correct miss), against HSSR's 34–68 %, with the
-// default screen tracer and with the layered depth cube (both ≥ 99.99 % since session 16).
+// Accuracy on real views: ≥ 99.99 % of one-bounce reflection rays in the strict correct classes
+// (correct hit or correct miss), against HSSR's 34–68 %, with the default screen tracer and
+// with the layered depth cube.
 TEST(Hybrid, RealScenesCorrectShareAtLeast99_99Percent) {
   ASSERT_TRUE(test::haveFetchedScenes()) << "run scripts/fetch-scenes.sh";
   for (auto [file, camera] : {std::pair{"fzk-haus.json", "interior"}, std::pair{"am-thornish.json", "hall"}, std::pair{"engine.json", "interior"}}) {
@@ -641,7 +641,7 @@ TEST(Hybrid, RealScenesCorrectShareAtLeast99_99Percent) {
     for (const char* screen : {"hssr", "ldc"}) {
       SCOPED_TRACE(screen);
       TracerOptions o;
-      o.hybridScreen = screen;
+      o.hybrid.screen = screen;
       const BuiltTracer hybrid = buildTracer("hybrid", f, o);
       hybrid.tracer->traceBatch(rays, answers, {});
       size_t correct = 0;
@@ -649,14 +649,14 @@ TEST(Hybrid, RealScenesCorrectShareAtLeast99_99Percent) {
         const RayClass k = classifyRay(rays[i], answers[i], reference[i], Query::Closest, f.camera, f.layers);
         correct += k == RayClass::CorrectHit || k == RayClass::CorrectMiss;
       }
-      // Session 16: HSSR's march holds the nearest depth in every pixel (1 / 0 / 0 wrong of
-      // 30 000 with it, 4 / 2 / 1 without), and the layered depth cube's hits are certified from
-      // the origin (47 / 47 / 52 wrong before: surfaces its texels missed).
+      // HSSR's march holds the nearest depth in every pixel (1 / 0 / 0 wrong of 30 000 with it,
+      // 4 / 2 / 1 without), and the layered depth cube's hits are certified from the origin
+      // (47 / 47 / 52 wrong otherwise: surfaces its texels missed).
       EXPECT_GE(double(correct), 0.9999 * double(rays.size()));
-      // Session 27: the geometric half continues whole rays (GeoHitQueries), so the hybrid's
-      // answers are plain Embree's bit for bit — point, normal, triangle — where both name the
-      // same triangle (before, a window or remainder started at a moved origin: the same triangle
-      // at a t a few ulps off).
+      // The geometric half continues whole rays (GeoHitQueries), so the hybrid's answers are
+      // plain Embree's bit for bit — point, normal, triangle — where both name the same triangle
+      // (a window or remainder started at a moved origin would find the same triangle at a t a
+      // few ulps off).
       size_t sameTriangle = 0, bitwise = 0;
       for (size_t i = 0; i < rays.size(); ++i) {
         if (!answers[i].hit || !plain[i].hit || answers[i].triangle != plain[i].triangle) continue;

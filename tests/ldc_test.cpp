@@ -1,4 +1,4 @@
-// Layered depth cubes (issue 12, screen/ldc.h, seed 004): the orthographic capture they are built
+// Layered depth cubes (Bürger et al. 2007; ldc/ldc.h): the orthographic capture they are built
 // with, analytic answers in a box room along every axis and octant, a reflection that leaves the
 // camera's frustum, the thin-triangle policy, block skipping that changes no answer, and the
 // strict classes against Embree on the real scenes.
@@ -9,7 +9,7 @@
 #include <glm/geometric.hpp>
 
 #include "layertrace/eval/classify.h"
-#include "layertrace/pipeline/tracer_factory.h"
+#include "layertrace/pipeline/tracer_registry.h"
 #include "layertrace/raster/rasterizer.h"
 #include "layertrace/scene/load.h"
 #include "test_util.h"
@@ -73,10 +73,10 @@ float exitDistance(glm::vec3 o, glm::vec3 d, glm::vec3 lo, glm::vec3 hi) {
   return t;
 }
 
-// Seed 004's analytic test: from points inside a box room, every ray — along each axis (it
-// stays in one texel column of one view and scans its list), along the 8 octant diagonals, and
-// in random directions — hits the wall it must, at the analytic distance (the walls are flat, so
-// the tangent-plane refinement is exact up to float rounding).
+// The analytic test of Bürger et al. 2007: from points inside a box room, every ray — along each
+// axis (it stays in one texel column of one view and scans its list), along the 8 octant diagonals,
+// and in random directions — hits the wall it must, at the analytic distance (the walls are flat,
+// so the tangent-plane refinement is exact up to float rounding).
 TEST(Ldc, BoxRoomRaysHitTheAnalyticWallAlongEveryAxisAndOctant) {
   const glm::vec3 lo{-5, -3, -12}, hi{5, 4, 3};
   Scene s = makeBox(lo, hi);
@@ -181,8 +181,8 @@ TEST(Ldc, ThinTriangleIsCountedAndKeptAtItsCentroid) {
   EXPECT_EQ(c2.degenerateTriangles, 1u);
 }
 
-// The blocks only skip: every block size and interval count (1 = seed 004's min/max) gives the
-// same answers bit for bit on the default scene's mirror and random rays.
+// The blocks only skip: every block size and interval count (1 = the min/max of Bürger et al. 2007)
+// gives the same answers bit for bit on the default scene's mirror and random rays.
 TEST(Ldc, BlocksChangeNoAnswer) {
   const Frame f = buildFrame([] {
     FrameOptions o;
@@ -212,9 +212,9 @@ TEST(Ldc, BlocksChangeNoAnswer) {
     }
 }
 
-// Issue 12 §5 on the real views: the layered depth cube's answers are the strict classes'
+// On the real views the layered depth cube's answers are the strict classes'
 // correct ones on at least 95 % of one-bounce reflection rays (HSSR: 34–68 %), and it has at most
-// half of HSSR's information misses (the target).
+// half of HSSR's information misses.
 TEST(Ldc, RealScenesAgreeWithEmbree) {
   ASSERT_TRUE(test::haveFetchedScenes()) << "run scripts/fetch-scenes.sh";
   for (auto [file, camera] : {std::pair{"fzk-haus.json", "interior"}, std::pair{"am-thornish.json", "hall"}, std::pair{"engine.json", "interior"}}) {

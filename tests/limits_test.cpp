@@ -1,19 +1,19 @@
-// Issue 16 §3: limits at scale. Every large structure states its size before it allocates and
+// Limits at scale. Every large structure states its size before it allocates and
 // is refused with one line naming it when that would break --max-memory; sizes parse with
 // units; the grid builds on scenes of degenerate extent (flat, tiny and far from the origin,
 // huge) and answers as Embree does there.
 #include <glm/geometric.hpp>
 
 #include "layertrace/geometry/embree_scene.h"
-#include "layertrace/geometry/irregular_grid.h"
-#include "layertrace/pipeline/tracer_factory.h"
+#include "layertrace/grid/irregular_grid.h"
+#include "layertrace/pipeline/tracer_registry.h"
 #include "layertrace/raster/raster_setup.h"
 #include "layertrace/raster/rasterizer.h"
 #include "layertrace/scene/load.h"
-#include "layertrace/screen/quadtree.h"
+#include "layertrace/quadtree/quadtree.h"
 #include "layertrace/util/error.h"
 #include "layertrace/util/memory.h"
-#include "layertrace/screen/known_space.h"
+#include "layertrace/hybrid/known_space.h"
 #include "test_util.h"
 
 namespace lt {
@@ -158,7 +158,7 @@ TEST(Limits, GridBuildsOnFlatTinyFarAndHugeScenes) {
   }
 }
 
-// Issue 16 §3: ≥ 10 M triangles. A height field of 2238² vertices (10.0 M triangles) builds into
+// ≥ 10 M triangles. A height field of 2238² vertices (10.0 M triangles) builds into
 // a grid (coarse densities keep the build to seconds) whose references cover every triangle,
 // with no 32-bit index wrapping, and rays straight down hit the analytically expected triangle.
 // With a memory limit the same build is refused with one line instead. Release only (the

@@ -11,7 +11,7 @@
 #include "layertrace/eval/classify.h"
 #include "layertrace/eval/image_oracle.h"
 #include "layertrace/eval/oracle_observer.h"
-#include "layertrace/pipeline/tracer_factory.h"
+#include "layertrace/pipeline/tracer_registry.h"
 #include "layertrace/render/effects.h"
 #include "layertrace/scene/load.h"
 #include "layertrace/util/error.h"
@@ -73,8 +73,8 @@ void expectAllAgreeWithOracle(const Camera& camera, const LayerArrays& layers, c
   EXPECT_LT(ambiguous, rays.size() / 20) << "most rays must be decidable";
 }
 
-// Issue 10 §3: a ray coming back towards the camera (after a mirror bounce) meets the deepest
-// of two overlapping intervals first; the tracers used to return the front-most.
+// A ray coming back towards the camera (after a mirror bounce) meets the deepest of two
+// overlapping intervals first, not the front-most.
 TEST(Oracle, RayWhoseDepthShrinksEntersTheDeeperOverlappingIntervalFirst) {
   const Camera camera(test::originCamera(60.0f, 0.05f, 100.0f), 64, 36);
   const LayerArrays layers = uniformLayers(64, 36, {{5.0f, 5.5f}, {5.3f, 6.0f}});
@@ -92,7 +92,7 @@ TEST(Oracle, RayWhoseDepthShrinksEntersTheDeeperOverlappingIntervalFirst) {
   EXPECT_GT(deeperFirst, 100) << "the rays must exercise the case: the deeper interval met first";
 }
 
-// Session 17: two AO rays of unseen assimp models (cube.ply, box.3mf) ended 1e-6 px inside a
+// Two AO rays of unseen assimp models (cube.ply, box.3mf) ended 1e-6 px inside a
 // pixel column in double and exactly on its boundary in float, and met an interval only in
 // that sliver: HSSR missed, the oracle hit, and nothing flagged the ray as undecidable. A ray
 // whose end lies within a float line's error of a boundary, with an interval at its end depth
@@ -131,7 +131,7 @@ TEST(Oracle, RayEndingOnAPixelBoundaryIsAmbiguousWhereTheSliverDecides) {
   }
 }
 
-// Issue 10 §3: the coarse entry divides by k1 − k0, ill-conditioned for rays nearly parallel to
+// The coarse entry divides by k1 − k0, ill-conditioned for rays nearly parallel to
 // the image plane (origin (−5, 0, −10), direction ≈ (1, 0, −2e-5), 1280×720, 60°: an error of
 // about 1.7 pixels); the back-off must cover it so the hierarchy never skips the pixel its own
 // level-0 scan hits. (Which pixel that is, float depth cannot resolve to better than a few
@@ -221,7 +221,7 @@ TEST(Oracle, HssrAndHizMatchTheIndependentOracleOnTheDefaultScene) {
   expectMatchesOracle(f, 20000, "hiz");
 }
 
-// Issue 10 "done when": raising --thickness 8× lowers the correct share and raises the
+// Raising --thickness 8× lowers the correct share and raises the
 // thickness wrong hits (the classifier reads no thickness option).
 TEST(Classify, ThickerIntervalsLowerTheCorrectShareAndRaiseThicknessWrongHits) {
   std::array<uint64_t, kRayClasses> counts[2];
@@ -249,7 +249,7 @@ TEST(Classify, ThickerIntervalsLowerTheCorrectShareAndRaiseThicknessWrongHits) {
 namespace lt {
 namespace {
 
-// Issue 10 "done when": 0 oracle mismatches on every real scene, reflection and random rays
+// 0 oracle mismatches on every real scene, reflection and random rays
 // plus their second bounces, at 1280×720 (not the constructed screen lines through pixel
 // corners: those are ambiguous by design, and hssr_test pins them against the exhaustive oracle).
 class RealSceneOracle : public ::testing::TestWithParam<std::pair<const char*, const char*>> {};
@@ -273,7 +273,7 @@ INSTANTIATE_TEST_SUITE_P(Scenes, RealSceneOracle,
 namespace lt {
 namespace {
 
-// Issue 10 §3: a flat wall with smoothly interpolated vertex normals (like the TUM kitchen's):
+// A flat wall with smoothly interpolated vertex normals (like the TUM kitchen's):
 // reflecting about the shading normal sends rays into the wall. Effects bend them out of the
 // geometric surface and count them, so no tracer hits the wall it starts from and the image-space
 // answers agree with Embree's.
@@ -343,7 +343,7 @@ EffectConfig warpBy(const Frame& f, float fraction, float forward = 0.0f) {
   return ec;
 }
 
-// Issue 11 §4: the warp with the second camera equal to the first reproduces the rasterized image.
+// The warp with the second camera equal to the first reproduces the rasterized image.
 TEST(Warp, SameCameraReproducesTheRasterizedImage) {
   const Frame f = defaultSceneFrame(4);
   EffectConfig shade;
@@ -376,8 +376,8 @@ TEST(Warp, EyeMovedForwardHasNoHolesWhereTheFirstViewSawEverything) {
   EXPECT_LT(std::count(a.holes.begin(), a.holes.end(), 1), long(a.holes.size() / 100));
 }
 
-// seed 002 Fig. 1: more layers fill what one leaves as holes; a hit with k layers is still a hit
-// with more (the front intervals stay), so holes never grow with k.
+// Widmer et al. 2015, Fig. 1: more layers fill what one leaves as holes; a hit with k layers is
+// still a hit with more (the front intervals stay), so holes never grow with k.
 TEST(Warp, MoreLayersNeverAddHoles) {
   size_t holes[3];
   int i = 0;
@@ -392,7 +392,7 @@ TEST(Warp, MoreLayersNeverAddHoles) {
   EXPECT_GT(holes[0], 0u);
 }
 
-// README "View synthesis": with all faces the second fragment of a closed object is its own back
+// View synthesis: with all faces the second fragment of a closed object is its own back
 // face; with --front-faces-only it is the surface the object hides, so two layers fill more of
 // one layer's holes.
 TEST(Warp, FrontFacesOnlyLetTheSecondLayerFillMoreHoles) {

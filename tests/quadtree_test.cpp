@@ -1,4 +1,4 @@
-// Widmer's plane/box quad-tree (seed 002, screen/quadtree.h): ray–plane hits on flat surfaces are
+// Widmer et al. 2015's plane/box quad-tree (quadtree/quadtree.h): ray–plane hits on flat surfaces are
 // exact against Embree at odd sizes and in every octant, a flat floor compresses into few plane
 // nodes, a depth step carries the discontinuity hint and an occlusion hit continues into the next
 // layer, and on a real scene the quadtree agrees with the independent oracle wherever the oracle
@@ -8,7 +8,7 @@
 #include <glm/geometric.hpp>
 
 #include "layertrace/eval/image_oracle.h"
-#include "layertrace/pipeline/tracer_factory.h"
+#include "layertrace/pipeline/tracer_registry.h"
 #include "layertrace/scene/load.h"
 #include "layertrace/screen/screen_segment.h"
 #include "layertrace/util/error.h"
@@ -35,7 +35,7 @@ size_t pixelsUnderPlanes(const Quadtree& t, int layer, int level) {
   return n << (2 * level);
 }
 
-// Issue 11 §4: analytic planes — hits exact to 1e-4 relative, odd sizes, every octant; the
+// Analytic planes — hits exact to 1e-4 relative, odd sizes, every octant; the
 // floor compresses into few plane nodes.
 TEST(Quadtree, HitsOnATiltedFloorAndCeilingAreExactInEveryOctantAtOddSizes) {
   const Scene scene = tiltedCorridor();
@@ -97,7 +97,7 @@ Frame depthStepFrame(int k) {
   return test::frameOf(s, test::originCamera(60.0f, 0.05f, 100.0f), 65, 49, k, 0.1f);
 }
 
-// Issue 11 §4: a depth step — the discontinuity hint is set along it, a ray passing behind the
+// A depth step — the discontinuity hint is set along it, a ray passing behind the
 // near wall records an occlusion hit, and the next layer finds the hidden far wall.
 TEST(Quadtree, DepthStepFlagsTheEdgeAndTheNextLayerFindsTheHiddenSurface) {
   const Frame f = depthStepFrame(4);
@@ -135,7 +135,7 @@ TEST(Quadtree, DepthStepFlagsTheEdgeAndTheNextLayerFindsTheHiddenSurface) {
   }
 }
 
-// Issue 11 §4: where the independent oracle hits the true surface (Embree's triangle) and that
+// Where the independent oracle hits the true surface (Embree's triangle) and that
 // surface is flat around its pixel (the pixel and its 8 neighbours store the same triangle in
 // that layer and carry no discontinuity hint), the quadtree hits the same triangle. Elsewhere
 // the two differ by design: the oracle hits z-thickness intervals (also where the ray only
@@ -182,7 +182,7 @@ TEST(Quadtree, RejectsNegativeThresholdsNamingTheOption) {
     validateQuadtreeConfig(c);
     FAIL() << "no error";
   } catch (const InputError& e) {
-    EXPECT_NE(std::string(e.what()).find("--gamma-dist"), std::string::npos) << e.what();
+    EXPECT_NE(std::string(e.what()).find("--quadtree-gamma-dist"), std::string::npos) << e.what();
   }
 }
 

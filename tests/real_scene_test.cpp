@@ -20,7 +20,7 @@ struct VerifyCase {
 
 class RealSceneVerify : public ::testing::TestWithParam<VerifyCase> {};
 
-// Issue 2 §7: the fragment lists match Embree's all-hit primary rays on ≥ 99.9 % of pixels at
+// The fragment lists match Embree's all-hit primary rays on ≥ 99.9 % of pixels at
 // 1280×720. The residue is pixels whose centre lies exactly on a shared edge or vertex, where
 // Embree reports both or neither neighbour and the top-left rule reports exactly one, and
 // near-grazing triangles whose coverage flips within float precision.
@@ -36,7 +36,7 @@ TEST_P(RealSceneVerify, FragmentListsMatchEmbreeAllHits) {
   EXPECT_GE(v.matchFraction(), 0.999) << "fewer " << v.fewerFragments << " more " << v.moreFragments << " depth " << v.depthMismatch;
 }
 
-// Issue 13 §6: on real views the tile-local capture (the default pipeline) gives the reference
+// On real views the tile-local capture (the default pipeline) gives the reference
 // pipeline's k-layer arrays and depth complexity bit for bit, with 1 and 2 threads, and with
 // lists the same fragments in every pixel's list in the same order.
 TEST_P(RealSceneVerify, TileLocalCaptureEqualsReferencePipeline) {

@@ -78,7 +78,7 @@ TEST(SceneJson, ErrorsNameTheInputAndValue) {
   EXPECT_NE(err(R"({"objects": [{"model": "missing.obj"}]})").find("missing.obj: file not found"), std::string::npos);
   EXPECT_NE(err(R"({"objects": [{"sphere": {"radius": 1}}], "cameras": [{"eye": [0,0,1], "target": [0,0,0], "fov": 0}]})").find("fov"), std::string::npos);
   EXPECT_NE(err("").find("x.json: malformed JSON"), std::string::npos);
-  // Found by a sweep of hand-written scene files (session 14): each refused by name.
+  // Found by a sweep of hand-written scene files: each refused by name.
   EXPECT_NE(err(R"({"objects": [{"sphere": {"radius": 1, "segments": 3.9}}]})").find("segments: value 3.9 is not a whole number"), std::string::npos);
   EXPECT_NE(err(R"({"objects": [{"sphere": {"radius": 1, "segments": 1e30}}]})").find("segments: value 1e+30"), std::string::npos);
   EXPECT_NE(err(R"({"objects": [{"box": {"min": [0,0,0], "max": [1,0,1]}}]})").find("x.json: objects[0].box: box: max must exceed min"), std::string::npos);
@@ -278,9 +278,10 @@ double distanceToArch(glm::dvec2 q) {
   return best;
 }
 
-// DATA.md: assimp 5.2's importer drops Quake 3's curved surfaces. They are tessellated from the
-// map: on the Bézier surface, within the tolerance, one watertight grid across both patches,
-// front faces toward the control points' normals; nodraw patches (collision only) are skipped.
+// Quake 3 maps (docs/data.md): assimp 5.2's importer drops Quake 3's curved surfaces. They are
+// tessellated from the map: on the Bézier surface, within the tolerance, one watertight grid across
+// both patches, front faces toward the control points' normals; nodraw patches (collision only) are
+// skipped.
 TEST(SceneQuake3, PatchesAreTessellatedOnTheirSurfaceWithinTheTolerance) {
   const std::string map = mapWithPatches();
   const auto* bytes = reinterpret_cast<const unsigned char*>(map.data());
@@ -418,9 +419,9 @@ TEST(SceneLoad, EmbeddedTexturesGiveTheirMeanColourToo) {
 }
 
 // A 3MF file with a thumbnail, as most 3MF writers make them: assimp 5.2.5's importer leaves the
-// scene's texture pointers dangling and its destructor frees them again (session 28's sweep:
-// "free(): invalid pointer", status 134, on assimp's own cube_gears_prod_req.3mf; under ASan a
-// double free). It loads now, from a file and from memory, with its one triangle.
+// scene's texture pointers dangling and its destructor frees them again (found by a sweep of
+// assimp's models: "free(): invalid pointer", status 134, on assimp's own cube_gears_prod_req.3mf;
+// under ASan a double free). It loads now, from a file and from memory, with its one triangle.
 TEST(SceneLoad, A3mfWithAThumbnailLoads) {
   test::TempDir dir;
   const uint8_t texel[] = {0, 255, 0};
@@ -452,8 +453,8 @@ TEST(SceneLoad, A3mfWithAThumbnailLoads) {
 
 // Material strings are read from the property's bytes: assimp's getter aborts the process on a
 // string stored without its zero byte (assimp 5.2.5's MDL7 reader writes such texture names:
-// session 28's sweep, `broadleavedtreeD.mdl`, status 134), and trusts the stored length. Its
-// number getters parse strings and abort on the same, so such a number is not read.
+// found by a sweep of assimp's models, `broadleavedtreeD.mdl`, status 134), and trusts the stored
+// length. Its number getters parse strings and abort on the same, so such a number is not read.
 TEST(SceneLoad, MaterialStringsWithoutTheirZeroByteAreRead) {
   aiMaterial m;
   aiString name("brick");

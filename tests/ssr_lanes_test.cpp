@@ -1,16 +1,16 @@
-// seed 001's march in AVX-512 lanes (screen/ssr_march_lanes.h) against the one-ray march it
-// must equal bit for bit: the same pixel, interval and sample parameter for every ray, over the
-// front layer (ssr) and all k ≤ 4 layers (ssr-layers), strides 1 and 3, with jitter, with a step
-// cap that ends marches early, in batches shorter than the lanes, of the renderer's 256, and all
-// at once; and the tracers' uncounted batches against their one-ray answers.
+// The SSR march of McGuire and Mara 2014 in AVX-512 lanes (ssr/ssr_march_lanes.h) against the
+// one-ray march it must equal bit for bit: the same pixel, interval and sample parameter for every
+// ray, over the front layer (ssr) and all k ≤ 4 layers (ssr-layers), strides 1 and 3, with jitter,
+// with a step cap that ends marches early, in batches shorter than the lanes, of the renderer's
+// 256, and all at once; and the tracers' uncounted batches against their one-ray answers.
 #include <bit>
 #include <cstdio>
 
 #include <gtest/gtest.h>
 
 #include "layertrace/pipeline/frame.h"
-#include "layertrace/screen/ssr_march_lanes.h"
-#include "layertrace/screen/ssr_tracer.h"
+#include "layertrace/ssr/ssr_march_lanes.h"
+#include "layertrace/ssr/ssr_tracer.h"
 #include "test_util.h"
 
 namespace lt {

@@ -1,4 +1,4 @@
-// Screen-space tracers on analytic scenes with known answers (issue 3 §5): a mirror floor in
+// Screen-space tracers on analytic scenes with known answers: a mirror floor in
 // front of a wall, rays leaving the screen or passing behind the near plane, z-thickness,
 // hidden surfaces, no false positives, and the share of hits the non-conservative DDA skips.
 #include <cmath>
@@ -11,9 +11,9 @@
 #include "layertrace/pipeline/frame.h"
 #include "layertrace/geometry/geometric_tracer.h"
 #include "layertrace/scene/load.h"
-#include "layertrace/screen/hssr_tracer.h"
+#include "layertrace/hssr/hssr_tracer.h"
 #include "layertrace/screen/screen_segment.h"
-#include "layertrace/screen/ssr_tracer.h"
+#include "layertrace/ssr/ssr_tracer.h"
 #include "test_util.h"
 
 namespace lt {
@@ -232,8 +232,8 @@ TEST(ScreenTracers, SsrLayersReportsNoFalsePositives) {
   }
 }
 
-/// Seed 000 Figure 10: the non-conservative DDA of SSR skips hits the conservative one finds.
-/// Measured and reported here (not hidden); bounded so a broken SSR would fail.
+/// Hofmann et al. 2017, Figure 10: the non-conservative DDA of SSR skips hits the conservative one
+/// finds. Measured and reported here (not hidden); bounded so a broken SSR would fail.
 TEST(ScreenTracers, SsrSkipRateAgainstTheExhaustiveOracleIsMeasured) {
   FrameOptions o;
   o.scenePath = test::sourceDir() + "/scenes/default.json";
@@ -275,7 +275,7 @@ RayClass classifyWith(const Tracer& tracer, const Tracer& reference, const Frame
   return classifyRay(r, tracer.trace(r, c), reference.trace(r, c), Query::Closest, f.camera, f.layers);
 }
 
-// Issue 5 §6: each class constructed on purpose.
+// Each class constructed on purpose.
 TEST(Classify, ReflectionOfSomethingOffScreenIsAnInformationMiss) {
   const Frame f = floorAndWall(320, 180, 4, 0.1f, 0.3f);
   const Tracers t(f);

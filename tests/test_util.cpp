@@ -103,7 +103,7 @@ std::vector<Ray> sampleRays(const Frame& f, size_t count, uint64_t seed, bool sc
     const glm::vec3 n = decodeOctahedral(frag.normal);
     const glm::vec3 v = glm::normalize(r.origin);
     if (screenLines && rays.size() % 4 == 3) {
-      // Exactly diagonal or axis-parallel screen lines through pixel corners (hssr-pitfalls §7):
+      // Exactly diagonal or axis-parallel screen lines through pixel corners (the DDA's ties):
       // a direction parallel to the image plane projects to a line of the same direction.
       static const glm::vec3 dirs[8] = {{1, 1, 0}, {1, -1, 0}, {-1, 1, 0}, {-1, -1, 0}, {1, 0, 0}, {-1, 0, 0}, {0, 1, 0}, {0, -1, 0}};
       r.dir = glm::normalize(dirs[rays.size() / 4 % 8]);

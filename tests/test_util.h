@@ -57,7 +57,7 @@ std::string sceneCaseName(const std::string& sceneFile);
 
 /// `count` rays from random covered pixels' front surfaces: mirror reflections, random
 /// directions, and (with `screenLines`) exactly diagonal or axis-parallel screen lines
-/// (hssr-pitfalls §7), in turn.
+/// (the ties of the DDA), in turn.
 std::vector<Ray> sampleRays(const Frame& f, size_t count, uint64_t seed, bool screenLines = true);
 
 /// A frame of an in-code scene: rasterized and sorted with the given view, size, k, thickness.

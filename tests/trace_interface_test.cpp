@@ -1,15 +1,16 @@
 // The tracing core (trace/): every tracer's batch paths answer exactly as its one-ray reference
 // path, counted or not; effects report every traced ray to an observer without changing the
-// image; and the source tree keeps the layering of DESIGN.md.
+// image; and the source tree keeps the layering of docs/architecture.md.
 #include <bit>
 #include <cstring>
 #include <filesystem>
 #include <fstream>
 #include <map>
+#include <set>
 #include <mutex>
 #include <random>
 
-#include "layertrace/pipeline/tracer_factory.h"
+#include "layertrace/pipeline/tracer_registry.h"
 #include "layertrace/render/effects.h"
 #include "test_util.h"
 
@@ -68,7 +69,7 @@ TEST(TraceInterface, BatchPathsAnswerAsTheOneRayPathBitForBit) {
   }
 }
 
-// Issue 14 §4: plain Embree in 16-wide packets (compare's packet baseline) answers the same rays
+// Plain Embree in 16-wide packets (compare's packet baseline) answers the same rays
 // as one rtcIntersect1 per ray, batches of any length (partial packets) included.
 TEST(TraceInterface, EmbreePacketsAnswerAsSingleRays) {
   const Frame f = defaultFrame();
@@ -113,7 +114,7 @@ TEST(TraceInterface, EmbreePacketsAnswerAsSingleRays) {
 // batches of any length, and the counted path counts as the one-ray path does. Segments started
 // at from[i] are the whole ray started later: where its hit lies at or past from[i], the segment
 // finds that hit bit for bit — from 0, from just before the hit (within the 1e-4 relative origin
-// offset a ray moved to from[i] skips: session 27; and 10⁻⁷ of the hit's distance before it,
+// offset a ray moved to from[i] skips; and 10⁻⁷ of the hit's distance before it,
 // within the rounding of plain Embree's tests), from exactly the hit, from anywhere before it —
 // and where it lies before from[i], the segment's hit lies at most the slack before from[i].
 // Any hits are the closest hits' verdicts.
@@ -255,18 +256,24 @@ TEST(TraceInterface, ObserverSeesEveryRayAndChangesNothing) {
   }
 }
 
-// DESIGN.md "Layout": a layer includes only layers below it; screen/ and geometry/ never
+// docs/architecture.md: a layer includes only layers below it; screen/ and geometry/ never
 // include each other.
 TEST(TraceInterface, SourceTreeKeepsTheLayering) {
-  const std::map<std::string, int> rank = {{"util", 0},     {"scene", 1},  {"raster", 2},   {"trace", 3},  {"screen", 4}, {"geometry", 4},
-                                           {"hybrid", 5},   {"pipeline", 6}, {"render", 7}, {"eval", 8},   {"api", 9}, {"app", 10}};
+  // docs/architecture.md: a folder includes only folders of a lower rank. Folders of one rank are
+  // siblings and never include each other (ssr/ and hssr/, geometry/ and screen/).
+  const std::map<std::string, int> rank = {
+      {"util", 0},     {"scene", 1},    {"raster", 2}, {"trace", 3},  {"screen", 4}, {"geometry", 4}, {"ssr", 5},
+      {"hssr", 5},     {"quadtree", 5}, {"ldc", 5},    {"grid", 5},   {"hiz", 6},    {"hybrid", 7},   {"pipeline", 8},
+      {"render", 9},   {"eval", 10},    {"api", 11},   {"app", 12}};
+  // Image space answers from stored fragments only; geometry answers from triangles only.
+  const std::set<std::string> imageSpace = {"screen", "ssr", "hssr", "hiz", "quadtree", "ldc"}, geometric = {"geometry", "grid"};
   const std::string include = "#include \"layertrace/";
   const std::filesystem::path root = std::filesystem::path(test::sourceDir()) / "src/layertrace";
   size_t files = 0;
   for (const auto& entry : std::filesystem::recursive_directory_iterator(root)) {
     if (!entry.is_regular_file()) continue;
     const std::string layer = entry.path().parent_path().filename().string();
-    ASSERT_TRUE(rank.count(layer)) << "folder " << layer << " is not a layer of DESIGN.md";
+    ASSERT_TRUE(rank.count(layer)) << "folder " << layer << " is not a layer of docs/architecture.md";
     std::ifstream in(entry.path());
     std::string line;
     ++files;
@@ -278,6 +285,8 @@ TEST(TraceInterface, SourceTreeKeepsTheLayering) {
       const std::string to = line.substr(begin, slash - begin);
       ASSERT_TRUE(rank.count(to)) << entry.path() << " includes unknown layer " << to;
       if (to == layer) continue;
+      EXPECT_FALSE(imageSpace.count(layer) && geometric.count(to)) << entry.path() << " (image space) includes " << to;
+      EXPECT_FALSE(geometric.count(layer) && imageSpace.count(to)) << entry.path() << " (geometric) includes " << to;
       EXPECT_LT(rank.at(to), rank.at(layer)) << entry.path() << " (" << layer << ") includes " << to << ": " << line;
     }
   }

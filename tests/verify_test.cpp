@@ -49,7 +49,7 @@ TEST(Verify, FindsADepthErrorOnAWallSeenAtAnAngle) {
   EXPECT_EQ(broken.matching + 1, clean.matching);
 }
 
-// Session 27's sweep: a random eye 4.5·10⁻⁶ units under a textured plane (assimp's
+// Found by a sweep of random views: a random eye 4.5·10⁻⁶ units under a textured plane (assimp's
 // TexturedPlane_ImageUvPacked_248.blend, 5.75 units from the origin) that it sees at a grazing
 // angle, with the view's up vector tilted (upright, the two sides agree). The depth along a ray
 // grazing the plane is ill-conditioned: with the 10⁻⁴ tolerance alone all 968 covered pixels

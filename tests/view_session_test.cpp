@@ -99,7 +99,7 @@ TEST(ViewSession, RefusedOptionsBecomeMessages) {
   EXPECT_TRUE(bad.image.data.empty());
   q.layers = 4;
   q.tracers.pyramid.tau = -1.0f;
-  EXPECT_NE(session.render(q).error.find("--tau"), std::string::npos);
+  EXPECT_NE(session.render(q).error.find("--hssr-tau"), std::string::npos);
   q.tracers.pyramid.tau = 25.0f;
   EXPECT_TRUE(session.render(q).error.empty());  // and the session still works
   EXPECT_THROW(parseViewOverlay("nope"), InputError);

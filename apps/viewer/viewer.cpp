@@ -1,4 +1,4 @@
-// `layertrace view`: the interactive viewer (issue 17). A GLFW window with an OpenGL 3.3 core
+// `layertrace view`: the interactive viewer. A GLFW window with an OpenGL 3.3 core
 // context shows the CPU pipeline's picture as a texture behind a Dear ImGui panel; a worker
 // thread renders (ViewSession, app/view_session.h) while the UI keeps drawing, the newest
 // request replacing any older one that has not started. While the camera moves the worker
@@ -131,10 +131,9 @@ struct FlyCamera {
   }
 };
 
-std::vector<std::string> tracerNames() {
+std::vector<std::string> registeredTracers() {
   std::vector<std::string> names;
-  std::stringstream in(kTracerNames);
-  for (std::string n; std::getline(in, n, ',');) names.push_back(n.substr(n.find_first_not_of(' ')));
+  for (const lt::TracerEntry& e : lt::tracerRegistry()) names.push_back(e.info.name);
   return names;
 }
 
@@ -279,7 +278,7 @@ int runViewer(const ViewOptions& o) {
   glGenTextures(1, &texture);
   std::vector<uint8_t> bytes;  // reused for every upload
   std::optional<ViewResult> shown;
-  const std::vector<std::string> tracers = tracerNames();
+  const std::vector<std::string> tracers = registeredTracers();
   std::vector<CameraDesc> cameras = session.frame().scene.cameras;
   cameras.insert(cameras.begin(), request.camera);
   cameras.front().name = request.camera.name.empty() ? "start" : request.camera.name;

@@ -10,7 +10,7 @@
 #include <glm/geometric.hpp>
 
 #include "layertrace/eval/classify.h"
-#include "layertrace/pipeline/tracer_factory.h"
+#include "layertrace/pipeline/tracer_registry.h"
 #include "layertrace/render/effects.h"
 #include "layertrace/util/error.h"
 #include "layertrace/util/image.h"
@@ -205,7 +205,8 @@ ScreenLayers ScreenLayers::fromFragments(const View& view, std::span<const uint3
   expectSize("depth", depth.size(), offsets[pixels], false);
   expectSize("normals", normals.size(), depth.size(), true);
   expectSize("ids", ids.size(), depth.size(), true);
-  // As the rasterizer leaves them: per-pixel lists of 16-byte nodes, then seed 000 §4.2's sort.
+  // As the rasterizer leaves them: per-pixel lists of 16-byte nodes, then the sort of
+  // Hofmann et al. 2017, §4.2.
   FragmentLists lists;
   lists.width = view.width, lists.height = view.height;
   lists.head.assign(pixels, kNullIndex);
@@ -350,7 +351,7 @@ void RgbImage::savePng(const std::string& path) const {
 }
 
 RgbImage render(const TriangleScene& scene, const RenderRequest& r) {
-  if (!isKnownTracer(r.tracer)) invalid(cat("tracer \"", r.tracer, "\": unknown (use ", kTracerNames, ")"));
+  if (!isKnownTracer(r.tracer)) invalid(cat("tracer \"", r.tracer, "\": unknown (use ", tracerNames(), ")"));
   if (r.layers < 1 || r.layers > 16) invalid(cat("layers ", r.layers, ": must be between 1 and 16"));
   return guarded([&] {
     EffectConfig ec;

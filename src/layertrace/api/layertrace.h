@@ -4,7 +4,7 @@
 //   #include <layertrace/layertrace.h>          CMake: find_package(layertrace) → layertrace::layertrace
 //                                               pkg-config: layertrace
 //
-// Layer: api/ is the installed interface of the library (README "Using layertrace as a library").
+// Layer: api/ is the installed interface of the library (docs/library.md).
 // It may include every layer except app/ (the CLI); this header itself includes only
 // trace/tracer.h (Ray, TraceHit) and the generated export header, so that it installs alone.
 //
@@ -68,7 +68,7 @@ class LAYERTRACE_API ScreenLayers {
                                  std::span<const glm::vec3> normals = {}, std::span<const uint32_t> ids = {});
   /// (c) Full fragment lists: pixel p's fragments are [offsets[p], offsets[p+1]) of `depth`
   /// (width · height + 1 offsets, non-decreasing; fragments in any order); they are sorted and the
-  /// k front-most kept, each `thicknessPx` pixel footprints thick (seed 000 §4.2).
+  /// k front-most kept, each `thicknessPx` pixel footprints thick (Hofmann et al. 2017, §4.2).
   static ScreenLayers fromFragments(const View& view, std::span<const uint32_t> offsets, std::span<const float> depth,
                                     std::span<const glm::vec3> normals = {}, std::span<const uint32_t> ids = {}, int k = 4,
                                     float thicknessPx = 6.0f);
@@ -93,7 +93,7 @@ class LAYERTRACE_API ScreenLayers {
 /// Which space rays (and the hits returned for them) are in.
 enum class RaySpace : uint8_t { Camera, World };
 
-/// A screen-space tracer over ScreenLayers (which must outlive it): "hssr" (seed 000's
+/// A screen-space tracer over ScreenLayers (which must outlive it): "hssr" (Hofmann et al. 2017's
 /// hierarchical tracer, exact against its oracle), "hiz", "ssr", "ssr-layers" or "quadtree".
 /// It builds the structure it needs (e.g. the interval pyramid) once; std::invalid_argument for
 /// another name. Its trace calls may run concurrently from several threads.
@@ -105,9 +105,9 @@ class LAYERTRACE_API ScreenTracer {
 
   /// Closest hit of every ray: hits[i] answers rays[i] (same sizes). A hit carries its pixel,
   /// layer, the point where the ray meets the stored interval, and the stored normal and id, in
-  /// the rays' space. Secondary rays (Ray::startsOnSurface) skip their own pixel (seed 000 §5.1).
-  /// std::invalid_argument for different sizes, a non-finite origin, a direction that is not of
-  /// unit length or a maxDistance that is not positive (naming rays[i]).
+  /// the rays' space. Secondary rays (Ray::startsOnSurface) skip their own pixel
+  /// (Hofmann et al. 2017, §5.1). std::invalid_argument for different sizes, a non-finite origin, a
+  /// direction that is not of unit length or a maxDistance that is not positive (naming rays[i]).
   void trace(std::span<const Ray> rays, std::span<TraceHit> hits, RaySpace space = RaySpace::Camera) const;
   /// Whether anything blocks each ray before its maxDistance (hits[i].hit).
   void occluded(std::span<const Ray> rays, std::span<TraceHit> hits, RaySpace space = RaySpace::Camera) const;
@@ -144,9 +144,9 @@ class LAYERTRACE_API TriangleScene {
 
 /// A geometric tracer over a TriangleScene (which must outlive it), for rays in `view`'s camera
 /// space (or world space): "embree" (Embree 3, robust mode: layertrace's ground truth) or "grid"
-/// (seed 003's irregular grid); std::invalid_argument for another name or an invalid view. Hits
-/// carry the triangle index, the exact point and normal, and layer -1; trace and occluded
-/// validate their arguments as ScreenTracer's do.
+/// (the irregular grid of Pérard-Gayot et al. 2017); std::invalid_argument for another name or an
+/// invalid view. Hits carry the triangle index, the exact point and normal, and layer -1; trace and
+/// occluded validate their arguments as ScreenTracer's do.
 class LAYERTRACE_API MeshTracer {
  public:
   MeshTracer(const TriangleScene& scene, const View& view, const std::string& name = "embree");
@@ -161,7 +161,7 @@ class LAYERTRACE_API MeshTracer {
   std::unique_ptr<Impl> impl_;
 };
 
-/// The strict classes of layertrace's evaluation (README "How rays are graded"): CorrectHit,
+/// The strict classes of layertrace's evaluation (docs/evaluation.md): CorrectHit,
 /// WrongHitThickness, WrongHitUnstored, WrongHitOther, FalseMiss, OriginPixelMiss, InfoMiss,
 /// CorrectMiss (trace/tracer.h).
 using HitClass = RayClass;

@@ -1,9 +1,12 @@
-// layertrace — the command-line interface of DESIGN.md (app/cli.h).
+// layertrace — the command-line interface (app/cli.h; docs/cli.md lists every flag).
 // Exit status: 0 success, 2 bad input (one line naming the input and value), 1 internal error.
 #include "layertrace/app/cli.h"
 
+#include <algorithm>
 #include <cmath>
+#include <filesystem>
 #include <limits>
+#include <map>
 #include <iostream>
 #include <memory>
 #include <optional>
@@ -15,6 +18,7 @@
 
 #include "layertrace/app/commands.h"
 #include "layertrace/app/view_session.h"
+#include "layertrace/app/version.h"
 #include "layertrace/util/error.h"
 #include "layertrace/util/image.h"
 
@@ -63,8 +67,9 @@ struct RawFrameOptions {
   std::string maxMemory;            ///< --max-memory
 };
 
-void addFrameOptions(CLI::App* app, lt::RunOptions& run, RawFrameOptions& raw) {
+void addFrameOptions(CLI::App* app, lt::RunOptions& run, RawFrameOptions& raw, const char* outputHelp) {
   lt::FrameOptions& f = run.frame;
+  app->add_option("-o,--output", run.output, outputHelp);
   app->add_option("SCENE", f.scenePath, "JSON scene file or any model file assimp reads")->required();
   app->add_option("--camera", f.cameraName, "named camera of the scene (default: its first, else auto-framed)");
   app->add_option("--eye", raw.eye, "camera position x,y,z (overrides --camera)");
@@ -78,48 +83,42 @@ void addFrameOptions(CLI::App* app, lt::RunOptions& run, RawFrameOptions& raw) {
   app->add_option("--thickness-px", raw.thicknessPx,
                   lt::cat("fragment z-thickness in pixel footprints at the fragment's depth (default ", lt::kDefaultThicknessPx, ")"));
   app->add_option("--min-separation", f.minSeparation, "minimum depth separation of kept layers (0 = off)")->capture_default_str();
-  app->add_flag("--adaptive-thickness", f.adaptiveThickness, "merge fragments that start inside the previous kept interval (seed 000 §4.2)");
+  app->add_flag("--adaptive-thickness", f.adaptiveThickness, "merge fragments that start inside the previous kept interval (Hofmann et al. 2017, §4.2)");
   app->add_flag("--front-faces-only", f.frontFacesOnly, "capture only triangles facing the camera (layers = nearest front surfaces)");
   app->add_option("--pool", f.pool, "fragment pool capacity (0 = automatic, grows on overflow)")->capture_default_str()->check(CLI::NonNegativeNumber);
   app->add_option("--max-memory", raw.maxMemory, "refuse, before allocating, any structure that would take the process past this size, e.g. 4G (default: the memory available)");
   app->add_option("--light", raw.lights, "add a point light x,y,z[,intensity] (repeatable; default light: above the eye)");
   app->add_option("--threads", run.threads, "worker threads (0 = all cores)")->capture_default_str();
   app->add_option("--seed", run.seed, "random seed")->capture_default_str()->check(CLI::NonNegativeNumber);
-  app->add_option("--stats", run.statsPath, "write statistics JSON to this file");
-  app->add_option("--pixelstats", run.pixelStats, "write per-pixel counter images to this folder");
-  app->add_option("-o,--output", run.output, "output image (render) or folder");
+  app->add_option("--stats", run.statsPath, "write the statistics JSON here instead of beside the main output");
+  app->add_option("--pixelstats", run.pixelStats,
+                  "write per-pixel counter images to this folder (default: beside the main output; render, compare, layers)")
+      ->expected(0, 1);
   app->add_flag("--quiet", run.quiet, "no progress or summary output");
 }
 
-void addGridOptions(CLI::App* app, lt::GridConfig& g) {
-  app->add_option("--lambda1", g.lambda1, "grid: top-level density (seed 003)")->capture_default_str();
-  app->add_option("--lambda2", g.lambda2, "grid: second-level density (seed 003)")->capture_default_str();
-  app->add_flag("--partial-expansion,!--no-partial-expansion", g.partialExpansion,
-                "grid: also expand into neighbours whose swept part holds only shared primitives (default on)");
+/// A registry parameter's flag, bound to its field in `options`; its older spelling, if any, is a
+/// hidden alias bound to the same field.
+void addParam(CLI::App* app, const lt::TracerParam& p, lt::TracerOptions& options) {
+  const std::string help = lt::cat(p.group, ": ", p.help);
+  std::visit(
+      [&](auto* field) {
+        if constexpr (std::is_same_v<decltype(field), bool*>) {
+          const auto names = [](const std::string& flag) { return flag + ",!--no-" + flag.substr(2); };
+          app->add_flag(names(p.flag), *field, help + (*field ? " (default on)" : " (default off)"));
+          if (*p.alias) app->add_flag(names(p.alias), *field)->group("");
+        } else {
+          app->add_option(p.flag, *field, help)->capture_default_str();
+          if (*p.alias) app->add_option(p.alias, *field)->group("");
+        }
+      },
+      p.field(options));
 }
 
-void addLdcOptions(CLI::App* app, lt::LdcConfig& c) {
-  app->add_option("--ldc-resolution", c.resolution, "ldc: texels along the scene box's longest axis (seed 004: 512, 1024)")->capture_default_str();
-  app->add_option("--ldc-block", c.block, "ldc: coarse block edge in texels (seed 004 §1.3)")->capture_default_str();
-  app->add_option("--ldc-block-intervals", c.blockIntervals, "ldc: depth intervals per block (1 = seed 004's min/max)")->capture_default_str();
-  app->add_option("--ldc-epsilon", c.epsilon, "ldc: hit tolerance in texels (a sample's patch is widened by this much)")->capture_default_str();
-}
-
-void addTracerOptions(CLI::App* app, lt::TracerOptions& t) {
-  app->add_option("--stride", t.ssr.stride, "ssr: pixels per step")->capture_default_str();
-  app->add_option("--jitter", t.ssr.jitter, "ssr: start offset in strides, [0,1]")->capture_default_str();
-  app->add_option("--max-steps", t.ssr.maxSteps, "ssr: step limit (0 = to the viewport edge)")->capture_default_str();
-  app->add_option("--tau", t.pyramid.tau, "hssr: merge threshold in pixel footprints")->capture_default_str();
-  app->add_option("--levels", t.pyramid.levels, "hssr: pyramid levels incl. level 0")->capture_default_str();
-  app->add_option("--n-up", t.hssr.nUp, "hssr: cells without overlap before ascending (sooner on entering a new parent cell)")->capture_default_str();
-  app->add_option("--lambda-h", t.quadtree.lambdaH, "quadtree: zero one-sided depth derivatives above this (seed 002 Alg. 1)")->capture_default_str();
-  app->add_option("--lambda-d", t.quadtree.lambdaD, "quadtree: Laplacian discontinuity threshold (seed 002 Alg. 1)")->capture_default_str();
-  app->add_option("--gamma-norm", t.quadtree.gammaNorm, "quadtree: merge planes whose normals differ by less (1 - dot)")->capture_default_str();
-  app->add_option("--gamma-dist", t.quadtree.gammaDist, "quadtree: merge planes within this relative depth")->capture_default_str();
-  app->add_option("--hybrid-screen", t.hybridScreen, "hybrid: the screen tracer (hssr, hiz, quadtree, ldc)")->capture_default_str();
-  app->add_option("--hybrid-geo", t.hybridGeo, "hybrid: the geometric tracer for what the layers do not know (embree, embree-robust, grid)")->capture_default_str();
-  addLdcOptions(app, t.ldc);
-  addGridOptions(app, t.grid);
+/// The registry's parameters of `groups` (every group when empty), bound to `t`.
+void addTracerOptions(CLI::App* app, lt::TracerOptions& t, std::initializer_list<std::string_view> groups = {}) {
+  for (const lt::TracerParam& p : lt::tracerParams())
+    if (groups.size() == 0 || std::find(groups.begin(), groups.end(), p.group) != groups.end()) addParam(app, p, t);
 }
 
 void addEffectOptions(CLI::App* app, lt::EffectConfig& e, std::string& effectName, RawFrameOptions& raw) {
@@ -162,6 +161,40 @@ void finishFrameOptions(lt::RunOptions& run, const RawFrameOptions& raw) {
   if (run.threads < 0) inputError("--threads ", run.threads, ": must be >= 0");
 }
 
+/// Options every subcommand accepts (one shared command line) that some commands have no use
+/// for: naming one there prints a warning instead of passing in silence.
+void warnUnused(const CLI::App& cmd) {
+  static const std::map<std::string, std::vector<std::string>> unused = {
+      {"layers", {"--light", "--seed"}},
+      {"geobench", {"--layers", "--thickness", "--thickness-px", "--min-separation", "--adaptive-thickness", "--front-faces-only",
+                    "--pool", "--light", "--pixelstats"}},
+      {"ldc", {"--camera", "--eye", "--target", "--up", "--fov", "--width", "--height", "--layers", "--thickness", "--thickness-px",
+               "--min-separation", "--adaptive-thickness", "--front-faces-only", "--pool", "--light", "--seed", "--pixelstats"}},
+      {"bench", {"--pixelstats"}},
+      {"view", {"--stats", "--pixelstats"}},
+  };
+  const auto it = unused.find(cmd.get_name());
+  if (it == unused.end()) return;
+  for (const std::string& option : it->second)
+    if (const CLI::Option* o = cmd.get_option_no_throw(option); o && o->count() > 0)
+      std::cerr << "layertrace: warning: " << cmd.get_name() << " does not use " << option << "; it is ignored\n";
+}
+
+/// The one output convention: -o is the main output (render: an image, default out/render.png;
+/// every other command: a folder, default out/<command>); the statistics go beside it, to
+/// <image stem>.json or <folder>/<command>.json, unless --stats names a file; --pixelstats and
+/// --report without a folder write to <image stem>_pixelstats/ and into the output folder.
+void resolveOutputs(lt::RunOptions& run, const std::string& command, bool pixelStatsAsked, std::string* report, bool reportAsked) {
+  namespace fs = std::filesystem;
+  const bool image = command == "render";
+  if (run.output.empty()) run.output = image ? "out/render.png" : "out/" + command;
+  const fs::path out(run.output);
+  const std::string prefix = image ? (out.parent_path() / out.stem()).string() : (out / command).string();
+  if (run.statsPath.empty()) run.statsPath = prefix + ".json";
+  if (pixelStatsAsked && run.pixelStats.empty()) run.pixelStats = image ? prefix + "_pixelstats" : (out / "pixelstats").string();
+  if (report && reportAsked && report->empty()) *report = run.output;
+}
+
 }  // namespace
 
 namespace lt {
@@ -174,20 +207,23 @@ void setViewRunner(ViewRunner runner) { viewRunner = runner; }
 
 int runCli(int argc, const char* const* argv, CliMode mode) {
   CLI::App app{"layertrace: image-space ray tracing of secondary effects through multi-layer fragment buffers"};
-  app.require_subcommand(1);
+  app.require_subcommand(0, 1);
   app.set_help_all_flag("--help-all", "help for every subcommand");
+  bool showVersion = false;
+  app.add_flag("--version", showVersion, "print the version, the commit and the enabled features, then exit");
+  CLI::App* tracersCmd = app.add_subcommand("tracers", "list every tracer and effect with its parameters and defaults");
 
   lt::LayersOptions layers;
   RawFrameOptions layersRaw;
   CLI::App* layersCmd = app.add_subcommand("layers", "capture fragments, write layer images + depth-complexity map");
-  addFrameOptions(layersCmd, layers.run, layersRaw);
+  addFrameOptions(layersCmd, layers.run, layersRaw, "output folder (default out/layers; statistics in layers.json)");
   layersCmd->add_flag("--verify", layers.verify, "compare every pixel's fragment list with Embree all-hit primary rays");
 
   lt::RenderOptions render;
   RawFrameOptions renderRaw;
   std::string effectName = "reflection";
   CLI::App* renderCmd = app.add_subcommand("render", "image of one effect traced with one tracer");
-  addFrameOptions(renderCmd, render.run, renderRaw);
+  addFrameOptions(renderCmd, render.run, renderRaw, "output image, .png or .exr (default out/render.png; statistics beside it in render.json)");
   renderCmd->add_option("--tracer", render.tracer, "ssr | ssr-layers | hiz | hssr | quadtree | ldc | hybrid | embree | grid")->capture_default_str();
   addEffectOptions(renderCmd, render.effect, effectName, renderRaw);
   addTracerOptions(renderCmd, render.tracers);
@@ -199,51 +235,50 @@ int runCli(int argc, const char* const* argv, CliMode mode) {
   RawFrameOptions compareRaw;
   std::string compareEffect = "reflection", compareTracers = "ssr,ssr-layers,hssr";
   CLI::App* compareCmd = app.add_subcommand("compare", "same rays through several tracers + Embree: accuracy and cost table");
-  addFrameOptions(compareCmd, compare.run, compareRaw);
+  addFrameOptions(compareCmd, compare.run, compareRaw, "output folder (default out/compare; statistics in compare.json)");
   compareCmd->add_option("--tracers", compareTracers, "comma list of ssr, ssr-layers, hiz, hssr, quadtree, ldc, hybrid, embree, grid")->capture_default_str();
   addEffectOptions(compareCmd, compare.effect, compareEffect, compareRaw);
   addTracerOptions(compareCmd, compare.options);
-  compareCmd->add_option("--report", compare.report, "also write an HTML report (one self-contained page) to this folder");
-  // compare checks every image-space ray against the exhaustive oracle anyway (exhaustive_mismatch
-  // per tracer); the flag is accepted so that the tracer options of DESIGN.md work everywhere.
-  compareCmd->add_flag("--check-exhaustive")
-      ->description("accepted for symmetry with render: compare always checks image-space rays against the exhaustive oracle");
+  compareCmd->add_option("--report", compare.report, "also write an HTML report (one self-contained page) to this folder (default: the output folder)")
+      ->expected(0, 1);
+  compareCmd->add_flag("--check-exhaustive,!--no-check-exhaustive", compare.checkExhaustive,
+                       "check every image-space ray against the exhaustive oracle (exhaustive_mismatch; default on)");
   compareCmd->add_flag("--check-oracle", compare.checkOracle,
                        "also check every image-space ray against the independent oracle (slow; oracle_mismatch)");
 
   lt::BenchOptions bench;
   RawFrameOptions benchRaw;
   CLI::App* benchCmd = app.add_subcommand("bench", "the papers' experiments: stride|layers|tau|memory|resolution|threads|capture|warp|gamma|ldc");
-  addFrameOptions(benchCmd, bench.run, benchRaw);
+  addFrameOptions(benchCmd, bench.run, benchRaw, "output folder (default out/bench; EXPERIMENT.json, .csv and .png)");
   benchCmd->add_option("--experiment", bench.experiment, "stride | layers | tau | memory | resolution | threads | capture | warp | gamma | ldc")->required();
   benchCmd->add_option("--repeat", bench.repeat, "runs per measurement (the median is reported)")->capture_default_str();
   addTracerOptions(benchCmd, bench.options);
-  benchCmd->add_option("--report", bench.report, "also write an HTML report to this folder");
+  benchCmd->add_option("--report", bench.report, "also write an HTML report to this folder (default: the output folder)")->expected(0, 1);
 
   lt::GeobenchOptions geobench;
   RawFrameOptions geobenchRaw;
   CLI::App* geobenchCmd = app.add_subcommand("geobench", "geometric tracers (grid vs embree): build, memory, MRays/s, agreement");
-  addFrameOptions(geobenchCmd, geobench.run, geobenchRaw);
-  addGridOptions(geobenchCmd, geobench.grid);
+  addFrameOptions(geobenchCmd, geobench.run, geobenchRaw, "output folder (default out/geobench; statistics in geobench.json)");
+  addTracerOptions(geobenchCmd, geobench.tracers, {"grid"});
   geobenchCmd->add_option("--repeat", geobench.repeat, "runs per timing (the median is reported)")->capture_default_str();
   geobenchCmd->add_flag("--sweep", geobench.sweep, "also sweep lambda1 x lambda2: build time vs traversal time");
 
   lt::LdcOptions ldc;
   RawFrameOptions ldcRaw;
-  CLI::App* ldcCmd = app.add_subcommand("ldc", "build the layered depth cube (seed 004): per-axis depth complexity and albedo images");
-  addFrameOptions(ldcCmd, ldc.run, ldcRaw);
-  addLdcOptions(ldcCmd, ldc.ldc);
+  CLI::App* ldcCmd = app.add_subcommand("ldc", "build the layered depth cube (Bürger et al. 2007): per-axis depth complexity and albedo images");
+  addFrameOptions(ldcCmd, ldc.run, ldcRaw, "output folder (default out/ldc; statistics in ldc.json)");
+  addTracerOptions(ldcCmd, ldc.tracers, {"ldc"});
 
   lt::ViewOptions view;
   RawFrameOptions viewRaw;
   std::string viewEffect = "reflection";
   CLI::App* viewCmd = app.add_subcommand("view", "interactive viewer: fly through the scene, switch tracers and overlays live");
-  addFrameOptions(viewCmd, view.render.run, viewRaw);
+  addFrameOptions(viewCmd, view.render.run, viewRaw, "scripted mode: write the last traced image (without the UI) to this PNG");
   viewCmd->add_option("--tracer", view.render.tracer, "ssr | ssr-layers | hiz | hssr | quadtree | ldc | hybrid | embree | grid")->capture_default_str();
   addEffectOptions(viewCmd, view.render.effect, viewEffect, viewRaw);
   addTracerOptions(viewCmd, view.render.tracers);
   viewCmd->add_option("--frames", view.frames, "render this many full frames without input, then exit (scripted mode)")->capture_default_str();
-  viewCmd->add_option("--screenshot", view.screenshot, "scripted mode: write the last traced image (without the UI) to this PNG");
+  viewCmd->add_option("--screenshot", view.render.run.output)->group("");  // the older spelling of -o
   viewCmd->add_option("--screenshot-ui", view.screenshotUi, "scripted mode: write the whole window of the last frame to this PNG");
   viewCmd->add_option("--overlay", view.overlay, "image | classes (strict classes vs Embree) | iterations | layer | complexity")->capture_default_str();
 
@@ -270,11 +305,39 @@ int runCli(int argc, const char* const* argv, CliMode mode) {
     return 2;
   }
 
+  if (showVersion) {
+    std::cout << versionText(viewRunner != nullptr);
+    return 0;
+  }
+  if (tracersCmd->parsed()) {
+    std::cout << tracersText();
+    return 0;
+  }
+  if (app.get_subcommands().empty()) {
+    std::cerr << "layertrace: a subcommand is required (use one of: " << names << "; --help for more)\n";
+    return 2;
+  }
   try {
     std::unique_ptr<tbb::global_control> threads;
     // Converts the raw vector options and applies --threads for the subcommand that ran.
     auto prepare = [&](lt::RunOptions& run, const RawFrameOptions& raw) {
       finishFrameOptions(run, raw);
+      const CLI::App* cmd = app.get_subcommands().front();
+      const std::string name = cmd->get_name();
+      if (mode == CliMode::Run) warnUnused(*cmd);
+      std::string* report = name == "compare" ? &compare.report : name == "bench" ? &bench.report : nullptr;
+      if (name == "view") {
+        view.screenshot = run.output;  // -o is the screenshot of scripted mode; nothing else is written
+      } else {
+        // bench's statistics are its experiment's table: <folder>/<experiment>.json beside the .csv.
+        if (name == "bench" && run.statsPath.empty())
+          run.statsPath = (std::filesystem::path(run.output.empty() ? "out/bench" : run.output) / bench.experiment).string() + ".json";
+        const auto asked = [cmd](const char* option) {
+          const CLI::Option* o = cmd->get_option_no_throw(option);
+          return o && o->count() > 0;
+        };
+        resolveOutputs(run, name, asked("--pixelstats"), report, asked("--report"));
+      }
       if (run.threads > 0 && mode == CliMode::Run)
         threads = std::make_unique<tbb::global_control>(tbb::global_control::max_allowed_parallelism, size_t(run.threads));
     };
@@ -295,7 +358,7 @@ int runCli(int argc, const char* const* argv, CliMode mode) {
       }
       if (compareCmd->parsed()) lt::validateTracerOptions(compare.options);
       if (benchCmd->parsed()) lt::validateTracerOptions(bench.options);
-      if (ldcCmd->parsed()) lt::validateLdcConfig(ldc.ldc);
+      if (ldcCmd->parsed()) lt::validateLdcConfig(ldc.tracers.ldc);
       return 0;
     }
     // A command's files appear together when it succeeds, or not at all (the viewer, which saves

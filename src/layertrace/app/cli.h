@@ -1,4 +1,4 @@
-// The command line of DESIGN.md: subcommands render, layers, compare, bench, geobench.
+// The command line: subcommands render, layers, compare, bench, geobench, ldc, view, tracers (docs/cli.md).
 #pragma once
 
 namespace lt {

@@ -1,4 +1,4 @@
-// `layertrace bench --experiment NAME`: seed 000 §6's measurements on the user's scene.
+// `layertrace bench --experiment NAME`: Hofmann et al. 2017, §6's measurements on the user's scene.
 //   stride      SSR trace time and false-miss rate at strides 1–8 against HSSR and Hi-Z (Figures 10–12)
 //   layers      construction time by stage for k = 1…8 (Figure 8)
 //   memory      bytes by stage at 720p and 1080p (Figure 9)
@@ -8,13 +8,13 @@
 //   capture     raster, sort, pyramid (after the pass, and merged per tile) per thread count
 //               against Embree all-hit capture of the same
 //               pixel-centre rays (Embree with plain scene flags and a geometry filter)
-//   warp        view synthesis (seed 002): holes and PSNR against the second camera's own view for
+//   warp        view synthesis (Widmer et al. 2015): holes and PSNR against the second camera's own view for
 //               offsets of 0–20 % of the eye–target distance × k ∈ {1, 2, 4} × every screen tracer
-//   gamma       the quad-tree's merge thresholds γ_norm × γ_dist (seed 002 gives none): plane
+//   gamma       the quad-tree's merge thresholds γ_norm × γ_dist (Widmer et al. 2015 give none): plane
 //               nodes, trace time, strict classes and answers changed against no merging
-//   ldc         the layered depth cube (seed 004) at 512² and 1K² with blocks of 4, 8, 16 texels
+//   ldc         the layered depth cube (Bürger et al. 2007) at 512² and 1K² with blocks of 4, 8, 16 texels
 //               and 1 (the paper's min/max) or 4 intervals per block: construction vs tracing time
-//               (seed 004 Table 1), memory, strict classes, beside plain Embree and HSSR on the same rays
+//               (Bürger et al. 2007, Table 1), memory, strict classes, beside plain Embree and HSSR on the same rays
 // Every time is the median of --repeat runs on the same rays; results carry the machine, the
 // build type and the date, and go to DIR/NAME.csv, DIR/NAME.json and DIR/NAME.png.
 #include <algorithm>
@@ -152,7 +152,7 @@ int runBench(const BenchOptions& o) {
   if (o.repeat < 1 || o.repeat > 100) inputError("--repeat ", o.repeat, ": must be between 1 and 100");
   validateTracerOptions(o.options);
   validateEffectConfig(o.effect);
-  const std::string outDir = o.run.output.empty() ? "out/bench" : o.run.output;
+  const std::string outDir = o.run.output;
   EffectConfig ec = o.effect;
   ec.seed = o.run.seed;
 
@@ -456,7 +456,6 @@ int runBench(const BenchOptions& o) {
   ensureDirectory(outDir, "-o");
   const std::string base = (fs::path(outDir) / e).string();
   writeFileAtomic(base + ".csv", t.csv());
-  writeFileAtomic(base + ".json", result.dump(2) + "\n");
   writeStats(o.run.statsPath, result.dump(2));
   // The plot: python3 + matplotlib (tools/plot_bench.py); a missing Python is not an error. It
   // runs in a scratch folder (the outputs above are staged until the command succeeds), and its

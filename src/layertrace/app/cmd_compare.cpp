@@ -39,10 +39,10 @@ Image sideBySide(const std::vector<const Image*>& images) {
 }  // namespace
 
 int runCompare(const CompareOptions& o) {
-  const std::string outDir = o.run.output.empty() ? "out/compare" : o.run.output;
+  const std::string outDir = o.run.output;
   if (o.tracers.empty()) inputError("--tracers: empty list");
   for (const std::string& t : o.tracers)
-    if (!isKnownTracer(t)) inputError("--tracers ", t, ": unknown (use ", kTracerNames, ")");
+    if (!isKnownTracer(t)) inputError("--tracers ", t, ": unknown (use ", tracerNames(), ")");
   for (size_t i = 0; i < o.tracers.size(); ++i)
     if (std::find(o.tracers.begin(), o.tracers.begin() + std::ptrdiff_t(i), o.tracers[i]) != o.tracers.begin() + std::ptrdiff_t(i))
       inputError("--tracers ", o.tracers[i], ": listed twice");
@@ -98,10 +98,11 @@ int runCompare(const CompareOptions& o) {
     ObserverList observers;
     observers.add(&classes);
     OracleObserver oracleCheck(independent);
-    if (screen) observers.add(&exhaustive);
+    if (screen && o.checkExhaustive) observers.add(&exhaustive);
     if (screen && o.checkOracle) observers.add(&oracleCheck);
     EffectResult r = renderEffect(frame, *built.tracer, ec, &observers);
     r.traceMs = timed.traceMs;
+    if (!o.run.pixelStats.empty()) writePixelStats((fs::path(o.run.pixelStats) / name).string(), r);
     const auto [rmse, psnr] = rmsePsnr(r.image, ref.image);
     const auto [rmseTraced, psnrTraced] = rmsePsnr(r.traced, ref.traced);
     nlohmann::json t;
@@ -114,7 +115,7 @@ int runCompare(const CompareOptions& o) {
     }
     t["wrong_hit"] = wrong;  // = wrong_hit_thickness + wrong_hit_unstored + wrong_hit_other
     if (screen) {
-      t["exhaustive_mismatch"] = exhaustive.mismatches();
+      if (o.checkExhaustive) t["exhaustive_mismatch"] = exhaustive.mismatches();
       if (o.checkOracle) {
         t["oracle_mismatch"] = oracleCheck.mismatches();
         t["oracle_ambiguous"] = oracleCheck.ambiguous();
@@ -173,7 +174,6 @@ int runCompare(const CompareOptions& o) {
 
   ensureDirectory(outDir, "-o");
   for (const auto& [name, image] : images) writeImage((fs::path(outDir) / name).string(), image);
-  writeFileAtomic((fs::path(outDir) / "compare.json").string(), stats.dump(2) + "\n");
   writeStats(o.run.statsPath, stats.dump(2));
   if (!o.report.empty()) {
     ReportPage page;
@@ -190,7 +190,7 @@ int runCompare(const CompareOptions& o) {
     if (ref.rays == 0)
       std::cout << "  no rays: no covered pixel of this view casts " << effectName(ec.effect)
                 << " rays (nothing in view, or no surface with the material the effect needs)\n";
-    std::cout << table.str() << "  wrote " << images.size() << " images and compare.json to " << outDir << "\n";
+    std::cout << table.str() << "  wrote " << images.size() << " images to " << outDir << " and the statistics to " << o.run.statsPath << "\n";
   }
   return 0;
 }

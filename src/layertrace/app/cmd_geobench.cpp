@@ -1,4 +1,4 @@
-// `layertrace geobench SCENE`: the irregular grid (seed 003) against Embree on the same rays —
+// `layertrace geobench SCENE`: the irregular grid (Pérard-Gayot et al. 2017) against Embree on the same rays —
 // primary rays through every pixel, AO rays (any hit, 5 % of the scene diagonal, cosine
 // distributed) and diffuse bounce rays (closest hit) from the primary hits: build time, memory,
 // MRays/s (median of --repeat) and agreement with Embree. --sweep adds the λ1 × λ2 table.
@@ -67,7 +67,7 @@ std::vector<float> traceAllGrid(const RaySet& rays, const IrregularGrid& grid) {
 int runGeobench(const GeobenchOptions& o) {
   if (o.repeat < 1 || o.repeat > 100) inputError("--repeat ", o.repeat, ": must be between 1 and 100");
   TracerOptions to;
-  to.grid = o.grid;
+  to.grid = o.tracers.grid;
   validateTracerOptions(to);
   Frame frame;
   loadFrameScene(o.run.frame, frame);
@@ -78,8 +78,8 @@ int runGeobench(const GeobenchOptions& o) {
   // The fast baseline: default scene flags (no robust mode, no filter), HIGH build quality.
   EmbreeScene embree(scene, EmbreeScene::Mode::Fast);
   const double embreeBuild = medianMs(o.repeat, [&] { EmbreeScene e(scene, EmbreeScene::Mode::Fast); });
-  IrregularGrid grid(scene, o.grid);
-  const double gridBuild = medianMs(o.repeat, [&] { IrregularGrid g(scene, o.grid); });
+  IrregularGrid grid(scene, o.tracers.grid);
+  const double gridBuild = medianMs(o.repeat, [&] { IrregularGrid g(scene, o.tracers.grid); });
 
   // The rays: primary through pixel centres; AO and diffuse from Embree's primary hits.
   RaySet primary, ao, diffuse;
@@ -167,7 +167,7 @@ int runGeobench(const GeobenchOptions& o) {
   const GridStats& gs = grid.stats();
   g["grid"]["structure"] = {{"top", {gs.top[0], gs.top[1], gs.top[2]}}, {"depth", gs.depth}, {"cells_initial", gs.cellsInitial},
                             {"cells", gs.cellsAfterMerge}, {"references", gs.refs}, {"expanded_faces", gs.expandedFaces},
-                            {"merge_passes", gs.mergePasses}, {"lambda1", o.grid.lambda1}, {"lambda2", o.grid.lambda2},
+                            {"merge_passes", gs.mergePasses}, {"lambda1", o.tracers.grid.lambda1}, {"lambda2", o.tracers.grid.lambda2},
                             {"initial_ms", gs.initialMs}, {"merge_ms", gs.mergeMs}, {"expand_ms", gs.expandMs}};
   for (const auto& [name, set] : sets) {
     // The grid twice: one ray at a time, and in batches with several rays in flight (its
@@ -228,7 +228,7 @@ int runGeobench(const GeobenchOptions& o) {
 
   std::ostringstream sweep;
   if (o.sweep) {
-    // λ1 × λ2 (seed 003): per setting the build, the size, MRays/s of the three ray sets, the
+    // λ1 × λ2 (Pérard-Gayot et al. 2017): per setting the build, the size, MRays/s of the three ray sets, the
     // speed relative to the Embree times measured above in this run, and the worst agreement.
     sweep << "lambda1,lambda2,build_ms,cells,references,memory_bytes,mrays_primary,mrays_ao,mrays_diffuse,"
              "x_embree_primary,x_embree_ao,x_embree_diffuse,agreement_min\n";
@@ -236,7 +236,7 @@ int runGeobench(const GeobenchOptions& o) {
     for (const auto& [name, set] : sets) embreeAnswers.push_back(traceAll(*set, embreeQ(*set)));
     for (float l1 : {0.03f, 0.06f, 0.12f, 0.25f, 0.5f, 1.0f, 2.0f})
       for (float l2 : {0.6f, 1.2f, 2.4f, 4.8f}) {
-        GridConfig gc = o.grid;
+        GridConfig gc = o.tracers.grid;
         gc.lambda1 = l1, gc.lambda2 = l2;
         std::unique_ptr<IrregularGrid> sg;
         const double b = medianMs(1, [&] { sg = std::make_unique<IrregularGrid>(scene, gc); });
@@ -256,9 +256,8 @@ int runGeobench(const GeobenchOptions& o) {
       }
   }
 
-  if (!o.run.output.empty()) {
+  {
     ensureDirectory(o.run.output, "-o");
-    writeFileAtomic((fs::path(o.run.output) / "geobench.json").string(), stats.dump(2) + "\n");
     if (o.sweep) writeFileAtomic((fs::path(o.run.output) / "geobench_sweep.csv").string(), sweep.str());
   }
   writeStats(o.run.statsPath, stats.dump(2));

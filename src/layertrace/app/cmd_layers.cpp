@@ -40,7 +40,7 @@ ComplexityImages depthComplexityImages(int width, int height, const std::vector<
 }
 
 int runLayers(const LayersOptions& o) {
-  const std::string outDir = o.run.output.empty() ? "out/layers" : o.run.output;
+  const std::string outDir = o.run.output;
   FrameOptions fo = o.run.frame;
   fo.captureLists = o.verify;  // --verify compares every fragment of every list with Embree
   Frame frame = buildFrame(fo);
@@ -93,6 +93,11 @@ int runLayers(const LayersOptions& o) {
   for (const auto& [name, image] : images) {
     const bool data = name.find("_depth") != std::string::npos || name.find("_normal") != std::string::npos;
     writeImage((fs::path(outDir) / name).string(), image, !data);
+  }
+  // --pixelstats: the capture's per-pixel counter, the fragments each pixel's list held.
+  if (!o.run.pixelStats.empty()) {
+    ensureDirectory(o.run.pixelStats, "--pixelstats");
+    writeImage((fs::path(o.run.pixelStats) / "fragments.exr").string(), images.back().second);
   }
   writeStats(o.run.statsPath, stats.dump(2));
   if (!o.run.quiet) {

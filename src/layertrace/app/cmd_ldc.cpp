@@ -1,4 +1,4 @@
-// `layertrace ldc`: what the layered depth cube (seed 004) captured, per axis.
+// `layertrace ldc`: what the layered depth cube (Bürger et al. 2007) captured, per axis.
 #include <algorithm>
 #include <filesystem>
 #include <iostream>
@@ -11,11 +11,11 @@ namespace lt {
 namespace fs = std::filesystem;
 
 int runLdc(const LdcOptions& o) {
-  validateLdcConfig(o.ldc);
-  const std::string outDir = o.run.output.empty() ? "out/ldc" : o.run.output;
+  validateLdcConfig(o.tracers.ldc);
+  const std::string outDir = o.run.output;
   Frame frame;
   loadFrameScene(o.run.frame, frame);
-  const LayeredDepthCube ldc = buildLdc(frame.scene, o.ldc);
+  const LayeredDepthCube ldc = buildLdc(frame.scene, o.tracers.ldc);
   nlohmann::json stats = {{"scene", frame.scene.name}, {"triangles", frame.scene.triangleCount()}, {"threads", o.run.threads}};
   stats["ldc"] = ldcStats(ldc, nullptr);
 

@@ -14,7 +14,7 @@
 namespace lt {
 namespace fs = std::filesystem;
 
-/// Stats keys of one traced effect (DESIGN.md `rays.*`), shared by render and compare.
+/// Stats keys of one traced effect (`rays.*`, docs/cli.md), shared by render and compare.
 nlohmann::json rayStats(const EffectResult& r, bool screen) {
   nlohmann::json j = {{"count", r.rays},
                       {"hits", r.hits},
@@ -24,7 +24,7 @@ nlohmann::json rayStats(const EffectResult& r, bool screen) {
                       {"give_ups", r.giveUps},
                       {"bent", r.bentRays},
                       {"counters", kCountersCompiled}};
-  // Per visited cell at any level (hssr-pitfalls §10: the same unit for every tracer).
+  // Per visited cell at any level (the same unit for every tracer).
   if (screen) j["intervals_per_visited_pixel"] = r.iterationSum ? double(r.intervalSum) / double(r.iterationSum) : 0.0;
   return j;
 }
@@ -85,8 +85,8 @@ nlohmann::json hybridStats(const BuiltTracer& built, const TracerOptions& o) {
   if (!hybrid) return nullptr;
   const HybridStats h = hybrid->stats();
   const double rays = h.rays ? double(h.rays) : 1.0;
-  return {{"screen", o.hybridScreen},
-          {"geo", o.hybridGeo},
+  return {{"screen", o.hybrid.screen},
+          {"geo", o.hybrid.geo},
           {"rays", h.rays},
           {"screen_fraction", h.screenFraction()},
           {"geo_fraction", h.geoFraction()},
@@ -168,11 +168,11 @@ WarpHoles countWarpHoles(const WarpReference& ref, const std::vector<uint8_t>& h
 }
 
 int runRender(const RenderOptions& o) {
-  const std::string out = o.run.output.empty() ? "out/render.png" : o.run.output;
+  const std::string out = o.run.output;
   std::string ext = fs::path(out).extension().string();
   std::transform(ext.begin(), ext.end(), ext.begin(), [](unsigned char c) { return char(std::tolower(c)); });
   if (ext != ".png" && ext != ".exr") inputError("-o ", out, ": render writes .png or .exr");
-  if (!isKnownTracer(o.tracer)) inputError("--tracer ", o.tracer, ": unknown (use ", kTracerNames, ")");
+  if (!isKnownTracer(o.tracer)) inputError("--tracer ", o.tracer, ": unknown (use ", tracerNames(), ")");
   const bool screen = isScreenTracer(o.tracer);
   if (o.checkExhaustive && !screen) inputError("--check-exhaustive: needs an image-space tracer, not ", o.tracer);
   if (o.checkOracle && !screen) inputError("--check-oracle: needs an image-space tracer, not ", o.tracer);

@@ -1,4 +1,4 @@
-// The subcommands of the CLI (DESIGN.md), as library functions: main() only parses options.
+// The subcommands of the CLI (docs/cli.md), as library functions: main() only parses options.
 //
 // Layer: app/ is the CLI only — the subcommands, option handling, reports. It may include every
 // layer; nothing under src/layertrace/ outside app/ includes it.
@@ -14,9 +14,9 @@ namespace lt {
 /// Options every subcommand has beside the frame's.
 struct RunOptions {
   FrameOptions frame;
-  std::string output;      ///< -o: an image path (render) or a folder (layers, compare, bench)
-  std::string statsPath;   ///< --stats FILE.json
-  std::string pixelStats;  ///< --pixelstats DIR
+  std::string output;      ///< -o: the image (render), the screenshot (view) or the output folder (every other command)
+  std::string statsPath;   ///< --stats FILE.json (default: beside the main output, app/cli.cpp resolveOutputs)
+  std::string pixelStats;  ///< render --pixelstats [DIR]
   int threads = 0;         ///< --threads; 0 = all cores
   uint64_t seed = 1;       ///< --seed
   bool quiet = false;      ///< --quiet
@@ -48,14 +48,14 @@ void ensureDirectory(const std::string& dir, const std::string& option);
 
 }  // namespace lt
 
-#include "layertrace/pipeline/tracer_factory.h"
+#include "layertrace/pipeline/tracer_registry.h"
 #include "layertrace/render/effects.h"
 
 namespace lt {
 
 struct RenderOptions {
   RunOptions run;
-  std::string tracer = "hssr";  ///< one of kTracerNames
+  std::string tracer = "hssr";  ///< one of tracerNames()
   EffectConfig effect;
   TracerOptions tracers;
   bool checkExhaustive = false;  ///< trace every ray with the exhaustive oracle too
@@ -80,6 +80,7 @@ struct CompareOptions {
   EffectConfig effect;
   TracerOptions options;
   std::string report;  ///< --report DIR: one HTML page with images and the table
+  bool checkExhaustive = true;  ///< --check-exhaustive (default on): every image-space ray against the exhaustive oracle
   bool checkOracle = false;  ///< --check-oracle: every image-space ray against the independent oracle too
 };
 
@@ -87,17 +88,17 @@ struct BenchOptions {
   RunOptions run;
   std::string experiment;  ///< stride | layers | tau | memory | resolution | threads
   int repeat = 3;          ///< runs per measurement; the median is reported
-  EffectConfig effect;     ///< one-bounce reflections from every pixel, as in seed 000 §6
+  EffectConfig effect;     ///< one-bounce reflections from every pixel, as in Hofmann et al. 2017, §6
   TracerOptions options;
   std::string report;      ///< --report DIR
 };
 
-/// `layertrace bench`: seed 000's experiments on your scene → CSV, JSON, PNG plot.
+/// `layertrace bench`: the HSSR paper's experiments (Hofmann et al. 2017, §6) on your scene → CSV, JSON, PNG plot.
 int runBench(const BenchOptions& options);
 
 struct GeobenchOptions {
   RunOptions run;
-  GridConfig grid;
+  TracerOptions tracers;  ///< only the grid's parameters are read
   int repeat = 3;      ///< runs per timing; the median is reported
   bool sweep = false;  ///< also sweep λ1 × λ2 (build time vs traversal time)
 };
@@ -120,14 +121,14 @@ nlohmann::json ldcStats(const LayeredDepthCube& ldc, const EffectResult* r);
 
 struct LdcOptions {
   RunOptions run;
-  LdcConfig ldc;
+  TracerOptions tracers;  ///< only the layered depth cube's parameters are read
 };
 
-/// `layertrace ldc`: builds the layered depth cube (seed 004) of a scene and writes per axis its
+/// `layertrace ldc`: builds the layered depth cube (Bürger et al. 2007) of a scene and writes per axis its
 /// depth-complexity map and first-layer albedo, and the `ldc` stats.
 int runLdc(const LdcOptions& options);
 
-/// The `hybrid` stats block (DESIGN.md: screen_fraction, geo_fraction, geo_length_mean) of the
+/// The `hybrid` stats block (screen_fraction, geo_fraction, geo_length_mean) of the
 /// tracer's runs since its last reset; null for any other tracer.
 nlohmann::json hybridStats(const BuiltTracer& built, const TracerOptions& options);
 

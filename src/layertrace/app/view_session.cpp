@@ -44,13 +44,13 @@ ViewOverlay parseViewOverlay(const std::string& name) {
 void validateViewOptions(const ViewOptions& o) {
   parseViewOverlay(o.overlay);
   if (o.frames < 0 || o.frames > 100000) inputError("--frames ", o.frames, ": must be between 0 and 100000");
-  for (const auto& [opt, path] : {std::pair{"--screenshot ", &o.screenshot}, std::pair{"--screenshot-ui ", &o.screenshotUi}}) {
+  for (const auto& [opt, path] : {std::pair{"-o ", &o.screenshot}, std::pair{"--screenshot-ui ", &o.screenshotUi}}) {
     if (path->empty()) continue;
     if (o.frames == 0) inputError(opt, *path, ": needs --frames N (scripted mode)");
     if (std::filesystem::path(*path).extension() != ".png") inputError(opt, *path, ": must be a .png file");
   }
   const RenderOptions& r = o.render;
-  if (!isKnownTracer(r.tracer)) inputError("--tracer ", r.tracer, ": unknown (use ", kTracerNames, ")");
+  if (!isKnownTracer(r.tracer)) inputError("--tracer ", r.tracer, ": unknown (use ", tracerNames(), ")");
 }
 
 ViewSession::~ViewSession() = default;
@@ -58,7 +58,7 @@ ViewSession::~ViewSession() = default;
 ViewSession::ViewSession(const RenderOptions& options) : options_(options), cache_(std::make_unique<ViewCache>()) {
   validateTracerOptions(options.tracers);
   validateEffectConfig(options.effect);
-  if (!isKnownTracer(options.tracer)) inputError("--tracer ", options.tracer, ": unknown (use ", kTracerNames, ")");
+  if (!isKnownTracer(options.tracer)) inputError("--tracer ", options.tracer, ": unknown (use ", tracerNames(), ")");
   loadFrameScene(options.run.frame, frame_);
   initial_.camera = frame_.camera.desc();
   initial_.width = options.run.frame.width;

@@ -1,11 +1,11 @@
-// Per-ray classification of an image-space answer against the geometric one (DESIGN.md,
-// "Ground truth, three kinds"): the strict classes.
+// Per-ray classification of an image-space answer against the geometric one
+// (docs/evaluation.md): the strict classes.
 //
 // Layer: eval/ measures what the layers below produce — observers of the effects' rays that
 // classify them against a geometric reference or compare them with an oracle, the layer
 // verification against Embree, metrics. It may include every layer except app/ (the CLI).
 //
-// The rules (README "How rays are graded"; the classifier reads no tracer option and no
+// The rules (docs/evaluation.md; the classifier reads no tracer option and no
 // --thickness — only the stored intervals — so the same rays get the same classes whatever
 // produced them). P is the true
 // (Embree) hit point, (x, y) the reported pixel, F the reported fragment (front depth z_F):
@@ -27,7 +27,7 @@
 //     other             the true surface is stored and was skipped.
 //   misses:
 //     origin_pixel_miss P projects into the ray's own origin pixel, which image-space tracers
-//                       do not test (seed 000 §5.1).
+//                       do not test (Hofmann et al. 2017, §5.1).
 //     false miss        the true surface is stored (below) and was missed.
 //     information miss  not stored: off-screen, outside the frustum, or behind layer k.
 //     correct miss      neither hits.

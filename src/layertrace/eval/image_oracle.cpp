@@ -139,7 +139,7 @@ OracleAnswer ImageSpaceOracle::answer(const Ray& ray) const {
         if (holdsNear(x + sx, y, z, margin(z)) || holdsNear(x, y + sy, z, margin(z))) out.ambiguous = true;
       }
     }
-    if (x == ox0 && y == oy0) continue;  // the origin's own pixel (seed 000 §5.1)
+    if (x == ox0 && y == oy0) continue;  // the origin's own pixel (Hofmann et al. 2017, §5.1)
     const bool growing = zb >= za;
     const FragmentNode* fr = layers_.pixel(x, y);
     int best = -1;

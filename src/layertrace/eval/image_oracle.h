@@ -1,4 +1,4 @@
-// The independent image-space oracle (DESIGN.md "Ground truth", kind 3; `--check-oracle`).
+// The independent image-space oracle (docs/evaluation.md; `--check-oracle`).
 //
 // Written apart from the screen tracers and sharing none of their traversal code: no screen
 // segment, no homogeneous interpolation, no DDA. It works on the 3D ray in double precision:
@@ -13,9 +13,10 @@
 //      growing, the back-most when shrinking);
 //   4. stop at the viewport edge or the segment's end.
 // Conventions shared with the tracers (they define what an image-space answer is, not how it is
-// computed): the origin's own pixel is not tested (seed 000 §5.1) — unless the ray starts outside
-// the view (behind the near plane or off-screen, e.g. at another camera's eye), where it enters
-// the view with no surface of its own; intervals are closed, [front, back] of the k-layer arrays.
+// computed): the origin's own pixel is not tested (Hofmann et al. 2017, §5.1) — unless the ray
+// starts outside the view (behind the near plane or off-screen, e.g. at another camera's eye),
+// where it enters the view with no surface of its own; intervals are closed, [front, back] of the
+// k-layer arrays.
 //
 // Where a decision lies within float precision of a boundary, the answer is marked `ambiguous`:
 // an overlap test within 1e-5 relative of the interval's ends (plus what a pixel boundary

@@ -1,5 +1,5 @@
-// Compares every observed ray's answer with an oracle's answer to the same ray (DESIGN.md
-// "Ground truth": the exhaustive image-space oracle behind --check-exhaustive).
+// Compares every observed ray's answer with an oracle's answer to the same ray
+// (docs/evaluation.md: the exhaustive image-space oracle behind --check-exhaustive).
 #pragma once
 
 #include <cstdint>

@@ -24,12 +24,13 @@ inline constexpr float kVerifyRelativeTolerance = 1e-4f;
 /// ...where the plane's distance along the ray, n·(p − e) / (n·d), is ill-conditioned: rounding
 /// the coordinates (magnitude M) moves the numerator by about ε·M on either side, and dividing by
 /// cos θ = |n·d| amplifies that. A depth may also differ by this many float epsilons of M over
-/// cos θ. Session 27: a random eye 4.5·10⁻⁶ units under a textured plane it sees, 5.75 units from
-/// the origin (assimp's TexturedPlane_ImageUv*_248.blend), made the two sides' depths differ by up
-/// to 3 % on 911 and 1 352 pixels; 0.5 epsilons already match them all, 4 leave a margin, and 16
-/// would no longer see a depth doubled there (Verify.GrazingPlaneMatchesWithinItsConditioning). At
-/// 60° incidence the term is 10⁻⁶ of a depth of 1 at coordinates of 1; the real views' residues
-/// (shared edges, silhouettes) are unchanged by it.
+/// cos θ. Found by a sweep of random views: a random eye 4.5·10⁻⁶ units under a textured plane it
+/// sees, 5.75 units from the origin (assimp's TexturedPlane_ImageUv*_248.blend), made the two
+/// sides' depths differ by up to 3 % on 911 and 1 352 pixels; 0.5 epsilons already match them all,
+/// 4 leave a margin, and 16 would no longer see a depth doubled there
+/// (Verify.GrazingPlaneMatchesWithinItsConditioning). At 60° incidence the term is 10⁻⁶ of a depth
+/// of 1 at coordinates of 1; the real views' residues (shared edges, silhouettes) are unchanged by
+/// it.
 inline constexpr float kVerifyConditioningEpsilons = 4.0f;
 
 /// The depth tolerance at one hit: `depth` along `dir` (world space, unit depth component) from

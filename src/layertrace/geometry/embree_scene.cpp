@@ -91,8 +91,8 @@ struct EmbreeScene::Impl {
 EmbreeScene::EmbreeScene(const Scene& scene, Mode mode) : impl_(std::make_unique<Impl>()), mode_(mode) {
   const auto start = std::chrono::steady_clock::now();
   const FlushDenormalsScope denormals;
-  // Embree's BVH takes about 100 bytes per triangle here (HIGH quality; docs/grid.md, session 9's
-  // table): refuse up front with room to spare rather than fail inside the build.
+  // Embree's BVH takes about 100 bytes per triangle here (HIGH quality; measured, see
+  // docs/methods/grid.md): refuse up front with room to spare rather than fail inside the build.
   checkAllocation(cat("the Embree BVH (", scene.triangleCount(), " triangles)"),
                   uint64_t(scene.triangleCount()) * 192 + uint64_t(scene.positions.size()) * 16);
   const int64_t before = gEmbreeBytes.load();

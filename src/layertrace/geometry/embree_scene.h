@@ -1,6 +1,6 @@
 // Embree 3 over the scene's triangles: the geometric ground truth of layertrace.
 //
-// Embree wants flush-to-zero / denormals-are-zero in every thread that calls it (DATA.md);
+// Embree wants flush-to-zero / denormals-are-zero in every thread that calls it;
 // every query method sets them, so callers from any TBB worker are safe.
 #pragma once
 

@@ -1,4 +1,4 @@
-// Geometric tracers behind the tracer interface: the answer of Embree or of the irregular grid
+// Geometric tracers behind the tracer interface: the answer of Embree (or, through grid/, of the irregular grid)
 // for the very rays the screen-space tracers trace (same camera-space origins and directions).
 #pragma once
 
@@ -11,7 +11,6 @@
 #include <glm/geometric.hpp>
 
 #include "layertrace/geometry/embree_scene.h"
-#include "layertrace/geometry/irregular_grid.h"
 #include "layertrace/scene/camera.h"
 #include "layertrace/trace/tracer.h"
 
@@ -59,7 +58,7 @@ class GeometricHits {
 ///  - the ray is not moved to its segment's start: a moved ray is another float ray, and its own
 ///    origin offset (1e-4 of its distance from the eye) skips the segment's first stretch — on
 ///    assimp's cube_tristrips.dae seen from 135 units, 0.0135 units, through which 50 reflection
-///    rays' hits fell (session 27);
+///    rays' hits fell;
 ///  - tnear lies a little before from[i] (segmentSlack): plain Embree's box and triangle tests
 ///    round at the scale of the ray's coordinates, so a tnear a few ulps of them before a hit
 ///    culls it (a segment starting 7·10⁻⁸ before a hit 0.0035 along a ray found nothing).
@@ -154,30 +153,9 @@ class GeometricTracer : public TracerImpl<GeometricTracer<Accel>>, public GeoHit
 };
 using EmbreeTracer = GeometricTracer<EmbreeScene>;
 
-/// The irregular grid as a tracer: uncounted batches trace with several rays in flight
-/// (IrregularGrid's batch queries, the same answers bit for bit); counted runs one ray at a time.
-class GridTracer : public GeometricTracer<IrregularGrid> {
- public:
-  GridTracer(const Scene& scene, const Camera& camera, const IrregularGrid& grid)
-      : GeometricTracer<IrregularGrid>("grid", scene, camera, grid) {}
-  void traceBatch(std::span<const Ray> rays, std::span<TraceHit> hits, std::span<RayCounters> counters) const override;
-  void occludedBatch(std::span<const Ray> rays, std::span<TraceHit> hits, std::span<RayCounters> counters) const override;
-  void intersectSegments(std::span<const Ray> rays, std::span<const float> from, std::span<GeoHit> hits,
-                         std::span<RayCounters> counters) const override;
-  void occludedSegments(std::span<const Ray> rays, std::span<const float> from, std::span<uint8_t> blocked,
-                        std::span<RayCounters> counters) const override;
-
- private:
-  static constexpr size_t kChunk = 256;
-  /// Calls f(queries, first) for each chunk of up to kChunk rays, as world-space grid queries
-  /// from each ray's segment start (GeoHitQueries).
-  template <class F>
-  void chunks(std::span<const Ray> rays, std::span<const float> from, F f) const;
-};
-
 /// Plain Embree with 16-wide packets (rtcIntersect16 / rtcOccluded16): each batch is cut into
 /// packets of 16 consecutive rays — the packet baseline `compare` reports beside single-ray
-/// Embree on the same rays (issue 14 §4), and the hybrid's geometric half. Counted runs trace
+/// Embree on the same rays, and the hybrid's geometric half. Counted runs trace
 /// one ray at a time. Answers are Embree's, packet or not (TraceInterface.EmbreePacketsAnswerAsSingleRays,
 /// bit for bit; geobench and compare report the agreement too).
 class EmbreePacketTracer : public TracerImpl<EmbreePacketTracer>, public GeoHitQueries {
@@ -211,9 +189,6 @@ class EmbreePacketTracer : public TracerImpl<EmbreePacketTracer>, public GeoHitQ
 
 inline std::unique_ptr<Tracer> makeEmbreeTracer(const Scene& scene, const Camera& camera, const EmbreeScene& embree) {
   return std::make_unique<EmbreeTracer>("embree", scene, camera, embree);
-}
-inline std::unique_ptr<Tracer> makeGridTracer(const Scene& scene, const Camera& camera, const IrregularGrid& grid) {
-  return std::make_unique<GridTracer>(scene, camera, grid);
 }
 
 }  // namespace lt

@@ -140,7 +140,7 @@ void HybridTracer::run(Query q, std::span<const Ray> rays, std::span<TraceHit> h
   }
   // 6: the ray's own pixel, which screen tracers skip, up to two pixels past it is answered by a
   // geometric window (a world tracer: at least worldMargin, past the texel it skips). The screen
-  // march starts where that window ends (session 16): a hit inside it would be the window's to
+  // march starts where that window ends: a hit inside it would be the window's to
   // find, and a ray leaving a surface overlaps that surface's solid interval, which starts at its
   // nearest depth in each pixel (known_space.h), for a pixel or two — 74 % of the screen hits of
   // FZK-Haus's reflection rays lay inside the window and were rejected by the exact check.
@@ -200,13 +200,13 @@ void HybridTracer::run(Query q, std::span<const Ray> rays, std::span<TraceHit> h
     // samples looked, so the march's "empty so far" is not to be trusted for this ray either:
     // geometry answers it from the origin (measured: from two pixels before the hit pixel
     // instead, 3× the wrong answers on FZK-Haus and 2× on am_thornish, for 4 % less time). That
-    // geometric ray covers the origin's window too, which is then not asked (session 24: 40 % of
+    // geometric ray covers the origin's window too, which is then not asked (measured: 40 % of
     // FZK-Haus's one-bounce reflection rays; with the windows' bare hits, the hybrid went from
     // 0.370× to 0.423× plain Embree's speed there, medians of 4 alternating runs).
     s.from[i] = 0.0f;
     if (!v.hit()) continue;
     originWindow(i);
-    // A crossing is a candidate, not the answer (session 16: our ray–triangle test and Embree's
+    // A crossing is a candidate, not the answer (our ray–triangle test and Embree's
     // can disagree on a triangle's edge; on assimp's regr01.obj 0.15 % of reflection rays took a
     // crossing Embree does not see). Geometry over the window from two pixels before the hit
     // pixel (or the crossing, if earlier; the origin where empty space is uncertain) to two pixels

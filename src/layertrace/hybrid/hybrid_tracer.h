@@ -1,11 +1,11 @@
-// Hybrid tracing (issue 15): screen space where the layers know the answer, geometry only where
+// Hybrid tracing: screen space where the layers know the answer, geometry only where
 // they do not.
 //
 // Layer: hybrid/ composes a screen-space tracer and a geometric one through the Tracer
-// interface. It includes screen/ (the certainty rules, known_space.h), geometry/ (the exact
-// local checks) and the layers below them; nothing above.
+// interface. It holds the certainty rules (known_space.h) and includes screen/ and hssr/ (the
+// march), geometry/ (the exact local checks) and the layers below them; nothing above.
 //
-// Per ray (README "Exact reflections at screen-space cost"):
+// Per ray (docs/methods/hybrid.md):
 //  1. KnownSpace gives knownUntil, where the ray leaves the space the layers describe (its
 //     rules are in known_space.h; with HSSR or Hi-Z the march itself meets rule 3).
 //  2. The screen tracer traces the ray cut at knownUntil. With HSSR / Hi-Z it marches the
@@ -27,15 +27,15 @@
 //     knowledge ended) to the ray's end — not from the origin: the known part was answered.
 //     It continues the very ray, started there (GeoHitQueries' segments), so what it finds past
 //     geoFrom is plain Embree's answer for the whole ray bit for bit; so do the windows.
-//  6. Screen tracers never test the ray's own pixel (seed 000 §5.1): a geometric window covers
-//     the ray from its origin to two pixels past its pixel, and the screen march starts where
-//     the window ends.
+//  6. Screen tracers never test the ray's own pixel (Hofmann et al. 2017, §5.1): a geometric
+//     window covers the ray from its origin to two pixels past its pixel, and the screen march
+//     starts where the window ends.
 // Windows are a few pixels of ray: on FZK-Haus they cost about a fifth of whole geometric rays.
 // Every hit the hybrid returns is an exact triangle intersection (layer = -1, like a geometric
-// tracer's), so it shades exactly as the reference does. Since session 16 the solid intervals
-// start at the nearest depth any triangle has inside each pixel's square (a conservative
-// rasterization, raster/unsampled.h), so a ray cannot cross a surface in front of a pixel's
-// centre sample unseen either. What it can still get wrong: a triangle seen exactly edge-on
+// tracer's), so it shades exactly as the reference does. The solid intervals start at the
+// nearest depth any triangle has inside each pixel's square (a conservative rasterization,
+// raster/unsampled.h), so a ray cannot cross a surface in front of a pixel's centre sample
+// unseen either. What it can still get wrong: a triangle seen exactly edge-on
 // that the thin-triangle rule misses (shorter than two pixels), and rounding at the pixel and
 // interval boundaries.
 #pragma once
@@ -49,7 +49,7 @@
 #include "layertrace/raster/layer_arrays.h"
 #include "layertrace/scene/camera.h"
 #include "layertrace/scene/scene.h"
-#include "layertrace/screen/known_space.h"
+#include "layertrace/hybrid/known_space.h"
 #include "layertrace/screen/screen_segment.h"
 #include "layertrace/trace/tracer.h"
 
@@ -134,8 +134,8 @@ class HybridTracer : public Tracer {
   const LayerArrays& layers_;
   const KnownSpace& known_;
   const Tracer& screen_;
-  /// Bare hits of segments: a window only decides where a ray stops, so its TraceHit is not built
-  /// (session 24), and a segment is its whole ray started later (session 27).
+  /// Bare hits of segments: a window only decides where a ray stops, so its TraceHit is not
+  /// built, and a segment is its whole ray started later.
   const GeoHitQueries& geo_;
   GeometricHits hits_;
   Bounds bounds_;

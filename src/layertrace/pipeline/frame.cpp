@@ -137,7 +137,7 @@ void rasterizeFrame(const FrameOptions& o, Frame& frame) {
   lc.minSeparation = o.minSeparation;
   lc.adaptiveThickness = o.adaptiveThickness;
   if (o.pool == 0 && !o.referenceCapture) {
-    // Tile-local capture (issue 13): the k layers straight from the rasterizer, and the lists
+    // Tile-local capture: the k layers straight from the rasterizer, and the lists
     // too when something reads them (exact-size storage from a counting pass).
     CaptureStats cs;
     FragmentLists& lists = frame.lists;
@@ -243,7 +243,7 @@ nlohmann::json frameStats(const Frame& f) {
   j["timings_ms"]["sort"] = f.sortMs;
   // "tiles": rasterized and sorted to k in one tile-local pass (raster includes the sort);
   // "tiles+lists": the same pass also wrote every fragment to exact-size per-pixel lists;
-  // "reference": lists in a pool (--pool), then sorted (seed 000 §4.1–4.2).
+  // "reference": lists in a pool (--pool), then sorted (Hofmann et al. 2017, §4.1–4.2).
   j["capture_pipeline"] = f.capturePipeline;
   j["memory_bytes"]["lists"] = f.lists.memoryBytes();
   j["memory_bytes"]["arrays"] = f.layers.memoryBytes();

@@ -1,5 +1,5 @@
 // One frame of the pipeline, shared by every subcommand: load the scene, choose the camera and
-// lights, rasterize all fragments, sort and truncate to k layers (seed 000 §4.1–4.2).
+// lights, rasterize all fragments, sort and truncate to k layers (Hofmann et al. 2017, §4.1–4.2).
 //
 // Layer: pipeline/ assembles a frame — load → capture → structures — and builds any tracer by
 // name with the structure it needs (tracer_factory.h). It includes screen/, geometry/ and the
@@ -23,7 +23,7 @@
 #include "layertrace/scene/camera.h"
 #include "layertrace/scene/scene.h"
 #include "layertrace/screen/interval_layers.h"
-#include "layertrace/screen/interval_pyramid.h"
+#include "layertrace/hssr/interval_pyramid.h"
 #include "layertrace/util/memory.h"
 
 namespace lt {
@@ -34,7 +34,7 @@ namespace lt {
 /// OpenArena map whose skybox makes the bounds 8,000 units wide.
 inline constexpr float kDefaultThicknessPx = 6.0f;
 
-/// The common options of DESIGN.md's CLI contract.
+/// The common options of CLI (docs/cli.md).
 struct FrameOptions {
   std::string scenePath;
   std::string cameraName;              ///< --camera; empty = the scene's first camera, else auto-framed
@@ -48,13 +48,13 @@ struct FrameOptions {
   std::optional<float> thickness;      ///< --thickness: fixed, in scene units
   std::optional<float> thicknessPx;    ///< --thickness-px: pixel footprints at the fragment's depth (default kDefaultThicknessPx)
   float minSeparation = 0.0f;          ///< --min-separation
-  bool adaptiveThickness = false;      ///< --adaptive-thickness (seed 000 §4.2)
+  bool adaptiveThickness = false;      ///< --adaptive-thickness (Hofmann et al. 2017, §4.2)
   bool frontFacesOnly = false;         ///< --front-faces-only: cull back faces at capture
   uint64_t pool = 0;                   ///< --pool fragments; 0 = automatic (grows on overflow)
   /// Keep every fragment in per-pixel lists as well. Not an option of its own: `layers --verify`
   /// and the list-reading options (--adaptive-thickness, --min-separation) set it.
   bool captureLists = false;
-  /// Capture with the reference pipeline (seed 000 §4.1–4.2 as written: every fragment linked
+  /// Capture with the reference pipeline (Hofmann et al. 2017, §4.1–4.2 as written: every fragment linked
   /// into lists in a pool through an atomic counter, then sorted): what `--pool` selects, and
   /// what tests and `bench --experiment capture` compare the tile-local capture with.
   bool referenceCapture = false;
@@ -63,9 +63,9 @@ struct FrameOptions {
   /// by the commands whose tracers read it; unset, nothing is built.
   std::optional<PyramidConfig> pyramid;
   /// Merge its levels 1… inside the tile pass, tile by tile while each tile is in cache
-  /// (PyramidTileBuilder, issue 13 §2), instead of over the whole level 0 after it. Off by
+  /// (PyramidTileBuilder), instead of over the whole level 0 after it. Off by
   /// default: measured, it costs the same wall time at two threads and 30–60 % more at one
-  /// (README "Capture: two pipelines, the same bytes"). Tile-local capture only.
+  /// (docs/architecture.md, capture). Tile-local capture only.
   bool pyramidPerTile = false;
   std::vector<glm::dvec4> lights;      ///< --light x,y,z[,intensity] (repeatable), world coordinates
 };
@@ -79,7 +79,7 @@ struct Frame {
   FragmentLists lists;
   LayerArrays layers;
   LayerCapture capture;  ///< owns the tile-local capture's scratch, reused frame to frame
-  /// The interval pyramid's level 0 (seed 000 Figure 3 right: [depth, depth + thickness] per
+  /// The interval pyramid's level 0 (Hofmann et al. 2017, Figure 3 right: [depth, depth + thickness] per
   /// kept fragment), written by the capture tile by tile while each tile is in cache; every
   /// pyramid built for this frame shares it (tracer_factory.cpp). level0() checks it still
   /// matches `layers`.

@@ -37,9 +37,10 @@ struct ListOutput {
 };
 
 /// One tile: every fragment of the tile's triangles goes straight into its pixel's k slots
-/// (seed 000 §4.2's insertion sort, run as the fragments arrive instead of over a finished
-/// list). Without lists, a fragment behind a full pixel's k-th is counted and dropped before its
-/// normal is evaluated; with lists (kLists) every fragment is also written to its pixel's list.
+/// (the insertion sort of Hofmann et al. 2017, §4.2, run as the fragments arrive instead of over a
+/// finished list). Without lists, a fragment behind a full pixel's k-th is counted and dropped
+/// before its normal is evaluated; with lists (kLists) every fragment is also written to its
+/// pixel's list.
 template <bool kLists>
 inline void captureTileImpl(const Scene& scene, const Camera& camera, const RasterSetup& setup, const LayerConfig& config,
                             size_t tile, LayerArrays& out, std::vector<uint32_t>& complexity, uint64_t& generated,

@@ -1,10 +1,10 @@
-// Tile-local capture (issue 13; DESIGN.md "Performance approach"): rasterize every fragment and
+// Tile-local capture (docs/architecture.md): rasterize every fragment and
 // keep each pixel's k front-most ones in a single pass over screen tiles, so a tile's fragments
 // are sorted while they are in cache and no fragment is ever stored twice.
 //
-// The reference pipeline — rasterize() into per-pixel lists in a pool (seed 000 §4.1), then
-// sortAndTruncate() (§4.2) — stays: it is what a fixed --pool selects, and what this pass is
-// tested against bit for bit (capture_test.cpp). Whole lists, for `layers --verify` and the
+// The reference pipeline — rasterize() into per-pixel lists in a pool (Hofmann et al. 2017,
+// §4.1), then sortAndTruncate() (§4.2) — stays: it is what a fixed --pool selects, and what this
+// pass is tested against bit for bit (capture_test.cpp). Whole lists, for `layers --verify` and the
 // whole-list options, come from this pass too (captureWithLists). Equal depths are kept in the reference's order: its
 // lists are last-generated-first and its insertion sort is stable, so among equal depths the
 // fragment generated last (the higher sub-triangle index) comes first.

@@ -1,4 +1,4 @@
-// The 16-byte fragment node of seed 000 §4.1 (Figure 3, left and centre).
+// The 16-byte fragment node of Hofmann et al. 2017, §4.1 (Figure 3, left and centre).
 //
 //   depth       32-bit float, positive linear eye-space depth (see camera.h)
 //   normal      camera-space normal, octahedral encoding [Meyer et al. 2010], 2 × 16-bit snorm
@@ -33,7 +33,7 @@ struct FragmentNode {
   void setThickness(float t) { next = std::bit_cast<uint32_t>(t); }
   float back() const { return depth + thickness(); }
 };
-static_assert(sizeof(FragmentNode) == 16, "seed 000 §4.1: one node is 128 bits");
+static_assert(sizeof(FragmentNode) == 16, "Hofmann et al. 2017, §4.1: one node is 128 bits");
 static_assert(std::is_trivial_v<FragmentNode>);
 
 /// std::lround for |v| < 2^23, inline (the rasterizer rounds two values per fragment, and the

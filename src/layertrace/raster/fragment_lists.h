@@ -1,4 +1,4 @@
-// Per-pixel linked lists of all rasterized fragments (seed 000 §4.1, [Yang et al. 2010]).
+// Per-pixel linked lists of all rasterized fragments (Hofmann et al. 2017, §4.1; Yang et al. 2010).
 #pragma once
 
 #include <cstdint>
@@ -25,7 +25,7 @@ struct FragmentLists {
 
   size_t pixelIndex(int x, int y) const { return size_t(y) * size_t(width) + size_t(x); }
 
-  /// Bytes of heads, counters and the pool (the "lists" stage of seed 000 Figure 9).
+  /// Bytes of heads, counters and the pool (the "lists" stage of Hofmann et al. 2017, Figure 9).
   size_t memoryBytes() const {
     return head.size() * sizeof(uint32_t) + complexity.size() * sizeof(uint32_t) +
            nodes.size() * sizeof(FragmentNode) + triangle.size() * sizeof(uint32_t);

@@ -21,7 +21,8 @@ struct Entry {
   uint32_t node;
 };
 
-/// Seed 000 §4.2: insertion sort into k cells; fragments beyond the k-th are shifted out.
+/// Hofmann et al. 2017, §4.2: insertion sort into k cells; fragments beyond the k-th are shifted
+/// out.
 int insertionSortK(const FragmentLists& lists, uint32_t head, int k, Entry* out) {
   int n = 0;
   for (uint32_t i = head; i != kNullIndex; i = lists.nodes[i].next) {
@@ -46,7 +47,7 @@ void collectSorted(const FragmentLists& lists, uint32_t head, std::vector<Entry>
 }
 
 /// Minimum separation: sort the whole list, then keep a fragment only if it lies at least
-/// `sep` behind the previously kept one (McGuire & Mara; seed 000 §4.2 notes the risk).
+/// `sep` behind the previously kept one (McGuire & Mara; Hofmann et al. 2017, §4.2, note the risk).
 int separatedK(const FragmentLists& lists, uint32_t head, int k, float sep, std::vector<Entry>& all, Entry* out) {
   collectSorted(lists, head, all);
   int n = 0;
@@ -58,8 +59,8 @@ int separatedK(const FragmentLists& lists, uint32_t head, int k, float sep, std:
   return n;
 }
 
-/// Adaptive thickness (seed 000 §4.2): sort the whole list; a fragment whose front lies within
-/// the previous kept interval extends that interval; otherwise it opens the next layer.
+/// Adaptive thickness (Hofmann et al. 2017, §4.2): sort the whole list; a fragment whose front lies
+/// within the previous kept interval extends that interval; otherwise it opens the next layer.
 int adaptiveK(const FragmentLists& lists, uint32_t head, int k, const LayerConfig& config, std::vector<Entry>& all, Entry* out,
               float* backs) {
   collectSorted(lists, head, all);

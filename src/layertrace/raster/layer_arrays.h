@@ -1,5 +1,5 @@
-// Sorted, truncated per-pixel arrays of the k front-most fragments (seed 000 §4.2, Figure 3
-// centre): each pixel owns k slots whether or not it fills them (coherent indexing, no
+// Sorted, truncated per-pixel arrays of the k front-most fragments (Hofmann et al. 2017, §4.2,
+// Figure 3 centre): each pixel owns k slots whether or not it fills them (coherent indexing, no
 // synchronisation), and each kept fragment carries its z-thickness in place of the list pointer,
 // giving the interval [depth, depth + thickness].
 #pragma once
@@ -12,16 +12,17 @@
 namespace lt {
 
 struct LayerConfig {
-  int k = 4;                 ///< layers kept per pixel, 1..16 (seed 000 §4.2: "4 to 8")
-  /// z-thickness of every fragment in scene units (seed 000 §4.2: "fixed, scene-dependent
-  /// [McGuire and Mara 2014] or adaptive"). thickness + thicknessPerDepth must be > 0.
+  int k = 4;                 ///< layers kept per pixel, 1..16 (Hofmann et al. 2017, §4.2: "4 to 8")
+  /// z-thickness of every fragment in scene units (Hofmann et al. 2017, §4.2: "fixed,
+  /// scene-dependent [McGuire and Mara 2014] or adaptive"). thickness + thicknessPerDepth must
+  /// be > 0.
   float thickness = 0.1f;
   /// Minimum separation between successive kept fragments (McGuire & Mara's deep G-buffer
-  /// rule, seed 000 §4.2 optional); 0 disables it.
+  /// rule, optional in Hofmann et al. 2017, §4.2); 0 disables it.
   float minSeparation = 0.0f;
-  /// seed 000 §4.2's adaptive thickness: a fragment that starts inside the previous kept
-  /// interval is merged into it (the interval grows to cover it) instead of taking a layer, so
-  /// the k slots reach deeper. The merged interval keeps the front fragment's attributes.
+  /// The adaptive thickness of Hofmann et al. 2017, §4.2: a fragment that starts inside the
+  /// previous kept interval is merged into it (the interval grows to cover it) instead of taking a
+  /// layer, so the k slots reach deeper. The merged interval keeps the front fragment's attributes.
   bool adaptiveThickness = false;
   /// Plus this much per unit of depth: N pixel footprints at the fragment's own depth is
   /// thicknessPerDepth = N / focal (pipeline: --thickness-px, the default). A fixed thickness is

@@ -23,8 +23,8 @@ struct TileAllocator {
   uint32_t next = 0, end = 0;
 };
 
-/// The reference pass (seed 000 §4.1): every fragment is linked into its pixel's list in a
-/// shared pool; each tile claims pool chunks from one atomic counter.
+/// The reference pass (Hofmann et al. 2017, §4.1): every fragment is linked into its pixel's list
+/// in a shared pool; each tile claims pool chunks from one atomic counter.
 struct ListPass {
   const Scene& scene;
   const Camera& camera;

@@ -30,10 +30,11 @@ struct RasterConfig {
   int tileSize = 32;  ///< screen tile edge in pixels (the unit of parallel work)
   /// Keep only triangles whose winding faces the camera (back-face culling). The k layers then
   /// hold the k nearest *front* surfaces: for view synthesis the second layer is the surface a
-  /// closed object hides, not the object's own back (README "View synthesis").
+  /// closed object hides, not the object's own back (docs/results.md, view synthesis).
   bool frontFacesOnly = false;
   /// When not empty (one entry per scene triangle): rasterize only the triangles whose entry
-  /// equals maskValue (the layered depth cube gives each triangle to one axis view, seed 004).
+  /// equals maskValue (the layered depth cube gives each triangle to one axis view,
+  /// Bürger et al. 2007).
   std::span<const uint8_t> triangleMask;
   uint8_t maskValue = 1;
 };

@@ -49,7 +49,7 @@ void spanAt(const glm::vec3 v[3], float y, float& lo, float& hi) {
   }
 }
 
-/// Session 15: the pixels where a triangle has depths the pixel's solid intervals do not hold —
+/// The pixels where a triangle has depths the pixel's solid intervals do not hold —
 /// where it lies in front of the pixel's first stored surface, or behind the end of its last
 /// one, by more than `lastThicknessPx` footprints (the hybrid's solid intervals, known_space.h).
 /// That happens where a triangle covers part of a pixel but not its centre (no sample stored it
@@ -62,7 +62,7 @@ void spanAt(const glm::vec3 v[3], float y, float& lo, float& hi) {
 /// truncated in front of it) within its depth change across the pixel: those pixels are not
 /// marked unless the triangle changes depth by more than the margin across a pixel somewhere.
 ///
-/// Session 16: every pixel the triangle overlaps also gets the triangle's nearest depth in its
+/// Every pixel the triangle overlaps also gets the triangle's nearest depth in its
 /// square where that lies in front of the pixel's first stored surface (`front`): the solid
 /// intervals start there (known_space.h). Where the square lies inside the triangle that is the
 /// plane's value at the nearest corner (1/depth is affine: the centre's plus half the gradient's
@@ -216,11 +216,12 @@ UnsampledDepths unsampledDepths(const Scene& scene, const Camera& camera, const 
     markUnheldInView(clipped, n, camera, layers, lastThicknessPx, markPixel, [&](size_t p, float depth) { nearestFront.mark(p, depth); });
     // The thin-triangle rule looks at the projected polygon — but one reaching close to the eye
     // plane beside the view lands ~10⁸ pixels out, where the half-pixel steps below no longer
-    // advance a float (an endless loop: session 28's sweep, assimp's IndexedLineSet.x3d through a
-    // 1° lens) and its coordinates carry errors of pixels. Such a polygon is clipped to the guard
-    // band in camera space first. Only then: a polygon clipped there can turn into a sliver along
-    // the band's edge that would mark the border pixels for a surface that never covers them
-    // (tried on every polygon, it moved 10 % of oa_shouse's reflection rays to geometry).
+    // advance a float (an endless loop, found by a sweep of assimp's models: IndexedLineSet.x3d
+    // through a 1° lens) and its coordinates carry errors of pixels. Such a polygon is clipped to
+    // the guard band in camera space first. Only then: a polygon clipped there can turn into a
+    // sliver along the band's edge that would mark the border pixels for a surface that never
+    // covers them (tried on every polygon, it moved 10 % of oa_shouse's reflection rays to
+    // geometry).
     glm::vec2 s[8];
     int m = n;
     bool far = false;

@@ -35,14 +35,14 @@ struct UnsampledDepths {
 /// their eight neighbours; its depth there is its nearest vertex's (conservative: knowledge ends
 /// no later than it must).
 ///
-/// Since session 15 also every pixel where a triangle has depths the pixel's solid intervals do
+/// Also every pixel where a triangle has depths the pixel's solid intervals do
 /// not hold — in front of its first stored surface, or behind its last one's end, by more than
 /// `lastThicknessPx` footprints (the hybrid's solid intervals: the last stored surface of a
 /// complete pixel is that deep) — marked with the triangle's nearest depth in the pixel: a
 /// triangle covering part of a pixel but not its centre in front of what the pixel stores, and a
 /// surface seen at a grazing angle that spans more depth inside one pixel than its interval.
 ///
-/// `nearest` (session 16): every triangle over every pixel square it overlaps — a conservative
+/// `nearest`: every triangle over every pixel square it overlaps — a conservative
 /// rasterization: the plane's nearest corner where the square lies inside the triangle, the
 /// clipped polygon's nearest point on its border — when that is in front of the pixel's first
 /// stored surface.

@@ -1,4 +1,4 @@
-// The secondary effects, written once against the Tracer interface (DESIGN.md): they work with
+// The secondary effects, written once against the Tracer interface (trace/tracer.h): they work with
 // every tracer, screen-space or geometric.
 //
 // Layer: render/ turns a pipeline Frame and a Tracer into an image — ray generation, the
@@ -32,9 +32,9 @@
 
 namespace lt {
 
-/// Warp: view synthesis (seed 002's application) — the image of a second camera (warpEye,
-/// warpTarget; the first camera's up, field of view and clip planes) made by tracing its primary
-/// rays through the first camera's k layers. A ray that finds nothing is a hole.
+/// Warp: view synthesis (the application of Widmer et al. 2015) — the image of a second camera
+/// (warpEye, warpTarget; the first camera's up, field of view and clip planes) made by tracing its
+/// primary rays through the first camera's k layers. A ray that finds nothing is a hole.
 enum class Effect { Shade, Reflection, Refraction, AO, Shadow, Warp };
 
 /// Parses "shade|reflection|refraction|ao|shadow|warp"; InputError naming --effect otherwise.

@@ -28,8 +28,8 @@ Scene loadModel(const std::string& path, const glm::mat4& transform = glm::mat4(
 /// A string property of an assimp material (`key`, `semantic`, `index` as assimp's AI_MATKEY_*
 /// macros give them), read from its bytes: assimp's own getter asserts that the stored string
 /// ends in a zero byte and aborts the process when it does not, and some importers store strings
-/// without one (assimp 5.2.5's MDL7 reader: `broadleavedtreeD.mdl` of assimp's test models,
-/// session 28's sweep). Here the length is clamped to the property's bytes and the string ends at
+/// without one (assimp 5.2.5's MDL7 reader: `broadleavedtreeD.mdl` of assimp's test models).
+/// Here the length is clamped to the property's bytes and the string ends at
 /// its first zero byte; a property that is not a string is absent.
 std::optional<std::string> materialString(const aiMaterial* material, const char* key, unsigned semantic, unsigned index);
 /// Whether a material property is a number assimp's number getters read: one stored as a string

@@ -1,4 +1,4 @@
-// Model files through assimp, with the Quake 3 fix-up of DATA.md.
+// Model files through assimp, with the Quake 3 fix-up described in docs/data.md.
 #include <algorithm>
 #include <cctype>
 #include <filesystem>
@@ -260,8 +260,8 @@ unsigned configureImporter(Assimp::Importer& importer, bool q3) {
 
 /// Destroys an importer under the import guard too: some importers build scenes that crash
 /// assimp's own destructor (assimp 5.2.5's 3MF reader on its test model cube_gears_prod_req.3mf:
-/// "free(): invalid pointer" in aiScene::~aiScene, found by session 28's sweep), which is as much a
-/// malformed model as a crash while reading.
+/// "free(): invalid pointer" in aiScene::~aiScene, found by a sweep of assimp's models), which is
+/// as much a malformed model as a crash while reading.
 struct GuardedImporterDelete {
   std::string source;
   void operator()(Assimp::Importer* importer) const {
@@ -611,8 +611,8 @@ Scene convertScene(const aiScene* as, const std::string& path, const std::string
     const glm::mat4 m = parent * toGlm(node->mTransformation);
     const glm::mat3 nm = glm::inverseTranspose(glm::mat3(m));
     // A mirroring transform (negative determinant) turns counter-clockwise into clockwise:
-    // swapping two corners keeps each triangle's front face the side it was (issue: mirrored
-    // objects were captured inside out with --front-faces-only).
+    // swapping two corners keeps each triangle's front face the side it was (otherwise mirrored
+    // objects would be captured inside out with --front-faces-only).
     const bool mirrored = glm::determinant(glm::mat3(m)) < 0.0f;
     const int second = mirrored ? 2 : 1, third = mirrored ? 1 : 2;
     for (unsigned k = 0; k < node->mNumMeshes && node->mMeshes; ++k) {

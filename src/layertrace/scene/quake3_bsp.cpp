@@ -1,4 +1,4 @@
-// A Quake 3 BSP check before assimp reads one (issue 16): assimp 5.2's Q3BSP importer trusts
+// A Quake 3 BSP check before assimp reads one: assimp 5.2's Q3BSP importer trusts
 // the lump directory and the face records, and a mutated map makes it read freed or foreign
 // memory (found by fuzz_pk3). The file format (IBSP version 46: 17 lumps, each an offset and a
 // length; faces index vertices, mesh vertices and textures) is public; these are exactly the

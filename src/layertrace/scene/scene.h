@@ -20,7 +20,7 @@ namespace lt {
 struct Material {
   std::string name;
   glm::vec3 albedo{0.7f};     ///< diffuse reflectance, linear RGB
-  float specular = 0.1f;      ///< Blinn-Phong specular weight in [0,1] (the 8-bit field of seed 000 §4.1)
+  float specular = 0.1f;      ///< Blinn-Phong specular weight in [0,1] (the 8-bit field of Hofmann et al. 2017, §4.1)
   float shininess = 32.0f;    ///< Blinn-Phong exponent
   float mirror = 0.0f;        ///< weight of the mirror-reflected colour in [0,1]
   float transmission = 0.0f;  ///< weight of the refracted colour in [0,1]
@@ -42,7 +42,8 @@ struct CameraDesc {
   float near = 0.0f;  ///< 0 = derive from the scene size (see Scene::defaultNearFar)
   float far = 0.0f;   ///< 0 = derive from the scene size
   /// > 0: an orthographic view this many scene units high (fovY is then unused). Only internal
-  /// captures use it (the layered depth cube's axis views, seed 004); scene files cannot ask.
+  /// captures use it (the layered depth cube's axis views, Bürger et al. 2007); scene files cannot
+  /// ask.
   float orthoHeight = 0.0f;
 };
 

@@ -1,9 +1,10 @@
 // Compact per-pixel depth intervals: what a screen-space tracer reads while it marches.
 //
 // The 16-byte fragments carry shading attributes a tracer only needs at the hit; marching reads
-// depth intervals only. Like the camera-space depth texture of seed 001 (one float per pixel) or
-// the two-float hierarchy levels of seed 000 (Figure 3, right), this keeps each visited pixel to
-// 8·k bytes instead of 16·k, so SSR, SSR-layers and HSSR level 0 all stream the same data.
+// depth intervals only. Like the camera-space depth texture of McGuire and Mara 2014 (one float per
+// pixel) or the two-float hierarchy levels of Hofmann et al. 2017 (Figure 3, right), this keeps
+// each visited pixel to 8·k bytes instead of 16·k, so SSR, SSR-layers and HSSR level 0 all stream
+// the same data.
 #pragma once
 
 #include <cstdint>

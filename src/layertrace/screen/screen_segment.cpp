@@ -23,7 +23,7 @@ ScreenSegment makeScreenSegment(const Camera& camera, const Ray& ray) {
     maxDistance -= t;
     seg.clippedStart = seg.startOutside = true;
   }
-  // seed 001: clip to the near plane.
+  // McGuire and Mara 2014: clip to the near plane.
   const float len = (origin.z + ray.dir.z * maxDistance > nearZ) ? (nearZ - origin.z) / ray.dir.z : maxDistance;
   seg.clippedEnd = len < maxDistance;
   const glm::vec3 end = origin + ray.dir * std::max(len, 0.0f);

@@ -1,9 +1,9 @@
 // A camera-space ray as a 2D line in pixel space with homogeneous perspective-correct
-// interpolation (seed 001, McGuire & Mara): k = 1/depth is linear in the screen-space parameter
-// s ∈ [0, 1] from P0 to P1, so depth(s) = 1 / (k0 + s (k1 - k0)). (Seed 001 also interpolates
-// Q = point/depth to return the hit point; our tracers return the hit fragment's own point, so
-// Q is not kept.)
-// The 3D segment is clipped to the near plane and its end to the viewport (hssr-pitfalls §9); a
+// interpolation (McGuire and Mara 2014): k = 1/depth is linear in the screen-space parameter
+// s ∈ [0, 1] from P0 to P1, so depth(s) = 1 / (k0 + s (k1 - k0)). (McGuire and Mara 2014 also
+// interpolate Q = point/depth to return the hit point; our tracers return the hit fragment's own
+// point, so Q is not kept.)
+// The 3D segment is clipped to the near plane and its end to the viewport; a
 // ray that starts outside the view is clipped to where it enters it (clippedStart).
 #pragma once
 

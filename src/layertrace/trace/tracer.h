@@ -1,12 +1,14 @@
-// The trace layer: what every tracer is and what it answers (DESIGN.md "Layout").
+// The trace layer: what every tracer is and what it answers (docs/architecture.md).
 //
 // Layer: trace/ holds the ray and hit types, the per-ray counters and the Tracer interface —
 // nothing that knows how a ray is answered. It may include util/ and scene/ only (plus the
-// standard library and glm). screen/ (image-space structures) and geometry/ (Embree, the
-// irregular grid) implement the interface and never include each other; render/ traces through
-// it without knowing which tracer runs; eval/ observes the rays it traces.
+// standard library and glm). The screen-space tracers (ssr/, hssr/, hiz/, quadtree/, ldc/, over
+// the shared image-space pieces of screen/) and the geometric ones (geometry/: Embree; grid/:
+// the irregular grid) implement the interface and never include each other; hybrid/ composes
+// one of each; render/ traces through it without knowing which tracer runs; eval/ observes the
+// rays it traces.
 //
-// The one question (DESIGN.md): given a camera-space ray and a maximum distance, which stored
+// The one question: given a camera-space ray and a maximum distance, which stored
 // surface does it hit first, if any? Screen-space tracers answer from the layer arrays, geometric
 // tracers from the triangles.
 #pragma once
@@ -25,8 +27,8 @@ struct Ray {
   glm::vec3 dir{0.0f, 0.0f, -1.0f};  ///< camera space, unit length
   float maxDistance = 1e30f;         ///< the ray ends here (scene units)
   /// The origin lies on a stored surface (a secondary ray): image-space tracers skip its own
-  /// pixel (seed 000 §5.1). False for rays from free space (a camera's eye, view synthesis):
-  /// their first pixel is tested like any other.
+  /// pixel (Hofmann et al. 2017, §5.1). False for rays from free space (a camera's eye, view
+  /// synthesis): their first pixel is tested like any other.
   bool startsOnSurface = true;
 };
 
@@ -48,8 +50,8 @@ struct TraceHit {
 /// NoCounters instantiation of its traversal even when counters are asked for.
 inline constexpr bool kCountersCompiled = LAYERTRACE_COUNTERS != 0;
 
-/// Per-ray traversal counters (hssr-pitfalls §10: one iteration = one visited cell at any level
-/// for HSSR, one step for SSR, one visited cell or BVH query for geometric tracers; intervals
+/// Per-ray traversal counters (one unit for every tracer: one iteration = one visited cell at any
+/// level for HSSR, one step for SSR, one visited cell or BVH query for geometric tracers; intervals
 /// counted at every visited cell). Tracers count through the methods, which NoCounters
 /// implements as no-ops, so the traversal instantiated with NoCounters has no counter code.
 struct RayCounters {
@@ -91,7 +93,7 @@ struct NoCounters {
 };
 
 /// The strict classes of an image-space answer graded against the geometric one (eval/classify.h
-/// states the rules; README "How rays are graded").
+/// states the rules; docs/evaluation.md).
 enum class RayClass : uint8_t {
   CorrectHit,
   WrongHitThickness,

@@ -6,7 +6,7 @@
 //   InternalError — a broken invariant inside layertrace. The CLI exits with status 1.
 // Library code never calls exit(); it throws, and main() decides.
 //
-// LT_CHECK(cond, ...) is always on and prints the values involved (STYLE.md, two tiers);
+// Checks come in two tiers: LT_CHECK(cond, ...) is always on and prints the values involved;
 // LT_DCHECK is for hot loops and only exists in debug builds.
 //
 // Layer: util/ is the bottom layer — errors and checks, image I/O, progress, timing. It knows

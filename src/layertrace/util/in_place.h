@@ -4,7 +4,7 @@
 // temporary with scalar stores and copy it with 16-byte loads, which the CPU cannot forward
 // from those stores: a store-forwarding stall (~15 cycles) per element. In the ray batches that
 // was a third of the plain Embree batch's own samples and most of HssrTracer::traceBatch's
-// (perf annotate, session 21). Constructing the element from the prvalue instead (C++17
+// (measured with perf annotate). Constructing the element from the prvalue instead (C++17
 // guaranteed elision) lets the callee write the element itself. Same bytes either way.
 #pragma once
 

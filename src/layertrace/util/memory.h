@@ -1,4 +1,4 @@
-// Memory limits: every large structure states its size before it allocates (issue 16), and an
+// Memory limits: every large structure states its size before it allocates, and an
 // allocation that would not fit is refused with one line naming the structure — never an
 // out-of-memory kill halfway through a run, never a partial output.
 #pragma once

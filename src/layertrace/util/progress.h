@@ -1,4 +1,4 @@
-// Progress on stderr for long runs (STYLE.md §9): workers only bump an atomic counter; a
+// Progress on stderr for long runs: workers only bump an atomic counter; a
 // reporter thread prints at most every half second, and only once the run has taken longer
 // than a second. Silent when disabled (--quiet).
 #pragma once

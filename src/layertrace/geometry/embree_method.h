@@ -1,0 +1,11 @@
+// Embree as the registry sees it (trace/method.h): the geometric baseline and ground truth.
+#pragma once
+
+#include "layertrace/trace/method.h"
+
+namespace lt {
+
+inline constexpr MethodInfo kEmbreeMethod{"embree", TracerKind::Geometric, "Embree 3 BVH, default scene flags (the speed baseline)",
+                                          "Wald, Woop, Benthin, Johnson, Ernst 2014, Embree: A Kernel Framework for Efficient CPU Ray Tracing (SIGGRAPH)"};
+
+}  // namespace lt

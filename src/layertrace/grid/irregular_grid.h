@@ -1,0 +1,213 @@
+// The irregular grid of Pérard-Gayot et al. 2017 ("GPU Ray Tracing Using Irregular Grids",
+// Pérard-Gayot, Kalojanov, Slusallek, EG 2017), on the CPU.
+//
+// Construction (irregular_grid_build.cpp):
+//   1. a coarse uniform top-level grid, resolution R = d · cbrt(λ1 N / V) per axis (Cleary);
+//   2. in each top cell an octree of depth D_i from the same formula with λ2 and the cell's own
+//      object count and volume, clamped to a power of two — stored fully subdivided, so the
+//      voxel map is a compact two-level grid (top cell → depths, offset → leaf cell ids);
+//      all cells are aligned on a virtual grid of resolution R · 2^D, D = max D_i. Our choice
+//      where the paper is silent: the depth is per axis (the formula on each side of the cell),
+//      so a top cell longer on one axis is not cut as finely on the others — the paper's cubic
+//      octree cut a flat slab's 0.35 × 0.35 × 1 cells to the depth the long side needs, 26.6 M
+//      initial cells for 240 k triangles;
+//   3. cell merging: a cell and its neighbour whose union is a box merge when the SAH criterion
+//      holds, for empty and non-empty cells, repeated until N_after ≥ α N_before;
+//   4. cell expansion: each cell's exit boundaries grow over neighbours whose references are a
+//      subset of its own (traversal stays correct: every primitive of the skipped region was
+//      already tested), a fixed number of passes (3 for static scenes); optionally partial.
+// Traversal (irregular_grid_traverse.cpp): stackless and ordered — locate the origin's cell in
+// the voxel map, intersect its primitives (four at a time, watertight), stop when the closest
+// hit lies inside the (expanded) cell, otherwise move to the cell beyond the exit point.
+#pragma once
+
+#include <array>
+#include <cstdint>
+#include <new>
+#include <span>
+#include <vector>
+
+#include <glm/vec3.hpp>
+
+#include "layertrace/geometry/embree_scene.h"
+#include "layertrace/scene/scene.h"
+
+namespace lt {
+
+struct GridConfig {
+  /// Top-level density. Pérard-Gayot et al. 2017 use λ1 = 0.12; a sweep (`geobench --sweep` on
+  /// FZK-Haus, am_thornish and engine, then 2 × 3 runs of the three best against Embree in the
+  /// same run; docs/methods/grid.md) found 0.5 faster to traverse: primary rays 0.62–0.64 →
+  /// 0.92–0.93× Embree on FZK-Haus, 0.84–0.86 → 0.95× on engine, 0.56–0.57 → 0.53× on
+  /// am_thornish, for about twice the build time and 1.3–1.5× the memory.
+  float lambda1 = 0.5f;
+  float lambda2 = 2.4f;       ///< second-level density (the paper: λ2 = 2.4; the sweep agrees)
+  int maxDepth = 6;           ///< cap on the per-cell octree depth (2^6 = 64 leaves per axis)
+  bool merge = true;          ///< cell merging
+  /// Merge passes find their candidates and join the chosen pairs in parallel; false runs the
+  /// serial greedy pass they reproduce exactly (the tests' reference).
+  bool parallelMerge = true;
+  float alpha = 0.995f;       ///< stop merging when N_after ≥ α N_before
+  /// Cost of one traversal step relative to one intersection, in the SAH merge test:
+  /// merge A, B when SA(A∪B)(C_t + |R(A∪B)|) ≤ SA(A)(C_t + |R(A)|) + SA(B)(C_t + |R(B)|).
+  /// (Our reading of the slides' C_t: a traversal step costs like a primitive test.)
+  float traversalCost = 1.0f;
+  int expansionPasses = 3;    ///< the paper: 3 for static scenes, 1 for dynamic ones
+  /// Partial expansion (the slides' expansion is all-or-nothing per neighbour; hagrid's
+  /// released code expands partially): a face may also sweep into a neighbour B whose
+  /// references are not a subset of A's, as long as every primitive of B that overlaps the
+  /// swept part of B is referenced by A. On by default: 5–10 % faster traversal on the real
+  /// scenes for ~10–30 % more build time, the same agreement with Embree (docs/methods/grid.md).
+  bool partialExpansion = true;
+};
+
+struct GridCell {
+  int lo[3], hi[3];    ///< the cell in virtual-grid voxels [lo, hi)
+  int elo[3], ehi[3];  ///< the expanded box used to find the exit point (⊇ [lo, hi))
+  uint32_t refBegin = 0, refEnd = 0;
+};
+
+struct GridStats {
+  double buildMs = 0.0;
+  double initialMs = 0.0, mergeMs = 0.0, expandMs = 0.0;  ///< build time by phase
+  int top[3] = {0, 0, 0};
+  int depth = 0;  ///< D: virtual resolution = top · 2^D
+  size_t cellsInitial = 0, cellsAfterMerge = 0, refs = 0, expandedFaces = 0;
+  int mergePasses = 0;
+};
+
+class IrregularGrid {
+ public:
+  IrregularGrid(const Scene& scene, const GridConfig& config = {});
+
+  /// Closest hit with t in (tnear, tfar] (Embree's rule: a ray starting on a triangle does not
+  /// hit it at t = tnear); `steps` counts visited cells.
+  GeoHit intersect(glm::vec3 origin, glm::vec3 dir, float tnear, float tfar, TraversalCounts* counts = nullptr) const;
+  /// Any hit with t in (tnear, tfar].
+  bool occluded(glm::vec3 origin, glm::vec3 dir, float tnear, float tfar, TraversalCounts* counts = nullptr) const;
+
+  /// One query of a batch.
+  struct Query {
+    glm::vec3 origin, dir;
+    float tnear, tfar;
+  };
+  /// The answers of intersect / occluded for many rays, bit for bit, with several rays in flight
+  /// (uncounted): each ray's next cell is prefetched while the other rays of its group step, so
+  /// the traversal's chain of dependent loads (leaf → cell → triangles) overlaps across rays
+  /// instead of stalling each ray (incoherent rays were latency-bound). Sixteen rays per
+  /// AVX-512 register where the CPU has them, the portable batch below elsewhere.
+  void intersect(std::span<const Query> queries, std::span<GeoHit> hits) const;
+  void occluded(std::span<const Query> queries, std::span<uint8_t> hits) const;
+  /// The batch without the AVX-512 lanes (sixteen scalar rays in flight), on every CPU: what the
+  /// batch queries run where the CPU has no AVX-512, and what the tests hold to the one-ray
+  /// traversal there too.
+  void intersectPortable(std::span<const Query> queries, std::span<GeoHit> hits) const;
+  void occludedPortable(std::span<const Query> queries, std::span<uint8_t> hits) const;
+
+  const GridStats& stats() const { return stats_; }
+  size_t memoryBytes() const;
+  const std::vector<GridCell>& cells() const { return cells_; }
+  const std::vector<uint32_t>& refs() const { return refs_; }
+  /// The cell containing virtual voxel v (the voxel map lookup), an index in cells().
+  uint32_t cellAt(const int v[3]) const { return walkCell(walkLeaf_[leafIndex(v)]).id; }
+  int virtualResolution(int axis) const { return virt_[axis]; }
+  glm::vec3 voxelSize() const { return voxel_; }
+  glm::vec3 inverseVoxelSize() const { return invVoxel_; }
+  glm::vec3 origin() const { return lo_; }  ///< the grid box's lower corner
+  glm::vec3 boxMax() const { return hi_; }   ///< the grid box's upper corner
+
+ private:
+  template <bool AnyHit>
+  GeoHit traverse(glm::vec3 o, glm::vec3 d, float tnear, float tfar, TraversalCounts* counts) const;
+  friend struct GridBuilder;
+
+  /// What the traversal reads, packed apart from the builder's data (the same values). Each cell
+  /// is one 32-byte record — its exit box and reference count — followed directly by its
+  /// triangles in blocks of four, vertex coordinates lane by lane, ready for the 4-wide watertight
+  /// test; records start on 64-byte lines, so a cell and its first block are exactly three lines
+  /// that one leaf lookup locates and prefetches together (no reference list to follow, one
+  /// dependent load per cell after the leaf). A triangle referenced by several cells
+  /// is copied into each: 160 bytes per four references instead of 4 per reference plus 36 per
+  /// triangle.
+  /// A top cell's subdivision: 2^d_a leaves along axis a, leaf entries from `offset` in x-fastest
+  /// order; shift_a = D − d_a turns a virtual voxel into a leaf coordinate, and the leaf
+  /// (l0, l1, l2) is entry l0 + (l1 << bits1) + (l2 << bits2), bits1 = d_0, bits2 = d_0 + d_1.
+  struct TopCell {
+    uint32_t offset;
+    uint8_t shift[3], bits1, bits2;
+  };
+  static constexpr int kLanes = 4;
+  static constexpr size_t kUnit = 32;  ///< walk_ is addressed in 32-byte units
+  struct alignas(kUnit) TraversalCell {
+    int elo[3], ehi[3];
+    uint32_t refs;  ///< references; its ⌈refs / 4⌉ blocks follow the record
+    uint32_t id;    ///< index in cells_ (what cellAt answers)
+  };
+  /// Four triangles: v[vertex][axis][lane], and their scene ids. A cell whose reference count is
+  /// not a multiple of four repeats its last triangle in the spare lanes — the same triangle
+  /// tested twice gives the same answer, so no lane mask is needed.
+  struct alignas(kUnit) TriangleBlock {
+    float v[3][3][kLanes];
+    uint32_t id[kLanes];
+  };
+  static_assert(sizeof(TraversalCell) == kUnit && sizeof(TriangleBlock) % kUnit == 0);
+  struct alignas(64) Line {
+    unsigned char bytes[64];
+  };
+  const TraversalCell& walkCell(uint32_t unit) const {
+    return *std::launder(reinterpret_cast<const TraversalCell*>(reinterpret_cast<const unsigned char*>(walk_.data()) + size_t(unit) * kUnit));
+  }
+  static const TriangleBlock* walkBlocks(const TraversalCell& c) { return std::launder(reinterpret_cast<const TriangleBlock*>(&c + 1)); }
+  /// Index in walkLeaf_ of virtual voxel v (the voxel map's first level).
+  size_t leafIndex(const int v[3]) const {
+    const TopCell& t = topCells_[(size_t(v[2] >> depth_) * size_t(top_[1]) + size_t(v[1] >> depth_)) * size_t(top_[0]) + size_t(v[0] >> depth_)];
+    const int mask = (1 << depth_) - 1;
+    const uint32_t l0 = uint32_t((v[0] & mask) >> t.shift[0]), l1 = uint32_t((v[1] & mask) >> t.shift[1]),
+                   l2 = uint32_t((v[2] & mask) >> t.shift[2]);
+    return t.offset + ((l2 << t.bits2) + (l1 << t.bits1) + l0);
+  }
+  /// During the build, before walkLeaf_ exists: the builder's cell id of voxel v.
+  uint32_t buildCellAt(const int v[3]) const { return leaf_[leafIndex(v)]; }
+  /// One ray's traversal state; the steps below are what the one-ray and the batched traversal
+  /// share, so both answer alike.
+  struct Walk;
+  bool enter(Walk& w, glm::vec3 o, glm::vec3 d, float tnear, float tfar) const;
+  bool exitCell(Walk& w, const TraversalCell& c) const;
+  template <bool AnyHit>
+  bool testCell(Walk& w, const TraversalCell& c, bool more) const;
+  GeoHit finish(const Walk& w) const;
+  template <bool AnyHit, class Out>
+  void traverseBatch(std::span<const Query> queries, Out out) const;
+  /// traverseBatch's answers with sixteen rays in the lanes of AVX-512 registers (where the CPU
+  /// has them, lanesAvailable): the exit, the next voxel and the voxel-map lookup of sixteen
+  /// cells at once, each lane's triangles tested by testCell. Writes hits (closest) or anyHits.
+  template <bool AnyHit>
+  void traverseLanes(std::span<const Query> queries, std::span<GeoHit> hits, std::span<uint8_t> anyHits) const;
+  bool lanesAvailable() const;
+  struct GridLanes;
+  void packForTraversal();
+
+  const Scene* scene_;
+  glm::vec3 lo_{0.0f}, hi_{0.0f}, voxel_{1.0f};
+  glm::vec3 invVoxel_{1.0f};  ///< 1 / voxel_: the traversal multiplies instead of dividing
+  int top_[3] = {1, 1, 1};
+  int depth_ = 0;
+  int virt_[3] = {1, 1, 1};
+  // The voxel map as the builder makes and rewrites it; released once packForTraversal has made
+  // topCells_ and walkLeaf_ from it.
+  std::vector<std::array<uint8_t, 3>> topDepth_;  ///< level 1: octree depth of each top cell, per axis
+  std::vector<uint32_t> topOffset_; ///< level 1: first leaf entry of each top cell
+  std::vector<uint32_t> leaf_;      ///< level 2: cell id of each leaf
+  std::vector<GridCell> cells_;
+  std::vector<uint32_t> refs_;
+  std::vector<TopCell> topCells_;
+  std::vector<uint32_t> walkLeaf_;  ///< voxel map, level 2, for the traversal: the leaf's cell record in walk_
+  std::vector<Line> walk_;          ///< every cell's record and triangle blocks, cell after cell
+  GridStats stats_;
+};
+
+/// Triangle / axis-aligned box overlap (separating axis theorem, Akenine-Möller), with the box
+/// grown by `eps` so that references are conservative.
+bool triangleBoxOverlap(glm::vec3 a, glm::vec3 b, glm::vec3 c, glm::vec3 boxLo, glm::vec3 boxHi, float eps);
+
+}  // namespace lt

@@ -1,0 +1,33 @@
+#include "layertrace/hssr/hssr_method.h"
+
+#include <cmath>
+
+#include "layertrace/util/error.h"
+
+namespace lt {
+
+std::span<const Param<PyramidConfig>> pyramidParams() {
+  static const Param<PyramidConfig> params[] = {
+      {"--hssr-tau", "--tau", "merge threshold in pixel footprints (paper: 25)", &PyramidConfig::tau},
+      {"--hssr-levels", "--levels", "pyramid levels including level 0, 1..16 (also Hi-Z's; paper: 5)", &PyramidConfig::levels},
+  };
+  return params;
+}
+
+std::span<const Param<HssrConfig>> hssrParams() {
+  static const Param<HssrConfig> params[] = {
+      {"--hssr-n-up", "--n-up", "cells without overlap before ascending a level (sooner on entering a new parent cell)", &HssrConfig::nUp},
+  };
+  return params;
+}
+
+void validatePyramidConfig(const PyramidConfig& c) {
+  if (c.levels < 1 || c.levels > 16) inputError("--hssr-levels ", c.levels, ": must be between 1 and 16");
+  if (!(c.tau > 0.0f && std::isfinite(c.tau))) inputError("--hssr-tau ", c.tau, ": must be positive and finite");
+}
+
+void validateHssrConfig(const HssrConfig& c) {
+  if (c.nUp < 1) inputError("--hssr-n-up ", c.nUp, ": must be >= 1");
+}
+
+}  // namespace lt
