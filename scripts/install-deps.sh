@@ -9,11 +9,14 @@ packages=(
   build-essential cmake pkg-config ca-certificates
   libembree-dev libassimp-dev libtbb-dev libglm-dev libcli11-dev nlohmann-json3-dev
   libopenexr-dev libstb-dev zlib1g-dev
+  # The GPU back end: OpenGL through headless EGL (libepoxy), shaders checked at build time, and
+  # Mesa's drivers (llvmpipe runs it on a machine without a GPU).
+  libepoxy-dev libegl-dev glslang-tools libegl-mesa0 libgl1-mesa-dri
 )
 if [ "${1:-}" != "--run" ]; then
   packages+=(libgtest-dev libbenchmark-dev python3 python3-matplotlib unzip zip clang-16 libclang-rt-16-dev)
   # The viewer (`layertrace view`) and its test under a virtual X server with Mesa's software GL.
-  packages+=(libglfw3-dev libimgui-dev xvfb xauth libgl1-mesa-dri)
+  packages+=(libglfw3-dev libimgui-dev xvfb xauth)
 fi
 # No npm: the default scene's small bunny is committed as an OBJ (scenes/default/bunny.obj).
 

@@ -324,6 +324,9 @@ int runCli(int argc, const char* const* argv, CliMode mode) {
       finishFrameOptions(run, raw);
       const CLI::App* cmd = app.get_subcommands().front();
       const std::string name = cmd->get_name();
+      // A refused value is the one line a bad command prints: check the frame options before
+      // warning about the ones this command ignores.
+      lt::validateFrameOptions(run.frame);
       if (mode == CliMode::Run) warnUnused(*cmd);
       std::string* report = name == "compare" ? &compare.report : name == "bench" ? &bench.report : nullptr;
       if (name == "view") {
@@ -348,7 +351,7 @@ int runCli(int argc, const char* const* argv, CliMode mode) {
                                    std::tuple{benchCmd, &bench.run, &benchRaw}, std::tuple{compareCmd, &compare.run, &compareRaw},
                                    std::tuple{renderCmd, &render.run, &renderRaw}, std::tuple{ldcCmd, &ldc.run, &ldcRaw},
                                    std::tuple{viewCmd, &view.render.run, &viewRaw}})
-        if (cmd->parsed()) prepare(*run, *raw), lt::validateFrameOptions(run->frame);
+        if (cmd->parsed()) prepare(*run, *raw);
       if (compareCmd->parsed()) finishEffectOptions(compare.effect, compareEffect, compareRaw), lt::validateEffectConfig(compare.effect);
       if (renderCmd->parsed()) finishEffectOptions(render.effect, effectName, renderRaw), lt::validateEffectConfig(render.effect);
       if (renderCmd->parsed()) lt::validateTracerOptions(render.tracers);

@@ -1,0 +1,189 @@
+#include "layertrace/gpu/gpu_context.h"
+
+#include <dlfcn.h>
+
+#include <algorithm>
+#include <utility>
+#include <vector>
+
+#include <epoxy/egl.h>
+#include <epoxy/gl.h>
+
+#include "layertrace/util/error.h"
+
+namespace lt {
+
+namespace {
+
+[[noreturn]] void unavailable(const std::string& why) {
+  inputError("--device gpu: no OpenGL 4.5 device (", why, ")");
+}
+
+std::string glString(GLenum name) {
+  const auto* s = reinterpret_cast<const char*>(glGetString(name));
+  return s ? s : "";
+}
+
+/// The display to open: Mesa's surfaceless platform, else the first EGL device.
+EGLDisplay openDisplay() {
+  if (epoxy_has_egl_extension(EGL_NO_DISPLAY, "EGL_MESA_platform_surfaceless"))
+    if (EGLDisplay d = eglGetPlatformDisplayEXT(EGL_PLATFORM_SURFACELESS_MESA, EGL_DEFAULT_DISPLAY, nullptr); d != EGL_NO_DISPLAY)
+      return d;
+  if (epoxy_has_egl_extension(EGL_NO_DISPLAY, "EGL_EXT_device_enumeration") &&
+      epoxy_has_egl_extension(EGL_NO_DISPLAY, "EGL_EXT_platform_device")) {
+    EGLDeviceEXT devices[16];
+    EGLint count = 0;
+    if (eglQueryDevicesEXT(16, devices, &count))
+      for (EGLint i = 0; i < count; ++i)
+        if (EGLDisplay d = eglGetPlatformDisplayEXT(EGL_PLATFORM_DEVICE_EXT, devices[i], nullptr); d != EGL_NO_DISPLAY) return d;
+  }
+  return EGL_NO_DISPLAY;
+}
+
+}  // namespace
+
+GpuContext::GpuContext() {
+  // libepoxy aborts the process when it cannot load libEGL: ask first.
+  if (void* egl = dlopen("libEGL.so.1", RTLD_LAZY | RTLD_LOCAL)) dlclose(egl);
+  else unavailable("libEGL.so.1 not found: apt-get install libegl1 libegl-mesa0 libgl1-mesa-dri");
+  EGLDisplay display = openDisplay();
+  if (display == EGL_NO_DISPLAY) unavailable("EGL offers no display: no driver for a headless context");
+  EGLint major = 0, minor = 0;
+  if (!eglInitialize(display, &major, &minor)) unavailable(cat("eglInitialize failed, EGL error ", eglGetError()));
+  display_ = display;
+  auto fail = [&](const std::string& why) {
+    eglTerminate(display);
+    display_ = nullptr;
+    unavailable(why);
+  };
+  if (!eglBindAPI(EGL_OPENGL_API)) fail("the EGL driver has no desktop OpenGL");
+  if (!epoxy_has_egl_extension(display, "EGL_KHR_surfaceless_context")) fail("the EGL driver has no surfaceless contexts");
+  EGLConfig config = EGL_NO_CONFIG_KHR;
+  if (!epoxy_has_egl_extension(display, "EGL_KHR_no_config_context")) {
+    const EGLint want[] = {EGL_RENDERABLE_TYPE, EGL_OPENGL_BIT, EGL_NONE};
+    EGLint n = 0;
+    if (!eglChooseConfig(display, want, &config, 1, &n) || n < 1) fail("no EGL configuration renders OpenGL");
+  }
+  const EGLint attributes[] = {EGL_CONTEXT_MAJOR_VERSION, 4, EGL_CONTEXT_MINOR_VERSION, 5, EGL_CONTEXT_OPENGL_PROFILE_MASK,
+                               EGL_CONTEXT_OPENGL_CORE_PROFILE_BIT, EGL_NONE};
+  EGLContext context = eglCreateContext(display, config, EGL_NO_CONTEXT, attributes);
+  if (context == EGL_NO_CONTEXT) fail("the driver offers no OpenGL 4.5 core context");
+  context_ = context;
+  if (!eglMakeCurrent(display, EGL_NO_SURFACE, EGL_NO_SURFACE, context)) {
+    eglDestroyContext(display, context);
+    context_ = nullptr;
+    fail("eglMakeCurrent failed");
+  }
+  renderer_ = glString(GL_RENDERER);
+  version_ = glString(GL_VERSION);
+  if (epoxy_gl_version() < 45) {
+    eglMakeCurrent(display, EGL_NO_SURFACE, EGL_NO_SURFACE, EGL_NO_CONTEXT);
+    eglDestroyContext(display, context);
+    context_ = nullptr;
+    fail("the context is OpenGL " + version_);
+  }
+}
+
+GpuContext::~GpuContext() {
+  if (!display_) return;
+  auto display = static_cast<EGLDisplay>(display_);
+  eglMakeCurrent(display, EGL_NO_SURFACE, EGL_NO_SURFACE, EGL_NO_CONTEXT);
+  if (context_) eglDestroyContext(display, static_cast<EGLContext>(context_));
+  eglTerminate(display);
+  eglReleaseThread();
+}
+
+bool GpuContext::software() const {
+  for (const char* name : {"llvmpipe", "softpipe", "SwiftShader"})
+    if (renderer_.find(name) != std::string::npos) return true;
+  return false;
+}
+
+void GpuContext::makeCurrent() const {
+  if (eglGetCurrentContext() == static_cast<EGLContext>(context_)) return;
+  if (!eglMakeCurrent(static_cast<EGLDisplay>(display_), EGL_NO_SURFACE, EGL_NO_SURFACE, static_cast<EGLContext>(context_)))
+    throw InternalError("eglMakeCurrent failed (is the GPU context current on another thread?)");
+}
+
+uint32_t GpuContext::computeProgram(std::string_view name, std::string_view source) const {
+  const GLuint shader = glCreateShader(GL_COMPUTE_SHADER);
+  const GLchar* text = source.data();
+  const GLint length = GLint(source.size());
+  glShaderSource(shader, 1, &text, &length);
+  glCompileShader(shader);
+  auto log = [](GLuint object, bool program) {
+    GLint n = 0;
+    program ? glGetProgramiv(object, GL_INFO_LOG_LENGTH, &n) : glGetShaderiv(object, GL_INFO_LOG_LENGTH, &n);
+    std::string s(size_t(std::max(n, 1)), '\0');
+    program ? glGetProgramInfoLog(object, n, nullptr, s.data()) : glGetShaderInfoLog(object, n, nullptr, s.data());
+    return s;
+  };
+  GLint ok = 0;
+  glGetShaderiv(shader, GL_COMPILE_STATUS, &ok);
+  if (!ok) {
+    const std::string why = log(shader, false);
+    glDeleteShader(shader);
+    throw InternalError(cat("shader ", name, " does not compile on ", renderer_, ": ", why));
+  }
+  const GLuint program = glCreateProgram();
+  glAttachShader(program, shader);
+  glLinkProgram(program);
+  glDeleteShader(shader);
+  glGetProgramiv(program, GL_LINK_STATUS, &ok);
+  if (!ok) {
+    const std::string why = log(program, true);
+    glDeleteProgram(program);
+    throw InternalError(cat("shader ", name, " does not link on ", renderer_, ": ", why));
+  }
+  return program;
+}
+
+GpuBuffer::GpuBuffer(size_t bytes, const void* data) : bytes_(std::max<size_t>(bytes, 16)) {
+  glCreateBuffers(1, &id_);
+  glNamedBufferStorage(id_, GLsizeiptr(bytes_), nullptr, GL_DYNAMIC_STORAGE_BIT);
+  if (glGetError() == GL_OUT_OF_MEMORY) {
+    glDeleteBuffers(1, &id_);
+    inputError("--device gpu: ", bytes_, " bytes of GPU memory are not available");
+  }
+  if (data && bytes > 0) write(data, bytes);
+}
+
+GpuBuffer::~GpuBuffer() {
+  if (id_) glDeleteBuffers(1, &id_);
+}
+
+GpuBuffer::GpuBuffer(GpuBuffer&& other) noexcept : id_(std::exchange(other.id_, 0)), bytes_(std::exchange(other.bytes_, 0)) {}
+
+GpuBuffer& GpuBuffer::operator=(GpuBuffer&& other) noexcept {
+  if (this != &other) {
+    if (id_) glDeleteBuffers(1, &id_);
+    id_ = std::exchange(other.id_, 0);
+    bytes_ = std::exchange(other.bytes_, 0);
+  }
+  return *this;
+}
+
+void GpuBuffer::bindStorage(uint32_t index) const { glBindBufferBase(GL_SHADER_STORAGE_BUFFER, index, id_); }
+
+void GpuBuffer::write(const void* data, size_t bytes, size_t offset) const {
+  LT_CHECK(offset + bytes <= bytes_, offset, bytes, bytes_);
+  glNamedBufferSubData(id_, GLintptr(offset), GLsizeiptr(bytes), data);
+}
+
+void GpuBuffer::read(void* data, size_t bytes, size_t offset) const {
+  LT_CHECK(offset + bytes <= bytes_, offset, bytes, bytes_);
+  glMemoryBarrier(GL_BUFFER_UPDATE_BARRIER_BIT);
+  glGetNamedBufferSubData(id_, GLintptr(offset), GLsizeiptr(bytes), data);
+}
+
+GpuTimer::GpuTimer() { glCreateQueries(GL_TIME_ELAPSED, 1, &id_); }
+GpuTimer::~GpuTimer() { glDeleteQueries(1, &id_); }
+void GpuTimer::begin() const { glBeginQuery(GL_TIME_ELAPSED, id_); }
+void GpuTimer::end() const { glEndQuery(GL_TIME_ELAPSED); }
+double GpuTimer::ms() const {
+  GLuint64 ns = 0;
+  glGetQueryObjectui64v(id_, GL_QUERY_RESULT, &ns);
+  return double(ns) * 1e-6;
+}
+
+}  // namespace lt

@@ -1,0 +1,84 @@
+// The GPU back end's one owner of OpenGL state: a headless OpenGL 4.5 core context through EGL
+// (no window, no X server), the buffers shaders read and write, compute programs and timer
+// queries. Function loading goes through libepoxy; any driver with OpenGL 4.5 serves (NVIDIA,
+// AMD, Intel, Mesa's llvmpipe). Everything here runs on the thread that made the context
+// current: GPU work is issued from one thread.
+#pragma once
+
+#include <cstddef>
+#include <cstdint>
+#include <string>
+#include <string_view>
+
+namespace lt {
+
+class GpuContext {
+ public:
+  /// Opens the first OpenGL 4.5 device EGL offers: Mesa's surfaceless platform, else the first
+  /// enumerated EGL device (NVIDIA's headless path). Throws InputError naming `--device gpu`
+  /// and the reason when there is none.
+  GpuContext();
+  ~GpuContext();
+  GpuContext(const GpuContext&) = delete;
+  GpuContext& operator=(const GpuContext&) = delete;
+
+  /// "NVIDIA H100 …", "llvmpipe (LLVM 15.0.6, 256 bits)".
+  const std::string& renderer() const { return renderer_; }
+  /// "4.5 (Core Profile) Mesa 22.3.6".
+  const std::string& version() const { return version_; }
+  /// True for a CPU rasterizer (llvmpipe, softpipe, SwiftShader): its timings are CPU timings.
+  bool software() const;
+  /// Makes the context current on the calling thread (it is after construction).
+  void makeCurrent() const;
+  /// Compiles and links one compute shader; InternalError with the driver's log on failure
+  /// (the build validated every shader, so a failure here is a driver's).
+  uint32_t computeProgram(std::string_view name, std::string_view source) const;
+
+ private:
+  void* display_ = nullptr;
+  void* context_ = nullptr;
+  std::string renderer_, version_;
+};
+
+/// An OpenGL buffer object (shader storage) of a fixed size.
+class GpuBuffer {
+ public:
+  GpuBuffer() = default;
+  /// `bytes` of storage (at least 16), filled from `data` when it is not null.
+  explicit GpuBuffer(size_t bytes, const void* data = nullptr);
+  ~GpuBuffer();
+  GpuBuffer(GpuBuffer&& other) noexcept;
+  GpuBuffer& operator=(GpuBuffer&& other) noexcept;
+  GpuBuffer(const GpuBuffer&) = delete;
+  GpuBuffer& operator=(const GpuBuffer&) = delete;
+
+  size_t bytes() const { return bytes_; }
+  uint32_t id() const { return id_; }
+  /// Binds it to shader storage binding point `index`.
+  void bindStorage(uint32_t index) const;
+  void write(const void* data, size_t bytes, size_t offset = 0) const;
+  /// Reads `bytes` from `offset` after the shader writes issued before it (waits for them).
+  void read(void* data, size_t bytes, size_t offset = 0) const;
+
+ private:
+  uint32_t id_ = 0;
+  size_t bytes_ = 0;
+};
+
+/// GPU time of the commands between begin() and end() (GL_TIME_ELAPSED).
+class GpuTimer {
+ public:
+  GpuTimer();
+  ~GpuTimer();
+  GpuTimer(const GpuTimer&) = delete;
+  GpuTimer& operator=(const GpuTimer&) = delete;
+  void begin() const;
+  void end() const;
+  /// Milliseconds of the last begin()/end(); waits for the GPU to finish them.
+  double ms() const;
+
+ private:
+  uint32_t id_ = 0;
+};
+
+}  // namespace lt

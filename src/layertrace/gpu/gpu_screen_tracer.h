@@ -1,0 +1,74 @@
+// The screen-space tracers as OpenGL compute shaders (shaders/*.comp): HSSR's multi-level DDA
+// (Hofmann et al. 2017, §5), the Hi-Z march and the exhaustive march over the same traversal,
+// and the SSR march of McGuire and Mara 2014 over the front layer (ssr) or all k layers
+// (ssr-layers). Each reads the same data as its CPU twin, uploaded once: level 0's k intervals
+// per pixel, their counts, and the pyramid's coarse cells. One dispatch traces a whole batch,
+// one invocation per ray, and returns the hit fragment (pixel, layer) with the CPU's per-ray
+// counters; the hit's point, normal and material come from the CPU's layer arrays, as the CPU
+// tracers do (screen/fragment_hit.h).
+#pragma once
+
+#include <cstdint>
+#include <memory>
+#include <span>
+#include <vector>
+
+#include "layertrace/gpu/gpu_context.h"
+#include "layertrace/hssr/hssr_tracer.h"
+#include "layertrace/hssr/interval_pyramid.h"
+#include "layertrace/raster/layer_arrays.h"
+#include "layertrace/scene/camera.h"
+#include "layertrace/ssr/ssr_tracer.h"
+#include "layertrace/trace/tracer.h"
+
+namespace lt {
+
+/// One ray's answer on the GPU: the hit fragment (layer −1 for a miss) and its counters.
+struct GpuMarchHit {
+  int x = -1, y = -1, layer = -1;
+  RayCounters counters;
+  bool hit() const { return layer >= 0; }
+};
+
+class GpuScreenTracer final : public Tracer {
+ public:
+  /// HSSR over `pyramid` (Hi-Z with hizConfig over a min/max pyramid; the exhaustive march
+  /// with one level). The context must outlive the tracer; `pyramid` need not.
+  GpuScreenTracer(GpuContext& gpu, const Camera& camera, const LayerArrays& layers, const IntervalPyramid& pyramid,
+                  const HssrConfig& config);
+  /// SSR (front layer) or SSR-layers (config.allLayers).
+  GpuScreenTracer(GpuContext& gpu, const Camera& camera, const LayerArrays& layers, const SsrConfig& config);
+  ~GpuScreenTracer() override;
+
+  const char* name() const override { return name_; }
+  TraceHit trace(const Ray& ray, RayCounters& counters) const override;
+  /// The whole batch in one dispatch (call it from the context's thread; large batches pay the
+  /// dispatch's fixed cost once).
+  void traceBatch(std::span<const Ray> rays, std::span<TraceHit> hits, std::span<RayCounters> counters) const override;
+  /// The fragments the rays hit, with their counters.
+  void march(std::span<const Ray> rays, std::vector<GpuMarchHit>& out) const;
+
+  /// GPU time of the last batch's dispatches (GL timer query), milliseconds.
+  double lastTraceMs() const { return lastTraceMs_; }
+  /// GPU time of every batch so far, milliseconds.
+  double totalTraceMs() const { return totalTraceMs_; }
+  /// Bytes of the structure on the GPU (level 0, counts, coarse cells).
+  size_t memoryBytes() const;
+
+ private:
+  void upload(const IntervalLayers& level0);
+  void setCameraUniforms() const;
+
+  GpuContext& gpu_;
+  const Camera& camera_;
+  const LayerArrays& layers_;
+  const char* name_;
+  uint32_t program_ = 0;
+  GpuBuffer level0_, counts_, cells_;
+  int k_ = 0;
+  mutable GpuBuffer rays_, hits_;
+  mutable double lastTraceMs_ = 0.0, totalTraceMs_ = 0.0;
+  std::unique_ptr<GpuTimer> timer_;
+};
+
+}  // namespace lt

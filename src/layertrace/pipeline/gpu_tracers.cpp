@@ -1,0 +1,83 @@
+#include "layertrace/pipeline/gpu_tracers.h"
+
+#include <algorithm>
+#include <array>
+
+#include "layertrace/util/error.h"
+#if LAYERTRACE_HAS_GPU
+#include "layertrace/gpu/gpu_context.h"
+#include "layertrace/gpu/gpu_screen_tracer.h"
+#include "layertrace/hiz/hiz_pyramid.h"
+#endif
+
+namespace lt {
+
+namespace {
+constexpr std::array<const char*, 4> kGpuTracers = {"ssr", "ssr-layers", "hiz", "hssr"};
+}
+
+
+bool hasGpuTracer(const std::string& name) {
+  return std::find(kGpuTracers.begin(), kGpuTracers.end(), name) != kGpuTracers.end();
+}
+
+const std::string& gpuTracerNames() {
+  static const std::string names = [] {
+    std::string s;
+    for (const char* n : kGpuTracers) s += (s.empty() ? "" : ", ") + std::string(n);
+    return s;
+  }();
+  return names;
+}
+
+#if LAYERTRACE_HAS_GPU
+
+bool gpuBuilt() { return true; }
+
+std::shared_ptr<GpuContext> openGpu() { return std::make_shared<GpuContext>(); }
+
+nlohmann::json gpuStats(const GpuContext& gpu) {
+  return {{"renderer", gpu.renderer()}, {"version", gpu.version()}, {"software", gpu.software()}};
+}
+
+BuiltTracer buildGpuTracer(const std::string& name, const Frame& frame, const TracerOptions& options, GpuContext& gpu) {
+  if (!hasGpuTracer(name)) inputError("--device gpu: ", name, " has no GPU version (GPU tracers: ", gpuTracerNames(), ")");
+  // The CPU structures first (the same validation, the same pyramid), then their upload.
+  BuiltTracer b = buildTracer(name, frame, options);
+  std::unique_ptr<GpuScreenTracer> t;
+  if (name == "ssr" || name == "ssr-layers") {
+    SsrConfig sc = options.ssr;
+    sc.allLayers = name == "ssr-layers";
+    t = std::make_unique<GpuScreenTracer>(gpu, frame.camera, frame.layers, sc);
+  } else {
+    HssrConfig hc = name == "hiz" ? hizConfig(options.pyramid.levels) : options.hssr;
+    hc.maxLevels = options.pyramid.levels;
+    t = std::make_unique<GpuScreenTracer>(gpu, frame.camera, frame.layers, *b.pyramid, hc);
+  }
+  b.memoryBytes = t->memoryBytes();
+  b.tracer = std::move(t);
+  return b;
+}
+
+double gpuTraceMs(const Tracer& tracer) {
+  const auto* g = dynamic_cast<const GpuScreenTracer*>(&tracer);
+  return g ? g->totalTraceMs() : 0.0;
+}
+
+#else
+
+bool gpuBuilt() { return false; }
+
+std::shared_ptr<GpuContext> openGpu() {
+  inputError("--device gpu: this build has no GPU back end (apt-get install libepoxy-dev libegl-dev glslang-tools, then rebuild)");
+}
+nlohmann::json gpuStats(const GpuContext&) { return {}; }
+BuiltTracer buildGpuTracer(const std::string&, const Frame&, const TracerOptions&, GpuContext&) {
+  openGpu();
+  return {};
+}
+double gpuTraceMs(const Tracer&) { return 0.0; }
+
+#endif
+
+}  // namespace lt

@@ -1,0 +1,40 @@
+// The GPU back end as the commands see it: which tracers have a GPU version, opening the
+// device, and building a GPU tracer for a frame beside the CPU structures it mirrors. A build
+// without the back end (LAYERTRACE_GPU off, or its packages missing) still has these functions:
+// openGpu() then says so.
+#pragma once
+
+#include <memory>
+#include <string>
+
+#include <nlohmann/json.hpp>
+
+#include "layertrace/pipeline/tracer_registry.h"
+
+namespace lt {
+
+class GpuContext;
+
+/// True when this build has the GPU back end (src/layertrace/gpu/).
+bool gpuBuilt();
+/// Opens the GPU; InputError naming `--device gpu` when this build has no back end or the
+/// machine no OpenGL 4.5 device.
+std::shared_ptr<GpuContext> openGpu();
+/// The device as the statistics report it: renderer, OpenGL version, and whether it is a
+/// CPU rasterizer (whose times are CPU times, never GPU speed).
+nlohmann::json gpuStats(const GpuContext& gpu);
+
+/// The tracers with a GPU version: ssr, ssr-layers, hiz, hssr.
+bool hasGpuTracer(const std::string& name);
+/// "ssr, ssr-layers, hiz, hssr", for messages.
+const std::string& gpuTracerNames();
+
+/// The registry's tracer `name` on the GPU, over the same structures the CPU tracer reads (built
+/// here on the CPU and uploaded: level 0, the interval or min/max pyramid). `memoryBytes` is the
+/// GPU's share. InputError for a tracer without a GPU version.
+BuiltTracer buildGpuTracer(const std::string& name, const Frame& frame, const TracerOptions& options, GpuContext& gpu);
+/// GPU time of the dispatches of all batches a GPU tracer traced so far (GL timer queries),
+/// milliseconds; 0 for a CPU tracer.
+double gpuTraceMs(const Tracer& tracer);
+
+}  // namespace lt

@@ -1,0 +1,168 @@
+// The GPU back end against the CPU path: the same rays from the same layers give the same hit
+// fragment (pixel and layer, or a miss) and the same per-ray counters on both devices. The CPU
+// tracers are the reference (they are tested against the exhaustive march and both oracles).
+// These run under any OpenGL 4.5 driver; CI has Mesa's llvmpipe.
+#include <cstdlib>
+#include <memory>
+#include <random>
+#include <string>
+#include <vector>
+
+#include <gtest/gtest.h>
+
+#include "layertrace/pipeline/frame.h"
+#include "layertrace/pipeline/gpu_tracers.h"
+#include "layertrace/pipeline/tracer_registry.h"
+#include "layertrace/util/error.h"
+#include "test_util.h"
+
+#if LAYERTRACE_HAS_GPU
+#include "layertrace/gpu/gpu_context.h"
+#include "layertrace/gpu/gpu_screen_tracer.h"
+#endif
+
+namespace lt {
+namespace {
+
+#if LAYERTRACE_HAS_GPU
+
+class Gpu : public ::testing::Test {
+ protected:
+  static void SetUpTestSuite() {
+    // Mesa's driver is not built with the sanitizers: its threads and allocations would be
+    // reported as ours. The sanitized suites test the CPU path.
+    if (std::getenv("LAYERTRACE_SANITIZED")) return;
+    gpu_ = openGpu();
+  }
+  static void TearDownTestSuite() { gpu_.reset(); }
+  void SetUp() override {
+    if (!gpu_) GTEST_SKIP() << "sanitized build: the GPU driver is not instrumented";
+  }
+  static std::shared_ptr<GpuContext> gpu_;
+};
+std::shared_ptr<GpuContext> Gpu::gpu_;
+
+struct Agreement {
+  size_t rays = 0, hitsDiffer = 0, countersDiffer = 0, cpuHits = 0;
+};
+
+/// Traces `rays` with the registry's CPU tracer `name` (counted, one by one: the reference
+/// path) and its GPU version, and compares answer by answer.
+Agreement compareDevices(GpuContext& gpu, const Frame& f, const std::string& name, const TracerOptions& options,
+                         const std::vector<Ray>& rays) {
+  const BuiltTracer cpu = buildTracer(name, f, options);
+  const BuiltTracer onGpu = buildGpuTracer(name, f, options, gpu);
+  const auto& g = dynamic_cast<const GpuScreenTracer&>(*onGpu.tracer);
+  std::vector<GpuMarchHit> marched;
+  g.march(rays, marched);
+  Agreement a;
+  a.rays = rays.size();
+  for (size_t i = 0; i < rays.size(); ++i) {
+    RayCounters c;
+    const TraceHit h = cpu.tracer->trace(rays[i], c);
+    const GpuMarchHit& m = marched[i];
+    a.cpuHits += h.hit;
+    const bool same = h.hit ? m.hit() && m.x == h.x && m.y == h.y && m.layer == h.layer : !m.hit();
+    if (!same) {
+      if (a.hitsDiffer++ < 5)
+        ADD_FAILURE() << name << " ray " << i << ": CPU " << h.hit << " (" << h.x << ", " << h.y << ", " << h.layer << "), GPU ("
+                      << m.x << ", " << m.y << ", " << m.layer << ")";
+      continue;
+    }
+    bool levels = true;
+    for (int l = 0; l < RayCounters::kLevels; ++l) levels = levels && c.levelIterations[l] == m.counters.levelIterations[l];
+    if (c.iterations != m.counters.iterations || c.intervals != m.counters.intervals || c.pixels != m.counters.pixels ||
+        c.giveUps != m.counters.giveUps || !levels)
+      ++a.countersDiffer;
+  }
+  return a;
+}
+
+Frame defaultFrame(int W, int H) {
+  FrameOptions o;
+  o.scenePath = test::sourceDir() + "/scenes/default.json";
+  o.width = W, o.height = H;
+  return buildFrame(o);
+}
+
+TEST_F(Gpu, EveryGpuTracerAnswersAsTheCpuOnTheDefaultScene) {
+  // Odd sizes: partial cells on every pyramid level.
+  const Frame f = defaultFrame(317, 179);
+  const std::vector<Ray> rays = test::sampleRays(f, 20000, test::testSeed() + 21);
+  for (const char* name : {"ssr", "ssr-layers", "hiz", "hssr"}) {
+    const Agreement a = compareDevices(*gpu_, f, name, TracerOptions{}, rays);
+    EXPECT_EQ(a.hitsDiffer, 0u) << name;
+    EXPECT_EQ(a.countersDiffer, 0u) << name;
+    EXPECT_GT(a.cpuHits, a.rays / 10) << name << ": the rays must hit something for the comparison to mean anything";
+  }
+}
+
+TEST_F(Gpu, ParametersReachTheShaders) {
+  const Frame f = defaultFrame(160, 90);
+  const std::vector<Ray> rays = test::sampleRays(f, 8000, test::testSeed() + 22);
+  TracerOptions o;
+  // SSR with a stride (and the binary refinement), jitter and a step cap that stops rays early.
+  o.ssr.stride = 3.0f, o.ssr.jitter = 0.5f, o.ssr.maxSteps = 12;
+  // HSSR over 3 levels with τ = 25 and n_up = 1.
+  o.pyramid.levels = 3, o.pyramid.tau = 25.0f, o.hssr.nUp = 1;
+  for (const char* name : {"ssr", "ssr-layers", "hssr"}) {
+    const Agreement a = compareDevices(*gpu_, f, name, o, rays);
+    EXPECT_EQ(a.hitsDiffer, 0u) << name;
+    EXPECT_EQ(a.countersDiffer, 0u) << name;
+  }
+  // The same rays give other answers with other parameters: the comparison can fail.
+  const BuiltTracer capped = buildGpuTracer("ssr", f, o, *gpu_), plain = buildGpuTracer("ssr", f, TracerOptions{}, *gpu_);
+  std::vector<GpuMarchHit> a, b;
+  dynamic_cast<const GpuScreenTracer&>(*capped.tracer).march(rays, a);
+  dynamic_cast<const GpuScreenTracer&>(*plain.tracer).march(rays, b);
+  size_t differ = 0;
+  for (size_t i = 0; i < rays.size(); ++i) differ += a[i].layer != b[i].layer || a[i].x != b[i].x;
+  EXPECT_GT(differ, 0u);
+}
+
+TEST_F(Gpu, RaysFromOutsideTheViewAndAnOrthographicCamera) {
+  // View synthesis: rays from another eye, entering the view from outside (no origin pixel).
+  const Frame f = defaultFrame(200, 120);
+  std::mt19937 rng(uint32_t(test::testSeed() + 23));
+  std::normal_distribution<float> g;
+  std::vector<Ray> rays;
+  const float d = f.scene.bounds().diagonal();
+  for (int i = 0; i < 4000; ++i) {
+    const glm::vec3 eye = glm::vec3(g(rng), g(rng), g(rng) + 0.5f) * 0.3f * d;
+    const glm::vec3 target = f.camera.rayThrough({float(i % 200) + 0.5f, float(i % 120) + 0.5f}) * (0.5f * d);
+    rays.push_back(test::freeRay(eye, glm::normalize(target - eye), 2.0f * d));
+  }
+  for (const char* name : {"ssr-layers", "hiz", "hssr"}) EXPECT_EQ(compareDevices(*gpu_, f, name, TracerOptions{}, rays).hitsDiffer, 0u) << name;
+
+  FrameOptions o;
+  o.scenePath = test::sourceDir() + "/scenes/default.json";
+  o.width = 160, o.height = 100;
+  Frame ortho = buildFrame(o);
+  CameraDesc desc = ortho.camera.desc();
+  desc.orthoHeight = 0.8f * d;
+  const Frame of = test::frameOf(ortho.scene, desc, 160, 100);
+  const std::vector<Ray> orays = test::sampleRays(of, 6000, test::testSeed() + 24);
+  for (const char* name : {"ssr", "hssr"}) {
+    const Agreement a = compareDevices(*gpu_, of, name, TracerOptions{}, orays);
+    EXPECT_EQ(a.hitsDiffer, 0u) << name;
+    EXPECT_GT(a.cpuHits, 0u) << name;
+  }
+}
+
+TEST_F(Gpu, TracersWithoutAGpuVersionAreRefusedByName) {
+  const Frame f = defaultFrame(64, 36);
+  for (const char* name : {"quadtree", "embree", "hybrid"}) {
+    EXPECT_FALSE(hasGpuTracer(name));
+    try {
+      buildGpuTracer(name, f, TracerOptions{}, *gpu_);
+      ADD_FAILURE() << name << " was built";
+    } catch (const InputError& e) {
+      EXPECT_NE(std::string(e.what()).find(name), std::string::npos) << e.what();
+    }
+  }
+}
+
+#endif
+
+}  // namespace
+}  // namespace lt
