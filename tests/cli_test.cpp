@@ -13,6 +13,7 @@
 
 #include "layertrace/pipeline/tracer_registry.h"
 #include "layertrace/util/image.h"
+#include "layertrace/pipeline/gpu_tracers.h"
 #include "test_util.h"
 
 namespace lt {
@@ -804,6 +805,54 @@ TEST(CliConvention, CompareTheExhaustiveCheckCanBeTurnedOff) {
   ASSERT_NO_FATAL_FAILURE(expectRuns(args + (dir / "off") + " --no-check-exhaustive"));
   EXPECT_EQ(readJson(dir / "on/compare.json")["compare"]["hssr"]["exhaustive_mismatch"], 0);
   EXPECT_FALSE(readJson(dir / "off/compare.json")["compare"]["hssr"].contains("exhaustive_mismatch"));
+}
+
+// --device gpu: the GPU tracers give the CPU's image byte for byte (the same fragments, so the
+// same shading), and compare traces the CPU's rays again on the GPU and reports the agreement.
+TEST(CliGpu, RenderOnTheGpuGivesTheCpuImage) {
+  if (!gpuBuilt()) GTEST_SKIP() << "built without the GPU back end";
+  test::TempDir dir;
+  for (const std::string t : {"ssr", "hiz", "hssr"})
+    for (const std::string effect : {"reflection --bounces 2", "ao --ao-samples 2"}) {
+      const std::string common = "render " + kDefault + " --width 200 --height 120 --quiet --tracer " + t + " --effect " + effect;
+      ASSERT_NO_FATAL_FAILURE(expectRuns(common + " -o " + (dir / "cpu.png")));
+      ASSERT_NO_FATAL_FAILURE(expectRuns(common + " --device gpu -o " + (dir / "gpu.png")));
+      std::ifstream a(dir / "cpu.png", std::ios::binary), b(dir / "gpu.png", std::ios::binary);
+      const std::string ca((std::istreambuf_iterator<char>(a)), {}), cb((std::istreambuf_iterator<char>(b)), {});
+      EXPECT_TRUE(!ca.empty() && ca == cb) << t << " " << effect;
+      const auto j = readJson(dir / "gpu.json");
+      EXPECT_EQ(j["device"], "gpu");
+      EXPECT_FALSE(j["gpu"]["renderer"].get<std::string>().empty());
+      EXPECT_GT(j["timings_ms"]["gpu_trace"].get<double>(), 0.0);
+      EXPECT_EQ(readJson(dir / "cpu.json")["device"], "cpu");
+      EXPECT_EQ(j["rays"]["iterations_mean"], readJson(dir / "cpu.json")["rays"]["iterations_mean"]) << t;
+    }
+}
+
+TEST(CliGpu, CompareReportsTheAgreementOfTheSameRaysOnBothDevices) {
+  if (!gpuBuilt()) GTEST_SKIP() << "built without the GPU back end";
+  test::TempDir dir;
+  ASSERT_NO_FATAL_FAILURE(expectRuns("compare " + kDefault + " --width 160 --height 90 --quiet --device gpu --tracers ssr,ssr-layers,hssr,quadtree -o " +
+                                     (dir / "c")));
+  const auto j = readJson(dir / "c/compare.json");
+  EXPECT_EQ(j["device"], "gpu");
+  for (const char* t : {"ssr", "ssr-layers", "hssr"}) {
+    EXPECT_EQ(j["compare"][t]["gpu_agreement"].get<double>(), 1.0) << t;
+    EXPECT_GT(j["compare"][t]["gpu_trace_ms"].get<double>(), 0.0) << t;
+    EXPECT_EQ(j["compare"][t]["gpu_iterations_mean"], j["compare"][t]["iterations_mean"]) << t;
+  }
+  EXPECT_FALSE(j["compare"]["quadtree"].contains("gpu_agreement"));  // no GPU version
+}
+
+TEST(CliGpu, NoDeviceOrNoGpuVersionIsOneLineStatusTwo) {
+  test::TempDir dir;
+  expectRejected({"render " + kDefault + " --tracer quadtree --device gpu", "quadtree"}, dir);
+  expectRejected({"compare " + kDefault + " --tracers quadtree,embree --device gpu", "--device gpu"}, dir);
+  expectRejected({"render " + kDefault + " --device tpu", "--device"}, dir);
+  // A machine whose EGL has no driver: the device is asked for before the scene is loaded.
+  setenv("__EGL_VENDOR_LIBRARY_FILENAMES", "/nonexistent.json", 1);
+  expectRejected({"render " + kDefault + " --tracer hssr --device gpu", "--device gpu"}, dir);
+  unsetenv("__EGL_VENDOR_LIBRARY_FILENAMES");
 }
 
 }  // namespace

@@ -161,6 +161,14 @@ void finishFrameOptions(lt::RunOptions& run, const RawFrameOptions& raw) {
   if (run.threads < 0) inputError("--threads ", run.threads, ": must be >= 0");
 }
 
+/// --device: where the tracers run.
+void addDeviceOption(CLI::App* cmd, lt::RunOptions& run) {
+  cmd->add_option("--device", run.device,
+                  "where the tracers run: cpu, or gpu (OpenGL 4.5 compute shaders through headless EGL; ssr, ssr-layers, hiz, hssr)")
+      ->capture_default_str()
+      ->check(CLI::IsMember({"cpu", "gpu"}));
+}
+
 /// Options every subcommand accepts (one shared command line) that some commands have no use
 /// for: naming one there prints a warning instead of passing in silence.
 void warnUnused(const CLI::App& cmd) {
@@ -224,6 +232,7 @@ int runCli(int argc, const char* const* argv, CliMode mode) {
   std::string effectName = "reflection";
   CLI::App* renderCmd = app.add_subcommand("render", "image of one effect traced with one tracer");
   addFrameOptions(renderCmd, render.run, renderRaw, "output image, .png or .exr (default out/render.png; statistics beside it in render.json)");
+  addDeviceOption(renderCmd, render.run);
   renderCmd->add_option("--tracer", render.tracer, "ssr | ssr-layers | hiz | hssr | quadtree | ldc | hybrid | embree | grid")->capture_default_str();
   addEffectOptions(renderCmd, render.effect, effectName, renderRaw);
   addTracerOptions(renderCmd, render.tracers);
@@ -236,6 +245,7 @@ int runCli(int argc, const char* const* argv, CliMode mode) {
   std::string compareEffect = "reflection", compareTracers = "ssr,ssr-layers,hssr";
   CLI::App* compareCmd = app.add_subcommand("compare", "same rays through several tracers + Embree: accuracy and cost table");
   addFrameOptions(compareCmd, compare.run, compareRaw, "output folder (default out/compare; statistics in compare.json)");
+  addDeviceOption(compareCmd, compare.run);
   compareCmd->add_option("--tracers", compareTracers, "comma list of ssr, ssr-layers, hiz, hssr, quadtree, ldc, hybrid, embree, grid")->capture_default_str();
   addEffectOptions(compareCmd, compare.effect, compareEffect, compareRaw);
   addTracerOptions(compareCmd, compare.options);

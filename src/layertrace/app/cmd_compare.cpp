@@ -6,18 +6,64 @@
 #include <iostream>
 #include <sstream>
 
+#include <tbb/enumerable_thread_specific.h>
+
 #include "layertrace/app/commands.h"
 #include "layertrace/app/report.h"
 #include "layertrace/eval/classify.h"
 #include "layertrace/eval/image_metrics.h"
 #include "layertrace/eval/image_oracle.h"
 #include "layertrace/eval/oracle_observer.h"
+#include "layertrace/gpu/gpu_context.h"
+#include "layertrace/pipeline/gpu_tracers.h"
 #include "layertrace/util/error.h"
 
 namespace lt {
 namespace fs = std::filesystem;
 
 namespace {
+
+/// Every ray a pass traced, with the answer (screen tracers: the hit fragment), for tracing the
+/// same rays again on the GPU.
+class RayRecorder : public RayObserver {
+ public:
+  void observe(std::span<const RayEvent> events) override {
+    auto& mine = perThread_.local();
+    for (const RayEvent& e : events) mine.emplace_back(*e.ray, *e.hit);
+  }
+  std::vector<std::pair<Ray, TraceHit>> take() {
+    std::vector<std::pair<Ray, TraceHit>> all;
+    for (auto& v : perThread_) all.insert(all.end(), v.begin(), v.end()), v.clear();
+    return all;
+  }
+
+ private:
+  tbb::enumerable_thread_specific<std::vector<std::pair<Ray, TraceHit>>> perThread_;
+};
+
+/// The GPU version of tracer `name` on the rays `recorded` traced on the CPU: the share whose
+/// answer is the same fragment (or a miss on both), the GPU time, the mean iterations per ray.
+nlohmann::json gpuAgreement(const std::string& name, const Frame& frame, const TracerOptions& options, GpuContext& gpu,
+                            const std::vector<std::pair<Ray, TraceHit>>& recorded) {
+  const BuiltTracer built = buildGpuTracer(name, frame, options, gpu);
+  std::vector<Ray> rays(recorded.size());
+  for (size_t i = 0; i < recorded.size(); ++i) rays[i] = recorded[i].first;
+  std::vector<TraceHit> hits(rays.size());
+  std::vector<RayCounters> counters(rays.size());
+  built.tracer->traceBatch(rays, hits, counters);
+  uint64_t same = 0, iterations = 0;
+  for (size_t i = 0; i < rays.size(); ++i) {
+    const TraceHit& c = recorded[i].second;
+    const TraceHit& g = hits[i];
+    same += c.hit ? g.hit && g.x == c.x && g.y == c.y && g.layer == c.layer : !g.hit;
+    iterations += counters[i].iterations;
+  }
+  const double n = double(std::max<size_t>(rays.size(), 1));
+  return {{"agreement", rays.empty() ? 1.0 : double(same) / n},
+          {"trace_ms", gpuTraceMs(*built.tracer)},
+          {"iterations_mean", double(iterations) / n},
+          {"memory_bytes", built.memoryBytes}};
+}
 
 /// Images side by side at half resolution (nearest of each 2×2 block's average).
 Image sideBySide(const std::vector<const Image*>& images) {
@@ -48,6 +94,13 @@ int runCompare(const CompareOptions& o) {
       inputError("--tracers ", o.tracers[i], ": listed twice");
   validateTracerOptions(o.options);
   validateEffectConfig(o.effect);
+  // --device gpu: every tracer with a GPU version traces the CPU's rays again there.
+  std::shared_ptr<GpuContext> gpu;
+  if (o.run.device == "gpu") {
+    if (std::none_of(o.tracers.begin(), o.tracers.end(), hasGpuTracer))
+      inputError("--device gpu: none of --tracers has a GPU version (", gpuTracerNames(), ")");
+    gpu = openGpu();
+  }
   FrameOptions fo = o.run.frame;
   if (std::find(o.tracers.begin(), o.tracers.end(), "hssr") != o.tracers.end()) fo.pyramid = o.options.pyramid;  // built by the capture
   Frame frame = buildFrame(fo);
@@ -72,6 +125,8 @@ int runCompare(const CompareOptions& o) {
   stats["bounces"] = ec.bounces;
   stats["threads"] = o.run.threads;
   stats["tracers"] = o.tracers;
+  stats["device"] = o.run.device;
+  if (gpu) stats["gpu"] = gpuStats(*gpu);
   stats["reference"] = {{"tracer", "embree"},
                         {"trace_ms", ref.traceMs},
                         {"build_ms", reference.buildMs},
@@ -100,6 +155,9 @@ int runCompare(const CompareOptions& o) {
     OracleObserver oracleCheck(independent);
     if (screen && o.checkExhaustive) observers.add(&exhaustive);
     if (screen && o.checkOracle) observers.add(&oracleCheck);
+    RayRecorder recorded;
+    const bool onGpu = gpu && hasGpuTracer(name);
+    if (onGpu) observers.add(&recorded);
     EffectResult r = renderEffect(frame, *built.tracer, ec, &observers);
     r.traceMs = timed.traceMs;
     if (!o.run.pixelStats.empty()) writePixelStats((fs::path(o.run.pixelStats) / name).string(), r);
@@ -133,6 +191,13 @@ int runCompare(const CompareOptions& o) {
     t["rays"] = rayStats(r, screen);
     if (!hybrid.is_null()) t["hybrid"] = hybrid;
     if (built.ldc) t["ldc"] = ldcStats(*built.ldc, &r);
+    if (onGpu) {
+      const nlohmann::json g = gpuAgreement(name, frame, o.options, *gpu, recorded.take());
+      t["gpu_agreement"] = g["agreement"];
+      t["gpu_trace_ms"] = g["trace_ms"];
+      t["gpu_iterations_mean"] = g["iterations_mean"];
+      t["gpu_memory_bytes"] = g["memory_bytes"];
+    }
     stats["compare"][name] = t;
     images.emplace_back(name + ".png", r.image);
     images.emplace_back(name + "_traced.png", r.traced);
@@ -190,6 +255,14 @@ int runCompare(const CompareOptions& o) {
     if (ref.rays == 0)
       std::cout << "  no rays: no covered pixel of this view casts " << effectName(ec.effect)
                 << " rays (nothing in view, or no surface with the material the effect needs)\n";
+    if (gpu) {
+      std::cout << "  the same rays on " << gpu->renderer() << (gpu->software() ? " (a CPU rasterizer: its times are CPU times)" : "") << ":";
+      for (const std::string& name : o.tracers)
+        if (const nlohmann::json& t = stats["compare"][name]; t.contains("gpu_agreement"))
+          std::cout << " " << name << " " << std::setprecision(3) << 100.0 * t["gpu_agreement"].get<double>() << " % agree, "
+                    << std::setprecision(2) << t["gpu_trace_ms"].get<double>() << " ms;";
+      std::cout << "\n";
+    }
     std::cout << table.str() << "  wrote " << images.size() << " images to " << outDir << " and the statistics to " << o.run.statsPath << "\n";
   }
   return 0;

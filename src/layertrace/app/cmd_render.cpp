@@ -9,6 +9,8 @@
 #include "layertrace/eval/image_metrics.h"
 #include "layertrace/eval/image_oracle.h"
 #include "layertrace/eval/oracle_observer.h"
+#include "layertrace/gpu/gpu_context.h"
+#include "layertrace/pipeline/gpu_tracers.h"
 #include "layertrace/util/error.h"
 
 namespace lt {
@@ -178,11 +180,17 @@ int runRender(const RenderOptions& o) {
   if (o.checkOracle && !screen) inputError("--check-oracle: needs an image-space tracer, not ", o.tracer);
   validateTracerOptions(o.tracers);
   validateEffectConfig(o.effect);
+  // The device before the scene: a machine without one is told at once.
+  std::shared_ptr<GpuContext> gpu;
+  if (o.run.device == "gpu") {
+    if (!hasGpuTracer(o.tracer)) inputError("--tracer ", o.tracer, ": has no GPU version (with --device gpu use ", gpuTracerNames(), ")");
+    gpu = openGpu();
+  }
   const auto t0 = std::chrono::steady_clock::now();
   FrameOptions fo = o.run.frame;
   if (o.tracer == "hssr") fo.pyramid = o.tracers.pyramid;  // built with the capture (Frame::pyramid)
   Frame frame = buildFrame(fo);
-  const BuiltTracer built = buildTracer(o.tracer, frame, o.tracers);
+  const BuiltTracer built = gpu ? buildGpuTracer(o.tracer, frame, o.tracers, *gpu) : buildTracer(o.tracer, frame, o.tracers);
   BuiltTracer oracle;
   std::optional<MismatchObserver> exhaustive;
   if (o.checkExhaustive) oracle = buildOracle(frame), exhaustive.emplace(*oracle.tracer);
@@ -194,6 +202,7 @@ int runRender(const RenderOptions& o) {
   EffectConfig ec = o.effect;
   ec.seed = o.run.seed;
   ec.progress = !o.run.quiet;
+  ec.wholeWaves = gpu != nullptr;  // one dispatch per wave
   const EffectResult r = renderEffect(frame, *built.tracer, ec, observers.empty() ? nullptr : &observers);
   const double totalMs = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
 
@@ -206,6 +215,13 @@ int runRender(const RenderOptions& o) {
   stats["timings_ms"]["trace"] = r.traceMs;  // inside the tracer's batch calls (counters on)
   stats["timings_ms"]["shade"] = r.shadeMs;  // ray generation, shading, bookkeeping, observers
   stats["timings_ms"]["total"] = totalMs;
+  stats["device"] = o.run.device;
+  if (gpu) {
+    // GL timer queries of the trace dispatches; `trace` above adds the rays' upload and the
+    // answers' download. On a software rasterizer (gpu.software) these are CPU times.
+    stats["timings_ms"]["gpu_trace"] = gpuTraceMs(*built.tracer);
+    stats["gpu"] = gpuStats(*gpu);
+  }
   stats["memory_bytes"]["hierarchy"] = built.memoryBytes;
   stats["rays"] = rayStats(r, screen);
   if (exhaustive) stats["rays"]["exhaustive_mismatch"] = exhaustive->mismatches();
@@ -265,6 +281,7 @@ int runRender(const RenderOptions& o) {
               << stats["rays"]["iterations_mean"].get<double>() << " iterations/ray; raster " << frame.rasterMs
               << " ms, sort " << frame.sortMs << " ms, hierarchy " << built.buildMs << " ms, trace " << r.traceMs << " ms, shade "
               << r.shadeMs << " ms";
+    if (gpu) std::cout << "; on " << gpu->renderer() << ": GPU trace " << gpuTraceMs(*built.tracer) << " ms";
     if (exhaustive) std::cout << "; exhaustive mismatches " << exhaustive->mismatches();
     if (o.checkOracle) std::cout << "; oracle mismatches " << oracleCheck.mismatches() << " (ambiguous " << oracleCheck.ambiguous() << ")";
     if (direct)

@@ -20,6 +20,7 @@ struct RunOptions {
   int threads = 0;         ///< --threads; 0 = all cores
   uint64_t seed = 1;       ///< --seed
   bool quiet = false;      ///< --quiet
+  std::string device = "cpu";  ///< --device cpu|gpu (render, compare): where the tracers run
 };
 
 struct LayersOptions {

@@ -176,14 +176,15 @@ void GpuBuffer::read(void* data, size_t bytes, size_t offset) const {
   glGetNamedBufferSubData(id_, GLintptr(offset), GLsizeiptr(bytes), data);
 }
 
-GpuTimer::GpuTimer() { glCreateQueries(GL_TIME_ELAPSED, 1, &id_); }
-GpuTimer::~GpuTimer() { glDeleteQueries(1, &id_); }
-void GpuTimer::begin() const { glBeginQuery(GL_TIME_ELAPSED, id_); }
-void GpuTimer::end() const { glEndQuery(GL_TIME_ELAPSED); }
+GpuTimer::GpuTimer() { glCreateQueries(GL_TIMESTAMP, 2, ids_); }
+GpuTimer::~GpuTimer() { glDeleteQueries(2, ids_); }
+void GpuTimer::begin() const { glQueryCounter(ids_[0], GL_TIMESTAMP); }
+void GpuTimer::end() const { glQueryCounter(ids_[1], GL_TIMESTAMP); }
 double GpuTimer::ms() const {
-  GLuint64 ns = 0;
-  glGetQueryObjectui64v(id_, GL_QUERY_RESULT, &ns);
-  return double(ns) * 1e-6;
+  GLuint64 t0 = 0, t1 = 0;
+  glGetQueryObjectui64v(ids_[0], GL_QUERY_RESULT, &t0);
+  glGetQueryObjectui64v(ids_[1], GL_QUERY_RESULT, &t1);
+  return t1 > t0 ? double(t1 - t0) * 1e-6 : 0.0;
 }
 
 }  // namespace lt

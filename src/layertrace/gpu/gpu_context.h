@@ -65,7 +65,7 @@ class GpuBuffer {
   size_t bytes_ = 0;
 };
 
-/// GPU time of the commands between begin() and end() (GL_TIME_ELAPSED).
+/// GPU time from begin() to end(): two GL_TIMESTAMP queries, taken when the GPU reaches them.
 class GpuTimer {
  public:
   GpuTimer();
@@ -78,7 +78,7 @@ class GpuTimer {
   double ms() const;
 
  private:
-  uint32_t id_ = 0;
+  uint32_t ids_[2] = {};
 };
 
 }  // namespace lt

@@ -152,12 +152,13 @@ class Renderer {
     res.iterations = Image(W, H, 1);
     res.intervals = Image(W, H, 1);
     const std::vector<uint32_t> order = tileOrder(W, H);
-    const size_t bandPixels = std::clamp<size_t>(kBandRays / size_t(maxRaysPerPixel()), 1, size_t(kTile * kTile));
+    const size_t bandPixels = config_.wholeWaves ? std::max<size_t>(order.size(), 1)
+                                                 : std::clamp<size_t>(kBandRays / size_t(maxRaysPerPixel()), 1, size_t(kTile * kTile));
     const size_t bands = (order.size() + bandPixels - 1) / bandPixels;
     Progress progress(cat(tracer_.name(), " ", effectName(config_.effect)), order.size(), config_.progress);
     tbb::enumerable_thread_specific<Band> bandBuffers;
     const auto start = Clock::now();
-    parallelFor(tbb::blocked_range<size_t>(0, bands, 1), [&](const tbb::blocked_range<size_t>& r) {
+    auto runBands = [&](const tbb::blocked_range<size_t>& r) {
       Band& band = bandBuffers.local();
       Accum& a = accums_.local();
       if (a.histogram.empty() && config_.countRays) a.histogram.assign(kHistogramMax + 1, 0);
@@ -179,7 +180,9 @@ class Renderer {
         progress.add(n);
       }
       a.busyMs += msSince(t0);
-    });
+    };
+    if (config_.wholeWaves) runBands(tbb::blocked_range<size_t>(0, bands, 1));
+    else parallelFor(tbb::blocked_range<size_t>(0, bands, 1), runBands);
     const double wall = msSince(start);
     double traceMs = 0.0, busyMs = 0.0;
     for (const Accum& a : accums_) traceMs += a.traceMs, busyMs += a.busyMs;
@@ -234,8 +237,9 @@ class Renderer {
     band.counters.assign(config_.countRays ? total : 0, RayCounters{});
     // Trace: the only part timed as tracing.
     const auto t0 = Clock::now();
-    for (size_t b = 0; b < total; b += kBatchRays) {
-      const size_t len = std::min(kBatchRays, total - b);
+    const size_t batch = config_.wholeWaves ? total : kBatchRays;
+    for (size_t b = 0; b < total; b += batch) {
+      const size_t len = std::min(batch, total - b);
       const std::span<RayCounters> c = band.counters.empty() ? std::span<RayCounters>() : std::span<RayCounters>(&band.counters[b], len);
       tracer_.query(query_, std::span<const Ray>(&band.rays[b], len), std::span<TraceHit>(&band.hits[b], len), c);
     }

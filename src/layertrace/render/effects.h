@@ -52,6 +52,10 @@ struct EffectConfig {
   /// Count traversal work per ray (iterations, intervals, per-pixel counter images). Off for
   /// timing runs: tracers then run their counter-free instantiation (trace/tracer.h).
   bool countRays = true;
+  /// Trace each wave of the whole frame in one tracer call, on the calling thread: a GPU tracer
+  /// (gpu/) then dispatches every ray of the wave at once. Ray generation and shading stay on
+  /// the CPU, between the waves; the answers are the same as with bands.
+  bool wholeWaves = false;
   /// --warp-eye: the second camera's eye, Effect::Warp. World coordinates (those of the scene file),
   /// like --eye: warpCamera subtracts the scene's origin (Scene::origin).
   std::optional<glm::dvec3> warpEye;
