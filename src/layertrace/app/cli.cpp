@@ -225,6 +225,10 @@ int runCli(int argc, const char* const* argv, CliMode mode) {
   RawFrameOptions layersRaw;
   CLI::App* layersCmd = app.add_subcommand("layers", "capture fragments, write layer images + depth-complexity map");
   addFrameOptions(layersCmd, layers.run, layersRaw, "output folder (default out/layers; statistics in layers.json)");
+  addDeviceOption(layersCmd, layers.run);
+  layersCmd->add_option("--capture", layers.capture, "GPU capture: lists (per-pixel linked lists, then sorted) or peel (depth peeling, k geometry passes)")
+      ->capture_default_str()
+      ->check(CLI::IsMember({"lists", "peel"}));
   layersCmd->add_flag("--verify", layers.verify, "compare every pixel's fragment list with Embree all-hit primary rays");
 
   lt::RenderOptions render;

@@ -259,7 +259,7 @@ int runCompare(const CompareOptions& o) {
       std::cout << "  the same rays on " << gpu->renderer() << (gpu->software() ? " (a CPU rasterizer: its times are CPU times)" : "") << ":";
       for (const std::string& name : o.tracers)
         if (const nlohmann::json& t = stats["compare"][name]; t.contains("gpu_agreement"))
-          std::cout << " " << name << " " << std::setprecision(3) << 100.0 * t["gpu_agreement"].get<double>() << " % agree, "
+          std::cout << " " << name << " " << std::fixed << std::setprecision(2) << 100.0 * t["gpu_agreement"].get<double>() << " % agree, "
                     << std::setprecision(2) << t["gpu_trace_ms"].get<double>() << " ms;";
       std::cout << "\n";
     }

@@ -4,6 +4,8 @@
 
 #include "layertrace/app/commands.h"
 #include "layertrace/eval/verify_layers.h"
+#include "layertrace/gpu/gpu_context.h"
+#include "layertrace/pipeline/gpu_tracers.h"
 #include "layertrace/geometry/embree_scene.h"
 #include "layertrace/util/error.h"
 #include "layertrace/util/image.h"
@@ -39,18 +41,37 @@ ComplexityImages depthComplexityImages(int width, int height, const std::vector<
   return out;
 }
 
+/// Depth agreement of a GPU capture with the CPU's: both evaluate the pixel-centre ray against the
+/// triangle's plane, from camera-space vertices the two devices transform with different rounding.
+constexpr float kGpuCaptureTolerance = 1e-5f;
+
 int runLayers(const LayersOptions& o) {
   const std::string outDir = o.run.output;
   FrameOptions fo = o.run.frame;
   fo.captureLists = o.verify;  // --verify compares every fragment of every list with Embree
-  Frame frame = buildFrame(fo);
+  if (o.capture != "lists" && o.capture != "peel") inputError("--capture ", o.capture, ": unknown (use lists or peel)");
+  if (o.capture == "peel" && o.run.device != "gpu") inputError("--capture peel: depth peeling runs on the GPU (add --device gpu)");
+  std::shared_ptr<GpuContext> gpu;
+  if (o.run.device == "gpu") gpu = openGpu();  // before the scene: a machine without one is told at once
+  Frame frame;
+  if (gpu) {
+    loadFrameScene(fo, frame);
+    rasterizeFrameOnGpu(*gpu, fo, o.capture, frame);
+  } else {
+    frame = buildFrame(fo);
+  }
   nlohmann::json stats = frameStats(frame);
   stats["tracer"] = nullptr;
   stats["effect"] = nullptr;
+  stats["device"] = o.run.device;
+  if (gpu) stats["gpu"] = gpuStats(*gpu);
 
   if (o.verify) {
     const EmbreeScene embree(frame.scene);
-    const VerifyResult v = verifyLayers(frame.lists, frame.camera, embree, fo.frontFacesOnly ? &frame.scene : nullptr);
+    const Scene* frontFaces = fo.frontFacesOnly ? &frame.scene : nullptr;
+    // Depth peeling keeps no lists: its k layers against Embree's first k surfaces.
+    const VerifyResult v = gpu && o.capture == "peel" ? verifyLayerArrays(frame.layers, frame.camera, embree, frontFaces)
+                                                      : verifyLayers(frame.lists, frame.camera, embree, frontFaces);
     stats["verify"] = {{"pixels", v.pixels},
                        {"pixels_matching", v.matching},
                        {"match_fraction", v.matchFraction()},
@@ -59,6 +80,22 @@ int runLayers(const LayersOptions& o) {
                        {"pixels_depth_mismatch", v.depthMismatch},
                        {"relative_depth_tolerance", kVerifyRelativeTolerance},
                        {"conditioning_epsilons", kVerifyConditioningEpsilons}};
+    if (gpu) {
+      // The GPU's capture against the CPU's of the same view: the same triangle in the same
+      // slot, depths within kGpuCaptureTolerance. Rasterizers may break the tie of a pixel centre
+      // exactly on a shared edge differently, and the GPU's transforms round differently.
+      FrameOptions cpuOptions = fo;
+      cpuOptions.captureLists = false;
+      Frame cpu;
+      loadFrameScene(cpuOptions, cpu);
+      rasterizeFrame(cpuOptions, cpu);
+      const LayerAgreement a = compareLayerArrays(frame.layers, cpu.layers, kGpuCaptureTolerance);
+      stats["verify"]["gpu_vs_cpu"] = {{"pixel_layers", a.pixelLayers},
+                                       {"matching", a.matching},
+                                       {"match_fraction", a.matchFraction()},
+                                       {"pixels_count_differ", a.countsDiffer},
+                                       {"relative_depth_tolerance", kGpuCaptureTolerance}};
+    }
   }
 
   // Images: everything is computed before the first file is written.
@@ -105,7 +142,9 @@ int runLayers(const LayersOptions& o) {
               << frame.lists.generated << " fragments, depth complexity mean "
               << stats["fragments"]["depth_complexity_mean"].get<double>() << " max " << maxDc << "; raster "
               << frame.rasterMs << " ms, sort " << frame.sortMs << " ms";
+    if (gpu) std::cout << " on " << gpu->renderer() << " (" << o.capture << ")";
     if (o.verify) std::cout << "; verify match " << stats["verify"]["match_fraction"].get<double>();
+    if (o.verify && gpu) std::cout << ", GPU = CPU for " << stats["verify"]["gpu_vs_cpu"]["match_fraction"].get<double>() << " of pixel-layers";
     std::cout << "\n  wrote " << images.size() << " images to " << outDir << "\n";
   }
   return 0;

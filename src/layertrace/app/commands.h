@@ -25,7 +25,8 @@ struct RunOptions {
 
 struct LayersOptions {
   RunOptions run;
-  bool verify = false;  ///< --verify against Embree all-hit primary rays
+  bool verify = false;  ///< --verify against Embree all-hit primary rays (and, on the GPU, the CPU's capture)
+  std::string capture = "lists";  ///< --capture lists|peel (--device gpu)
 };
 
 /// `layertrace layers`: per-layer albedo/normal/depth images, depth-complexity map, stats.

@@ -26,7 +26,10 @@ float verifyDepthTolerance(float depth, glm::vec3 eye, glm::vec3 dir, glm::vec3 
   return kVerifyRelativeTolerance * depth + conditioning;
 }
 
-VerifyResult verifyLayers(const FragmentLists& lists, const Camera& camera, const EmbreeScene& embree, const Scene* frontFacesOf) {
+namespace {
+
+VerifyResult verify(const FragmentLists& lists, const Camera& camera, const EmbreeScene& embree, const Scene* frontFacesOf,
+                    size_t firstHits) {
   LT_CHECK(lists.head.size() == size_t(lists.width) * size_t(lists.height), lists.head.size());  // needs the list pipeline
   std::atomic<uint64_t> matching{0}, fewer{0}, more{0}, depth{0};
   const glm::vec3 eye = camera.desc().eye;
@@ -48,6 +51,7 @@ VerifyResult verifyLayers(const FragmentLists& lists, const Camera& camera, cons
             return !(glm::dot(n, camera.orthographic() ? view : a - eye) < 0.0f);
           });
         }
+        if (firstHits > 0 && hits.size() > firstHits) hits.resize(firstHits);
         frags.clear();
         for (uint32_t i = lists.head[lists.pixelIndex(x, y)]; i != kNullIndex; i = lists.nodes[i].next)
           frags.push_back(lists.nodes[i].depth);
@@ -72,6 +76,48 @@ VerifyResult verifyLayers(const FragmentLists& lists, const Camera& camera, cons
   res.moreFragments = more;
   res.depthMismatch = depth;
   return res;
+}
+
+}  // namespace
+
+VerifyResult verifyLayers(const FragmentLists& lists, const Camera& camera, const EmbreeScene& embree, const Scene* frontFacesOf) {
+  return verify(lists, camera, embree, frontFacesOf, 0);
+}
+
+VerifyResult verifyLayerArrays(const LayerArrays& layers, const Camera& camera, const EmbreeScene& embree, const Scene* frontFacesOf) {
+  // The layers as lists of at most k fragments each.
+  FragmentLists lists;
+  lists.width = layers.width, lists.height = layers.height;
+  lists.head.assign(layers.count.size(), kNullIndex);
+  lists.nodes.resize(layers.slots.size());
+  for (size_t p = 0; p < layers.count.size(); ++p)
+    for (int i = layers.count[p] - 1; i >= 0; --i) {
+      const size_t slot = p * size_t(layers.k) + size_t(i);
+      lists.nodes[slot] = layers.slots[slot];
+      lists.nodes[slot].next = lists.head[p];
+      lists.head[p] = uint32_t(slot);
+    }
+  return verify(lists, camera, embree, frontFacesOf, size_t(layers.k));
+}
+
+LayerAgreement compareLayerArrays(const LayerArrays& a, const LayerArrays& b, float relativeTolerance) {
+  LT_CHECK(a.width == b.width && a.height == b.height && a.k == b.k, a.width, b.width, a.height, b.height, a.k, b.k);
+  LayerAgreement r;
+  r.pixelLayers = uint64_t(a.count.size()) * uint64_t(a.k);
+  for (size_t p = 0; p < a.count.size(); ++p) {
+    r.countsDiffer += a.count[p] != b.count[p];
+    for (int i = 0; i < a.k; ++i) {
+      const size_t s = p * size_t(a.k) + size_t(i);
+      const bool ha = i < a.count[p], hb = i < b.count[p];
+      if (!ha || !hb) {
+        r.matching += ha == hb;
+        continue;
+      }
+      const float da = a.slots[s].depth, db = b.slots[s].depth;
+      r.matching += a.triangle[s] == b.triangle[s] && std::abs(da - db) <= relativeTolerance * std::max(da, db);
+    }
+  }
+  return r;
 }
 
 uint64_t embreeCapture(const Camera& camera, const EmbreeScene& embree) {

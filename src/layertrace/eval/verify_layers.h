@@ -5,6 +5,7 @@
 
 #include "layertrace/geometry/embree_scene.h"
 #include "layertrace/raster/fragment_lists.h"
+#include "layertrace/raster/layer_arrays.h"
 #include "layertrace/scene/camera.h"
 
 namespace lt {
@@ -42,6 +43,22 @@ float verifyDepthTolerance(float depth, glm::vec3 eye, glm::vec3 dir, glm::vec3 
 /// With `frontFacesOf` (the scene of a --front-faces-only capture), Embree's hits on triangles
 /// facing away from the eye (the rasterizer's rule: clockwise seen from the eye) are left out.
 VerifyResult verifyLayers(const FragmentLists& lists, const Camera& camera, const EmbreeScene& embree, const Scene* frontFacesOf = nullptr);
+
+/// The same for a capture that kept only the k layer arrays (depth peeling): each pixel's k
+/// layers against the first k surfaces Embree finds along its ray.
+VerifyResult verifyLayerArrays(const LayerArrays& layers, const Camera& camera, const EmbreeScene& embree,
+                               const Scene* frontFacesOf = nullptr);
+
+/// Two captures of one view compared slot by slot (the GPU's against the CPU's): a pixel-layer
+/// matches when both hold a fragment of the same triangle at depths within `relativeTolerance`,
+/// or neither holds one.
+struct LayerAgreement {
+  uint64_t pixelLayers = 0;   ///< width × height × k
+  uint64_t matching = 0;
+  uint64_t countsDiffer = 0;  ///< pixels whose number of layers differs
+  double matchFraction() const { return pixelLayers ? double(matching) / double(pixelLayers) : 1.0; }
+};
+LayerAgreement compareLayerArrays(const LayerArrays& a, const LayerArrays& b, float relativeTolerance);
 
 /// Embree's answer to capture: every hit of every pixel-centre ray between the near and far
 /// planes, collected (and deduplicated) as verifyLayers does, without the comparison — the

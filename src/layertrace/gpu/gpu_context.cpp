@@ -105,12 +105,7 @@ void GpuContext::makeCurrent() const {
     throw InternalError("eglMakeCurrent failed (is the GPU context current on another thread?)");
 }
 
-uint32_t GpuContext::computeProgram(std::string_view name, std::string_view source) const {
-  const GLuint shader = glCreateShader(GL_COMPUTE_SHADER);
-  const GLchar* text = source.data();
-  const GLint length = GLint(source.size());
-  glShaderSource(shader, 1, &text, &length);
-  glCompileShader(shader);
+uint32_t GpuContext::link(std::string_view name, std::initializer_list<std::pair<uint32_t, std::string_view>> stages) const {
   auto log = [](GLuint object, bool program) {
     GLint n = 0;
     program ? glGetProgramiv(object, GL_INFO_LOG_LENGTH, &n) : glGetShaderiv(object, GL_INFO_LOG_LENGTH, &n);
@@ -118,17 +113,28 @@ uint32_t GpuContext::computeProgram(std::string_view name, std::string_view sour
     program ? glGetProgramInfoLog(object, n, nullptr, s.data()) : glGetShaderInfoLog(object, n, nullptr, s.data());
     return s;
   };
-  GLint ok = 0;
-  glGetShaderiv(shader, GL_COMPILE_STATUS, &ok);
-  if (!ok) {
-    const std::string why = log(shader, false);
-    glDeleteShader(shader);
-    throw InternalError(cat("shader ", name, " does not compile on ", renderer_, ": ", why));
-  }
   const GLuint program = glCreateProgram();
-  glAttachShader(program, shader);
+  std::vector<GLuint> shaders;
+  for (const auto& [stage, source] : stages) {
+    const GLuint shader = glCreateShader(stage);
+    const GLchar* text = source.data();
+    const GLint length = GLint(source.size());
+    glShaderSource(shader, 1, &text, &length);
+    glCompileShader(shader);
+    GLint ok = 0;
+    glGetShaderiv(shader, GL_COMPILE_STATUS, &ok);
+    shaders.push_back(shader);
+    if (!ok) {
+      const std::string why = log(shader, false);
+      for (GLuint s : shaders) glDeleteShader(s);
+      glDeleteProgram(program);
+      throw InternalError(cat("shader ", name, " does not compile on ", renderer_, ": ", why));
+    }
+    glAttachShader(program, shader);
+  }
   glLinkProgram(program);
-  glDeleteShader(shader);
+  for (GLuint s : shaders) glDeleteShader(s);
+  GLint ok = 0;
   glGetProgramiv(program, GL_LINK_STATUS, &ok);
   if (!ok) {
     const std::string why = log(program, true);
@@ -136,6 +142,25 @@ uint32_t GpuContext::computeProgram(std::string_view name, std::string_view sour
     throw InternalError(cat("shader ", name, " does not link on ", renderer_, ": ", why));
   }
   return program;
+}
+
+uint32_t GpuContext::computeProgram(std::string_view name, std::string_view source) const {
+  return link(name, {{GL_COMPUTE_SHADER, source}});
+}
+
+uint32_t GpuContext::renderProgram(std::string_view name, std::string_view vertex, std::string_view fragment) const {
+  return link(name, {{GL_VERTEX_SHADER, vertex}, {GL_FRAGMENT_SHADER, fragment}});
+}
+
+void GpuContext::dispatch(uint32_t program, size_t n) const {
+  constexpr size_t kGroup = 64, kMaxGroups = 65535, perDispatch = kGroup * kMaxGroups;
+  glUseProgram(program);
+  const GLint first = glGetUniformLocation(program, "uFirst");
+  for (size_t f = 0; f < n; f += perDispatch) {
+    glProgramUniform1i(program, first, GLint(f));
+    glDispatchCompute(GLuint((std::min(perDispatch, n - f) + kGroup - 1) / kGroup), 1, 1);
+  }
+  glMemoryBarrier(GL_SHADER_STORAGE_BARRIER_BIT);
 }
 
 GpuBuffer::GpuBuffer(size_t bytes, const void* data) : bytes_(std::max<size_t>(bytes, 16)) {

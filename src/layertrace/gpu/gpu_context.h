@@ -9,6 +9,8 @@
 #include <cstdint>
 #include <string>
 #include <string_view>
+#include <initializer_list>
+#include <utility>
 
 namespace lt {
 
@@ -33,10 +35,17 @@ class GpuContext {
   /// Compiles and links one compute shader; InternalError with the driver's log on failure
   /// (the build validated every shader, so a failure here is a driver's).
   uint32_t computeProgram(std::string_view name, std::string_view source) const;
+  /// The same for a vertex and a fragment shader linked together.
+  uint32_t renderProgram(std::string_view name, std::string_view vertex, std::string_view fragment) const;
+  /// Runs `program` (a compute shader of local size 64 reading the uniforms uFirst and its own
+  /// count) over `n` invocations, in dispatches the smallest OpenGL 4.5 limit allows.
+  void dispatch(uint32_t program, size_t n) const;
 
  private:
   void* display_ = nullptr;
   void* context_ = nullptr;
+  uint32_t link(std::string_view name, std::initializer_list<std::pair<uint32_t, std::string_view>> stages) const;
+
   std::string renderer_, version_;
 };
 

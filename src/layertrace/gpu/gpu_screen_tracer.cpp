@@ -43,7 +43,7 @@ GpuScreenTracer::GpuScreenTracer(GpuContext& gpu, const Camera& camera, const La
   const int levels = std::max(1, std::min({config.maxLevels, pyramid.levelCount(), kMaxLevels}));
   name_ = levels == 1 ? "exhaustive" : config.name;
   gpu_.makeCurrent();
-  program_ = gpu_.computeProgram("hssr_march.comp", shader_source::hssr_march);
+  program_ = gpu_.computeProgram("hssr_march.comp", shader_source::hssr_march_comp);
   upload(*pyramid.base);
   // Levels 1… one after the other, each cell as CoarseCell's two float[4] (κ fronts, κ backs).
   std::array<int, kMaxLevels> width{}, height{}, offset{};
@@ -73,7 +73,7 @@ GpuScreenTracer::GpuScreenTracer(GpuContext& gpu, const Camera& camera, const La
   const int maxSteps =
       config.maxSteps > 0 ? config.maxSteps : int(float(std::max(camera.width(), camera.height())) / config.stride) + 2;
   gpu_.makeCurrent();
-  program_ = gpu_.computeProgram("ssr_march.comp", shader_source::ssr_march);
+  program_ = gpu_.computeProgram("ssr_march.comp", shader_source::ssr_march_comp);
   upload(makeIntervalLayers(layers, config.allLayers ? layers.k : 1));
   setFloat(program_, "uStride", config.stride);
   setFloat(program_, "uJitter", config.jitter);

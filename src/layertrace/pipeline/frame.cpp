@@ -258,6 +258,10 @@ nlohmann::json frameStats(const Frame& f) {
   j["fragments"]["overflow_first_pass"] = f.raster.overflowLost;
   j["fragments"]["raster_passes"] = f.raster.passes;
   j["fragments"]["pool_capacity"] = f.lists.capacity();
+  if (f.capturePipeline.rfind("gpu-", 0) == 0) {
+    j["memory_bytes"]["gpu_capture"] = f.gpuMemoryBytes;
+    j["fragments"]["geometry_passes"] = f.geometryPasses;
+  }
   return j;
 }
 

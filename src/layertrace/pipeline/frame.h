@@ -92,7 +92,9 @@ struct Frame {
   bool frontFacesOnly = false;     ///< captured with --front-faces-only
   double loadMs = 0.0, rasterMs = 0.0, sortMs = 0.0;
   RasterStats raster;
-  std::string capturePipeline;  ///< "tiles", "tiles+lists" or "reference" (stats key capture_pipeline)
+  std::string capturePipeline;  ///< "tiles", "tiles+lists", "reference", "gpu-lists" or "gpu-peel" (stats key capture_pipeline)
+  size_t gpuMemoryBytes = 0;    ///< a GPU capture's memory (its pool, lists, arrays and the scene)
+  int geometryPasses = 1;       ///< times the capture rasterized the scene (depth peeling: 2k)
   /// The capture's pyramid when it was built with `config` over the current level 0, else null.
   std::shared_ptr<IntervalPyramid> pyramidFor(const PyramidConfig& config) const {
     const std::shared_ptr<IntervalLayers> l0 = level0();

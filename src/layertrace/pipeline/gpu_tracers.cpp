@@ -5,6 +5,7 @@
 
 #include "layertrace/util/error.h"
 #if LAYERTRACE_HAS_GPU
+#include "layertrace/gpu/gpu_capture.h"
 #include "layertrace/gpu/gpu_context.h"
 #include "layertrace/gpu/gpu_screen_tracer.h"
 #include "layertrace/hiz/hiz_pyramid.h"
@@ -40,6 +41,33 @@ nlohmann::json gpuStats(const GpuContext& gpu) {
   return {{"renderer", gpu.renderer()}, {"version", gpu.version()}, {"software", gpu.software()}};
 }
 
+void rasterizeFrameOnGpu(GpuContext& gpu, const FrameOptions& o, const std::string& capture, Frame& frame) {
+  if (capture != "lists" && capture != "peel") inputError("--capture ", capture, ": unknown (use lists or peel)");
+  GpuCaptureConfig c;
+  c.method = capture == "peel" ? GpuCaptureMethod::Peel : GpuCaptureMethod::Lists;
+  c.layers.k = o.layers;
+  c.layers.thickness = frame.thickness;
+  c.layers.thicknessPerDepth = frame.thicknessPerDepth;
+  c.layers.minSeparation = o.minSeparation;
+  c.layers.adaptiveThickness = o.adaptiveThickness;
+  c.poolCapacity = o.pool;
+  c.growOnOverflow = o.pool == 0;
+  c.frontFacesOnly = frame.frontFacesOnly = o.frontFacesOnly;
+  c.keepLists = o.captureLists;
+  GpuCaptureResult r;
+  captureOnGpu(gpu, frame.scene, frame.camera, c, r);
+  frame.pyramid.reset();
+  frame.layers = std::move(r.layers);
+  frame.lists = std::move(r.lists);
+  frame.intervals = std::make_shared<IntervalLayers>(makeIntervalLayers(frame.layers, frame.layers.k));
+  frame.rasterMs = r.setupMs + r.rasterMs;
+  frame.sortMs = r.sortMs;
+  frame.raster = RasterStats{frame.rasterMs, r.overflowLost, r.passes, frame.scene.triangleCount()};
+  frame.capturePipeline = "gpu-" + capture;
+  frame.gpuMemoryBytes = r.memoryBytes;
+  frame.geometryPasses = r.geometryPasses;
+}
+
 BuiltTracer buildGpuTracer(const std::string& name, const Frame& frame, const TracerOptions& options, GpuContext& gpu) {
   if (!hasGpuTracer(name)) inputError("--device gpu: ", name, " has no GPU version (GPU tracers: ", gpuTracerNames(), ")");
   // The CPU structures first (the same validation, the same pyramid), then their upload.
@@ -72,6 +100,7 @@ std::shared_ptr<GpuContext> openGpu() {
   inputError("--device gpu: this build has no GPU back end (apt-get install libepoxy-dev libegl-dev glslang-tools, then rebuild)");
 }
 nlohmann::json gpuStats(const GpuContext&) { return {}; }
+void rasterizeFrameOnGpu(GpuContext&, const FrameOptions&, const std::string&, Frame&) { openGpu(); }
 BuiltTracer buildGpuTracer(const std::string&, const Frame&, const TracerOptions&, GpuContext&) {
   openGpu();
   return {};

@@ -24,6 +24,12 @@ std::shared_ptr<GpuContext> openGpu();
 /// CPU rasterizer (whose times are CPU times, never GPU speed).
 nlohmann::json gpuStats(const GpuContext& gpu);
 
+/// The frame's capture on the GPU (--device gpu; `capture` "lists" or "peel"), for a frame whose
+/// scene is loaded (loadFrameScene): its layers, level 0, fragment counts and timings, as
+/// rasterizeFrame sets them on the CPU. The lists' nodes are kept when the options ask for lists
+/// (layers --verify). GPU times come from timer queries: raster = setup + geometry passes.
+void rasterizeFrameOnGpu(GpuContext& gpu, const FrameOptions& options, const std::string& capture, Frame& frame);
+
 /// The tracers with a GPU version: ssr, ssr-layers, hiz, hssr.
 bool hasGpuTracer(const std::string& name);
 /// "ssr, ssr-layers, hiz, hssr", for messages.
