@@ -15,8 +15,10 @@ void main() {
   if (v >= uint(uVertexCount)) return;
   const vec3 p = vec3(positions[3u * v], positions[3u * v + 1u], positions[3u * v + 2u]);
   const vec3 n = vec3(normals[3u * v], normals[3u * v + 1u], normals[3u * v + 2u]);
-  precise vec4 c = uView * vec4(p, 1.0);
-  precise vec3 cn = mat3(uView) * n;
+  // glm's order of operations (mat4 · vec4: (m0 x + m1 y) + (m2 z + m3); mat3 · vec3: left to
+  // right), so camera-space vertices are the CPU's bits.
+  precise vec4 c = (uView[0] * p.x + uView[1] * p.y) + (uView[2] * p.z + uView[3]);
+  precise vec3 cn = (uView[0].xyz * n.x + uView[1].xyz * n.y) + uView[2].xyz * n.z;
   camPos[v] = vec4(c.xyz, 1.0);
   camNormals[v] = vec4(cn, 0.0);
 }

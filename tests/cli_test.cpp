@@ -844,11 +844,29 @@ TEST(CliGpu, CompareReportsTheAgreementOfTheSameRaysOnBothDevices) {
   EXPECT_FALSE(j["compare"]["quadtree"].contains("gpu_agreement"));  // no GPU version
 }
 
+TEST(CliGpu, LayersCapturedOnTheGpuAreVerifiedAgainstEmbreeAndTheCpu) {
+  if (!gpuBuilt()) GTEST_SKIP() << "built without the GPU back end";
+  test::TempDir dir;
+  for (const std::string capture : {"lists", "peel"}) {
+    ASSERT_NO_FATAL_FAILURE(expectRuns("layers " + kDefault + " --width 200 --height 120 --quiet --device gpu --verify --capture " + capture +
+                                       " -o " + (dir / capture)));
+    const auto j = readJson(dir / (capture + "/layers.json"));
+    EXPECT_EQ(j["device"], "gpu");
+    EXPECT_EQ(j["capture_pipeline"], "gpu-" + capture);
+    EXPECT_GE(j["verify"]["match_fraction"].get<double>(), 0.999) << capture;
+    EXPECT_GE(j["verify"]["gpu_vs_cpu"]["match_fraction"].get<double>(), 0.9999) << capture;
+    EXPECT_EQ(j["fragments"]["geometry_passes"], capture == "peel" ? 8 : 1);
+    EXPECT_TRUE(fs::exists(dir / (capture + "/layer0_albedo.png")));
+  }
+}
+
 TEST(CliGpu, NoDeviceOrNoGpuVersionIsOneLineStatusTwo) {
   test::TempDir dir;
   expectRejected({"render " + kDefault + " --tracer quadtree --device gpu", "quadtree"}, dir);
   expectRejected({"compare " + kDefault + " --tracers quadtree,embree --device gpu", "--device gpu"}, dir);
   expectRejected({"render " + kDefault + " --device tpu", "--device"}, dir);
+  expectRejected({"layers " + kDefault + " --capture peel", "--capture peel"}, dir);
+  expectRejected({"layers " + kDefault + " --capture peel --device gpu --adaptive-thickness", "--adaptive-thickness"}, dir);
   // A machine whose EGL has no driver: the device is asked for before the scene is loaded.
   setenv("__EGL_VENDOR_LIBRARY_FILENAMES", "/nonexistent.json", 1);
   expectRejected({"render " + kDefault + " --tracer hssr --device gpu", "--device gpu"}, dir);

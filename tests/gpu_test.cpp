@@ -17,6 +17,8 @@
 #include "test_util.h"
 
 #if LAYERTRACE_HAS_GPU
+#include "layertrace/eval/verify_layers.h"
+#include "layertrace/gpu/gpu_capture.h"
 #include "layertrace/gpu/gpu_context.h"
 #include "layertrace/gpu/gpu_screen_tracer.h"
 #endif
@@ -38,6 +40,11 @@ class Gpu : public ::testing::Test {
   void SetUp() override {
     if (!gpu_) GTEST_SKIP() << "sanitized build: the GPU driver is not instrumented";
   }
+  /// Answers that may differ out of n: none on llvmpipe (IEEE arithmetic in the shaders' order,
+  /// `precise` everywhere: the CPU's bits); on a GPU whose division and reciprocal are approximate
+  /// (GLSL allows 2.5 ulp), a ray that passes a pixel corner or grazes an interval's end within
+  /// that rounding may take the other side: at most 0.1 %.
+  static size_t allowed(size_t n) { return gpu_->software() ? 0 : n / 1000; }
   static std::shared_ptr<GpuContext> gpu_;
 };
 std::shared_ptr<GpuContext> Gpu::gpu_;
@@ -64,7 +71,7 @@ Agreement compareDevices(GpuContext& gpu, const Frame& f, const std::string& nam
     a.cpuHits += h.hit;
     const bool same = h.hit ? m.hit() && m.x == h.x && m.y == h.y && m.layer == h.layer : !m.hit();
     if (!same) {
-      if (a.hitsDiffer++ < 5)
+      if (a.hitsDiffer++ < 5 && gpu.software())
         ADD_FAILURE() << name << " ray " << i << ": CPU " << h.hit << " (" << h.x << ", " << h.y << ", " << h.layer << "), GPU ("
                       << m.x << ", " << m.y << ", " << m.layer << ")";
       continue;
@@ -91,8 +98,8 @@ TEST_F(Gpu, EveryGpuTracerAnswersAsTheCpuOnTheDefaultScene) {
   const std::vector<Ray> rays = test::sampleRays(f, 20000, test::testSeed() + 21);
   for (const char* name : {"ssr", "ssr-layers", "hiz", "hssr"}) {
     const Agreement a = compareDevices(*gpu_, f, name, TracerOptions{}, rays);
-    EXPECT_EQ(a.hitsDiffer, 0u) << name;
-    EXPECT_EQ(a.countersDiffer, 0u) << name;
+    EXPECT_LE(a.hitsDiffer, allowed(a.rays)) << name;
+    EXPECT_LE(a.countersDiffer, allowed(a.rays)) << name;
     EXPECT_GT(a.cpuHits, a.rays / 10) << name << ": the rays must hit something for the comparison to mean anything";
   }
 }
@@ -107,8 +114,8 @@ TEST_F(Gpu, ParametersReachTheShaders) {
   o.pyramid.levels = 3, o.pyramid.tau = 25.0f, o.hssr.nUp = 1;
   for (const char* name : {"ssr", "ssr-layers", "hssr"}) {
     const Agreement a = compareDevices(*gpu_, f, name, o, rays);
-    EXPECT_EQ(a.hitsDiffer, 0u) << name;
-    EXPECT_EQ(a.countersDiffer, 0u) << name;
+    EXPECT_LE(a.hitsDiffer, allowed(a.rays)) << name;
+    EXPECT_LE(a.countersDiffer, allowed(a.rays)) << name;
   }
   // The same rays give other answers with other parameters: the comparison can fail.
   const BuiltTracer capped = buildGpuTracer("ssr", f, o, *gpu_), plain = buildGpuTracer("ssr", f, TracerOptions{}, *gpu_);
@@ -132,7 +139,7 @@ TEST_F(Gpu, RaysFromOutsideTheViewAndAnOrthographicCamera) {
     const glm::vec3 target = f.camera.rayThrough({float(i % 200) + 0.5f, float(i % 120) + 0.5f}) * (0.5f * d);
     rays.push_back(test::freeRay(eye, glm::normalize(target - eye), 2.0f * d));
   }
-  for (const char* name : {"ssr-layers", "hiz", "hssr"}) EXPECT_EQ(compareDevices(*gpu_, f, name, TracerOptions{}, rays).hitsDiffer, 0u) << name;
+  for (const char* name : {"ssr-layers", "hiz", "hssr"}) EXPECT_LE(compareDevices(*gpu_, f, name, TracerOptions{}, rays).hitsDiffer, allowed(rays.size())) << name;
 
   FrameOptions o;
   o.scenePath = test::sourceDir() + "/scenes/default.json";
@@ -144,7 +151,7 @@ TEST_F(Gpu, RaysFromOutsideTheViewAndAnOrthographicCamera) {
   const std::vector<Ray> orays = test::sampleRays(of, 6000, test::testSeed() + 24);
   for (const char* name : {"ssr", "hssr"}) {
     const Agreement a = compareDevices(*gpu_, of, name, TracerOptions{}, orays);
-    EXPECT_EQ(a.hitsDiffer, 0u) << name;
+    EXPECT_LE(a.hitsDiffer, allowed(orays.size())) << name;
     EXPECT_GT(a.cpuHits, 0u) << name;
   }
 }
@@ -160,6 +167,126 @@ TEST_F(Gpu, TracersWithoutAGpuVersionAreRefusedByName) {
       EXPECT_NE(std::string(e.what()).find(name), std::string::npos) << e.what();
     }
   }
+}
+
+/// The GPU's capture of `o`'s view with `method` against the CPU's (same options).
+LayerAgreement compareCaptures(GpuContext& gpu, const FrameOptions& o, const std::string& method, uint64_t* gpuFragments = nullptr) {
+  const Frame cpu = buildFrame(o);
+  Frame onGpu;
+  loadFrameScene(o, onGpu);
+  rasterizeFrameOnGpu(gpu, o, method, onGpu);
+  if (gpuFragments) *gpuFragments = onGpu.lists.generated;
+  EXPECT_EQ(onGpu.lists.generated, cpu.lists.generated) << method << ": every fragment, counted exactly";
+  EXPECT_EQ(onGpu.lists.complexity, cpu.lists.complexity) << method;
+  return compareLayerArrays(onGpu.layers, cpu.layers, 1e-5f);
+}
+
+FrameOptions defaultView(int W, int H) {
+  FrameOptions o;
+  o.scenePath = test::sourceDir() + "/scenes/default.json";
+  o.width = W, o.height = H;
+  return o;
+}
+
+// The same fragments in the same slots (triangle, depth within 1e-5 relative) as the CPU
+// capture. Both evaluate the pixel-centre ray against the triangle's plane; what may differ is
+// the coverage of a pixel centre within rounding of an edge (the GPU transforms the vertices
+// itself, and its rasterizer's tie rule is the driver's). On the default scene nothing differs.
+TEST_F(Gpu, CaptureEqualsTheCpuCapture) {
+  for (const char* method : {"lists", "peel"}) {
+    FrameOptions o = defaultView(317, 179);
+    o.layers = 3;
+    const LayerAgreement a = compareCaptures(*gpu_, o, method);
+    EXPECT_GE(a.matchFraction(), 0.9999) << method;
+    // Mesa's llvmpipe computes IEEE floats in the shaders' order: the same bits as the CPU. A
+    // GPU's division may be approximate (2.5 ulp in GLSL): the depths then agree within 1e-5.
+    if (gpu_->software()) {
+      EXPECT_EQ(a.sameBits, a.filled) << method;
+    }
+    EXPECT_GT(a.pixelLayers, 0u);
+  }
+  // Front faces only, and an orthographic camera.
+  FrameOptions o = defaultView(160, 100);
+  o.frontFacesOnly = true;
+  EXPECT_GE(compareCaptures(*gpu_, o, "lists").matchFraction(), 0.9999);
+  EXPECT_GE(compareCaptures(*gpu_, o, "peel").matchFraction(), 0.9999);
+}
+
+TEST_F(Gpu, CaptureKeepsTheSortRulesOfTheCpu) {
+  // Adaptive thickness and the minimum separation read whole lists.
+  FrameOptions o = defaultView(200, 120);
+  o.adaptiveThickness = true;
+  o.layers = 2;
+  EXPECT_GE(compareCaptures(*gpu_, o, "lists").matchFraction(), 0.9999);
+  o.adaptiveThickness = false;
+  o.minSeparation = 0.05f;
+  EXPECT_GE(compareCaptures(*gpu_, o, "lists").matchFraction(), 0.9999);
+  EXPECT_GE(compareCaptures(*gpu_, o, "peel").matchFraction(), 0.9999);
+  // Depth peeling cannot grow intervals over fragments it never kept.
+  o.minSeparation = 0.0f, o.adaptiveThickness = true;
+  Frame f;
+  loadFrameScene(o, f);
+  EXPECT_THROW(rasterizeFrameOnGpu(*gpu_, o, "peel", f), InputError);
+}
+
+TEST_F(Gpu, CapturePoolOverflowIsCountedExactlyAndGrows) {
+  FrameOptions o = defaultView(160, 90);
+  uint64_t total = 0;
+  compareCaptures(*gpu_, o, "lists", &total);
+  ASSERT_GT(total, 100u);
+  // A fixed pool too small by one: refused with the exact counts.
+  o.pool = total - 1;
+  Frame f;
+  loadFrameScene(o, f);
+  try {
+    rasterizeFrameOnGpu(*gpu_, o, "lists", f);
+    ADD_FAILURE() << "no overflow reported";
+  } catch (const InputError& e) {
+    const std::string m = e.what();
+    EXPECT_NE(m.find(std::to_string(total) + " fragments generated, " + std::to_string(total - 1) + " stored, 1 lost"), std::string::npos) << m;
+  }
+  // Exactly enough: no loss.
+  o.pool = total;
+  rasterizeFrameOnGpu(*gpu_, o, "lists", f);
+  EXPECT_EQ(f.lists.generated, total);
+  EXPECT_EQ(f.raster.passes, 1);
+}
+
+TEST_F(Gpu, CapturedLayersTracedOnTheGpuAnswerAsTheCpuCapture) {
+  // The whole GPU path (capture, then the tracers) against the whole CPU path.
+  const FrameOptions o = defaultView(200, 120);
+  const Frame cpu = buildFrame(o);
+  Frame onGpu;
+  loadFrameScene(o, onGpu);
+  rasterizeFrameOnGpu(*gpu_, o, "lists", onGpu);
+  const std::vector<Ray> rays = test::sampleRays(cpu, 5000, test::testSeed() + 25);
+  const BuiltTracer a = buildTracer("hssr", cpu, TracerOptions{}), b = buildGpuTracer("hssr", onGpu, TracerOptions{}, *gpu_);
+  size_t same = 0;
+  for (const Ray& r : rays) {
+    RayCounters c;
+    const TraceHit x = a.tracer->trace(r, c), y = b.tracer->trace(r, c);
+    same += x.hit == y.hit && x.x == y.x && x.y == y.y && x.layer == y.layer;
+  }
+  EXPECT_GE(same, rays.size() - allowed(rays.size()));
+}
+
+TEST_F(Gpu, HssrEqualsTheOneLevelMarchOnTheGpu) {
+  const Frame f = defaultFrame(257, 143);
+  const std::vector<Ray> rays = test::sampleRays(f, 10000, test::testSeed() + 26);
+  TracerOptions one;
+  one.pyramid.levels = 1;
+  const BuiltTracer hssr = buildGpuTracer("hssr", f, TracerOptions{}, *gpu_), exhaustive = buildGpuTracer("hssr", f, one, *gpu_);
+  EXPECT_STREQ(exhaustive.tracer->name(), "exhaustive");
+  std::vector<GpuMarchHit> a, b;
+  dynamic_cast<const GpuScreenTracer&>(*hssr.tracer).march(rays, a);
+  dynamic_cast<const GpuScreenTracer&>(*exhaustive.tracer).march(rays, b);
+  size_t differ = 0, fewerSteps = 0;
+  for (size_t i = 0; i < rays.size(); ++i) {
+    differ += a[i].x != b[i].x || a[i].y != b[i].y || a[i].layer != b[i].layer;
+    fewerSteps += a[i].counters.iterations < b[i].counters.iterations;
+  }
+  EXPECT_EQ(differ, 0u);
+  EXPECT_GT(fewerSteps, rays.size() / 4) << "the hierarchy must skip something";
 }
 
 #endif

@@ -113,8 +113,11 @@ LayerAgreement compareLayerArrays(const LayerArrays& a, const LayerArrays& b, fl
         r.matching += ha == hb;
         continue;
       }
+      ++r.filled;
       const float da = a.slots[s].depth, db = b.slots[s].depth;
-      r.matching += a.triangle[s] == b.triangle[s] && std::abs(da - db) <= relativeTolerance * std::max(da, db);
+      const bool match = a.triangle[s] == b.triangle[s] && std::abs(da - db) <= relativeTolerance * std::max(da, db);
+      r.matching += match;
+      r.sameBits += match && da == db && a.slots[s].normal == b.slots[s].normal && a.slots[s].albedoSpec == b.slots[s].albedoSpec;
     }
   }
   return r;

@@ -56,6 +56,8 @@ struct LayerAgreement {
   uint64_t pixelLayers = 0;   ///< width × height × k
   uint64_t matching = 0;
   uint64_t countsDiffer = 0;  ///< pixels whose number of layers differs
+  uint64_t filled = 0;        ///< pixel-layers holding a fragment in both
+  uint64_t sameBits = 0;      ///< matching pixel-layers whose depth, normal and material are the same bits
   double matchFraction() const { return pixelLayers ? double(matching) / double(pixelLayers) : 1.0; }
 };
 LayerAgreement compareLayerArrays(const LayerArrays& a, const LayerArrays& b, float relativeTolerance);

@@ -3,6 +3,8 @@
 #include <dlfcn.h>
 
 #include <algorithm>
+#include <cstdlib>
+#include <string_view>
 #include <utility>
 #include <vector>
 
@@ -24,19 +26,26 @@ std::string glString(GLenum name) {
   return s ? s : "";
 }
 
-/// The display to open: Mesa's surfaceless platform, else the first EGL device.
+/// The display to open: the first hardware EGL device (NVIDIA's and Mesa's headless path),
+/// else Mesa's surfaceless platform (llvmpipe on a machine without a GPU).
+/// LAYERTRACE_GPU=software picks the software rasterizer even where a GPU is present.
 EGLDisplay openDisplay() {
-  if (epoxy_has_egl_extension(EGL_NO_DISPLAY, "EGL_MESA_platform_surfaceless"))
-    if (EGLDisplay d = eglGetPlatformDisplayEXT(EGL_PLATFORM_SURFACELESS_MESA, EGL_DEFAULT_DISPLAY, nullptr); d != EGL_NO_DISPLAY)
-      return d;
-  if (epoxy_has_egl_extension(EGL_NO_DISPLAY, "EGL_EXT_device_enumeration") &&
+  const char* want = std::getenv("LAYERTRACE_GPU");
+  const bool softwareOnly = want && std::string_view(want) == "software";
+  if (!softwareOnly && epoxy_has_egl_extension(EGL_NO_DISPLAY, "EGL_EXT_device_enumeration") &&
       epoxy_has_egl_extension(EGL_NO_DISPLAY, "EGL_EXT_platform_device")) {
     EGLDeviceEXT devices[16];
     EGLint count = 0;
     if (eglQueryDevicesEXT(16, devices, &count))
-      for (EGLint i = 0; i < count; ++i)
+      for (EGLint i = 0; i < count; ++i) {
+        const char* ext = eglQueryDeviceStringEXT(devices[i], EGL_EXTENSIONS);
+        if (ext && std::string_view(ext).find("EGL_MESA_device_software") != std::string_view::npos) continue;
         if (EGLDisplay d = eglGetPlatformDisplayEXT(EGL_PLATFORM_DEVICE_EXT, devices[i], nullptr); d != EGL_NO_DISPLAY) return d;
+      }
   }
+  if (epoxy_has_egl_extension(EGL_NO_DISPLAY, "EGL_MESA_platform_surfaceless"))
+    if (EGLDisplay d = eglGetPlatformDisplayEXT(EGL_PLATFORM_SURFACELESS_MESA, EGL_DEFAULT_DISPLAY, nullptr); d != EGL_NO_DISPLAY)
+      return d;
   return EGL_NO_DISPLAY;
 }
 
