@@ -3,6 +3,8 @@
 // tracers are the reference (they are tested against the exhaustive march and both oracles).
 // These run under any OpenGL 4.5 driver; CI has Mesa's llvmpipe.
 #include <cstdlib>
+#include <cstring>
+#include <limits>
 #include <memory>
 #include <random>
 #include <string>
@@ -20,6 +22,7 @@
 #include "layertrace/eval/verify_layers.h"
 #include "layertrace/gpu/gpu_capture.h"
 #include "layertrace/gpu/gpu_context.h"
+#include "layertrace/gpu/gpu_pyramid.h"
 #include "layertrace/gpu/gpu_screen_tracer.h"
 #endif
 
@@ -287,6 +290,45 @@ TEST_F(Gpu, HssrEqualsTheOneLevelMarchOnTheGpu) {
   }
   EXPECT_EQ(differ, 0u);
   EXPECT_GT(fewerSteps, rays.size() / 4) << "the hierarchy must skip something";
+}
+
+// The pyramid built on the GPU equals the CPU's bit for bit on an IEEE device (llvmpipe): the
+// CSR lists of every level and the κ cells the march reads, for τ from 1 to ∞ (Hi-Z) and at odd
+// sizes (partial cells on every level).
+TEST_F(Gpu, PyramidBuiltOnTheGpuEqualsTheCpuPyramid) {
+  const Frame f = defaultFrame(317, 179);
+  const IntervalLayers level0 = makeIntervalLayers(f.layers, f.layers.k);
+  const GpuBuffer l0(level0.slots.size() * sizeof(Interval), level0.slots.data());
+  const std::vector<uint32_t> counts(level0.count.begin(), level0.count.end());
+  const GpuBuffer c(counts.size() * 4, counts.data());
+  for (const float tau : {1.0f, 4.0f, 25.0f, std::numeric_limits<float>::infinity()}) {
+    const PyramidConfig config{7, tau};
+    const IntervalPyramid cpu = buildIntervalPyramid(f.layers, f.camera, config);
+    GpuPyramid g;
+    buildPyramidOnGpu(*gpu_, l0, c, f.camera.width(), f.camera.height(), level0.k, f.camera, config, g);
+    const IntervalPyramid gpu = downloadPyramid(g);
+    ASSERT_EQ(gpu.levelCount(), cpu.levelCount());
+    size_t cellsDiffer = 0, listsDiffer = 0, merged = 0;
+    for (int L = 1; L < cpu.levelCount(); ++L) {
+      const PyramidLevel &a = cpu.levels[size_t(L)], &b = gpu.levels[size_t(L)];
+      ASSERT_EQ(a.width, b.width);
+      ASSERT_EQ(a.offset, b.offset) << "level " << L << " tau " << tau;
+      for (size_t i = 0; i < a.intervals.size(); ++i)
+        listsDiffer += std::memcmp(&a.intervals[i], &b.intervals[i], sizeof(Interval)) != 0;
+      for (size_t i = 0; i < a.cells.size(); ++i) {
+        if (std::memcmp(&a.cells[i], &b.cells[i], sizeof(CoarseCell)) != 0 && cellsDiffer++ < 3)
+          ADD_FAILURE() << "level " << L << " cell " << i << " tau " << tau;
+        merged += a.offset[i + 1] - a.offset[i] > uint32_t(CoarseCell::kSlots);
+      }
+    }
+    if (gpu_->software()) {
+      EXPECT_EQ(listsDiffer, 0u) << tau;
+      EXPECT_EQ(cellsDiffer, 0u) << tau;
+    }
+    if (tau == 1.0f) {
+      EXPECT_GT(merged, 0u) << "some cells must hold more than four intervals, or the slot merge goes untested";
+    }
+  }
 }
 
 #endif

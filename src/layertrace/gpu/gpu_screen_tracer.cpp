@@ -56,12 +56,31 @@ GpuScreenTracer::GpuScreenTracer(GpuContext& gpu, const Camera& camera, const La
   }
   static_assert(sizeof(CoarseCell) == 32);
   cells_ = GpuBuffer(cells.size() * sizeof(CoarseCell), cells.data());
-  setInt(program_, "uLevels", levels);
-  setInt(program_, "uNUp", config.nUp);
-  glProgramUniform1iv(program_, glGetUniformLocation(program_, "uLevelWidth"), kMaxLevels, width.data());
-  glProgramUniform1iv(program_, glGetUniformLocation(program_, "uLevelHeight"), kMaxLevels, height.data());
-  glProgramUniform1iv(program_, glGetUniformLocation(program_, "uLevelOffset"), kMaxLevels, offset.data());
+  setMarchUniforms(levels, config.nUp, width.data(), height.data(), offset.data());
   timer_ = std::make_unique<GpuTimer>();
+}
+
+GpuScreenTracer::GpuScreenTracer(GpuContext& gpu, const Camera& camera, const LayerArrays& layers, const IntervalLayers& level0,
+                                 const PyramidConfig& pyramid, const HssrConfig& config)
+    : gpu_(gpu), camera_(camera), layers_(layers) {
+  if (config.nUp < 1) inputError("--n-up ", config.nUp, ": must be >= 1");
+  gpu_.makeCurrent();
+  program_ = gpu_.computeProgram("hssr_march.comp", shader_source::hssr_march_comp);
+  upload(level0);
+  pyramid_ = std::make_unique<GpuPyramid>();
+  buildPyramidOnGpu(gpu, level0_, counts_, camera.width(), camera.height(), level0.k, camera, pyramid, *pyramid_);
+  const int levels = std::max(1, std::min(config.maxLevels, pyramid_->levels));
+  name_ = levels == 1 ? "exhaustive" : config.name;
+  setMarchUniforms(levels, config.nUp, pyramid_->width.data(), pyramid_->height.data(), pyramid_->cellBase.data());
+  timer_ = std::make_unique<GpuTimer>();
+}
+
+void GpuScreenTracer::setMarchUniforms(int levels, int nUp, const int* width, const int* height, const int* offset) {
+  setInt(program_, "uLevels", levels);
+  setInt(program_, "uNUp", nUp);
+  glProgramUniform1iv(program_, glGetUniformLocation(program_, "uLevelWidth"), kMaxLevels, width);
+  glProgramUniform1iv(program_, glGetUniformLocation(program_, "uLevelHeight"), kMaxLevels, height);
+  glProgramUniform1iv(program_, glGetUniformLocation(program_, "uLevelOffset"), kMaxLevels, offset);
 }
 
 GpuScreenTracer::GpuScreenTracer(GpuContext& gpu, const Camera& camera, const LayerArrays& layers, const SsrConfig& config)
@@ -102,7 +121,9 @@ void GpuScreenTracer::upload(const IntervalLayers& level0) {
   setFloat(program_, "uFocal", camera_.focal());
 }
 
-size_t GpuScreenTracer::memoryBytes() const { return level0_.bytes() + counts_.bytes() + cells_.bytes(); }
+size_t GpuScreenTracer::memoryBytes() const {
+  return level0_.bytes() + counts_.bytes() + cells_.bytes() + (pyramid_ ? pyramid_->memoryBytes() : 0);
+}
 
 void GpuScreenTracer::march(std::span<const Ray> rays, std::vector<GpuMarchHit>& out) const {
   out.assign(rays.size(), GpuMarchHit{});
@@ -122,7 +143,8 @@ void GpuScreenTracer::march(std::span<const Ray> rays, std::vector<GpuMarchHit>&
   hits_.bindStorage(1);
   level0_.bindStorage(2);
   counts_.bindStorage(3);
-  if (cells_.id()) cells_.bindStorage(4);
+  if (pyramid_) pyramid_->cells.bindStorage(4);
+  else if (cells_.id()) cells_.bindStorage(4);
   glUseProgram(program_);
   setInt(program_, "uRayCount", int(rays.size()));
   timer_->begin();

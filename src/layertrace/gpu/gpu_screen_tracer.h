@@ -14,6 +14,7 @@
 #include <vector>
 
 #include "layertrace/gpu/gpu_context.h"
+#include "layertrace/gpu/gpu_pyramid.h"
 #include "layertrace/hssr/hssr_tracer.h"
 #include "layertrace/hssr/interval_pyramid.h"
 #include "layertrace/raster/layer_arrays.h"
@@ -36,6 +37,10 @@ class GpuScreenTracer final : public Tracer {
   /// with one level). The context must outlive the tracer; `pyramid` need not.
   GpuScreenTracer(GpuContext& gpu, const Camera& camera, const LayerArrays& layers, const IntervalPyramid& pyramid,
                   const HssrConfig& config);
+  /// HSSR over a pyramid built here on the GPU from `level0` (gpu_pyramid.h): the whole
+  /// structure of the CPU's tracer, made on the device. Hi-Z: hizConfig with τ = ∞.
+  GpuScreenTracer(GpuContext& gpu, const Camera& camera, const LayerArrays& layers, const IntervalLayers& level0,
+                  const PyramidConfig& pyramid, const HssrConfig& config);
   /// SSR (front layer) or SSR-layers (config.allLayers).
   GpuScreenTracer(GpuContext& gpu, const Camera& camera, const LayerArrays& layers, const SsrConfig& config);
   ~GpuScreenTracer() override;
@@ -52,12 +57,14 @@ class GpuScreenTracer final : public Tracer {
   double lastTraceMs() const { return lastTraceMs_; }
   /// GPU time of every batch so far, milliseconds.
   double totalTraceMs() const { return totalTraceMs_; }
-  /// Bytes of the structure on the GPU (level 0, counts, coarse cells).
+  /// Bytes of the structure on the GPU (level 0, counts, coarse cells and their lists).
   size_t memoryBytes() const;
+  /// The pyramid built on the GPU (the level-0 constructor), else null.
+  const GpuPyramid* pyramid() const { return pyramid_.get(); }
 
  private:
   void upload(const IntervalLayers& level0);
-  void setCameraUniforms() const;
+  void setMarchUniforms(int levels, int nUp, const int* width, const int* height, const int* offset);
 
   GpuContext& gpu_;
   const Camera& camera_;
@@ -69,6 +76,7 @@ class GpuScreenTracer final : public Tracer {
   mutable GpuBuffer rays_, hits_;
   mutable double lastTraceMs_ = 0.0, totalTraceMs_ = 0.0;
   std::unique_ptr<GpuTimer> timer_;
+  std::unique_ptr<GpuPyramid> pyramid_;
 };
 
 }  // namespace lt

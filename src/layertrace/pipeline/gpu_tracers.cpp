@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <array>
+#include <limits>
 
 #include "layertrace/util/error.h"
 #if LAYERTRACE_HAS_GPU
@@ -70,17 +71,26 @@ void rasterizeFrameOnGpu(GpuContext& gpu, const FrameOptions& o, const std::stri
 
 BuiltTracer buildGpuTracer(const std::string& name, const Frame& frame, const TracerOptions& options, GpuContext& gpu) {
   if (!hasGpuTracer(name)) inputError("--device gpu: ", name, " has no GPU version (GPU tracers: ", gpuTracerNames(), ")");
-  // The CPU structures first (the same validation, the same pyramid), then their upload.
-  BuiltTracer b = buildTracer(name, frame, options);
+  validateTracerOptions(options);
+  BuiltTracer b;
   std::unique_ptr<GpuScreenTracer> t;
   if (name == "ssr" || name == "ssr-layers") {
     SsrConfig sc = options.ssr;
     sc.allLayers = name == "ssr-layers";
     t = std::make_unique<GpuScreenTracer>(gpu, frame.camera, frame.layers, sc);
   } else {
-    HssrConfig hc = name == "hiz" ? hizConfig(options.pyramid.levels) : options.hssr;
+    // Level 0 uploaded, the pyramid built on the GPU (Hi-Z: the min/max pyramid, τ = ∞).
+    const bool hiz = name == "hiz";
+    HssrConfig hc = hiz ? hizConfig(options.pyramid.levels) : options.hssr;
     hc.maxLevels = options.pyramid.levels;
-    t = std::make_unique<GpuScreenTracer>(gpu, frame.camera, frame.layers, *b.pyramid, hc);
+    const PyramidConfig pc = hiz ? PyramidConfig{options.pyramid.levels, std::numeric_limits<float>::infinity()} : options.pyramid;
+    std::shared_ptr<IntervalLayers> level0 = frame.level0();
+    if (!level0) level0 = std::make_shared<IntervalLayers>(makeIntervalLayers(frame.layers, frame.layers.k));
+    t = std::make_unique<GpuScreenTracer>(gpu, frame.camera, frame.layers, *level0, pc, hc);
+    // The GPU's levels, read back for the statistics (intervals per level).
+    b.pyramid = std::make_shared<IntervalPyramid>(downloadPyramid(*t->pyramid()));
+    b.pyramid->base = level0;
+    b.buildMs = t->pyramid()->buildMs;
   }
   b.memoryBytes = t->memoryBytes();
   b.tracer = std::move(t);
