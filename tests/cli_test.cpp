@@ -860,12 +860,40 @@ TEST(CliGpu, LayersCapturedOnTheGpuAreVerifiedAgainstEmbreeAndTheCpu) {
   }
 }
 
+TEST(CliGpu, BenchReportsEveryStageOnBothDevicesAndListsAgainstPeeling) {
+  if (!gpuBuilt()) GTEST_SKIP() << "built without the GPU back end";
+  test::TempDir dir;
+  for (const std::string device : {"cpu", "gpu"}) {
+    ASSERT_NO_FATAL_FAILURE(expectRuns("bench " + kDefault + " --experiment stages --repeat 1 --width 160 --height 90 --quiet --device " + device +
+                                       " -o " + (dir / device)));
+    const auto j = readJson(dir / (device + "/stages.json"));
+    EXPECT_EQ(j["device"], device);
+    ASSERT_EQ(j["rows"].size(), 5u);
+    std::map<std::string, double> iterations;
+    for (const auto& row : j["rows"]) {
+      EXPECT_GT(row["trace_ms"].get<double>(), 0.0) << row;
+      EXPECT_GT(row["memory_bytes"].get<double>(), 0.0) << row;
+      iterations[row["tracer"].get<std::string>() + row["stride"].dump()] = row["iterations_mean"].get<double>();
+    }
+    EXPECT_LT(iterations["hssr1.0"], iterations["ssr-layers1.0"]) << device << ": the hierarchy skips empty space";
+  }
+  // The same rays, the same answers: the GPU's counters equal the CPU's.
+  const auto c = readJson(dir / "cpu/stages.json")["rows"], g = readJson(dir / "gpu/stages.json")["rows"];
+  for (size_t i = 0; i < c.size(); ++i) EXPECT_EQ(c[i]["iterations_mean"], g[i]["iterations_mean"]) << c[i]["tracer"];
+  ASSERT_NO_FATAL_FAILURE(expectRuns("bench " + kDefault + " --experiment peel --repeat 1 --width 96 --height 54 --quiet --device gpu -o " + (dir / "peel")));
+  const auto p = readJson(dir / "peel/peel.json")["rows"];
+  ASSERT_EQ(p.size(), 8u);
+  EXPECT_LT(p[0]["peel_bytes"].get<double>(), p[7]["peel_bytes"].get<double>());  // peeling's memory grows with k
+}
+
 TEST(CliGpu, NoDeviceOrNoGpuVersionIsOneLineStatusTwo) {
   test::TempDir dir;
   expectRejected({"render " + kDefault + " --tracer quadtree --device gpu", "quadtree"}, dir);
   expectRejected({"compare " + kDefault + " --tracers quadtree,embree --device gpu", "--device gpu"}, dir);
   expectRejected({"render " + kDefault + " --device tpu", "--device"}, dir);
   expectRejected({"layers " + kDefault + " --capture peel", "--capture peel"}, dir);
+  expectRejected({"bench " + kDefault + " --experiment peel", "--experiment peel"}, dir);
+  expectRejected({"bench " + kDefault + " --experiment tau --device gpu", "--device gpu"}, dir);
   expectRejected({"layers " + kDefault + " --capture peel --device gpu --adaptive-thickness", "--adaptive-thickness"}, dir);
   // A machine whose EGL has no driver: the device is asked for before the scene is loaded.
   setenv("__EGL_VENDOR_LIBRARY_FILENAMES", "/nonexistent.json", 1);

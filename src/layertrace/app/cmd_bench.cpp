@@ -32,6 +32,8 @@
 #include <tbb/global_control.h>
 
 #include "layertrace/app/commands.h"
+#include "layertrace/gpu/gpu_context.h"
+#include "layertrace/pipeline/gpu_tracers.h"
 #include "layertrace/app/report.h"
 #include "layertrace/eval/classify.h"
 #include "layertrace/eval/image_metrics.h"
@@ -144,11 +146,17 @@ Classified measure(const Frame& frame, const Tracer& tracer, const EffectConfig&
 }  // namespace
 
 int runBench(const BenchOptions& o) {
-  static const char* kExperiments[] = {"stride", "layers", "tau", "memory", "resolution", "threads", "warp", "capture", "gamma", "ldc"};
+  static const char* kExperiments[] = {"stride", "layers", "tau", "memory", "resolution", "threads", "warp", "capture", "gamma", "ldc", "stages", "peel"};
   if (std::find_if(std::begin(kExperiments), std::end(kExperiments), [&](const char* e) { return o.experiment == e; }) ==
       std::end(kExperiments))
     inputError("--experiment ", o.experiment.empty() ? "(none)" : o.experiment,
-               ": unknown (use stride, layers, tau, memory, resolution, threads, warp, capture, gamma, ldc)");
+               ": unknown (use stride, layers, tau, memory, resolution, threads, warp, capture, gamma, ldc, stages, peel)");
+  if (o.experiment == "peel" && o.run.device != "gpu") inputError("--experiment peel: depth peeling runs on the GPU (add --device gpu)");
+  if (o.run.device == "gpu" && o.experiment != "stages" && o.experiment != "peel")
+    inputError("--device gpu: bench measures the GPU with --experiment stages or peel, not ", o.experiment);
+  // The device before the scene: a machine without one is told at once.
+  std::shared_ptr<GpuContext> gpu;
+  if (o.run.device == "gpu") gpu = openGpu();
   if (o.repeat < 1 || o.repeat > 100) inputError("--repeat ", o.repeat, ": must be between 1 and 100");
   validateTracerOptions(o.options);
   validateEffectConfig(o.effect);
@@ -438,8 +446,85 @@ int runBench(const BenchOptions& o) {
     }
   }
 
+  if (e == "stages") {
+    // Every stage of a frame on the chosen device, medians of --repeat after a warm-up: capture
+    // (raster, sort), the hierarchy, and the trace of each screen tracer over the same rays, with
+    // plain Embree on the CPU over those rays as the baseline. On the GPU the times are GL timer
+    // queries of the device's work; ray generation and shading stay on the CPU (cpu_shade_ms).
+    t.columns = {"device", "tracer", "stride", "raster_ms", "sort_ms", "hierarchy_ms", "trace_ms", "cpu_shade_ms", "iterations_mean",
+                 "memory_bytes", "embree_trace_ms", "trace_vs_embree"};
+    Progress p(o.run.quiet, e, 7);
+    p.step("capture");
+    std::vector<double> rs, ss;
+    auto capture = [&] {
+      if (gpu) rasterizeFrameOnGpu(*gpu, o.run.frame, "lists", frame);
+      else rasterizeFrame(o.run.frame, frame);
+    };
+    capture();  // warm-up, discarded
+    for (int i = 0; i < o.repeat; ++i) capture(), rs.push_back(frame.rasterMs), ss.push_back(frame.sortMs);
+    const size_t captureBytes = gpu ? frame.gpuMemoryBytes : frame.layers.memoryBytes();
+    p.step("embree");
+    const BuiltTracer embree = buildTracer("embree", frame, o.options);
+    const double embreeMs = measure(frame, *embree.tracer, ec, o.repeat, nullptr).traceMs;
+    const std::string device = gpu ? gpu->renderer() : "cpu";
+    const std::pair<const char*, float> runs[] = {{"ssr", 1.0f}, {"ssr", 4.0f}, {"ssr-layers", 1.0f}, {"hiz", 1.0f}, {"hssr", 1.0f}};
+    for (const auto& [name, stride] : runs) {
+      p.step(cat(name, " stride ", stride));
+      TracerOptions to = o.options;
+      to.ssr.stride = stride;
+      auto build = [&] { return gpu ? buildGpuTracer(name, frame, to, *gpu) : buildTracer(name, frame, to); };
+      std::vector<double> hs;
+      BuiltTracer b = build();  // warm-up, discarded
+      for (int i = 0; i < o.repeat; ++i) b = build(), hs.push_back(b.buildMs);
+      EffectConfig timing = ec;
+      timing.countRays = false;
+      timing.wholeWaves = gpu != nullptr;
+      std::vector<double> trace, shade;
+      renderEffect(frame, *b.tracer, timing);  // warm-up, discarded
+      for (int i = 0; i < o.repeat; ++i) {
+        const double before = gpuTraceMs(*b.tracer);
+        const EffectResult r = renderEffect(frame, *b.tracer, timing);
+        trace.push_back(gpu ? gpuTraceMs(*b.tracer) - before : r.traceMs);
+        shade.push_back(r.shadeMs);
+      }
+      EffectConfig counted = ec;
+      counted.wholeWaves = gpu != nullptr;
+      const EffectResult c = renderEffect(frame, *b.tracer, counted);
+      const double ms = median(trace);
+      t.rows.push_back({device, name, stride, median(rs), median(ss), median(hs), ms, median(shade),
+                        c.rays ? double(c.iterationSum) / double(c.rays) : 0.0, captureBytes + b.memoryBytes, embreeMs,
+                        ms > 0.0 ? embreeMs / ms : 0.0});
+    }
+  } else if (e == "peel") {
+    // Hofmann et al. 2017, Fig. 8: the construction of k layers from per-pixel lists (one
+    // geometry pass, then the sort) against depth peeling (a geometry pass pair per layer), for
+    // k = 1…8 on the GPU; GPU milliseconds (timer queries), medians of --repeat after a warm-up.
+    t.columns = {"k", "lists_raster_ms", "lists_sort_ms", "lists_ms", "peel_raster_ms", "peel_resolve_ms", "peel_ms", "peel_vs_lists",
+                 "lists_bytes", "peel_bytes", "fragments"};
+    Progress p(o.run.quiet, e, 8);
+    for (int k = 1; k <= 8; ++k) {
+      p.step(cat("k = ", k));
+      FrameOptions fo = o.run.frame;
+      fo.layers = k;
+      double times[2][2];
+      size_t bytes[2];
+      for (int m = 0; m < 2; ++m) {
+        const std::string method = m == 0 ? "lists" : "peel";
+        std::vector<double> rs, ss;
+        rasterizeFrameOnGpu(*gpu, fo, method, frame);  // warm-up, discarded
+        for (int i = 0; i < o.repeat; ++i) rasterizeFrameOnGpu(*gpu, fo, method, frame), rs.push_back(frame.rasterMs), ss.push_back(frame.sortMs);
+        times[m][0] = median(rs), times[m][1] = median(ss), bytes[m] = frame.gpuMemoryBytes;
+      }
+      const double lists = times[0][0] + times[0][1], peel = times[1][0] + times[1][1];
+      t.rows.push_back({k, times[0][0], times[0][1], lists, times[1][0], times[1][1], peel, lists > 0.0 ? peel / lists : 0.0, bytes[0],
+                        bytes[1], frame.lists.generated});
+    }
+  }
+
   nlohmann::json result;
   result["experiment"] = e;
+  result["device"] = o.run.device;
+  if (gpu) result["gpu"] = gpuStats(*gpu);
   result["scene"] = frame.scene.name;
   result["camera"] = frame.camera.desc().name;
   result["width"] = o.run.frame.width;
