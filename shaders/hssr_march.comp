@@ -196,11 +196,38 @@ ivec3 march(Segment seg) {
   return none;
 }
 
-void main() {
-  const uint id = gl_GlobalInvocationID.x + uint(uRayOffset);
-  if (id >= uint(uRayCount)) return;
+// Hofmann et al. 2017, §5.3: with persistent threads (uPersistent) a fixed set of work groups
+// pulls batches of rays from one atomic counter until none is left ("ray reloading"), so a
+// group whose rays ended early takes the next batch instead of waiting for the longest ray of
+// the frame's last groups. Choice: a group fetches a whole batch of 64 (as Aila and Laine's
+// persistent warps fetch 32): one atomic per batch, and every invocation keeps its lane's
+// alignment, which per-invocation fetching broke on llvmpipe (a few rays answered differently).
+uniform bool uPersistent;
+layout(std430, binding = 5) buffer Queue { uint nextRay; };
+shared uint batchStart;
+
+void traceRay(uint id) {
+  cIterations = 0u, cIntervals = 0u, cPixels = 0u, cGiveUps = 0u;
+  for (int l = 0; l < 8; ++l) cLevel[l] = 0u;
   const Segment seg = makeSegment(rays[id]);
   ivec3 h = ivec3(-1, -1, -1);
   if (seg.valid) h = march(seg);
   writeHit(id, h.x, h.y, h.z);
+}
+
+void main() {
+  if (!uPersistent) {
+    const uint id = gl_GlobalInvocationID.x + uint(uRayOffset);
+    if (id < uint(uRayCount)) traceRay(id);
+    return;
+  }
+  for (;;) {
+    if (gl_LocalInvocationIndex == 0u) batchStart = atomicAdd(nextRay, 64u);
+    barrier();
+    const uint start = batchStart;
+    barrier();
+    if (start >= uint(uRayCount)) return;
+    const uint id = start + gl_LocalInvocationIndex;
+    if (id < uint(uRayCount)) traceRay(id);
+  }
 }

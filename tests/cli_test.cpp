@@ -868,7 +868,7 @@ TEST(CliGpu, BenchReportsEveryStageOnBothDevicesAndListsAgainstPeeling) {
                                        " -o " + (dir / device)));
     const auto j = readJson(dir / (device + "/stages.json"));
     EXPECT_EQ(j["device"], device);
-    ASSERT_EQ(j["rows"].size(), 5u);
+    ASSERT_EQ(j["rows"].size(), device == "gpu" ? 6u : 5u);  // the GPU adds HSSR with persistent threads
     std::map<std::string, double> iterations;
     for (const auto& row : j["rows"]) {
       EXPECT_GT(row["trace_ms"].get<double>(), 0.0) << row;
@@ -880,6 +880,8 @@ TEST(CliGpu, BenchReportsEveryStageOnBothDevicesAndListsAgainstPeeling) {
   // The same rays, the same answers: the GPU's counters equal the CPU's.
   const auto c = readJson(dir / "cpu/stages.json")["rows"], g = readJson(dir / "gpu/stages.json")["rows"];
   for (size_t i = 0; i < c.size(); ++i) EXPECT_EQ(c[i]["iterations_mean"], g[i]["iterations_mean"]) << c[i]["tracer"];
+  EXPECT_EQ(g[5]["persistent"], true);
+  EXPECT_EQ(g[5]["iterations_mean"], g[4]["iterations_mean"]);  // another schedule, the same rays and steps
   ASSERT_NO_FATAL_FAILURE(expectRuns("bench " + kDefault + " --experiment peel --repeat 1 --width 96 --height 54 --quiet --device gpu -o " + (dir / "peel")));
   const auto p = readJson(dir / "peel/peel.json")["rows"];
   ASSERT_EQ(p.size(), 8u);

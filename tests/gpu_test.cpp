@@ -289,6 +289,13 @@ TEST_F(Gpu, HssrEqualsTheOneLevelMarchOnTheGpu) {
     fewerSteps += a[i].counters.iterations < b[i].counters.iterations;
   }
   EXPECT_EQ(differ, 0u);
+  // Persistent threads reloading rays from a queue: the same answers and counters.
+  std::vector<GpuMarchHit> c;
+  ASSERT_TRUE(setGpuPersistentThreads(*hssr.tracer, true));
+  dynamic_cast<const GpuScreenTracer&>(*hssr.tracer).march(rays, c);
+  for (size_t i = 0; i < rays.size(); ++i)
+    ASSERT_TRUE(c[i].x == a[i].x && c[i].y == a[i].y && c[i].layer == a[i].layer && c[i].counters.iterations == a[i].counters.iterations)
+        << "ray " << i;
   EXPECT_GT(fewerSteps, rays.size() / 4) << "the hierarchy must skip something";
 }
 

@@ -451,9 +451,9 @@ int runBench(const BenchOptions& o) {
     // (raster, sort), the hierarchy, and the trace of each screen tracer over the same rays, with
     // plain Embree on the CPU over those rays as the baseline. On the GPU the times are GL timer
     // queries of the device's work; ray generation and shading stay on the CPU (cpu_shade_ms).
-    t.columns = {"device", "tracer", "stride", "raster_ms", "sort_ms", "hierarchy_ms", "trace_ms", "cpu_shade_ms", "iterations_mean",
+    t.columns = {"device", "tracer", "stride", "persistent", "raster_ms", "sort_ms", "hierarchy_ms", "trace_ms", "cpu_shade_ms", "iterations_mean",
                  "memory_bytes", "embree_trace_ms", "trace_vs_embree"};
-    Progress p(o.run.quiet, e, 7);
+    Progress p(o.run.quiet, e, gpu ? 8 : 7);
     p.step("capture");
     std::vector<double> rs, ss;
     auto capture = [&] {
@@ -467,15 +467,23 @@ int runBench(const BenchOptions& o) {
     const BuiltTracer embree = buildTracer("embree", frame, o.options);
     const double embreeMs = measure(frame, *embree.tracer, ec, o.repeat, nullptr).traceMs;
     const std::string device = gpu ? gpu->renderer() : "cpu";
-    const std::pair<const char*, float> runs[] = {{"ssr", 1.0f}, {"ssr", 4.0f}, {"ssr-layers", 1.0f}, {"hiz", 1.0f}, {"hssr", 1.0f}};
-    for (const auto& [name, stride] : runs) {
-      p.step(cat(name, " stride ", stride));
+    struct Run {
+      const char* name;
+      float stride;
+      bool persistent;
+    };
+    std::vector<Run> runs = {{"ssr", 1.0f, false}, {"ssr", 4.0f, false}, {"ssr-layers", 1.0f, false}, {"hiz", 1.0f, false}, {"hssr", 1.0f, false}};
+    // Hofmann et al. 2017, §5.3 and Fig. 7: HSSR with persistent threads reloading rays.
+    if (gpu) runs.push_back({"hssr", 1.0f, true});
+    for (const auto& [name, stride, persistent] : runs) {
+      p.step(cat(name, " stride ", stride, persistent ? " persistent" : ""));
       TracerOptions to = o.options;
       to.ssr.stride = stride;
       auto build = [&] { return gpu ? buildGpuTracer(name, frame, to, *gpu) : buildTracer(name, frame, to); };
       std::vector<double> hs;
       BuiltTracer b = build();  // warm-up, discarded
       for (int i = 0; i < o.repeat; ++i) b = build(), hs.push_back(b.buildMs);
+      setGpuPersistentThreads(*b.tracer, persistent);
       EffectConfig timing = ec;
       timing.countRays = false;
       timing.wholeWaves = gpu != nullptr;
@@ -491,7 +499,7 @@ int runBench(const BenchOptions& o) {
       counted.wholeWaves = gpu != nullptr;
       const EffectResult c = renderEffect(frame, *b.tracer, counted);
       const double ms = median(trace);
-      t.rows.push_back({device, name, stride, median(rs), median(ss), median(hs), ms, median(shade),
+      t.rows.push_back({device, name, stride, persistent, median(rs), median(ss), median(hs), ms, median(shade),
                         c.rays ? double(c.iterationSum) / double(c.rays) : 0.0, captureBytes + b.memoryBytes, embreeMs,
                         ms > 0.0 ? embreeMs / ms : 0.0});
     }

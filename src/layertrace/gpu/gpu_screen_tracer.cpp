@@ -30,6 +30,9 @@ static_assert(RayCounters::kLevels == 8, "the shaders count 8 levels");
 constexpr int kGroupSize = 64;           ///< local_size_x of the march shaders
 constexpr int kMaxGroups = 65535;        ///< the dispatch size every OpenGL 4.5 driver allows
 constexpr int kMaxLevels = 16;           ///< uLevelWidth[16] in hssr_march.comp
+/// Persistent threads: work groups launched (16 per multiprocessor of a 132-SM GPU; choice: the
+/// queue balances the load, so more groups than the GPU holds at once only add idle launches).
+constexpr size_t kPersistentGroups = 2112;
 
 void setInt(uint32_t program, const char* name, int v) { glProgramUniform1i(program, glGetUniformLocation(program, name), v); }
 void setFloat(uint32_t program, const char* name, float v) { glProgramUniform1f(program, glGetUniformLocation(program, name), v); }
@@ -147,12 +150,25 @@ void GpuScreenTracer::march(std::span<const Ray> rays, std::vector<GpuMarchHit>&
   else if (cells_.id()) cells_.bindStorage(4);
   glUseProgram(program_);
   setInt(program_, "uRayCount", int(rays.size()));
+  const bool persistent = persistent_ && (pyramid_ || cells_.id());  // a march over a pyramid: hssr, hiz, exhaustive
+  setInt(program_, "uPersistent", persistent ? 1 : 0);
+  if (persistent) {
+    const uint32_t zero = 0;
+    if (!queue_.id()) queue_ = GpuBuffer(sizeof zero);
+    queue_.write(&zero, sizeof zero);
+    queue_.bindStorage(5);
+  }
   timer_->begin();
   constexpr size_t perDispatch = size_t(kGroupSize) * size_t(kMaxGroups);
-  for (size_t first = 0; first < rays.size(); first += perDispatch) {
-    setInt(program_, "uRayOffset", int(first));
-    const size_t n = std::min(perDispatch, rays.size() - first);
-    glDispatchCompute(GLuint((n + kGroupSize - 1) / kGroupSize), 1, 1);
+  if (persistent) {
+    // Enough groups to fill a large GPU several times over; each invocation then loops.
+    glDispatchCompute(GLuint(std::min<size_t>((rays.size() + kGroupSize - 1) / kGroupSize, kPersistentGroups)), 1, 1);
+  } else {
+    for (size_t first = 0; first < rays.size(); first += perDispatch) {
+      setInt(program_, "uRayOffset", int(first));
+      const size_t n = std::min(perDispatch, rays.size() - first);
+      glDispatchCompute(GLuint((n + kGroupSize - 1) / kGroupSize), 1, 1);
+    }
   }
   timer_->end();
   std::vector<HitRecord> answers(rays.size());

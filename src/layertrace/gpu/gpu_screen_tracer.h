@@ -50,6 +50,10 @@ class GpuScreenTracer final : public Tracer {
   /// The whole batch in one dispatch (call it from the context's thread; large batches pay the
   /// dispatch's fixed cost once).
   void traceBatch(std::span<const Ray> rays, std::span<TraceHit> hits, std::span<RayCounters> counters) const override;
+  /// HSSR's march with persistent threads pulling rays from a queue (Hofmann et al. 2017, §5.3,
+  /// ray reloading): the same answers, another schedule. No effect on SSR.
+  void setPersistentThreads(bool on) { persistent_ = on; }
+  bool persistentThreads() const { return persistent_; }
   /// The fragments the rays hit, with their counters.
   void march(std::span<const Ray> rays, std::vector<GpuMarchHit>& out) const;
 
@@ -73,7 +77,8 @@ class GpuScreenTracer final : public Tracer {
   uint32_t program_ = 0;
   GpuBuffer level0_, counts_, cells_;
   int k_ = 0;
-  mutable GpuBuffer rays_, hits_;
+  mutable GpuBuffer rays_, hits_, queue_;
+  bool persistent_ = false;
   mutable double lastTraceMs_ = 0.0, totalTraceMs_ = 0.0;
   std::unique_ptr<GpuTimer> timer_;
   std::unique_ptr<GpuPyramid> pyramid_;

@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <array>
 #include <limits>
+#include <string_view>
 
 #include "layertrace/util/error.h"
 #if LAYERTRACE_HAS_GPU
@@ -97,6 +98,13 @@ BuiltTracer buildGpuTracer(const std::string& name, const Frame& frame, const Tr
   return b;
 }
 
+bool setGpuPersistentThreads(const Tracer& tracer, bool on) {
+  auto* g = const_cast<GpuScreenTracer*>(dynamic_cast<const GpuScreenTracer*>(&tracer));
+  if (!g || std::string_view(g->name()).starts_with("ssr")) return false;
+  g->setPersistentThreads(on);
+  return true;
+}
+
 double gpuTraceMs(const Tracer& tracer) {
   const auto* g = dynamic_cast<const GpuScreenTracer*>(&tracer);
   return g ? g->totalTraceMs() : 0.0;
@@ -115,6 +123,7 @@ BuiltTracer buildGpuTracer(const std::string&, const Frame&, const TracerOptions
   openGpu();
   return {};
 }
+bool setGpuPersistentThreads(const Tracer&, bool) { return false; }
 double gpuTraceMs(const Tracer&) { return 0.0; }
 
 #endif

@@ -39,6 +39,9 @@ const std::string& gpuTracerNames();
 /// here on the CPU and uploaded: level 0, the interval or min/max pyramid). `memoryBytes` is the
 /// GPU's share. InputError for a tracer without a GPU version.
 BuiltTracer buildGpuTracer(const std::string& name, const Frame& frame, const TracerOptions& options, GpuContext& gpu);
+/// Persistent threads for a GPU hssr, hiz or exhaustive tracer (Hofmann et al. 2017, §5.3: ray
+/// reloading from a queue); false for any other tracer, which is left as it is.
+bool setGpuPersistentThreads(const Tracer& tracer, bool on);
 /// GPU time of the dispatches of all batches a GPU tracer traced so far (GL timer queries),
 /// milliseconds; 0 for a CPU tracer.
 double gpuTraceMs(const Tracer& tracer);
