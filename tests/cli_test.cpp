@@ -822,7 +822,7 @@ TEST(CliGpu, RenderOnTheGpuGivesTheCpuImage) {
       EXPECT_TRUE(!ca.empty() && ca == cb) << t << " " << effect;
       const auto j = readJson(dir / "gpu.json");
       EXPECT_EQ(j["device"], "gpu");
-      EXPECT_FALSE(j["gpu"]["renderer"].get<std::string>().empty());
+      EXPECT_FALSE(j["gpu_renderer"].get<std::string>().empty());
       EXPECT_GT(j["timings_ms"]["gpu_trace"].get<double>(), 0.0);
       EXPECT_EQ(readJson(dir / "cpu.json")["device"], "cpu");
       EXPECT_EQ(j["rays"]["iterations_mean"], readJson(dir / "cpu.json")["rays"]["iterations_mean"]) << t;

@@ -532,7 +532,7 @@ int runBench(const BenchOptions& o) {
   nlohmann::json result;
   result["experiment"] = e;
   result["device"] = o.run.device;
-  if (gpu) result["gpu"] = gpuStats(*gpu);
+  if (gpu) result["gpu"] = gpuStats(*gpu), result["gpu_renderer"] = gpu->renderer();
   result["scene"] = frame.scene.name;
   result["camera"] = frame.camera.desc().name;
   result["width"] = o.run.frame.width;

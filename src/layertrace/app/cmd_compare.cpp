@@ -126,7 +126,7 @@ int runCompare(const CompareOptions& o) {
   stats["threads"] = o.run.threads;
   stats["tracers"] = o.tracers;
   stats["device"] = o.run.device;
-  if (gpu) stats["gpu"] = gpuStats(*gpu);
+  if (gpu) stats["gpu"] = gpuStats(*gpu), stats["gpu_renderer"] = gpu->renderer();
   stats["reference"] = {{"tracer", "embree"},
                         {"trace_ms", ref.traceMs},
                         {"build_ms", reference.buildMs},

@@ -64,7 +64,7 @@ int runLayers(const LayersOptions& o) {
   stats["tracer"] = nullptr;
   stats["effect"] = nullptr;
   stats["device"] = o.run.device;
-  if (gpu) stats["gpu"] = gpuStats(*gpu);
+  if (gpu) stats["gpu"] = gpuStats(*gpu), stats["gpu_renderer"] = gpu->renderer();
 
   if (o.verify) {
     const EmbreeScene embree(frame.scene);

@@ -221,6 +221,7 @@ int runRender(const RenderOptions& o) {
     // answers' download. On a software rasterizer (gpu.software) these are CPU times.
     stats["timings_ms"]["gpu_trace"] = gpuTraceMs(*built.tracer);
     stats["gpu"] = gpuStats(*gpu);
+    stats["gpu_renderer"] = gpu->renderer();
   }
   stats["memory_bytes"]["hierarchy"] = built.memoryBytes;
   stats["rays"] = rayStats(r, screen);
