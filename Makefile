@@ -8,7 +8,7 @@ FUZZ_SECONDS ?= 60
 OUT    ?= out
 SCENE  ?= scenes/default.json
 
-.PHONY: deps deps-run build build-cli build-asan build-fuzz build-tsan run test check fuzz fetch bench clean
+.PHONY: deps deps-run build build-cli build-asan build-fuzz build-tsan run test check fuzz fetch bench gpu-bundle clean
 
 deps:
 	scripts/install-deps.sh
@@ -79,6 +79,11 @@ check: deps
 	cmake -S . -B $(BUILD) -DCMAKE_BUILD_TYPE=Release -DBUILD_TESTING=ON >/dev/null
 	cmake --build $(BUILD) -j $(JOBS) --target layertrace layertrace_tests
 	cd $(BUILD) && ctest --output-on-failure -j $(JOBS) -L 'unit|docs'
+
+# The CLI with the libraries it links and the benchmark's scenes, for scripts/gpu-bench.sh on a GPU
+# machine without a compiler (docs/gpu.md).
+gpu-bundle: build-cli fetch
+	scripts/gpu-bundle.sh $(BUILD) $(OUT)/gpu-bundle
 
 bench: build fetch
 	$(BUILD)/bench_raster

@@ -466,7 +466,7 @@ int runBench(const BenchOptions& o) {
     p.step("embree");
     const BuiltTracer embree = buildTracer("embree", frame, o.options);
     const double embreeMs = measure(frame, *embree.tracer, ec, o.repeat, nullptr).traceMs;
-    const std::string device = gpu ? gpu->renderer() : "cpu";
+    const std::string device = o.run.device;  // the renderer string is in gpu_renderer
     struct Run {
       const char* name;
       float stride;

@@ -1,4 +1,5 @@
 #include "layertrace/app/version.h"
+#include "layertrace/pipeline/gpu_tracers.h"
 
 #include <sstream>
 
@@ -23,7 +24,7 @@ std::string versionText(bool viewer) {
   s << "  sanitizers: thread\n";
 #endif
   s << "  viewer: " << (viewer ? "on" : "off (needs GLFW, OpenGL and Dear ImGui)") << "\n";
-  s << "  GPU back end: not built\n";
+  s << "  GPU back end: " << (gpuBuilt() ? "built (OpenGL 4.5 compute through headless EGL; --device gpu)" : "not built (needs libepoxy-dev, libegl-dev, glslang-tools)") << "\n";
   s << "  Embree " << RTC_VERSION_STRING << ", assimp " << aiGetVersionMajor() << "." << aiGetVersionMinor() << "." << aiGetVersionPatch() << "\n";
   return s.str();
 }

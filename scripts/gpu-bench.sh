@@ -1,0 +1,68 @@
+#!/usr/bin/env bash
+# The GPU benchmark, prepared for a machine with an NVIDIA (or any OpenGL 4.5) driver and no
+# display, compiler or network. Run it from a bundle made by `make gpu-bundle` (or from a built
+# tree). It writes OUT/gpu-bench.json and OUT/gpu-bench.md:
+#   - every stage (raster, sort, hierarchy, trace; GL timer queries) of ssr (stride 1 and 4),
+#     ssr-layers, hiz, hssr and hssr with persistent threads, with plain Embree on the CPU over
+#     the same rays, iterations per ray and memory, at 1280×720, 1920×1080 and 3840×2160, k = 4,
+#     on the default scene and two fetched real scenes;
+#   - per-pixel lists against depth peeling for k = 1…8 at 1280×720 (Hofmann et al. 2017, Fig. 8).
+# Without an OpenGL 4.5 device it prints one line and exits with status 2.
+#   scripts/gpu-bench.sh [OUT_DIR]        (default: gpu-bench-out)
+# GPU_BENCH_SIZES="W1xH1 …" replaces the three sizes (the first one also sizes the peel runs),
+# e.g. for a smoke test on a machine without a GPU.
+set -uo pipefail
+here=$(cd "$(dirname "$0")/.." && pwd)
+out=${1:-gpu-bench-out}
+if [ -n "${LAYERTRACE_BIN:-}" ]; then bin=$LAYERTRACE_BIN; elif [ -x "$here/layertrace" ]; then bin="$here/layertrace"; else bin="$here/build/layertrace"; fi
+[ -d "$here/lib" ] && export LD_LIBRARY_PATH="$here/lib${LD_LIBRARY_PATH:+:$LD_LIBRARY_PATH}"
+# A driver whose EGL vendor file is outside glvnd's search path (NVIDIA containers).
+if [ -z "${__EGL_VENDOR_LIBRARY_FILENAMES:-}" ] && [ -f /usr/local/nvidia/share/glvnd/egl_vendor.d/10_nvidia.json ] &&
+   [ ! -d /usr/share/glvnd/egl_vendor.d ]; then
+  export __EGL_VENDOR_LIBRARY_FILENAMES=/usr/local/nvidia/share/glvnd/egl_vendor.d/10_nvidia.json
+fi
+mkdir -p "$out"
+probe=$("$bin" render "$here/scenes/default.json" --device gpu --width 64 --height 36 --quiet -o "$out/probe.png" 2>&1)
+if [ $? -ne 0 ]; then
+  echo "gpu-bench: ${probe#layertrace: }" >&2
+  exit 2
+fi
+sizes=${GPU_BENCH_SIZES:-"1280x720 1920x1080 3840x2160"}
+first=${sizes%% *}
+start=$SECONDS
+runs=()
+for scene in default fzk-haus am-thornish; do
+  for size in $sizes; do
+    dir="$out/$scene-$size"
+    "$bin" bench "$here/scenes/$scene.json" --experiment stages --device gpu --repeat 5 --layers 4 \
+        --width "${size%x*}" --height "${size#*x}" --quiet -o "$dir" || { echo "gpu-bench: $scene $size failed" >&2; exit 1; }
+    runs+=("$dir/stages.json")
+  done
+  dir="$out/$scene-peel"
+  "$bin" bench "$here/scenes/$scene.json" --experiment peel --device gpu --repeat 5 --width "${first%x*}" --height "${first#*x}" --quiet -o "$dir" ||
+      { echo "gpu-bench: $scene peel failed" >&2; exit 1; }
+  runs+=("$dir/peel.json")
+done
+# One JSON (every run's statistics) and one Markdown table per experiment.
+{
+  echo "["
+  first=1
+  for f in "${runs[@]}"; do [ $first -eq 1 ] || echo ","; first=0; cat "$f"; done
+  echo "]"
+} > "$out/gpu-bench.json"
+{
+  echo "# layertrace GPU benchmark"
+  echo
+  renderer=$(grep -o '"gpu_renderer": "[^"]*"' "${runs[0]}" | head -1 | cut -d'"' -f4)
+  echo "$("$bin" --version | head -1); GPU: $renderer; CPU: $(grep -m1 'model name' /proc/cpuinfo | cut -d: -f2- | sed 's/^ //'); $(date -u +%Y-%m-%d); $((SECONDS - start)) s"
+  for f in "${runs[@]}"; do
+    echo
+    echo "## $(basename "$(dirname "$f")")"
+    echo
+    csv="${f%.json}.csv"
+    head -1 "$csv" | sed 's/^/| /; s/,/ | /g; s/$/ |/'
+    head -1 "$csv" | sed 's/[^,]*/---/g; s/^/| /; s/,/ | /g; s/$/ |/'
+    tail -n +2 "$csv" | sed 's/^/| /; s/,/ | /g; s/$/ |/'
+  done
+} > "$out/gpu-bench.md"
+echo "gpu-bench: wrote $out/gpu-bench.json and $out/gpu-bench.md in $((SECONDS - start)) s"
