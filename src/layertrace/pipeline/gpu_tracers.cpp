@@ -98,8 +98,8 @@ BuiltTracer buildGpuTracer(const std::string& name, const Frame& frame, const Tr
   return b;
 }
 
-bool setGpuPersistentThreads(const Tracer& tracer, bool on) {
-  auto* g = const_cast<GpuScreenTracer*>(dynamic_cast<const GpuScreenTracer*>(&tracer));
+bool setGpuPersistentThreads(Tracer& tracer, bool on) {
+  auto* g = dynamic_cast<GpuScreenTracer*>(&tracer);
   if (!g || std::string_view(g->name()).starts_with("ssr")) return false;
   g->setPersistentThreads(on);
   return true;
@@ -123,7 +123,7 @@ BuiltTracer buildGpuTracer(const std::string&, const Frame&, const TracerOptions
   openGpu();
   return {};
 }
-bool setGpuPersistentThreads(const Tracer&, bool) { return false; }
+bool setGpuPersistentThreads(Tracer&, bool) { return false; }
 double gpuTraceMs(const Tracer&) { return 0.0; }
 
 #endif

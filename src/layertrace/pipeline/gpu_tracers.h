@@ -41,7 +41,7 @@ const std::string& gpuTracerNames();
 BuiltTracer buildGpuTracer(const std::string& name, const Frame& frame, const TracerOptions& options, GpuContext& gpu);
 /// Persistent threads for a GPU hssr, hiz or exhaustive tracer (Hofmann et al. 2017, §5.3: ray
 /// reloading from a queue); false for any other tracer, which is left as it is.
-bool setGpuPersistentThreads(const Tracer& tracer, bool on);
+bool setGpuPersistentThreads(Tracer& tracer, bool on);
 /// GPU time of the dispatches of all batches a GPU tracer traced so far (GL timer queries),
 /// milliseconds; 0 for a CPU tracer.
 double gpuTraceMs(const Tracer& tracer);
