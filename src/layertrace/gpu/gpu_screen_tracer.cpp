@@ -7,7 +7,9 @@
 
 #include "layertrace/screen/fragment_hit.h"
 #include "layertrace/screen/interval_layers.h"
+#include "layertrace/util/default_init.h"
 #include "layertrace/util/error.h"
+#include "layertrace/util/parallel.h"
 #include "layertrace/gpu/shader_sources.h"
 
 namespace lt {
@@ -133,11 +135,11 @@ void GpuScreenTracer::march(std::span<const Ray> rays, std::vector<GpuMarchHit>&
   lastTraceMs_ = 0.0;
   if (rays.empty()) return;
   gpu_.makeCurrent();
-  std::vector<RayRecord> records(rays.size());
-  for (size_t i = 0; i < rays.size(); ++i) {
+  PoolVector<RayRecord> records(rays.size());
+  parallelFor(size_t(0), rays.size(), [&](size_t i) {
     const Ray& r = rays[i];
     records[i] = {{r.origin.x, r.origin.y, r.origin.z}, r.maxDistance, {r.dir.x, r.dir.y, r.dir.z}, r.startsOnSurface ? 1.0f : 0.0f};
-  }
+  });
   const size_t rayBytes = records.size() * sizeof(RayRecord), hitBytes = rays.size() * sizeof(HitRecord);
   if (rays_.bytes() < rayBytes) rays_ = GpuBuffer(std::max(rayBytes, 2 * rays_.bytes()));
   if (hits_.bytes() < hitBytes) hits_ = GpuBuffer(std::max(hitBytes, 2 * hits_.bytes()));
@@ -171,12 +173,12 @@ void GpuScreenTracer::march(std::span<const Ray> rays, std::vector<GpuMarchHit>&
     }
   }
   timer_->end();
-  std::vector<HitRecord> answers(rays.size());
+  PoolVector<HitRecord> answers(rays.size());
   hits_.read(answers.data(), hitBytes);
   lastTraceMs_ = timer_->ms();
   totalTraceMs_ += lastTraceMs_;
   glUseProgram(0);
-  for (size_t i = 0; i < rays.size(); ++i) {
+  parallelFor(size_t(0), rays.size(), [&](size_t i) {
     const HitRecord& a = answers[i];
     GpuMarchHit& h = out[i];
     h.x = a.x, h.y = a.y, h.layer = a.layer;
@@ -185,7 +187,7 @@ void GpuScreenTracer::march(std::span<const Ray> rays, std::vector<GpuMarchHit>&
     h.counters.pixels = a.pixels;
     h.counters.giveUps = a.giveUps;
     std::copy(std::begin(a.levelIterations), std::end(a.levelIterations), h.counters.levelIterations);
-  }
+  });
 }
 
 TraceHit GpuScreenTracer::trace(const Ray& ray, RayCounters& counters) const {
@@ -195,17 +197,18 @@ TraceHit GpuScreenTracer::trace(const Ray& ray, RayCounters& counters) const {
 }
 
 void GpuScreenTracer::traceBatch(std::span<const Ray> rays, std::span<TraceHit> hits, std::span<RayCounters> counters) const {
-  std::vector<GpuMarchHit> marched;
+  thread_local std::vector<GpuMarchHit> reused;  // from batch to batch
+  std::vector<GpuMarchHit>& marched = reused;     // (the workers below read this thread's)
   march(rays, marched);
-  for (size_t i = 0; i < rays.size(); ++i) {
+  parallelFor(size_t(0), rays.size(), [&](size_t i) {
     const GpuMarchHit& m = marched[i];
     hits[i] = m.hit() ? fragmentHit(camera_, layers_, m.x, m.y, m.layer) : TraceHit{};
-    if (counters.empty()) continue;
+    if (counters.empty()) return;
     RayCounters& c = counters[i];
     c.iterations += m.counters.iterations, c.intervals += m.counters.intervals, c.pixels += m.counters.pixels;
     c.giveUps += m.counters.giveUps;
     for (int l = 0; l < RayCounters::kLevels; ++l) c.levelIterations[l] += m.counters.levelIterations[l];
-  }
+  });
 }
 
 }  // namespace lt

@@ -115,12 +115,16 @@ struct PathState {
 
 /// A thread's buffers for one band of pixels, reused across bands and waves.
 struct Band {
-  std::vector<PathState> states;
-  std::vector<Ray> rays;          ///< the wave's rays, dense, in tile order
+  // Pool vectors (util/default_init.h): a whole-wave band holds the whole frame, and huge pages
+  // cut its first-touch page faults.
+  PoolVector<PathState> states;
+  PoolVector<Ray> rays;           ///< the wave's rays, dense, in tile order
   std::vector<uint16_t> samples;  ///< each ray's index among its pixel's rays of the wave
-  std::vector<TraceHit> hits;
-  std::vector<RayCounters> counters;
+  PoolVector<TraceHit> hits;
+  PoolVector<RayCounters> counters;
   std::vector<RayEvent> events;
+  PoolVector<Ray> denseRays;           ///< whole waves: the rays emitted per pixel, compacted
+  std::vector<uint16_t> denseSamples;
 };
 
 class Renderer {
@@ -165,18 +169,28 @@ class Renderer {
       const auto t0 = Clock::now();
       for (size_t b = r.begin(); b != r.end(); ++b) {
         const size_t p0 = b * bandPixels, n = std::min(bandPixels, order.size() - p0);
-        band.states.assign(n, PathState{});
-        for (size_t i = 0; i < n; ++i) begin(band.states[i], int(order[p0 + i] % uint32_t(W)), int(order[p0 + i] / uint32_t(W)));
-        for (int wave = 0; traceWave(wave, band, a); ++wave) {
-        }
-        for (const PathState& st : band.states) {
-          a.bent += st.bent;
+        // (the whole frame is one band with EffectConfig::wholeWaves: its pixels start and
+        // finish in parallel)
+        band.states.resize(n);
+        auto begin1 = [&](size_t i) {
+          band.states[i] = PathState{};
+          begin(band.states[i], int(order[p0 + i] % uint32_t(W)), int(order[p0 + i] / uint32_t(W)));
+        };
+        auto finish1 = [&](size_t i) {
+          const PathState& st = band.states[i];
           res.image.set(st.x, st.y, st.result);
           res.traced.set(st.x, st.y, st.traced);
           if (!res.holes.empty()) res.holes[size_t(st.y) * size_t(W) + size_t(st.x)] = st.hole;
           res.iterations.at(st.x, st.y)[0] = st.it;
           res.intervals.at(st.x, st.y)[0] = st.iv;
+        };
+        if (config_.wholeWaves) parallelFor(size_t(0), n, begin1);
+        else for (size_t i = 0; i < n; ++i) begin1(i);
+        for (int wave = 0; config_.wholeWaves ? traceWholeWave(wave, band, a) : traceWave(wave, band, a); ++wave) {
         }
+        for (const PathState& st : band.states) a.bent += st.bent;
+        if (config_.wholeWaves) parallelFor(size_t(0), n, finish1);
+        else for (size_t i = 0; i < n; ++i) finish1(i);
         progress.add(n);
       }
       a.busyMs += msSince(t0);
@@ -256,6 +270,57 @@ class Renderer {
       consume(wave, st, &band.hits[st.first], &band.samples[st.first]);
     }
     if (observer_ && !band.events.empty()) observer_->observe(band.events);
+    return true;
+  }
+
+  /// traceWave for the whole frame in one tracer call (EffectConfig::wholeWaves): the pixels
+  /// emit and consume in parallel (each into its own R slots, then compacted in pixel order, so
+  /// the tracer sees the rays traceWave would give it, in the same order), the trace runs on the
+  /// calling thread.
+  bool traceWholeWave(int wave, Band& band, Accum& a) {
+    const size_t n = band.states.size();
+    const size_t R = size_t(maxRaysPerPixel());
+    band.rays.resize(n * R);
+    band.samples.resize(n * R);
+    parallelFor(size_t(0), n, [&](size_t i) {
+      PathState& st = band.states[i];
+      st.count = 0;
+      if (st.done) return;
+      for (size_t j = 0; j < R; ++j) band.samples[i * R + j] = uint16_t(j);
+      st.count = emit(wave, st, &band.rays[i * R], &band.samples[i * R]);
+      if (st.count == 0) consume(wave, st, nullptr, nullptr);
+    });
+    size_t total = 0;
+    for (PathState& st : band.states) st.first = uint32_t(total), total += st.count;
+    if (total == 0) return false;
+    band.denseRays.resize(total);
+    band.denseSamples.resize(total);
+    parallelFor(size_t(0), n, [&](size_t i) {
+      const PathState& st = band.states[i];
+      std::copy_n(&band.rays[i * R], st.count, &band.denseRays[st.first]);
+      std::copy_n(&band.samples[i * R], st.count, &band.denseSamples[st.first]);
+    });
+    band.hits.resize(total);
+    band.counters.assign(config_.countRays ? total : 0, RayCounters{});
+    const auto t0 = Clock::now();
+    tracer_.query(query_, band.denseRays, band.hits, band.counters);
+    a.traceMs += msSince(t0);
+    parallelFor(tbb::blocked_range<size_t>(0, n, 4096), [&](const tbb::blocked_range<size_t>& r) {
+      Accum& mine = accums_.local();
+      if (mine.histogram.empty() && config_.countRays) mine.histogram.assign(kHistogramMax + 1, 0);
+      std::vector<RayEvent> events;
+      for (size_t i = r.begin(); i != r.end(); ++i) {
+        PathState& st = band.states[i];
+        if (st.count == 0) continue;
+        for (uint32_t j = st.first; j < st.first + st.count; ++j) {
+          count(st, band.hits[j], config_.countRays ? &band.counters[j] : nullptr, mine);
+          if (observer_)
+            events.push_back(RayEvent{&band.denseRays[j], &band.hits[j], st.x, st.y, wave, int(band.denseSamples[j]), query_});
+        }
+        consume(wave, st, &band.hits[st.first], &band.denseSamples[st.first]);
+      }
+      if (observer_ && !events.empty()) observer_->observe(events);
+    });
     return true;
   }
 
