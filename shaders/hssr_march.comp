@@ -217,7 +217,7 @@ void traceRay(uint id) {
 
 void main() {
   if (!uPersistent) {
-    const uint id = gl_GlobalInvocationID.x + uint(uRayOffset);
+    const uint id = gl_GlobalInvocationID.x + uint(uFirst);
     if (id < uint(uRayCount)) traceRay(id);
     return;
   }

@@ -25,7 +25,8 @@ layout(std430, binding = 2) readonly buffer Level0 { vec2 level0[]; };
 // The number of stored intervals of each pixel.
 layout(std430, binding = 3) readonly buffer Counts { uint counts[]; };
 
-uniform int uRayCount, uRayOffset;  // rays in the batch; the first ray of this dispatch
+uniform int uRayCount;  // rays in the batch
+uniform int uFirst;     // the first ray of this dispatch (GpuContext::dispatch)
 uniform int uWidth, uHeight, uK;
 uniform float uNear, uFocal;
 uniform bool uOrtho;

@@ -31,7 +31,7 @@ int pixelMet(int x, int y, float zmin, float zmax) {
 }
 
 void main() {
-  const uint id = gl_GlobalInvocationID.x + uint(uRayOffset);
+  const uint id = gl_GlobalInvocationID.x + uint(uFirst);
   if (id >= uint(uRayCount)) return;
   gSeg = makeSegment(rays[id]);
   if (!gSeg.valid) {

@@ -86,9 +86,7 @@ int runLayers(const LayersOptions& o) {
       // exactly on a shared edge differently, and the GPU's transforms round differently.
       FrameOptions cpuOptions = fo;
       cpuOptions.captureLists = false;
-      Frame cpu;
-      loadFrameScene(cpuOptions, cpu);
-      rasterizeFrame(cpuOptions, cpu);
+      const Frame cpu = buildFrame(cpuOptions);
       const LayerAgreement a = compareLayerArrays(frame.layers, cpu.layers, kGpuCaptureTolerance);
       stats["verify"]["gpu_vs_cpu"] = {{"pixel_layers", a.pixelLayers},
                                        {"matching", a.matching},

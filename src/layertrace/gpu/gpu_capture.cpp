@@ -17,29 +17,15 @@ namespace {
 
 constexpr size_t kSetupBytes = 96;  ///< capture_common.glsl TriangleSetup
 
-/// A compute or render program, deleted with the object.
-struct Program {
-  uint32_t id = 0;
-  explicit Program(uint32_t p) : id(p) {}
-  ~Program() { glDeleteProgram(id); }
-  Program(const Program&) = delete;
-  Program& operator=(const Program&) = delete;
-  void set(const char* name, int v) const { glProgramUniform1i(id, glGetUniformLocation(id, name), v); }
-  void setUint(const char* name, uint32_t v) const { glProgramUniform1ui(id, glGetUniformLocation(id, name), v); }
-  void set(const char* name, float v) const { glProgramUniform1f(id, glGetUniformLocation(id, name), v); }
-  void set(const char* name, const glm::mat4& m) const {
-    glProgramUniformMatrix4fv(id, glGetUniformLocation(id, name), 1, GL_FALSE, glm::value_ptr(m));
-  }
-  /// The camera uniforms of capture_common.glsl.
-  void setCamera(const Camera& c) const {
-    set("uWidth", c.width());
-    set("uHeight", c.height());
-    set("uNear", c.near());
-    set("uFar", c.far());
-    set("uPixelScale", c.pixelFootprint(1.0f));
-    set("uOrtho", c.orthographic() ? 1 : 0);
-  }
-};
+/// The camera uniforms of shaders/capture_common.glsl.
+void setCamera(const GpuProgram& p, const Camera& c) {
+  p.set("uWidth", c.width());
+  p.set("uHeight", c.height());
+  p.set("uNear", c.near());
+  p.set("uFar", c.far());
+  p.set("uPixelScale", c.pixelFootprint(1.0f));
+  p.set("uOrtho", c.orthographic());
+}
 
 /// An empty vertex array with the scene's index buffer and a framebuffer without attachments
 /// the size of the view: the geometry passes write buffers only.
@@ -61,13 +47,13 @@ struct RasterTarget {
   RasterTarget(const RasterTarget&) = delete;
   RasterTarget& operator=(const RasterTarget&) = delete;
   /// Every triangle once, in scene order (gl_PrimitiveID = the triangle's index).
-  void draw(const Program& program, int W, int H, size_t triangles) const {
+  void draw(const GpuProgram& program, int W, int H, size_t triangles) const {
     glBindFramebuffer(GL_FRAMEBUFFER, fbo);
     glViewport(0, 0, W, H);
     glDisable(GL_DEPTH_TEST);
     glDisable(GL_CULL_FACE);
     glDisable(GL_STENCIL_TEST);
-    glUseProgram(program.id);
+    glUseProgram(program.id());
     glBindVertexArray(vao);
     glDrawElements(GL_TRIANGLES, GLsizei(3 * triangles), GL_UNSIGNED_INT, nullptr);
     glBindVertexArray(0);
@@ -108,39 +94,39 @@ void captureOnGpu(GpuContext& gpu, const Scene& scene, const Camera& camera, con
   const GpuTimer setupBegin, rasterBegin, sortBegin;
 
   // Vertices and triangles to camera space.
-  const Program vertices(gpu.computeProgram("capture_vertices.comp", shader_source::capture_vertices_comp));
-  const Program triangles(gpu.computeProgram("capture_triangles.comp", shader_source::capture_triangles_comp));
+  const GpuProgram vertices = gpu.computeProgram("capture_vertices.comp", shader_source::capture_vertices_comp);
+  const GpuProgram triangles = gpu.computeProgram("capture_triangles.comp", shader_source::capture_triangles_comp);
   setupBegin.begin();
   positions.bindStorage(0), normals.bindStorage(1), camPos.bindStorage(2), camNormals.bindStorage(3);
   vertices.set("uVertexCount", int(V));
-  vertices.set("uView", camera.view());
-  gpu.dispatch(vertices.id, V);
+  vertices.setMatrix("uView", glm::value_ptr(camera.view()));
+  gpu.dispatch(vertices, V);
   indices.bindStorage(0), camPos.bindStorage(1), setups.bindStorage(2), materialTable.bindStorage(3), triMaterial.bindStorage(4);
-  triangles.setCamera(camera);
+  setCamera(triangles, camera);
   triangles.set("uTriangleCount", int(T));
-  triangles.set("uFrontFacesOnly", config.frontFacesOnly ? 1 : 0);
-  gpu.dispatch(triangles.id, T);
+  triangles.set("uFrontFacesOnly", config.frontFacesOnly);
+  gpu.dispatch(triangles, T);
   setupBegin.end();
   const RasterTarget target(indices, W, H);
   const uint32_t zero = 0, none = 0xFFFFFFFFu;
   const LayerConfig& lc = config.layers;
 
   if (!peel) {
-    const Program lists(gpu.renderProgram("capture.vert + capture_lists.frag", shader_source::capture_vert, shader_source::capture_lists_frag));
-    const Program sort(gpu.computeProgram("capture_sort.comp", shader_source::capture_sort_comp));
-    lists.setCamera(camera);
-    lists.set("uProjection", projectionRowsDown(camera));
+    const GpuProgram lists = gpu.renderProgram("capture.vert + capture_lists.frag", shader_source::capture_vert, shader_source::capture_lists_frag);
+    const GpuProgram sort = gpu.computeProgram("capture_sort.comp", shader_source::capture_sort_comp);
+    setCamera(lists, camera);
+    lists.setMatrix("uProjection", glm::value_ptr(projectionRowsDown(camera)));
     uint64_t capacity = config.poolCapacity ? config.poolCapacity : std::max<uint64_t>(uint64_t(pixels) * 8, 1u << 20);
     for (;;) {
       if (capacity > kMaxPoolFragments) inputError("fragment pool capacity ", capacity, " exceeds the 32-bit index limit of ", kMaxPoolFragments);
       ++out.passes;
       checkAllocation(cat("the GPU's fragment pool (", capacity, " fragments)"), capacity * 20);
       const GpuBuffer nodes(capacity * 16), nodeTriangle(capacity * 4), heads(pixels * 4), counter(4, &zero);
-      glClearNamedBufferData(heads.id(), GL_R32UI, GL_RED_INTEGER, GL_UNSIGNED_INT, &none);
-      glClearNamedBufferData(complexity.id(), GL_R32UI, GL_RED_INTEGER, GL_UNSIGNED_INT, &zero);
+      heads.fill(none);
+      complexity.fill(zero);
       setups.bindStorage(0), camNormals.bindStorage(1), nodes.bindStorage(2), heads.bindStorage(3), nodeTriangle.bindStorage(4);
       complexity.bindStorage(5), counter.bindStorage(6), camPos.bindStorage(7);
-      lists.setUint("uCapacity", uint32_t(capacity));
+      lists.set("uCapacity", uint32_t(capacity));
       rasterBegin.begin();
       target.draw(lists, W, H, T);
       rasterBegin.end();
@@ -165,9 +151,9 @@ void captureOnGpu(GpuContext& gpu, const Scene& scene, const Camera& camera, con
       sort.set("uThickness", lc.thickness);
       sort.set("uThicknessPerDepth", lc.thicknessPerDepth);
       sort.set("uMinSeparation", lc.minSeparation);
-      sort.set("uAdaptive", lc.adaptiveThickness ? 1 : 0);
+      sort.set("uAdaptive", lc.adaptiveThickness);
       sortBegin.begin();
-      gpu.dispatch(sort.id, pixels);
+      gpu.dispatch(sort, pixels);
       sortBegin.end();
       if (config.keepLists) {
         FragmentLists& fl = out.lists;
@@ -186,14 +172,14 @@ void captureOnGpu(GpuContext& gpu, const Scene& scene, const Camera& camera, con
     }
   } else {
     // Depth peeling: per layer, its depth, then its triangle, from the whole scene each time.
-    const Program peelPass(gpu.renderProgram("capture.vert + capture_peel.frag", shader_source::capture_vert, shader_source::capture_peel_frag));
-    const Program resolve(gpu.computeProgram("capture_peel_resolve.comp", shader_source::capture_peel_resolve_comp));
+    const GpuProgram peelPass = gpu.renderProgram("capture.vert + capture_peel.frag", shader_source::capture_vert, shader_source::capture_peel_frag);
+    const GpuProgram resolve = gpu.computeProgram("capture_peel_resolve.comp", shader_source::capture_peel_resolve_comp);
     const GpuBuffer peelDepth(pixels * size_t(k) * 4), peelTriangle(pixels * size_t(k) * 4);
-    glClearNamedBufferData(peelDepth.id(), GL_R32UI, GL_RED_INTEGER, GL_UNSIGNED_INT, &none);
-    glClearNamedBufferData(peelTriangle.id(), GL_R32UI, GL_RED_INTEGER, GL_UNSIGNED_INT, &zero);
-    glClearNamedBufferData(complexity.id(), GL_R32UI, GL_RED_INTEGER, GL_UNSIGNED_INT, &zero);
-    peelPass.setCamera(camera);
-    peelPass.set("uProjection", projectionRowsDown(camera));
+    peelDepth.fill(none);
+    peelTriangle.fill(zero);
+    complexity.fill(zero);
+    setCamera(peelPass, camera);
+    peelPass.setMatrix("uProjection", glm::value_ptr(projectionRowsDown(camera)));
     peelPass.set("uK", k);
     peelPass.set("uMinSeparation", lc.minSeparation);
     setups.bindStorage(0), peelDepth.bindStorage(1), peelTriangle.bindStorage(2), complexity.bindStorage(3), camPos.bindStorage(7);
@@ -208,12 +194,12 @@ void captureOnGpu(GpuContext& gpu, const Scene& scene, const Camera& camera, con
     rasterBegin.end();
     setups.bindStorage(0), camNormals.bindStorage(1), peelTriangle.bindStorage(2), slots.bindStorage(3), counts.bindStorage(4),
         slotTriangle.bindStorage(5);
-    resolve.setCamera(camera);
+    setCamera(resolve, camera);
     resolve.set("uK", k);
     resolve.set("uThickness", lc.thickness);
     resolve.set("uThicknessPerDepth", lc.thicknessPerDepth);
     sortBegin.begin();
-    gpu.dispatch(resolve.id, pixels);
+    gpu.dispatch(resolve, pixels);
     sortBegin.end();
     out.passes = 1;
     out.memoryBytes = peelDepth.bytes() + peelTriangle.bytes();

@@ -153,23 +153,43 @@ uint32_t GpuContext::link(std::string_view name, std::initializer_list<std::pair
   return program;
 }
 
-uint32_t GpuContext::computeProgram(std::string_view name, std::string_view source) const {
-  return link(name, {{GL_COMPUTE_SHADER, source}});
+GpuProgram GpuContext::computeProgram(std::string_view name, std::string_view source) const {
+  return GpuProgram(link(name, {{GL_COMPUTE_SHADER, source}}));
 }
 
-uint32_t GpuContext::renderProgram(std::string_view name, std::string_view vertex, std::string_view fragment) const {
-  return link(name, {{GL_VERTEX_SHADER, vertex}, {GL_FRAGMENT_SHADER, fragment}});
+GpuProgram GpuContext::renderProgram(std::string_view name, std::string_view vertex, std::string_view fragment) const {
+  return GpuProgram(link(name, {{GL_VERTEX_SHADER, vertex}, {GL_FRAGMENT_SHADER, fragment}}));
 }
 
-void GpuContext::dispatch(uint32_t program, size_t n) const {
+void GpuContext::dispatch(const GpuProgram& program, size_t n) const {
   constexpr size_t kGroup = 64, kMaxGroups = 65535, perDispatch = kGroup * kMaxGroups;
-  glUseProgram(program);
-  const GLint first = glGetUniformLocation(program, "uFirst");
+  glUseProgram(program.id());
   for (size_t f = 0; f < n; f += perDispatch) {
-    glProgramUniform1i(program, first, GLint(f));
+    program.set("uFirst", int(f));
     glDispatchCompute(GLuint((std::min(perDispatch, n - f) + kGroup - 1) / kGroup), 1, 1);
   }
   glMemoryBarrier(GL_SHADER_STORAGE_BARRIER_BIT);
+}
+
+GpuProgram::~GpuProgram() {
+  if (id_) glDeleteProgram(id_);
+}
+GpuProgram::GpuProgram(GpuProgram&& other) noexcept : id_(std::exchange(other.id_, 0)) {}
+GpuProgram& GpuProgram::operator=(GpuProgram&& other) noexcept {
+  if (this != &other) {
+    if (id_) glDeleteProgram(id_);
+    id_ = std::exchange(other.id_, 0);
+  }
+  return *this;
+}
+void GpuProgram::set(const char* name, int v) const { glProgramUniform1i(id_, glGetUniformLocation(id_, name), v); }
+void GpuProgram::set(const char* name, uint32_t v) const { glProgramUniform1ui(id_, glGetUniformLocation(id_, name), v); }
+void GpuProgram::set(const char* name, float v) const { glProgramUniform1f(id_, glGetUniformLocation(id_, name), v); }
+void GpuProgram::setMatrix(const char* name, const float* columns) const {
+  glProgramUniformMatrix4fv(id_, glGetUniformLocation(id_, name), 1, GL_FALSE, columns);
+}
+void GpuProgram::set(const char* name, const int* v, int count) const {
+  glProgramUniform1iv(id_, glGetUniformLocation(id_, name), count, v);
 }
 
 GpuBuffer::GpuBuffer(size_t bytes, const void* data) : bytes_(std::max<size_t>(bytes, 16)) {
@@ -203,6 +223,8 @@ void GpuBuffer::write(const void* data, size_t bytes, size_t offset) const {
   LT_CHECK(offset + bytes <= bytes_, offset, bytes, bytes_);
   glNamedBufferSubData(id_, GLintptr(offset), GLsizeiptr(bytes), data);
 }
+
+void GpuBuffer::fill(uint32_t value) const { glClearNamedBufferData(id_, GL_R32UI, GL_RED_INTEGER, GL_UNSIGNED_INT, &value); }
 
 void GpuBuffer::read(void* data, size_t bytes, size_t offset) const {
   LT_CHECK(offset + bytes <= bytes_, offset, bytes, bytes_);

@@ -14,6 +14,29 @@
 
 namespace lt {
 
+/// A linked program, deleted with the object, and its uniforms by name (a name the compiler
+/// dropped as unused is ignored, as OpenGL ignores location −1).
+class GpuProgram {
+ public:
+  GpuProgram() = default;
+  explicit GpuProgram(uint32_t id) : id_(id) {}
+  ~GpuProgram();
+  GpuProgram(GpuProgram&& other) noexcept;
+  GpuProgram& operator=(GpuProgram&& other) noexcept;
+  GpuProgram(const GpuProgram&) = delete;
+  GpuProgram& operator=(const GpuProgram&) = delete;
+
+  uint32_t id() const { return id_; }
+  void set(const char* name, int v) const;
+  void set(const char* name, uint32_t v) const;
+  void set(const char* name, float v) const;
+  void setMatrix(const char* name, const float* columns) const;  ///< a 4×4 matrix, 16 floats column-major
+  void set(const char* name, const int* v, int count) const;  ///< an int array
+
+ private:
+  uint32_t id_ = 0;
+};
+
 class GpuContext {
  public:
   /// Opens the first OpenGL 4.5 device EGL offers: Mesa's surfaceless platform, else the first
@@ -34,12 +57,13 @@ class GpuContext {
   void makeCurrent() const;
   /// Compiles and links one compute shader; InternalError with the driver's log on failure
   /// (the build validated every shader, so a failure here is a driver's).
-  uint32_t computeProgram(std::string_view name, std::string_view source) const;
+  GpuProgram computeProgram(std::string_view name, std::string_view source) const;
   /// The same for a vertex and a fragment shader linked together.
-  uint32_t renderProgram(std::string_view name, std::string_view vertex, std::string_view fragment) const;
-  /// Runs `program` (a compute shader of local size 64 reading the uniforms uFirst and its own
-  /// count) over `n` invocations, in dispatches the smallest OpenGL 4.5 limit allows.
-  void dispatch(uint32_t program, size_t n) const;
+  GpuProgram renderProgram(std::string_view name, std::string_view vertex, std::string_view fragment) const;
+  /// Runs `program` (a compute shader of local size 64 whose invocation i handles item
+  /// uFirst + gl_GlobalInvocationID.x) over `n` items, in dispatches the smallest OpenGL 4.5
+  /// limit allows, then makes its buffer writes visible to the next commands.
+  void dispatch(const GpuProgram& program, size_t n) const;
 
  private:
   void* display_ = nullptr;
@@ -66,6 +90,8 @@ class GpuBuffer {
   /// Binds it to shader storage binding point `index`.
   void bindStorage(uint32_t index) const;
   void write(const void* data, size_t bytes, size_t offset = 0) const;
+  /// Sets every 32-bit word to `value`.
+  void fill(uint32_t value) const;
   /// Reads `bytes` from `offset` after the shader writes issued before it (waits for them).
   void read(void* data, size_t bytes, size_t offset = 0) const;
 

@@ -16,6 +16,8 @@ size_t GpuPyramid::memoryBytes() const {
 
 void buildPyramidOnGpu(GpuContext& gpu, const GpuBuffer& level0, const GpuBuffer& counts, int W, int H, int k, const Camera& camera,
                        const PyramidConfig& config, GpuPyramid& out) {
+  // The builder's own conditions, as the CPU builder's (τ = ∞ is the Hi-Z pyramid; the
+  // options' finite τ is checked by validatePyramidConfig).
   if (config.levels < 1 || config.levels > GpuPyramid::kMaxLevels)
     inputError("--levels ", config.levels, ": must be between 1 and ", GpuPyramid::kMaxLevels);
   if (!(config.tau > 0.0f)) inputError("--tau ", config.tau, ": must be positive");
@@ -34,9 +36,8 @@ void buildPyramidOnGpu(GpuContext& gpu, const GpuBuffer& level0, const GpuBuffer
   out.offsets.resize(size_t(config.levels));
   out.intervals.resize(size_t(config.levels));
   out.intervalCounts.assign(size_t(config.levels), 0);
-  const uint32_t merge = gpu.computeProgram("pyramid_merge.comp", shader_source::pyramid_merge_comp);
-  const uint32_t scan = gpu.computeProgram("pyramid_scan.comp", shader_source::pyramid_scan_comp);
-  auto set = [](uint32_t program, const char* name, int v) { glProgramUniform1i(program, glGetUniformLocation(program, name), v); };
+  const GpuProgram merge = gpu.computeProgram("pyramid_merge.comp", shader_source::pyramid_merge_comp);
+  const GpuProgram scan = gpu.computeProgram("pyramid_scan.comp", shader_source::pyramid_scan_comp);
   const GpuTimer timer;
   double ms = 0.0;
   for (int L = 1; L < config.levels; ++L) {
@@ -48,22 +49,22 @@ void buildPyramidOnGpu(GpuContext& gpu, const GpuBuffer& level0, const GpuBuffer
     else level0.bindStorage(2), level0.bindStorage(3);  // unread at level 1
     out.offsets[size_t(L)].bindStorage(4);
     out.cells.bindStorage(6);
-    set(merge, "uLevel", L);
-    set(merge, "uK", k);
-    set(merge, "uWidth", w);
-    set(merge, "uHeight", h);
-    set(merge, "uChildWidth", out.width[size_t(L - 1)]);
-    set(merge, "uChildHeight", out.height[size_t(L - 1)]);
+    merge.set("uLevel", L);
+    merge.set("uK", k);
+    merge.set("uWidth", w);
+    merge.set("uHeight", h);
+    merge.set("uChildWidth", out.width[size_t(L - 1)]);
+    merge.set("uChildHeight", out.height[size_t(L - 1)]);
     // τ per unit depth for a 2^L-pixel cell, as the CPU computes it (tauPerDepth).
-    glProgramUniform1f(merge, glGetUniformLocation(merge, "uTauPerDepth"), config.tau * camera.pixelFootprint(1.0f) * float(1 << L));
-    glProgramUniform1ui(merge, glGetUniformLocation(merge, "uCellBase"), uint32_t(out.cellBase[size_t(L)]));
+    merge.set("uTauPerDepth", config.tau * camera.pixelFootprint(1.0f) * float(1 << L));
+    merge.set("uCellBase", uint32_t(out.cellBase[size_t(L)]));
     // Count, scan, then (the total known) write.
     timer.begin();
-    set(merge, "uPass", 0);
+    merge.set("uPass", 0);
     out.cells.bindStorage(5);  // unwritten in the counting pass
     gpu.dispatch(merge, n);
-    set(scan, "uCount", int(n));
-    glUseProgram(scan);
+    scan.set("uCount", int(n));
+    glUseProgram(scan.id());
     glDispatchCompute(1, 1, 1);
     glMemoryBarrier(GL_SHADER_STORAGE_BARRIER_BIT | GL_BUFFER_UPDATE_BARRIER_BIT);
     timer.end();
@@ -73,15 +74,13 @@ void buildPyramidOnGpu(GpuContext& gpu, const GpuBuffer& level0, const GpuBuffer
     out.intervalCounts[size_t(L)] = total;
     out.intervals[size_t(L)] = GpuBuffer(size_t(total) * sizeof(Interval));
     out.intervals[size_t(L)].bindStorage(5);
-    set(merge, "uPass", 1);
+    merge.set("uPass", 1);
     timer.begin();
     gpu.dispatch(merge, n);
     timer.end();
     ms += timer.ms();
   }
   glUseProgram(0);
-  glDeleteProgram(merge);
-  glDeleteProgram(scan);
   out.buildMs = ms;
 }
 

@@ -16,7 +16,6 @@
 #include "layertrace/gpu/gpu_context.h"
 #include "layertrace/gpu/gpu_pyramid.h"
 #include "layertrace/hssr/hssr_tracer.h"
-#include "layertrace/hssr/interval_pyramid.h"
 #include "layertrace/raster/layer_arrays.h"
 #include "layertrace/scene/camera.h"
 #include "layertrace/ssr/ssr_tracer.h"
@@ -33,12 +32,9 @@ struct GpuMarchHit {
 
 class GpuScreenTracer final : public Tracer {
  public:
-  /// HSSR over `pyramid` (Hi-Z with hizConfig over a min/max pyramid; the exhaustive march
-  /// with one level). The context must outlive the tracer; `pyramid` need not.
-  GpuScreenTracer(GpuContext& gpu, const Camera& camera, const LayerArrays& layers, const IntervalPyramid& pyramid,
-                  const HssrConfig& config);
   /// HSSR over a pyramid built here on the GPU from `level0` (gpu_pyramid.h): the whole
-  /// structure of the CPU's tracer, made on the device. Hi-Z: hizConfig with τ = ∞.
+  /// structure of the CPU's tracer, made on the device. Hi-Z: hizConfig with τ = ∞; the
+  /// exhaustive march: one level. The context must outlive the tracer.
   GpuScreenTracer(GpuContext& gpu, const Camera& camera, const LayerArrays& layers, const IntervalLayers& level0,
                   const PyramidConfig& pyramid, const HssrConfig& config);
   /// SSR (front layer) or SSR-layers (config.allLayers).
@@ -63,20 +59,18 @@ class GpuScreenTracer final : public Tracer {
   double totalTraceMs() const { return totalTraceMs_; }
   /// Bytes of the structure on the GPU (level 0, counts, coarse cells and their lists).
   size_t memoryBytes() const;
-  /// The pyramid built on the GPU (the level-0 constructor), else null.
+  /// The pyramid built on the GPU (HSSR, Hi-Z, exhaustive), else null (SSR).
   const GpuPyramid* pyramid() const { return pyramid_.get(); }
 
  private:
   void upload(const IntervalLayers& level0);
-  void setMarchUniforms(int levels, int nUp, const int* width, const int* height, const int* offset);
 
   GpuContext& gpu_;
   const Camera& camera_;
   const LayerArrays& layers_;
   const char* name_;
-  uint32_t program_ = 0;
-  GpuBuffer level0_, counts_, cells_;
-  int k_ = 0;
+  GpuProgram program_;
+  GpuBuffer level0_, counts_;
   mutable GpuBuffer rays_, hits_, queue_;
   bool persistent_ = false;
   mutable double lastTraceMs_ = 0.0, totalTraceMs_ = 0.0;

@@ -125,17 +125,22 @@ bool needsFragmentLists(const FrameOptions& o) {
   return o.captureLists || o.referenceCapture || o.pool != 0 || o.adaptiveThickness || o.minSeparation > 0.0f;
 }
 
-void rasterizeFrame(const FrameOptions& o, Frame& frame) {
-  RasterConfig rc;
-  rc.poolCapacity = o.pool;
-  rc.growOnOverflow = o.pool == 0;
-  rc.frontFacesOnly = frame.frontFacesOnly = o.frontFacesOnly;
+LayerConfig layerConfig(const FrameOptions& o, const Frame& frame) {
   LayerConfig lc;
   lc.k = o.layers;
   lc.thickness = frame.thickness;
   lc.thicknessPerDepth = frame.thicknessPerDepth;
   lc.minSeparation = o.minSeparation;
   lc.adaptiveThickness = o.adaptiveThickness;
+  return lc;
+}
+
+void rasterizeFrame(const FrameOptions& o, Frame& frame) {
+  RasterConfig rc;
+  rc.poolCapacity = o.pool;
+  rc.growOnOverflow = o.pool == 0;
+  rc.frontFacesOnly = frame.frontFacesOnly = o.frontFacesOnly;
+  const LayerConfig lc = layerConfig(o, frame);
   if (o.pool == 0 && !o.referenceCapture) {
     // Tile-local capture: the k layers straight from the rasterizer, and the lists
     // too when something reads them (exact-size storage from a counting pass).

@@ -119,6 +119,9 @@ void loadFrameScene(const FrameOptions& options, Frame& frame);
 /// Points the loaded frame's camera at `desc` with the options' size and sets the z-thickness
 /// for it (lights stay; the viewer moves the camera with it). Call rasterizeFrame next.
 void setFrameView(const FrameOptions& options, const CameraDesc& desc, Frame& frame);
+/// The layer rules of a capture of `frame` with `options`: k, the frame's z-thickness, the minimum
+/// separation and adaptive thickness (the CPU and GPU captures read the same).
+LayerConfig layerConfig(const FrameOptions& options, const Frame& frame);
 /// Rasterizes and sorts for the frame's camera. Throws InputError on fragment-pool overflow
 /// when --pool fixed the capacity, with the exact counts.
 void rasterizeFrame(const FrameOptions& options, Frame& frame);

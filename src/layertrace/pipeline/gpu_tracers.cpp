@@ -47,11 +47,7 @@ void rasterizeFrameOnGpu(GpuContext& gpu, const FrameOptions& o, const std::stri
   if (capture != "lists" && capture != "peel") inputError("--capture ", capture, ": unknown (use lists or peel)");
   GpuCaptureConfig c;
   c.method = capture == "peel" ? GpuCaptureMethod::Peel : GpuCaptureMethod::Lists;
-  c.layers.k = o.layers;
-  c.layers.thickness = frame.thickness;
-  c.layers.thicknessPerDepth = frame.thicknessPerDepth;
-  c.layers.minSeparation = o.minSeparation;
-  c.layers.adaptiveThickness = o.adaptiveThickness;
+  c.layers = layerConfig(o, frame);
   c.poolCapacity = o.pool;
   c.growOnOverflow = o.pool == 0;
   c.frontFacesOnly = frame.frontFacesOnly = o.frontFacesOnly;

@@ -260,17 +260,21 @@ class Renderer {
     a.traceMs += msSince(t0);
     // Consume, count and let the observer see the answers.
     band.events.clear();
-    for (size_t i = 0; i < n; ++i) {
-      PathState& st = band.states[i];
-      if (st.count == 0) continue;
-      for (uint32_t j = st.first; j < st.first + st.count; ++j) {
-        count(st, band.hits[j], config_.countRays ? &band.counters[j] : nullptr, a);
-        if (observer_) band.events.push_back(RayEvent{&band.rays[j], &band.hits[j], st.x, st.y, wave, int(band.samples[j]), query_});
-      }
-      consume(wave, st, &band.hits[st.first], &band.samples[st.first]);
-    }
+    for (size_t i = 0; i < n; ++i) answer(wave, band.states[i], band.rays.data(), band.samples.data(), band, a, band.events);
     if (observer_ && !band.events.empty()) observer_->observe(band.events);
     return true;
+  }
+
+  /// A pixel's rays of the wave (at st.first in `rays`, `samples` and the band's answers):
+  /// counted into `a`, recorded for the observer, then consumed by the pixel's path.
+  void answer(int wave, PathState& st, const Ray* rays, const uint16_t* samples, const Band& band, Accum& a,
+              std::vector<RayEvent>& events) const {
+    if (st.count == 0) return;
+    for (uint32_t j = st.first; j < st.first + st.count; ++j) {
+      count(st, band.hits[j], config_.countRays ? &band.counters[j] : nullptr, a);
+      if (observer_) events.push_back(RayEvent{&rays[j], &band.hits[j], st.x, st.y, wave, int(samples[j]), query_});
+    }
+    consume(wave, st, &band.hits[st.first], &samples[st.first]);
   }
 
   /// traceWave for the whole frame in one tracer call (EffectConfig::wholeWaves): the pixels
@@ -309,16 +313,8 @@ class Renderer {
       Accum& mine = accums_.local();
       if (mine.histogram.empty() && config_.countRays) mine.histogram.assign(kHistogramMax + 1, 0);
       std::vector<RayEvent> events;
-      for (size_t i = r.begin(); i != r.end(); ++i) {
-        PathState& st = band.states[i];
-        if (st.count == 0) continue;
-        for (uint32_t j = st.first; j < st.first + st.count; ++j) {
-          count(st, band.hits[j], config_.countRays ? &band.counters[j] : nullptr, mine);
-          if (observer_)
-            events.push_back(RayEvent{&band.denseRays[j], &band.hits[j], st.x, st.y, wave, int(band.denseSamples[j]), query_});
-        }
-        consume(wave, st, &band.hits[st.first], &band.denseSamples[st.first]);
-      }
+      for (size_t i = r.begin(); i != r.end(); ++i)
+        answer(wave, band.states[i], band.denseRays.data(), band.denseSamples.data(), band, mine, events);
       if (observer_ && !events.empty()) observer_->observe(events);
     });
     return true;

@@ -16,7 +16,7 @@ SsrTracer::SsrTracer(const Camera& camera, const LayerArrays& layers, const SsrC
   if (!(config_.stride >= 1.0f)) inputError("--stride ", config_.stride, ": must be >= 1");
   if (!(config_.jitter >= 0.0f && config_.jitter <= 1.0f)) inputError("--jitter ", config_.jitter, ": must be in [0, 1]");
   if (config_.maxSteps < 0) inputError("--max-steps ", config_.maxSteps, ": must be >= 0");
-  if (config_.maxSteps == 0) config_.maxSteps = int(float(std::max(camera.width(), camera.height())) / config_.stride) + 2;
+  config_.maxSteps = ssrMaxSteps(config_, camera.width(), camera.height());
 }
 
 template <class C>

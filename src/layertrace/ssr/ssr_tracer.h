@@ -23,6 +23,12 @@ struct SsrConfig {
   bool refine = true;
 };
 
+/// The march's step limit for a width × height view: config.maxSteps, or where it is 0 enough
+/// samples to reach the viewport edge from anywhere.
+inline int ssrMaxSteps(const SsrConfig& config, int width, int height) {
+  return config.maxSteps > 0 ? config.maxSteps : int(float(width > height ? width : height) / config.stride) + 2;
+}
+
 class SsrTracer : public TracerImpl<SsrTracer> {
  public:
   SsrTracer(const Camera& camera, const LayerArrays& layers, const SsrConfig& config = {});
