@@ -2,7 +2,6 @@
 JOBS   ?= $(shell nproc)
 BUILD  ?= build
 ASAN   ?= build-asan
-FUZZ   ?= build-fuzz
 TSAN   ?= build-tsan
 FUZZ_SECONDS ?= 60
 OUT    ?= out
@@ -26,18 +25,16 @@ build-cli: deps-run
 	cmake -S . -B $(BUILD) -DCMAKE_BUILD_TYPE=Release -DBUILD_TESTING=OFF -DLAYERTRACE_BENCH=OFF >/dev/null
 	cmake --build $(BUILD) -j $(JOBS) --target layertrace
 
-# The sanitizer build also makes the library shared (BUILD_SHARED_LIBS): make test installs it
-# and builds the examples against it, as the Release build does with the static one.
+# The sanitizer build is the Clang build: ASan+UBSan, the libFuzzer targets (libFuzzer needs
+# clang; fuzz/README.md) and the unit tests come from one compile of the library. It also makes
+# the library shared (BUILD_SHARED_LIBS): make test installs it and builds the examples against
+# it, as the Release build (GCC) does with the static one.
 build-asan: deps
-	cmake -S . -B $(ASAN) -DCMAKE_BUILD_TYPE=Debug -DLAYERTRACE_SANITIZE=ON -DLAYERTRACE_COUNTERS=OFF -DLAYERTRACE_BENCH=OFF \
-	    -DBUILD_SHARED_LIBS=ON -DLAYERTRACE_VIEWER=OFF >/dev/null
-	cmake --build $(ASAN) -j $(JOBS) --target layertrace_tests layertrace_library layertrace
+	cmake -S . -B $(ASAN) -DCMAKE_CXX_COMPILER=clang++-16 -DCMAKE_BUILD_TYPE=Debug -DLAYERTRACE_SANITIZE=ON -DLAYERTRACE_FUZZ=ON \
+	    -DLAYERTRACE_COUNTERS=OFF -DLAYERTRACE_BENCH=OFF -DBUILD_SHARED_LIBS=ON -DLAYERTRACE_VIEWER=OFF >/dev/null
+	cmake --build $(ASAN) -j $(JOBS) --target layertrace_tests layertrace_library layertrace fuzz_targets
 
-# libFuzzer needs clang; the fuzz build is separate from the GCC builds (fuzz/README.md).
-build-fuzz: deps
-	cmake -S . -B $(FUZZ) -DCMAKE_CXX_COMPILER=clang++-16 -DCMAKE_BUILD_TYPE=Debug -DLAYERTRACE_SANITIZE=ON -DLAYERTRACE_FUZZ=ON \
-	    -DLAYERTRACE_COUNTERS=OFF -DLAYERTRACE_BENCH=OFF -DBUILD_TESTING=OFF -DLAYERTRACE_VIEWER=OFF >/dev/null
-	cmake --build $(FUZZ) -j $(JOBS) --target fuzz_targets
+build-fuzz: build-asan
 
 # ThreadSanitizer build of the tests that run threads.
 build-tsan: deps
@@ -46,7 +43,7 @@ build-tsan: deps
 
 # Every fuzz target for FUZZ_SECONDS seconds; fails on any crash, leak or timeout.
 fuzz: build-fuzz
-	scripts/run-fuzz.sh $(FUZZ) $(FUZZ_SECONDS)
+	scripts/run-fuzz.sh $(ASAN) $(FUZZ_SECONDS)
 
 fetch: deps
 	scripts/fetch-scenes.sh
@@ -65,13 +62,13 @@ run: build-cli
 # both configurations of the tracers are built and tested.
 # Then the unit tests under ThreadSanitizer, and the fuzz targets of our own parsers for 20 s each
 # (the assimp targets find assimp's bugs: `make fuzz`, README "Reliability").
-test: build build-asan build-tsan build-fuzz fetch
+test: build build-asan build-tsan fetch
 	cd $(BUILD) && ctest --output-on-failure -j $(JOBS)
 	cd $(ASAN) && ASAN_OPTIONS=detect_leaks=1 UBSAN_OPTIONS=halt_on_error=1:print_stacktrace=1 \
 	    LAYERTRACE_SANITIZED=1 ctest --output-on-failure -j $(JOBS) -L 'unit|install'
 	cd $(TSAN) && TSAN_OPTIONS="halt_on_error=1 suppressions=$(CURDIR)/scripts/tsan.supp" \
 	    LAYERTRACE_SANITIZED=1 ctest --output-on-failure -j $(JOBS) -L unit
-	scripts/run-fuzz.sh $(FUZZ) 20 json_scene cli
+	scripts/run-fuzz.sh $(ASAN) 20 json_scene cli
 
 # The contributors' loop: the Release build of the CLI and the unit tests, and the unit and
 # documentation tests (no fetched scenes, no sanitizers). Under 5 minutes after the first build.
@@ -89,4 +86,4 @@ bench: build fetch
 	$(BUILD)/bench_raster
 
 clean:
-	rm -rf $(BUILD) $(ASAN) $(TSAN) $(FUZZ) $(OUT)
+	rm -rf $(BUILD) $(ASAN) $(TSAN) $(OUT)

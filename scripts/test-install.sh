@@ -15,7 +15,9 @@ for h in $(cd "$tmp/prefix/include" && find layertrace -name '*.h'); do
     [ -f "$tmp/prefix/include/$inc" ] || { echo "installed $h includes $inc, which is not installed" >&2; exit 1; }
   done
 done
-cmake -S "$src/examples" -B "$tmp/examples" -DCMAKE_PREFIX_PATH="$tmp/prefix" -DCMAKE_BUILD_TYPE=Release >/dev/null
+# The examples use the compiler the library was built with (the sanitizer runtimes must match).
+compiler=$(sed -n "s/^CMAKE_CXX_COMPILER:[A-Z]*=//p" "$build/CMakeCache.txt")
+cmake -S "$src/examples" -B "$tmp/examples" -DCMAKE_PREFIX_PATH="$tmp/prefix" -DCMAKE_BUILD_TYPE=Release ${compiler:+-DCMAKE_CXX_COMPILER="$compiler"} >/dev/null
 cmake --build "$tmp/examples" -j 2 >/dev/null
 mkdir -p "$tmp/out"
 "$tmp/examples/trace_gbuffer" "$tmp/out/trace_gbuffer.png"

@@ -74,7 +74,21 @@ TEST(ViewSession, OverlaysAndGeometricTracers) {
     const ViewResult e = session.render(q);
     ASSERT_TRUE(e.error.empty()) << e.error;
     EXPECT_NEAR(e.classFractions[size_t(RayClass::CorrectHit)] + e.classFractions[size_t(RayClass::CorrectMiss)], 1.0, 1e-3);
+    EXPECT_EQ(session.cachedStructures(), 1u);
   }
+  // The grid is built once per set of its own parameters; another method's parameter, or the
+  // camera, does not rebuild it.
+  q.tracer = "grid";
+  q.overlay = ViewOverlay::None;
+  ASSERT_TRUE(session.render(q).error.empty());
+  EXPECT_EQ(session.cachedStructures(), 2u);
+  q.tracers.pyramid.tau = 9.0f;
+  q.camera.eye += 0.1f * (q.camera.target - q.camera.eye);
+  ASSERT_TRUE(session.render(q).error.empty());
+  EXPECT_EQ(session.cachedStructures(), 2u);
+  q.tracers.grid.lambda1 *= 2.0f;
+  ASSERT_TRUE(session.render(q).error.empty());
+  EXPECT_EQ(session.cachedStructures(), 3u);
   q.tracer = "hssr";
   q.overlay = ViewOverlay::Iterations;
   const ViewResult it = session.render(q);

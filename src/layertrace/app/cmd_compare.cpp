@@ -102,7 +102,7 @@ int runCompare(const CompareOptions& o) {
     gpu = openGpu();
   }
   FrameOptions fo = o.run.frame;
-  if (std::find(o.tracers.begin(), o.tracers.end(), "hssr") != o.tracers.end()) fo.pyramid = o.options.pyramid;  // built by the capture
+  for (const std::string& name : o.tracers) prepareCapture(name, o.options, fo);
   Frame frame = buildFrame(fo);
   EffectConfig ec = o.effect;
   ec.seed = o.run.seed;

@@ -188,7 +188,7 @@ int runRender(const RenderOptions& o) {
   }
   const auto t0 = std::chrono::steady_clock::now();
   FrameOptions fo = o.run.frame;
-  if (o.tracer == "hssr") fo.pyramid = o.tracers.pyramid;  // built with the capture (Frame::pyramid)
+  prepareCapture(o.tracer, o.tracers, fo);
   Frame frame = buildFrame(fo);
   const BuiltTracer built = gpu ? buildGpuTracer(o.tracer, frame, o.tracers, *gpu) : buildTracer(o.tracer, frame, o.tracers);
   BuiltTracer oracle;

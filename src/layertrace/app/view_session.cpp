@@ -18,14 +18,14 @@ double msSince(std::chrono::steady_clock::time_point t0) {
 }
 
 /// View-independent structures (Embree's BVH, the grid, the layered depth cube) depend on the
-/// scene and their own options only: the viewer builds each once per option set. The key
-/// names the tracer and those options.
-std::string geometricKey(const std::string& tracer, const TracerOptions& o) {
-  std::ostringstream k;
-  k << tracer;
-  if (tracer == "grid") k << ' ' << o.grid.lambda1 << ' ' << o.grid.lambda2 << ' ' << o.grid.partialExpansion;
-  if (tracer == "ldc") k << ' ' << o.ldc.resolution << ' ' << o.ldc.block << ' ' << o.ldc.blockIntervals << ' ' << o.ldc.epsilon;
-  return k.str();
+/// scene and their own parameters only: the viewer builds each once per parameter set. The key
+/// names the tracer and the values of every parameter group its registry entry reads.
+std::string structureKey(const TracerEntry& entry, const TracerOptions& o) {
+  std::string key = entry.info.name;
+  for (const TracerParam& p : tracerParams())
+    for (const char* group : entry.groups)
+      if (std::string_view(p.group) == group) key += ' ' + paramValue(p, o);
+  return key;
 }
 
 }  // namespace
@@ -72,6 +72,8 @@ ViewSession::ViewSession(const RenderOptions& options) : options_(options), cach
   initial_.thicknessPx = options.run.frame.thicknessPx.value_or(kDefaultThicknessPx);
 }
 
+size_t ViewSession::cachedStructures() const { return cache_->geometric.size(); }
+
 ViewResult ViewSession::render(const ViewRequest& q) {
   ViewResult out;
   out.scale = std::max(1, q.scale);
@@ -84,24 +86,27 @@ ViewResult ViewSession::render(const ViewRequest& q) {
     fo.height = std::max(1, q.height / out.scale);
     fo.layers = q.layers;
     if (!options_.run.frame.thickness) fo.thicknessPx = q.thicknessPx;
-    if (q.tracer == "hssr") fo.pyramid = q.tracers.pyramid;  // built with the capture into memory reused frame to frame
+    prepareCapture(q.tracer, q.tracers, fo);  // into memory reused frame to frame
     validateFrameOptions(fo);
     setFrameView(fo, q.camera, frame_);
     rasterizeFrame(fo, frame_);
     out.captureMs = frame_.rasterMs + frame_.sortMs;
 
     ViewCache& cache = *cache_;
-    const bool screenDependent = isScreenTracer(q.tracer) || q.tracer == "hybrid";
+    const TracerEntry* entry = findTracer(q.tracer);
+    if (!entry) inputError("--tracer ", q.tracer, ": unknown (use ", tracerNames(), ")");
+    // Screen-space tracers and the hybrid depend on this frame's layers: built every frame.
+    const bool viewIndependent = entry->info.kind == TracerKind::Geometric || entry->info.kind == TracerKind::ViewIndependent;
     BuiltTracer fresh;
     const BuiltTracer* built = nullptr;
     const auto ts = std::chrono::steady_clock::now();
-    if (screenDependent) {
-      fresh = buildTracer(q.tracer, frame_, q.tracers);
+    if (!viewIndependent) {
+      fresh = entry->build(frame_, q.tracers);
       built = &fresh;
     } else {
-      const std::string key = geometricKey(q.tracer, q.tracers);
+      const std::string key = structureKey(*entry, q.tracers);
       auto it = cache.geometric.find(key);
-      if (it == cache.geometric.end()) it = cache.geometric.emplace(key, buildTracer(q.tracer, frame_, q.tracers)).first;
+      if (it == cache.geometric.end()) it = cache.geometric.emplace(key, entry->build(frame_, q.tracers)).first;
       built = &it->second;
     }
     out.structureMs = msSince(ts);

@@ -62,6 +62,8 @@ class ViewSession {
   /// Renders `request` (not thread-safe: one caller at a time). Invalid options come back as
   /// ViewResult::error, not as exceptions.
   ViewResult render(const ViewRequest& request);
+  /// View-independent structures built so far: one per tracer and set of its own parameters.
+  size_t cachedStructures() const;
 
  private:
   RenderOptions options_;

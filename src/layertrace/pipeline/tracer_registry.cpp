@@ -197,7 +197,7 @@ std::span<const TracerEntry> tracerRegistry() {
       {kSsrMethod, {"ssr"}, [](const Frame& f, const TracerOptions& o) { return buildSsr(f, o, false); }},
       {kSsrLayersMethod, {"ssr"}, [](const Frame& f, const TracerOptions& o) { return buildSsr(f, o, true); }},
       {kHizMethod, {"hssr"}, buildHiz},
-      {kHssrMethod, {"hssr"}, buildHssr},
+      {kHssrMethod, {"hssr"}, buildHssr, [](const TracerOptions& o, FrameOptions& f) { f.pyramid = o.pyramid; }},
       {kQuadtreeMethod, {"quadtree"}, buildQuadtreeTracer},
       {kLdcMethod, {"ldc"}, buildLdcTracer},
       {kHybridMethod, {"hybrid", "hssr", "quadtree", "ldc", "grid"}, buildHybrid},
@@ -220,6 +220,11 @@ const std::string& tracerNames() {
     return s;
   }();
   return names;
+}
+
+void prepareCapture(std::string_view name, const TracerOptions& options, FrameOptions& frame) {
+  const TracerEntry* e = findTracer(name);
+  if (e && e->prepareCapture) e->prepareCapture(options, frame);
 }
 
 bool isScreenTracer(const std::string& n) {

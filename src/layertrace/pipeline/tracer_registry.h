@@ -65,7 +65,12 @@ struct TracerEntry {
   MethodInfo info;
   std::vector<const char*> groups;  ///< parameter groups it reads (TracerParam::group)
   BuiltTracer (*build)(const Frame& frame, const TracerOptions& options);
+  /// What the capture builds for this tracer while it rasterizes (HSSR: its interval pyramid,
+  /// tile by tile, Frame::pyramid), asked for in the frame's options; null for none.
+  void (*prepareCapture)(const TracerOptions& options, FrameOptions& frame) = nullptr;
 };
+/// Asks the capture for what the tracer `name` can have built with it (TracerEntry::prepareCapture).
+void prepareCapture(std::string_view name, const TracerOptions& options, FrameOptions& frame);
 /// Every tracer: ssr, ssr-layers, hiz, hssr, quadtree, ldc, hybrid, embree, grid.
 std::span<const TracerEntry> tracerRegistry();
 /// The entry named `name`, or null.
