@@ -16,6 +16,7 @@ const char* const kFormats[] = {"obj", "ply", "stl", "off", "gltf", "glb", "dae"
 
 extern "C" int LLVMFuzzerInitialize(int*, char***) {
   lt::setModelImportTimeout(5);  // below libFuzzer's -timeout: a stuck importer is an input error
+  lt::setModelImportCrashRecovery(true);  // an importer crash is an input error too: the search goes on
   return 0;
 }
 

@@ -13,6 +13,7 @@
 
 extern "C" int LLVMFuzzerInitialize(int*, char***) {
   lt::setModelImportTimeout(5);  // below libFuzzer's -timeout: a stuck importer is an input error
+  lt::setModelImportCrashRecovery(true);  // an importer crash is an input error too: the search goes on
   return 0;
 }
 

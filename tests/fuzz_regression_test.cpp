@@ -1,6 +1,8 @@
 // Inputs the fuzzers of fuzz/ found, replayed through the same entry points (tests/fuzz_regressions/
 // TARGET/): each must end as a scene or as an input error naming the input — never as a crash, a
 // hang or an internal error.
+#include <cstdio>
+#include <cstdlib>
 #include <filesystem>
 #include <fstream>
 #include <initializer_list>
@@ -53,6 +55,27 @@ TEST(FuzzRegressionDeathTest, AnImporterThatNeverFinishesIsStopped) {
         loadModelFromMemory(bytes.data() + 1, bytes.size() - 1, "ply", "loop.ply");
       },
       ::testing::ExitedWithCode(2), "scene loop.ply: the model importer did not finish in time");
+}
+
+// Under the fuzzer (setModelImportCrashRecovery) the same importer becomes an InputError and the
+// process goes on. (The stopped importer's memory is lost: the child ends without a leak check.)
+TEST(FuzzRegressionDeathTest, WithCrashRecoveryAStoppedImporterIsAnInputError) {
+  GTEST_FLAG_SET(death_test_style, "threadsafe");
+  const std::string bytes = slurpFile(test::sourceDir() + "/tests/fuzz_regressions/model/ply-header-loop.bin");
+  ASSERT_GT(bytes.size(), 1u);
+  EXPECT_EXIT(
+      {
+        setModelImportTimeout(1);
+        setModelImportCrashRecovery(true);
+        try {
+          loadModelFromMemory(bytes.data() + 1, bytes.size() - 1, "ply", "loop.ply");
+        } catch (const InputError& e) {
+          std::fprintf(stderr, "caught: %s\n", e.what());
+          std::_Exit(3);
+        }
+        std::_Exit(4);
+      },
+      ::testing::ExitedWithCode(3), "caught: scene loop.ply: the model importer crashed on this file");
 }
 
 /// The message of the InputError `f` throws; a test failure (and "") when it throws none.

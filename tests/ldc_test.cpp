@@ -92,7 +92,7 @@ TEST(Ldc, BoxRoomRaysHitTheAnalyticWallAlongEveryAxisAndOctant) {
       dirs.push_back(d);
     }
   for (int o = 0; o < 8; ++o) dirs.push_back(glm::vec3(o & 1 ? 1 : -1, o & 2 ? 1 : -1, o & 4 ? 1 : -1));
-  std::mt19937 rng(uint32_t(test::testSeed()));
+  std::mt19937 rng{uint32_t(test::testSeed())};
   std::uniform_real_distribution<float> u(-1.0f, 1.0f);
   for (int i = 0; i < 400; ++i) dirs.push_back({u(rng), u(rng), u(rng)});
   int rays = 0;

@@ -115,7 +115,7 @@ TEST(Limits, ASceneAMicrometreAcrossIsCapturedAndTraced) {
 void expectGridAgreesWithEmbree(const Scene& scene, glm::vec3 eye, glm::vec3 target, float spreadFraction) {
   const IrregularGrid grid(scene);
   const EmbreeScene embree(scene, EmbreeScene::Mode::Robust);
-  std::mt19937 rng(uint32_t(test::testSeed()));
+  std::mt19937 rng{uint32_t(test::testSeed())};
   std::uniform_real_distribution<float> u(-1.0f, 1.0f);
   const float spread = spreadFraction * glm::length(target - eye);
   size_t hits = 0, same = 0, n = 2000;
@@ -187,7 +187,7 @@ TEST(Limits, GridAtScaleOfTenMillionTriangles) {
   }
   const IrregularGrid grid(s, config);
   EXPECT_GE(grid.stats().refs, s.triangleCount());
-  std::mt19937 rng(uint32_t(test::testSeed()));
+  std::mt19937 rng{uint32_t(test::testSeed())};
   std::uniform_real_distribution<float> u(0.0f, float(n - 1));
   for (int k = 0; k < 500; ++k) {
     const float x = u(rng), z = u(rng);

@@ -421,7 +421,6 @@ TEST(Warp, RaysFromAnotherEyeMatchTheOracle) {
     // screen, whose rays start in free space inside the view.
     for (const auto& [fraction, forward] : {std::pair{0.05f, 0.0f}, std::pair{0.2f, 0.0f}, std::pair{-0.3f, 0.0f}, std::pair{0.0f, 0.3f},
                                            std::pair{0.02f, 0.2f}}) {
-      std::mutex m;
       size_t mismatches = 0, rays = 0, hits = 0;
       class Check : public RayObserver {
        public:

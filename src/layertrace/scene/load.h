@@ -43,6 +43,10 @@ bool readableNumber(const aiMaterial* material, const char* key, unsigned semant
 /// returns (assimp 5.2.5's PLY reader on some malformed headers).
 inline constexpr unsigned kDefaultImportTimeoutSeconds = 300;
 void setModelImportTimeout(unsigned seconds);
+/// Off (the default): an importer that crashes ends the process with one line and exit status 2.
+/// On: the crash unwinds out of the import as an InputError, so the process goes on (a fuzzer
+/// searching past assimp's crashes); the crashed importer's memory is then leaked.
+void setModelImportCrashRecovery(bool on);
 
 /// A zip archive (.pk3) whose entries declare more than this in total, or an entry over 64 MiB
 /// that expands more than 1000-fold, is refused before assimp inflates it (zip bombs).

@@ -177,14 +177,13 @@ char gImportPath[1024];
 int gStderr = 2;  // the real stderr while the importer's own stderr chatter is silenced
 unsigned gImportTimeout = kDefaultImportTimeoutSeconds;
 
-#ifdef LAYERTRACE_FUZZING
-// Under the fuzzer the process must survive an importer crash to go on searching our own code:
-// jump back to the import and report the file as malformed. (The aborted importer's memory is
-// lost; the model fuzz target runs without leak detection for that reason — fuzz/README.md.)
+bool gRecoverFromCrash = false;  // setModelImportCrashRecovery
+// With recovery on, the process must survive an importer crash: jump back to the import and
+// report the file as malformed (the aborted importer's memory is lost).
 sigjmp_buf gImportJump;
-extern "C" void importCrashed(int) { siglongjmp(gImportJump, 1); }
-#else
+
 extern "C" void importCrashed(int signal) {
+  if (gRecoverFromCrash) siglongjmp(gImportJump, 1);
   static const char head[] = "layertrace: scene ";
   static const char crashed[] = ": the model importer crashed on this file (malformed model)\n";
   static const char hung[] = ": the model importer did not finish in time (malformed model?)\n";
@@ -195,7 +194,6 @@ extern "C" void importCrashed(int signal) {
   (void)ignored;
   ::_exit(2);
 }
-#endif
 
 class ImportGuard {
  public:
@@ -266,9 +264,7 @@ struct GuardedImporterDelete {
   std::string source;
   void operator()(Assimp::Importer* importer) const {
     const ImportGuard guard(source);
-#ifdef LAYERTRACE_FUZZING
-    if (sigsetjmp(gImportJump, 1) != 0) return;  // crashed: leaked, as in guardedImport
-#endif
+    if (sigsetjmp(gImportJump, 1) != 0) return;  // crashed (recovery on): leaked, as in guardedImport
     delete importer;
   }
 };
@@ -295,19 +291,17 @@ void dropDanglingTextures(const aiScene* scene, const std::string& ext) {
 
 /// Runs `read` under the import guard and repairs what the importer of `ext` (".obj", lower case)
 /// leaves behind (dropDanglingTextures); InputError naming `source` when it fails or crashes.
-/// `importer` is owned by the caller; under the fuzzer a crashed import leaves it leaked (its
+/// `importer` is owned by the caller; with crash recovery on (setModelImportCrashRecovery) a crashed import leaves it leaked (its
 /// state is not safe to destroy).
 template <class Read>
 const aiScene* guardedImport(ImporterPtr& importer, const std::string& source, const std::string& ext, Read&& read) {
   const aiScene* as = nullptr;
   {
     const ImportGuard guard(source);
-#ifdef LAYERTRACE_FUZZING
-    if (sigsetjmp(gImportJump, 1) != 0) {
+    if (sigsetjmp(gImportJump, 1) != 0) {  // crashed, recovery on
       importer.release();  // NOLINT: deliberately leaked, see above
       inputError("scene ", source, ": the model importer crashed on this file (malformed model)");
     }
-#endif
     as = read();
     dropDanglingTextures(as, ext);
   }
@@ -478,6 +472,7 @@ std::vector<unsigned char> checkQuake3Archive(const std::string& path, uint64_t 
 }
 
 void setModelImportTimeout(unsigned seconds) { gImportTimeout = seconds; }
+void setModelImportCrashRecovery(bool on) { gRecoverFromCrash = on; }
 
 void validateOffHeader(const char* data, size_t size, const std::string& name) {
   // The header: an optional keyword (OFF, COFF, NOFF, STOFF, 4OFF…), comments (#), then
