@@ -12,6 +12,7 @@
 
 #include "layertrace/pipeline/tracer_registry.h"
 #include "layertrace/render/effects.h"
+#include "layertrace/util/error.h"
 #include "test_util.h"
 
 namespace lt {
@@ -254,6 +255,43 @@ TEST(TraceInterface, ObserverSeesEveryRayAndChangesNothing) {
       EXPECT_GT(watched.traceMs, 0.0) << "the time inside the tracer calls was not measured";
     }
   }
+}
+
+/// Counts the batches it is handed with and without counters, answering with `inner`.
+class CounterSpy : public Tracer {
+ public:
+  explicit CounterSpy(const Tracer& inner) : inner_(inner) {}
+  const char* name() const override { return inner_.name(); }
+  TraceHit trace(const Ray& ray, RayCounters& c) const override { return inner_.trace(ray, c); }
+  void traceBatch(std::span<const Ray> rays, std::span<TraceHit> hits, std::span<RayCounters> counters) const override {
+    std::lock_guard<std::mutex> lock(m_);
+    (counters.empty() ? uncounted : counted) += rays.size();
+    inner_.traceBatch(rays, hits, counters);
+  }
+  mutable size_t counted = 0, uncounted = 0;
+
+ private:
+  const Tracer& inner_;
+  mutable std::mutex m_;
+};
+
+// Every command times the same way: measureTrace's passes hand the tracer no counters (the path
+// the vector marches serve) and the tracer sees exactly the rays of the counted pass, `repeat` times.
+TEST(TraceInterface, TimedPassesTraceTheSameRaysWithoutCounters) {
+  const Frame f = defaultFrame();
+  const BuiltTracer b = buildTracer("hssr", f, TracerOptions{});
+  const CounterSpy spy(*b.tracer);
+  EffectConfig ec;
+  ec.effect = Effect::Reflection;
+  ec.bounces = 2;
+  const EffectResult counted = renderEffect(f, spy, ec);
+  EXPECT_EQ(spy.counted, counted.rays);
+  EXPECT_EQ(spy.uncounted, 0u);
+  const TraceTiming t = measureTrace(f, spy, ec, 3);
+  EXPECT_EQ(spy.counted, counted.rays) << "a timed pass asked for counters";
+  EXPECT_EQ(spy.uncounted, 3 * counted.rays);
+  EXPECT_GT(t.traceMs, 0.0);
+  EXPECT_THROW(measureTrace(f, spy, ec, 0), InputError);
 }
 
 // docs/architecture.md: a layer includes only layers below it; screen/ and geometry/ never

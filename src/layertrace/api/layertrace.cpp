@@ -361,6 +361,7 @@ RgbImage render(const TriangleScene& scene, const RenderRequest& r) {
     validateEffectConfig(ec);
     const Frame frame = capturedFrame(scene, r.view, r.layers, kDefaultThicknessPx);
     const BuiltTracer built = buildTracer(r.tracer, frame, TracerOptions{});
+    ec.countRays = false;  // no counters asked for: the counter-free tracer, and its vector marches
     const EffectResult result = renderEffect(frame, *built.tracer, ec);
     RgbImage out;
     out.width = result.image.width, out.height = result.image.height;

@@ -240,6 +240,7 @@ int runCli(int argc, const char* const* argv, CliMode mode) {
   renderCmd->add_option("--tracer", render.tracer, "ssr | ssr-layers | hiz | hssr | quadtree | ldc | hybrid | embree | grid")->capture_default_str();
   addEffectOptions(renderCmd, render.effect, effectName, renderRaw);
   addTracerOptions(renderCmd, render.tracers);
+  renderCmd->add_option("--repeat", render.repeat, "timed passes of the trace without counters, after the counted pass (the warm-up); the trace time is their median")->capture_default_str();
   renderCmd->add_flag("--check-exhaustive", render.checkExhaustive, "trace every ray with the exhaustive oracle too; count differences");
   renderCmd->add_flag("--check-oracle", render.checkOracle,
                       "trace every ray with the independent image-space oracle too; count differences (rays.oracle_mismatch)");
@@ -255,6 +256,7 @@ int runCli(int argc, const char* const* argv, CliMode mode) {
   addTracerOptions(compareCmd, compare.options);
   compareCmd->add_option("--report", compare.report, "also write an HTML report (one self-contained page) to this folder (default: the output folder)")
       ->expected(0, 1);
+  compareCmd->add_option("--repeat", compare.repeat, "timed passes of the trace without counters, after the counted pass (the warm-up); the trace time is their median")->capture_default_str();
   compareCmd->add_flag("--check-exhaustive,!--no-check-exhaustive", compare.checkExhaustive,
                        "check every image-space ray against the exhaustive oracle (exhaustive_mismatch; default on)");
   compareCmd->add_flag("--check-oracle", compare.checkOracle,

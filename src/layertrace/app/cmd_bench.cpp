@@ -114,21 +114,13 @@ struct Classified {
   double traceMs = 0.0, iterations = 0.0, falseMiss = 0.0, correctHit = 0.0, infoMiss = 0.0, wrongHit = 0.0, correctMiss = 0.0;
 };
 
-/// Median trace time of `tracer` over the effect's rays, plus (optionally) its classification.
+/// Median trace time of `tracer` over the effect's rays, plus (optionally) its classification:
+/// the counted pass, then the timed ones (measureTrace), as render and compare measure.
 Classified measure(const Frame& frame, const Tracer& tracer, const EffectConfig& ec, int repeat, const Tracer* reference) {
   Classified c;
-  std::vector<double> times;
-  EffectResult r;
-  EffectConfig timing = ec;
-  timing.countRays = false;  // times from the counter-free instantiation of the tracer
-  renderEffect(frame, tracer, timing);  // warm-up, discarded
-  for (int i = 0; i < repeat; ++i) {
-    r = renderEffect(frame, tracer, timing);
-    times.push_back(r.traceMs);
-  }
-  c.traceMs = median(times);
   ClassifyObserver classes(reference ? *reference : tracer, frame.camera, frame.layers);
-  r = renderEffect(frame, tracer, ec, reference ? &classes : nullptr);
+  const EffectResult r = renderEffect(frame, tracer, ec, reference ? &classes : nullptr);
+  c.traceMs = measureTrace(frame, tracer, ec, repeat).traceMs;
   c.iterations = r.rays ? double(r.iterationSum) / double(r.rays) : 0.0;
   if (reference) {
     const auto counts = classes.counts();
@@ -157,7 +149,7 @@ int runBench(const BenchOptions& o) {
   // The device before the scene: a machine without one is told at once.
   std::shared_ptr<GpuContext> gpu;
   if (o.run.device == "gpu") gpu = openGpu();
-  if (o.repeat < 1 || o.repeat > 100) inputError("--repeat ", o.repeat, ": must be between 1 and 100");
+  validateRepeat(o.repeat);
   validateTracerOptions(o.options);
   validateEffectConfig(o.effect);
   const std::string outDir = o.run.output;

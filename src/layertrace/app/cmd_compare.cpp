@@ -108,15 +108,18 @@ int runCompare(const CompareOptions& o) {
   ec.seed = o.run.seed;
   ec.progress = !o.run.quiet;
 
+  validateRepeat(o.repeat);
   const BuiltTracer reference = buildTracer("embree", frame, o.options);  // the timing baseline
   const BuiltTracer truth = buildReference(frame);                         // the ground truth of the classes
   EffectConfig refConfig = ec;
-  refConfig.countRays = false;  // its trace time is the baseline: no counter code
-  const EffectResult ref = renderEffect(frame, *reference.tracer, refConfig);
+  refConfig.countRays = false;  // the baseline: the counter-free instantiation, as every tracer is timed
+  EffectResult ref = renderEffect(frame, *reference.tracer, refConfig);  // (also the warm-up of its timing)
+  ref.traceMs = measureTrace(frame, *reference.tracer, refConfig, o.repeat).traceMs;
   // The packet baseline on the same rays: 16-wide rtcIntersect16 over each batch (any-hit rays
   // of AO and shadows stay one at a time).
   const EmbreePacketTracer packets(frame.scene, frame.camera, *reference.embree);
-  const EffectResult packet = renderEffect(frame, packets, refConfig);
+  EffectResult packet = renderEffect(frame, packets, refConfig);
+  packet.traceMs = measureTrace(frame, packets, refConfig, o.repeat).traceMs;
   const BuiltTracer oracle = buildOracle(frame);
   const ImageSpaceOracle independent(frame.camera, frame.layers);
 
@@ -141,13 +144,9 @@ int runCompare(const CompareOptions& o) {
   for (const std::string& name : o.tracers) {
     const BuiltTracer built = buildTracer(name, frame, o.options);
     const bool screen = isScreenTracer(name);
-    // Two passes over the same rays: one timed alone without counters, one counted and watched
-    // by the oracle and the reference for the per-ray verdicts.
-    EffectConfig timing = ec;
-    timing.countRays = false;
-    timing.progress = false;
-    const EffectResult timed = renderEffect(frame, *built.tracer, timing);
-    const nlohmann::json hybrid = hybridStats(built, o.options);  // of the timed pass alone
+    // The counted pass, watched by the oracle and the reference for the per-ray verdicts; then
+    // the timed passes over the same rays without counters (medianTraceMs: the counted pass is
+    // their warm-up).
     MismatchObserver exhaustive(*oracle.tracer);
     ClassifyObserver classes(*truth.tracer, frame.camera, frame.layers);
     ObserverList observers;
@@ -159,6 +158,8 @@ int runCompare(const CompareOptions& o) {
     const bool onGpu = gpu && hasGpuTracer(name);
     if (onGpu) observers.add(&recorded);
     EffectResult r = renderEffect(frame, *built.tracer, ec, &observers);
+    const nlohmann::json hybrid = hybridStats(built, o.options);  // of the counted pass alone
+    const TraceTiming timed = measureTrace(frame, *built.tracer, ec, o.repeat);
     r.traceMs = timed.traceMs;
     if (!o.run.pixelStats.empty()) writePixelStats((fs::path(o.run.pixelStats) / name).string(), r);
     const auto [rmse, psnr] = rmsePsnr(r.image, ref.image);

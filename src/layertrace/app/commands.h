@@ -12,6 +12,9 @@
 namespace lt {
 
 /// Options every subcommand has beside the frame's.
+/// Throws InputError unless 1 ≤ repeat ≤ 100 (--repeat of render, compare and bench).
+void validateRepeat(int repeat);
+
 struct RunOptions {
   FrameOptions frame;
   std::string output;      ///< -o: the image (render), the screenshot (view) or the output folder (every other command)
@@ -62,6 +65,7 @@ struct RenderOptions {
   TracerOptions tracers;
   bool checkExhaustive = false;  ///< trace every ray with the exhaustive oracle too
   bool checkOracle = false;      ///< trace every ray with the independent image-space oracle too
+  int repeat = 3;                ///< --repeat: timed passes after the counted one; the trace time is their median
 };
 
 /// `layertrace render`: one effect traced with one tracer → image, stats, per-pixel counters.
@@ -84,6 +88,7 @@ struct CompareOptions {
   std::string report;  ///< --report DIR: one HTML page with images and the table
   bool checkExhaustive = true;  ///< --check-exhaustive (default on): every image-space ray against the exhaustive oracle
   bool checkOracle = false;  ///< --check-oracle: every image-space ray against the independent oracle too
+  int repeat = 3;            ///< --repeat: timed passes per tracer after its counted one; the median is reported
 };
 
 struct BenchOptions {

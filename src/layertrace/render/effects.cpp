@@ -12,6 +12,7 @@
 #include <tbb/parallel_for.h>
 
 #include "layertrace/screen/fragment_hit.h"
+#include "layertrace/util/timing.h"
 #include "layertrace/util/error.h"
 #include "layertrace/util/progress.h"
 #include "layertrace/util/parallel.h"
@@ -589,6 +590,19 @@ EffectResult renderEffect(const Frame& frame, const Tracer& tracer, const Effect
   validateEffectConfig(config);
   Renderer renderer(frame, tracer, config, observer);
   return renderer.run();
+}
+
+TraceTiming measureTrace(const Frame& frame, const Tracer& tracer, const EffectConfig& config, int repeat) {
+  if (repeat < 1) inputError("--repeat ", repeat, ": must be at least 1");
+  EffectConfig timing = config;
+  timing.countRays = false;
+  timing.progress = false;
+  std::vector<double> trace, shade;
+  for (int i = 0; i < repeat; ++i) {
+    const EffectResult r = renderEffect(frame, tracer, timing);
+    trace.push_back(r.traceMs), shade.push_back(r.shadeMs);
+  }
+  return {median(std::move(trace)), median(std::move(shade))};
 }
 
 }  // namespace lt

@@ -94,4 +94,15 @@ void validateEffectConfig(const EffectConfig& config);
 /// Renders the effect with `tracer`; `observer` (optional) sees every traced ray and its answer.
 EffectResult renderEffect(const Frame& frame, const Tracer& tracer, const EffectConfig& config, RayObserver* observer = nullptr);
 
+/// The trace time every command reports (docs/cli.md, "How times are measured"): medians over
+/// `repeat` passes of the effect's rays through `tracer` without counters (the counter-free
+/// instantiation, which is also the one the vector marches serve), no observer. Run it after a
+/// first pass over the same rays (the command's counted pass, or a discarded one): that pass is
+/// the warm-up that pays for cold caches and first-touch page faults.
+struct TraceTiming {
+  double traceMs = 0.0;  ///< median time inside the tracer's batch calls
+  double shadeMs = 0.0;  ///< median time of the rest: ray generation, shading, bookkeeping
+};
+TraceTiming measureTrace(const Frame& frame, const Tracer& tracer, const EffectConfig& config, int repeat);
+
 }  // namespace lt
