@@ -64,6 +64,7 @@ struct RawFrameOptions {
   std::vector<std::string> lights;
   std::string fov, thickness, thicknessPx;  ///< parsed when given: 0 is a value, not "unset"
   std::string warpEye, warpTarget;  ///< --warp-eye / --warp-target (effect options)
+  std::string belowSurface = "mirror";  ///< --below-surface mirror|bend
   std::string maxMemory;            ///< --max-memory
 };
 
@@ -129,6 +130,7 @@ void addEffectOptions(CLI::App* app, lt::EffectConfig& e, std::string& effectNam
   app->add_option("--ao-samples", e.aoSamples, "AO rays per pixel")->capture_default_str();
   app->add_option("--ao-radius", e.aoRadius, "AO ray length (0 = 5% of the scene diagonal)")->capture_default_str();
   app->add_option("--max-distance", e.maxDistance, "ray length (0 = the scene diagonal)")->capture_default_str();
+  app->add_option("--below-surface", raw.belowSurface, "a secondary ray below the geometric surface it leaves (smooth normals on a flat face): mirror (about the geometric plane) | bend (to graze it)")->capture_default_str();
 }
 
 std::vector<std::string> splitList(const std::string& s) {
@@ -143,6 +145,8 @@ void finishEffectOptions(lt::EffectConfig& e, const std::string& effectName, con
   e.effect = lt::parseEffect(effectName);
   if (!raw.warpEye.empty()) e.warpEye = parseVec3("--warp-eye", raw.warpEye);
   if (!raw.warpTarget.empty()) e.warpTarget = parseVec3("--warp-target", raw.warpTarget);
+  if (raw.belowSurface != "mirror" && raw.belowSurface != "bend") lt::inputError("--below-surface ", raw.belowSurface, ": unknown (use mirror or bend)");
+  e.mirrorBelowSurface = raw.belowSurface == "mirror";
 }
 
 void finishFrameOptions(lt::RunOptions& run, const RawFrameOptions& raw) {

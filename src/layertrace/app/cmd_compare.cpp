@@ -50,7 +50,7 @@ nlohmann::json gpuAgreement(const std::string& name, const Frame& frame, const T
   for (size_t i = 0; i < recorded.size(); ++i) rays[i] = recorded[i].first;
   std::vector<TraceHit> hits(rays.size());
   std::vector<RayCounters> counters(rays.size());
-  built.tracer->traceBatch(rays, hits, counters);
+  built.tracer->query(Query::Closest, rays, hits, counters);
   uint64_t same = 0, iterations = 0;
   for (size_t i = 0; i < rays.size(); ++i) {
     const TraceHit& c = recorded[i].second;

@@ -168,7 +168,17 @@ OracleAnswer ImageSpaceOracle::answer(const Ray& ray) const {
 void OracleObserver::observe(std::span<const RayEvent> events) {
   Local& l = local_.local();
   for (const RayEvent& e : events) {
-    const OracleAnswer a = oracle_.answer(*e.ray);
+    // The origin rule of Tracer::query: past a hit on the ray's own triangle, the rest of the ray.
+    OracleAnswer a = oracle_.answer(*e.ray);
+    Ray next;
+    for (int skip = 0; onOriginTriangle(*e.ray, a.hit); ++skip) {
+      if (skip == kOriginSkips || !continuePastOrigin(*e.ray, a.hit, next)) {
+        a.hit = TraceHit{};
+        break;
+      }
+      const OracleAnswer rest = oracle_.answer(next);
+      a.hit = rest.hit, a.ambiguous = a.ambiguous || rest.ambiguous;
+    }
     const bool same = e.query == Query::Any ? a.hit.hit == e.hit->hit : sameFragment(a.hit, *e.hit);
     if (same) continue;
     if (a.ambiguous) ++l.ambiguous;

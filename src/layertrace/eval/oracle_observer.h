@@ -25,7 +25,7 @@ class MismatchObserver : public RayObserver {
     l.rays.resize(events.size());
     l.answers.resize(events.size());
     for (size_t i = 0; i < events.size(); ++i) l.rays[i] = *events[i].ray;
-    oracle_.traceBatch(l.rays, l.answers, {});
+    oracle_.query(Query::Closest, l.rays, l.answers, {});  // (the origin rule of the observed answers)
     for (size_t i = 0; i < events.size(); ++i) l.mismatches += !sameFragment(*events[i].hit, l.answers[i]);
   }
   uint64_t mismatches() const {

@@ -162,7 +162,7 @@ void HybridTracer::run(Query q, std::span<const Ray> rays, std::span<TraceHit> h
     else s.screenRays[i].maxDistance = end;
     s.from[i] = b.certain(rays[i]) ? kInf : b.geoFrom;
   }
-  screen_.query(q, s.screenRays, s.screenHits, counters);
+  screen_.batch(q, s.screenRays, s.screenHits, counters);
   // 3 and 6: the exact checks, and the windows geometry certifies. A window query is short —
   // a few pixels of the ray — and costs a fraction of a whole geometric ray.
   s.geoRays.clear();

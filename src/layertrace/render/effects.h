@@ -56,6 +56,9 @@ struct EffectConfig {
   /// (gpu/) then dispatches every ray of the wave at once. Ray generation and shading stay on
   /// the CPU, between the waves; the answers are the same as with bands.
   bool wholeWaves = false;
+  /// A secondary direction below the geometric surface it leaves (interpolated normals on a
+  /// flat face): mirrored about the geometric plane (true) or bent to graze it (false).
+  bool mirrorBelowSurface = true;
   /// --warp-eye: the second camera's eye, Effect::Warp. World coordinates (those of the scene file),
   /// like --eye: warpCamera subtracts the scene's origin (Scene::origin).
   std::optional<glm::dvec3> warpEye;

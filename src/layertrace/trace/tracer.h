@@ -13,10 +13,13 @@
 // tracers from the triangles.
 #pragma once
 
+#include <algorithm>
 #include <cstdint>
 #include <new>
 #include <span>
+#include <vector>
 
+#include <glm/geometric.hpp>
 #include <glm/vec3.hpp>
 
 namespace lt {
@@ -30,7 +33,11 @@ struct Ray {
   /// pixel (Hofmann et al. 2017, §5.1). False for rays from free space (a camera's eye, view
   /// synthesis): their first pixel is tested like any other.
   bool startsOnSurface = true;
+  /// The scene triangle the ray leaves (a secondary ray), or kNoTriangle. Tracer::query never
+  /// answers with it (continuePastOrigin).
+  uint32_t originTriangle = 0xFFFFFFFFu;
 };
+inline constexpr uint32_t kNoTriangle = 0xFFFFFFFFu;
 
 /// The surface hit: enough to shade it and to start the next bounce.
 struct TraceHit {
@@ -77,6 +84,12 @@ struct RayCounters {
   void planeNode() { ++planeNodes; }
   void boxNode() { ++boxNodes; }
   void occlusion() { ++occlusions; }
+  RayCounters& operator+=(const RayCounters& o) {
+    iterations += o.iterations, intervals += o.intervals, pixels += o.pixels, giveUps += o.giveUps;
+    for (int l = 0; l < kLevels; ++l) levelIterations[l] += o.levelIterations[l];
+    planeNodes += o.planeNodes, boxNodes += o.boxNodes, occlusions += o.occlusions;
+    return *this;
+  }
 };
 
 /// The counter type of timing runs: the same calls, no code.
@@ -132,12 +145,74 @@ class Tracer {
     traceBatch(rays, hits, counters);
   }
 
-  /// Dispatches to traceBatch or occludedBatch.
-  void query(Query q, std::span<const Ray> rays, std::span<TraceHit> hits, std::span<RayCounters> counters) const {
+  /// Dispatches to traceBatch or occludedBatch, then applies the origin rule: an answer on the
+  /// ray's own triangle (Ray::originTriangle) is replaced by the answer of the rest of the ray
+  /// (continuePastOrigin), up to kOriginSkips times, then by a miss. Counters add up over the
+  /// continuations. Renderers and the oracles' observers ask through query, so every answer and
+  /// every verdict follows the same rule.
+  void query(Query q, std::span<const Ray> rays, std::span<TraceHit> hits, std::span<RayCounters> counters) const;
+
+  /// traceBatch or occludedBatch, without the origin rule: for a tracer composed of others (the
+  /// hybrid asks its screen part through it; the rule applies to the composite's answers).
+  void batch(Query q, std::span<const Ray> rays, std::span<TraceHit> hits, std::span<RayCounters> counters) const {
     if (q == Query::Any) occludedBatch(rays, hits, counters);
     else traceBatch(rays, hits, counters);
   }
 };
+
+/// Continuations of one ray past a hit on its own triangle before it counts as a miss.
+inline constexpr int kOriginSkips = 4;
+
+/// A ray leaving a triangle cannot meet that (planar) triangle again, yet an image-space tracer
+/// reports it where the ray skims the surface within a sample's thickness (interpolated normals
+/// on big flat faces), and a geometric one may at a distance of rounding error. As Embree users
+/// skip the origin primitive, the answer is then what the rest of the ray meets: `next` is the
+/// same ray from the hit's distance along it on, starting on a surface (so an image-space tracer
+/// skips the hit's pixel). Returns false when `hit` is not on the ray's origin triangle, or when
+/// nothing of the ray is left.
+inline bool continuePastOrigin(const Ray& ray, const TraceHit& hit, Ray& next) {
+  if (!hit.hit || ray.originTriangle == kNoTriangle || hit.triangle != ray.originTriangle) return false;
+  const float t = std::max(glm::dot(hit.point - ray.origin, ray.dir), 0.0f);
+  next = ray;
+  next.origin = ray.origin + ray.dir * t;
+  next.maxDistance = ray.maxDistance - t;
+  next.startsOnSurface = true;
+  return next.maxDistance > 0.0f;
+}
+
+/// Whether `hit` answers `ray` under the origin rule (not on the ray's own triangle).
+inline bool onOriginTriangle(const Ray& ray, const TraceHit& hit) {
+  return hit.hit && ray.originTriangle != kNoTriangle && hit.triangle == ray.originTriangle;
+}
+
+inline void Tracer::query(Query q, std::span<const Ray> rays, std::span<TraceHit> hits, std::span<RayCounters> counters) const {
+  batch(q, rays, hits, counters);
+  std::vector<size_t> pending;
+  for (size_t i = 0; i < rays.size(); ++i)
+    if (onOriginTriangle(rays[i], hits[i])) pending.push_back(i);
+  std::vector<size_t> index;
+  std::vector<Ray> next;
+  std::vector<TraceHit> answers;
+  std::vector<RayCounters> cost;
+  for (int round = 0; round < kOriginSkips && !pending.empty(); ++round) {
+    index.clear(), next.clear();
+    for (size_t i : pending) {
+      Ray r;
+      if (continuePastOrigin(rays[i], hits[i], r)) index.push_back(i), next.push_back(r);
+      else hits[i] = TraceHit{};  // nothing of the ray is left
+    }
+    answers.assign(next.size(), TraceHit{});
+    cost.assign(counters.empty() ? 0 : next.size(), RayCounters{});
+    batch(q, next, answers, cost);
+    pending.clear();
+    for (size_t j = 0; j < index.size(); ++j) {
+      hits[index[j]] = answers[j];
+      if (!counters.empty()) counters[index[j]] += cost[j];
+      if (onOriginTriangle(rays[index[j]], answers[j])) pending.push_back(index[j]);
+    }
+  }
+  for (size_t i : pending) hits[i] = TraceHit{};  // still on its own triangle: a miss
+}
 
 inline void Tracer::traceBatch(std::span<const Ray> rays, std::span<TraceHit> hits, std::span<RayCounters> counters) const {
   RayCounters scratch;
