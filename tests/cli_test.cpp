@@ -228,6 +228,30 @@ std::string slurp(const std::string& p) {
   return std::string(std::istreambuf_iterator<char>(in), {});
 }
 
+// Depth peeling on the CPU: the lists' layers (the same images), k geometry passes, and the
+// construction experiment of Hofmann et al. 2017, Fig. 8 against the lists.
+TEST(CliLayers, DepthPeelingGivesTheListsLayers) {
+  test::TempDir dir;
+  const std::string size = " --width 160 --height 90 --layers 3 --quiet";
+  for (const char* capture : {"lists", "peel"})
+    ASSERT_NO_FATAL_FAILURE(expectRuns("layers " + kDefault + size + " --verify --capture " + capture + " -o " + (dir / capture)));
+  const auto lists = readJson(dir / "lists/layers.json"), peel = readJson(dir / "peel/layers.json");
+  EXPECT_EQ(peel["capture_pipeline"], "peel");
+  EXPECT_EQ(peel["fragments"]["geometry_passes"], 3);
+  EXPECT_EQ(peel["fragments"]["rasterized"].get<uint64_t>(), 3 * lists["fragments"]["total"].get<uint64_t>());
+  EXPECT_EQ(peel["verify"]["match_fraction"], lists["verify"]["match_fraction"]);
+  EXPECT_GE(peel["verify"]["match_fraction"].get<double>(), 0.999);
+  for (const char* image : {"layer0_albedo.png", "layer1_depth.png", "layer2_normal.png", "depth_complexity.png"})
+    EXPECT_EQ(slurp(dir / (std::string("lists/") + image)), slurp(dir / (std::string("peel/") + image))) << image;
+  test::TempDir refused;  // (a refused command writes nothing: checked in an empty folder)
+  expectRejected({"layers " + kDefault + " --capture peel --adaptive-thickness", "--adaptive-thickness"}, refused);
+  expectRejected({"layers " + kDefault + " --capture peel --pool 100000", "--capture peel"}, refused);
+  ASSERT_NO_FATAL_FAILURE(expectRuns("bench " + kDefault + " --experiment peel --repeat 1 --width 96 --height 54 --quiet -o " + (dir / "b")));
+  const auto rows = readJson(dir / "b/peel.json")["rows"];
+  ASSERT_EQ(rows.size(), 8u);
+  EXPECT_GT(rows[0]["lists_bytes"].get<double>(), rows[0]["peel_bytes"].get<double>());  // the lists store every fragment
+}
+
 TEST(CliRender, HssrStatsKeysAndSameBytesForOneAndTwoThreads) {
   test::TempDir dir;
   for (int threads : {1, 2}) {
@@ -893,8 +917,6 @@ TEST(CliGpu, NoDeviceOrNoGpuVersionIsOneLineStatusTwo) {
   expectRejected({"render " + kDefault + " --tracer quadtree --device gpu", "quadtree"}, dir);
   expectRejected({"compare " + kDefault + " --tracers quadtree,embree --device gpu", "--device gpu"}, dir);
   expectRejected({"render " + kDefault + " --device tpu", "--device"}, dir);
-  expectRejected({"layers " + kDefault + " --capture peel", "--capture peel"}, dir);
-  expectRejected({"bench " + kDefault + " --experiment peel", "--experiment peel"}, dir);
   expectRejected({"bench " + kDefault + " --experiment tau --device gpu", "--device gpu"}, dir);
   expectRejected({"layers " + kDefault + " --capture peel --device gpu --adaptive-thickness", "--adaptive-thickness"}, dir);
   // A machine whose EGL has no driver: the device is asked for before the scene is loaded.

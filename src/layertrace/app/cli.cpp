@@ -230,7 +230,7 @@ int runCli(int argc, const char* const* argv, CliMode mode) {
   CLI::App* layersCmd = app.add_subcommand("layers", "capture fragments, write layer images + depth-complexity map");
   addFrameOptions(layersCmd, layers.run, layersRaw, "output folder (default out/layers; statistics in layers.json)");
   addDeviceOption(layersCmd, layers.run);
-  layersCmd->add_option("--capture", layers.capture, "GPU capture: lists (per-pixel linked lists, then sorted) or peel (depth peeling, k geometry passes)")
+  layersCmd->add_option("--capture", layers.capture, "lists (every fragment in per-pixel lists, sorted to k) or peel (depth peeling: k geometry passes, no fragment stored)")
       ->capture_default_str()
       ->check(CLI::IsMember({"lists", "peel"}));
   layersCmd->add_flag("--verify", layers.verify, "compare every pixel's fragment list with Embree all-hit primary rays");
@@ -271,7 +271,7 @@ int runCli(int argc, const char* const* argv, CliMode mode) {
   CLI::App* benchCmd = app.add_subcommand("bench", "the papers' experiments: stride|layers|tau|memory|resolution|threads|capture|warp|gamma|ldc");
   addFrameOptions(benchCmd, bench.run, benchRaw, "output folder (default out/bench; EXPERIMENT.json, .csv and .png)");
   addDeviceOption(benchCmd, bench.run);
-  benchCmd->add_option("--experiment", bench.experiment, "stride | layers | tau | memory | resolution | threads | capture | warp | gamma | ldc | stages (every stage on --device cpu or gpu) | peel (GPU lists against depth peeling, k = 1..8)")->required();
+  benchCmd->add_option("--experiment", bench.experiment, "stride | layers | tau | memory | resolution | threads | capture | warp | gamma | ldc | stages (every stage on --device cpu or gpu) | peel (per-pixel lists against depth peeling, k = 1..8, on --device cpu or gpu)")->required();
   benchCmd->add_option("--repeat", bench.repeat, "runs per measurement (the median is reported)")->capture_default_str();
   addTracerOptions(benchCmd, bench.options);
   benchCmd->add_option("--report", bench.report, "also write an HTML report to this folder (default: the output folder)")->expected(0, 1);

@@ -48,9 +48,10 @@ constexpr float kGpuCaptureTolerance = 1e-5f;
 int runLayers(const LayersOptions& o) {
   const std::string outDir = o.run.output;
   FrameOptions fo = o.run.frame;
-  fo.captureLists = o.verify;  // --verify compares every fragment of every list with Embree
   if (o.capture != "lists" && o.capture != "peel") inputError("--capture ", o.capture, ": unknown (use lists or peel)");
-  if (o.capture == "peel" && o.run.device != "gpu") inputError("--capture peel: depth peeling runs on the GPU (add --device gpu)");
+  const bool peel = o.capture == "peel";
+  fo.captureLists = o.verify && !peel;  // --verify compares every fragment of every list with Embree
+  fo.depthPeeling = peel && o.run.device != "gpu";
   std::shared_ptr<GpuContext> gpu;
   if (o.run.device == "gpu") gpu = openGpu();  // before the scene: a machine without one is told at once
   Frame frame;
@@ -70,7 +71,7 @@ int runLayers(const LayersOptions& o) {
     const EmbreeScene embree(frame.scene);
     const Scene* frontFaces = fo.frontFacesOnly ? &frame.scene : nullptr;
     // Depth peeling keeps no lists: its k layers against Embree's first k surfaces.
-    const VerifyResult v = gpu && o.capture == "peel" ? verifyLayerArrays(frame.layers, frame.camera, embree, frontFaces)
+    const VerifyResult v = peel ? verifyLayerArrays(frame.layers, frame.camera, embree, frontFaces)
                                                       : verifyLayers(frame.lists, frame.camera, embree, frontFaces);
     stats["verify"] = {{"pixels", v.pixels},
                        {"pixels_matching", v.matching},
@@ -84,8 +85,9 @@ int runLayers(const LayersOptions& o) {
       // The GPU's capture against the CPU's of the same view: the same triangle in the same
       // slot, depths within kGpuCaptureTolerance. Rasterizers may break the tie of a pixel centre
       // exactly on a shared edge differently, and the GPU's transforms round differently.
-      FrameOptions cpuOptions = fo;
+      FrameOptions cpuOptions = fo;  // (the same capture method on the CPU)
       cpuOptions.captureLists = false;
+      cpuOptions.depthPeeling = peel;
       const Frame cpu = buildFrame(cpuOptions);
       const LayerAgreement a = compareLayerArrays(frame.layers, cpu.layers, kGpuCaptureTolerance);
       stats["verify"]["gpu_vs_cpu"] = {{"pixel_layers", a.pixelLayers},

@@ -141,6 +141,29 @@ void rasterizeFrame(const FrameOptions& o, Frame& frame) {
   rc.growOnOverflow = o.pool == 0;
   rc.frontFacesOnly = frame.frontFacesOnly = o.frontFacesOnly;
   const LayerConfig lc = layerConfig(o, frame);
+  frame.geometryPasses = 1;
+  if (o.depthPeeling) {
+    if (o.pool != 0 || o.referenceCapture || o.captureLists) inputError("--capture peel: keeps no fragment lists (drop --pool)");
+    CaptureStats cs;
+    FragmentLists& lists = frame.lists;
+    lists.head = {}, lists.nodes = {}, lists.triangle = {};
+    releasePyramid(frame);
+    frame.capture.capturePeeled(frame.scene, frame.camera, rc, lc, frame.layers, lists.complexity, &cs);
+    lists.width = frame.camera.width(), lists.height = frame.camera.height();
+    uint64_t fragments = 0;
+    for (uint32_t c : lists.complexity) fragments += c;
+    lists.generated = lists.stored = fragments;  // the scene's fragments (one pass)
+    frame.fragmentsRasterized = cs.generated;
+    frame.geometryPasses = lc.k;
+    frame.raster = RasterStats{cs.ms(), 0, 1, cs.subTriangles};
+    frame.rasterMs = cs.ms();
+    frame.sortMs = 0.0;
+    frame.capturePipeline = "peel";
+    if (!frame.intervals || frame.intervals.use_count() > 1) frame.intervals = std::make_shared<IntervalLayers>();
+    makeIntervalLayers(frame.layers, frame.layers.k, *frame.intervals);
+    finishPyramid(o, frame);
+    return;
+  }
   if (o.pool == 0 && !o.referenceCapture) {
     // Tile-local capture: the k layers straight from the rasterizer, and the lists
     // too when something reads them (exact-size storage from a counting pass).
@@ -248,7 +271,8 @@ nlohmann::json frameStats(const Frame& f) {
   j["timings_ms"]["sort"] = f.sortMs;
   // "tiles": rasterized and sorted to k in one tile-local pass (raster includes the sort);
   // "tiles+lists": the same pass also wrote every fragment to exact-size per-pixel lists;
-  // "reference": lists in a pool (--pool), then sorted (Hofmann et al. 2017, §4.1–4.2).
+  // "reference": lists in a pool (--pool), then sorted (Hofmann et al. 2017, §4.1–4.2);
+  // "peel": depth peeling, k geometry passes; "gpu-lists", "gpu-peel": the same on the GPU.
   j["capture_pipeline"] = f.capturePipeline;
   j["memory_bytes"]["lists"] = f.lists.memoryBytes();
   j["memory_bytes"]["arrays"] = f.layers.memoryBytes();
@@ -263,10 +287,9 @@ nlohmann::json frameStats(const Frame& f) {
   j["fragments"]["overflow_first_pass"] = f.raster.overflowLost;
   j["fragments"]["raster_passes"] = f.raster.passes;
   j["fragments"]["pool_capacity"] = f.lists.capacity();
-  if (f.capturePipeline.rfind("gpu-", 0) == 0) {
-    j["memory_bytes"]["gpu_capture"] = f.gpuMemoryBytes;
-    j["fragments"]["geometry_passes"] = f.geometryPasses;
-  }
+  if (f.capturePipeline.rfind("gpu-", 0) == 0) j["memory_bytes"]["gpu_capture"] = f.gpuMemoryBytes;
+  if (f.capturePipeline.rfind("gpu-", 0) == 0 || f.capturePipeline == "peel") j["fragments"]["geometry_passes"] = f.geometryPasses;
+  if (f.capturePipeline == "peel") j["fragments"]["rasterized"] = f.fragmentsRasterized;  // over the k passes
   return j;
 }
 

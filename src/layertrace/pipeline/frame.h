@@ -58,6 +58,9 @@ struct FrameOptions {
   /// into lists in a pool through an atomic counter, then sorted): what `--pool` selects, and
   /// what tests and `bench --experiment capture` compare the tile-local capture with.
   bool referenceCapture = false;
+  /// Capture by depth peeling (`--capture peel`, LayerCapture::capturePeeled): k geometry passes,
+  /// no fragment stored; the baseline of Hofmann et al. 2017, Fig. 8.
+  bool depthPeeling = false;
   /// Build this interval pyramid with the capture, into memory the frame keeps from frame to
   /// frame; an hssr tracer with the same configuration uses it instead of building its own. Set
   /// by the commands whose tracers read it; unset, nothing is built.
@@ -92,9 +95,10 @@ struct Frame {
   bool frontFacesOnly = false;     ///< captured with --front-faces-only
   double loadMs = 0.0, rasterMs = 0.0, sortMs = 0.0;
   RasterStats raster;
-  std::string capturePipeline;  ///< "tiles", "tiles+lists", "reference", "gpu-lists" or "gpu-peel" (stats key capture_pipeline)
+  std::string capturePipeline;  ///< "tiles", "tiles+lists", "reference", "peel", "gpu-lists" or "gpu-peel" (stats key capture_pipeline)
   size_t gpuMemoryBytes = 0;    ///< a GPU capture's memory (its pool, lists, arrays and the scene)
-  int geometryPasses = 1;       ///< times the capture rasterized the scene (depth peeling: 2k)
+  int geometryPasses = 1;       ///< times the capture rasterized the scene (depth peeling: k on the CPU, 2k on the GPU)
+  uint64_t fragmentsRasterized = 0;  ///< fragments of all geometry passes (depth peeling)
   /// The capture's pyramid when it was built with `config` over the current level 0, else null.
   std::shared_ptr<IntervalPyramid> pyramidFor(const PyramidConfig& config) const {
     const std::shared_ptr<IntervalLayers> l0 = level0();

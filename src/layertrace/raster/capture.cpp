@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <atomic>
 #include <chrono>
+#include <limits>
 
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>
@@ -118,6 +119,76 @@ LT_CPU_DISPATCH void captureTileWithLists(const Scene& scene, const Camera& came
   captureTileImpl<true>(scene, camera, setup, config, tile, out, complexity, generated, lists);
 }
 
+/// Pass `layer` of depth peeling over one tile (LayerCapture::capturePeeled): the nearest fragment
+/// behind the pixel's layer − 1 becomes its slot `layer`.
+void peelTile(const Scene& scene, const Camera& camera, const RasterSetup& setup, const LayerConfig& config, size_t tile, int layer,
+              LayerArrays& out, std::vector<uint32_t>& complexity, uint64_t& generated) {
+  int tx0, ty0, tx1, ty1;
+  setup.tileBounds(tile, camera, tx0, ty0, tx1, ty1);
+  const int k = config.k, tw = tx1 - tx0 + 1, th = ty1 - ty0 + 1;
+  if (layer == 0)
+    for (int y = ty0; y <= ty1; ++y) {
+      std::fill_n(&out.count[out.pixelIndex(tx0, y)], tw, uint8_t(0));
+      std::fill_n(&complexity[out.pixelIndex(tx0, y)], tw, 0u);
+    }
+  // The pass's winner per pixel of the tile: depth, triangle and the binned sub-triangle.
+  constexpr uint32_t kNone = 0xFFFFFFFFu;
+  thread_local std::vector<float> bestDepth;
+  thread_local std::vector<uint32_t> bestTriangle, bestBin;
+  bestDepth.assign(size_t(tw) * size_t(th), std::numeric_limits<float>::infinity());
+  bestTriangle.assign(size_t(tw) * size_t(th), kNone);
+  bestBin.assign(size_t(tw) * size_t(th), kNone);
+  uint64_t gen = 0;
+  float depths[kMaxTileSize];
+  for (uint32_t i = setup.tileStart[tile]; i < setup.tileStart[tile + 1]; ++i) {
+    const raster::SubTriangle& s = *setup.subs[setup.tileList[i]];
+    const raster::TriangleSetup& ts = setup.setups[s.triangle];
+    raster::forEachCoveredSpan(s, std::max(tx0, s.px0), std::max(ty0, s.py0), std::min(tx1, s.px1), std::min(ty1, s.py1),
+                               [&](int py, int xa, int xb) {
+                                 const int n = xb - xa + 1;
+                                 raster::spanDepths(camera, ts, py, xa, n, depths);
+                                 gen += uint64_t(n);
+                                 for (int d = 0; d < n; ++d) {
+                                   const int px = xa + d;
+                                   const size_t pixel = out.pixelIndex(px, py);
+                                   const float depth = depths[d];
+                                   if (layer == 0) {
+                                     ++complexity[pixel];
+                                   } else {
+                                     // Only what lies behind the previous layer.
+                                     if (out.count[pixel] != layer) continue;
+                                     const size_t prev = pixel * size_t(k) + size_t(layer - 1);
+                                     const float prevDepth = out.slots[prev].depth;
+                                     if (config.minSeparation > 0.0f ? depth < prevDepth + config.minSeparation
+                                                                     : !(depth > prevDepth || (depth == prevDepth && s.triangle < out.triangle[prev])))
+                                       continue;
+                                   }
+                                   const size_t local = size_t(py - ty0) * size_t(tw) + size_t(px - tx0);
+                                   if (depth < bestDepth[local] || (depth == bestDepth[local] && s.triangle > bestTriangle[local]))
+                                     bestDepth[local] = depth, bestTriangle[local] = s.triangle, bestBin[local] = i;
+                                 }
+                               });
+  }
+  for (int y = ty0; y <= ty1; ++y)
+    for (int x = tx0; x <= tx1; ++x) {
+      const size_t local = size_t(y - ty0) * size_t(tw) + size_t(x - tx0), pixel = out.pixelIndex(x, y);
+      const size_t slot = pixel * size_t(k) + size_t(layer);
+      if (bestBin[local] != kNone) {
+        const auto [s, ts, vi, albedoSpec] = setup.binned(scene, bestBin[local]);
+        const float depth = bestDepth[local];
+        const uint32_t packed = raster::fragmentNormal(camera, ts, setup.camNormals.data(), vi, raster::pixelRay(camera, x, y), depth);
+        out.slots[slot] = {depth, packed, albedoSpec, 0u};
+        out.slots[slot].setThickness(config.thicknessAt(depth));
+        out.triangle[slot] = s.triangle;
+        out.count[pixel] = uint8_t(layer + 1);
+      } else {
+        out.slots[slot] = FragmentNode{0.0f, 0u, 0u, 0u};
+        out.triangle[slot] = kNullIndex;
+      }
+    }
+  generated += gen;
+}
+
 /// The counting pass of the list-producing capture: fragments per pixel (coverage only).
 void countTile(const Camera& camera, const RasterSetup& setup, size_t tile, int width, std::vector<uint32_t>& complexity) {
   int tx0, ty0, tx1, ty1;
@@ -158,10 +229,12 @@ namespace {
 
 /// Validates, sets up the view and sizes the k-layer arrays and the complexity counters.
 void beginCapture(const Scene& scene, const Camera& camera, const RasterConfig& rasterConfig, const LayerConfig& config,
-                  RasterSetup& setup, LayerArrays& layers, std::vector<uint32_t>& complexity) {
+                  RasterSetup& setup, LayerArrays& layers, std::vector<uint32_t>& complexity, bool peeling = false) {
   validateLayerConfig(config);
   LT_CHECK(rasterConfig.tileSize > 0 && rasterConfig.tileSize <= kMaxTileSize, rasterConfig.tileSize);
-  if (config.adaptiveThickness || config.minSeparation > 0.0f)
+  if (peeling && config.adaptiveThickness)
+    inputError("--adaptive-thickness: needs every fragment of a pixel, which depth peeling does not keep (use --capture lists)");
+  if (!peeling && (config.adaptiveThickness || config.minSeparation > 0.0f))
     inputError("tile-local capture: adaptive thickness and --min-separation sort whole fragment lists (sortAndTruncate)");
   raster::prepareRaster(scene, camera, rasterConfig, setup);
   const size_t pixels = size_t(camera.width()) * size_t(camera.height()), k = size_t(config.k);
@@ -205,6 +278,22 @@ void LayerCapture::capture(const Scene& scene, const Camera& camera, const Raste
   const auto t1 = std::chrono::steady_clock::now();
   const uint64_t generated =
       forEachTile(setup, camera, onTile, [&](size_t tile, uint64_t& gen) { captureTile(scene, camera, setup, config, tile, layers, complexity, gen); });
+  const auto t2 = std::chrono::steady_clock::now();
+  if (stats) *stats = CaptureStats{msBetween(t0, t1), msBetween(t1, t2), generated, setup.subs.size()};
+}
+
+void LayerCapture::capturePeeled(const Scene& scene, const Camera& camera, const RasterConfig& rasterConfig, const LayerConfig& config,
+                                 LayerArrays& layers, std::vector<uint32_t>& complexity, CaptureStats* stats) {
+  if (!setup_) setup_ = std::make_unique<RasterSetup>();
+  const RasterSetup& setup = *setup_;
+  const auto t0 = std::chrono::steady_clock::now();
+  beginCapture(scene, camera, rasterConfig, config, *setup_, layers, complexity, true);
+  const auto t1 = std::chrono::steady_clock::now();
+  uint64_t generated = 0;
+  for (int layer = 0; layer < config.k; ++layer)  // one geometry pass per layer, over the whole view
+    generated += forEachTile(setup, camera, nullptr, [&](size_t tile, uint64_t& gen) {
+      peelTile(scene, camera, setup, config, tile, layer, layers, complexity, gen);
+    });
   const auto t2 = std::chrono::steady_clock::now();
   if (stats) *stats = CaptureStats{msBetween(t0, t1), msBetween(t1, t2), generated, setup.subs.size()};
 }

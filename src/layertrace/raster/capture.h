@@ -69,6 +69,16 @@ class LayerCapture {
   void captureWithLists(const Scene& scene, const Camera& camera, const RasterConfig& raster, const LayerConfig& config,
                         LayerArrays& layers, FragmentLists& lists, CaptureStats* stats = nullptr, const TileDone* onTile = nullptr);
 
+  /// Depth peeling (Everitt 2001; the baseline of Hofmann et al. 2017, Fig. 8): k geometry
+  /// passes over the whole scene, pass L keeping per pixel the nearest fragment behind layer
+  /// L − 1 (farther, or at its depth from a lower triangle index; with a minimum separation, at
+  /// least that far behind it). Equal depths rank the higher triangle first, as the lists do, so
+  /// the layers are capture()'s bit for bit (with a minimum separation, sortAndTruncate's).
+  /// No fragment is stored. `stats->generated` counts the fragments of all k passes.
+  /// InputError for a bad LayerConfig and for adaptive thickness (it needs every fragment).
+  void capturePeeled(const Scene& scene, const Camera& camera, const RasterConfig& raster, const LayerConfig& config,
+                     LayerArrays& layers, std::vector<uint32_t>& complexity, CaptureStats* stats = nullptr);
+
   /// Bytes of scratch the object holds between frames.
   size_t scratchBytes() const;
 
