@@ -2,6 +2,7 @@
 // for bit, a moving camera's picture has ¼ of the pixels, overlays come back with the right
 // size and meaning, and a refused option becomes an error message instead of an exception.
 #include "layertrace/app/view_session.h"
+#include "layertrace/pipeline/gpu_tracers.h"
 #include "layertrace/eval/classify.h"
 #include "test_util.h"
 #include "layertrace/util/error.h"
@@ -102,6 +103,32 @@ TEST(ViewSession, OverlaysAndGeometricTracers) {
   EXPECT_EQ(l.image.width, 160);
   q.overlay = ViewOverlay::DepthComplexity;
   EXPECT_EQ(session.render(q).image.height, 90);
+}
+
+// --device gpu: the capture and the tracers with a GPU version run on the GPU; the pictures are
+// the CPU session's (bit for bit on an IEEE device such as llvmpipe, as tests/gpu_test.cpp
+// holds the GPU tracers to), and a tracer without a GPU version runs on the CPU over the GPU's
+// capture.
+TEST(ViewSession, GpuDeviceGivesTheCpuPictures) {
+  if (std::getenv("LAYERTRACE_SANITIZED")) GTEST_SKIP() << "sanitized build: the GPU driver is not instrumented";
+  RenderOptions cpuOptions = defaultOptions(), gpuOptions = defaultOptions();
+  gpuOptions.run.device = "gpu";
+  ViewSession cpu(cpuOptions), gpu(gpuOptions);
+  const bool software = gpuStats(*openGpu())["software"].get<bool>();  // an IEEE device: exact
+  for (const char* tracer : {"hssr", "ssr-layers", "quadtree"}) {
+    SCOPED_TRACE(tracer);
+    ViewRequest q = cpu.initialRequest();
+    q.tracer = tracer;
+    const ViewResult a = cpu.render(q), b = gpu.render(q);
+    ASSERT_TRUE(b.error.empty()) << b.error;
+    EXPECT_EQ(b.device, std::string(tracer) == "quadtree" ? "cpu" : "gpu");
+    EXPECT_EQ(a.device, "cpu");
+    ASSERT_EQ(a.traced.data.size(), b.traced.data.size());
+    size_t differ = 0;
+    for (size_t i = 0; i < a.traced.data.size(); ++i) differ += a.traced.data[i] != b.traced.data[i];
+    EXPECT_LE(double(differ), software ? 0.0 : 1e-3 * double(a.traced.data.size()));
+    EXPECT_EQ(gpu.frame().capturePipeline, "gpu-lists");
+  }
 }
 
 TEST(ViewSession, RefusedOptionsBecomeMessages) {

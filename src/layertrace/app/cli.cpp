@@ -296,6 +296,7 @@ int runCli(int argc, const char* const* argv, CliMode mode) {
   CLI::App* viewCmd = app.add_subcommand("view", "interactive viewer: fly through the scene, switch tracers and overlays live");
   addFrameOptions(viewCmd, view.render.run, viewRaw, "scripted mode: write the last traced image (without the UI) to this PNG");
   viewCmd->add_option("--tracer", view.render.tracer, "ssr | ssr-layers | hiz | hssr | quadtree | ldc | hybrid | embree | grid")->capture_default_str();
+  addDeviceOption(viewCmd, view.render.run);
   addEffectOptions(viewCmd, view.render.effect, viewEffect, viewRaw);
   addTracerOptions(viewCmd, view.render.tracers);
   viewCmd->add_option("--frames", view.frames, "render this many full frames without input, then exit (scripted mode)")->capture_default_str();

@@ -7,6 +7,7 @@
 #include <sstream>
 
 #include "layertrace/eval/classify.h"
+#include "layertrace/pipeline/gpu_tracers.h"
 #include "layertrace/util/error.h"
 
 namespace lt {
@@ -59,6 +60,10 @@ ViewSession::ViewSession(const RenderOptions& options) : options_(options), cach
   validateTracerOptions(options.tracers);
   validateEffectConfig(options.effect);
   if (!isKnownTracer(options.tracer)) inputError("--tracer ", options.tracer, ": unknown (use ", tracerNames(), ")");
+  if (options.run.device == "gpu") {
+    gpu_ = openGpu();  // before the scene: a machine without one is told at once
+    releaseGpu(*gpu_);  // render() makes it current on the thread that renders (the viewer's worker)
+  }
   loadFrameScene(options.run.frame, frame_);
   initial_.camera = frame_.camera.desc();
   initial_.width = options.run.frame.width;
@@ -89,7 +94,12 @@ ViewResult ViewSession::render(const ViewRequest& q) {
     prepareCapture(q.tracer, q.tracers, fo);  // into memory reused frame to frame
     validateFrameOptions(fo);
     setFrameView(fo, q.camera, frame_);
-    rasterizeFrame(fo, frame_);
+    if (gpu_) {
+      makeGpuCurrent(*gpu_);
+      rasterizeFrameOnGpu(*gpu_, fo, "lists", frame_);
+    } else {
+      rasterizeFrame(fo, frame_);
+    }
     out.captureMs = frame_.rasterMs + frame_.sortMs;
 
     ViewCache& cache = *cache_;
@@ -100,7 +110,11 @@ ViewResult ViewSession::render(const ViewRequest& q) {
     BuiltTracer fresh;
     const BuiltTracer* built = nullptr;
     const auto ts = std::chrono::steady_clock::now();
-    if (!viewIndependent) {
+    const bool onGpu = gpu_ && hasGpuTracer(q.tracer);
+    if (onGpu) {
+      fresh = buildGpuTracer(q.tracer, frame_, q.tracers, *gpu_);
+      built = &fresh;
+    } else if (!viewIndependent) {
       fresh = entry->build(frame_, q.tracers);
       built = &fresh;
     } else {
@@ -119,6 +133,8 @@ ViewResult ViewSession::render(const ViewRequest& q) {
     EffectConfig ec = q.effect;
     ec.progress = false;
     ec.countRays = q.overlay == ViewOverlay::Iterations;  // the heat map needs the counters
+    ec.wholeWaves = onGpu;  // one dispatch per wave
+    out.device = onGpu ? "gpu" : "cpu";
     EffectResult r = renderEffect(frame_, *built->tracer, ec, classes.get());
     out.traceMs = r.traceMs;
     out.rays = r.rays;

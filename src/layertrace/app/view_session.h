@@ -1,6 +1,9 @@
 // The CPU side of `layertrace view`: the scene loaded once, and one picture per request — capture
 // for the request's camera, the tracer's structure, the effect, and the overlay the user picked.
-// It has no window and no OpenGL, so tests run it headless; apps/viewer/ puts it on screen.
+// It has no window, so tests run it headless; apps/viewer/ puts it on screen. With
+// `--device gpu` the capture and the tracers that have a GPU version run on the GPU, through a
+// headless context of its own (gpu/): the caller makes its window's context current again after
+// render().
 #pragma once
 
 #include <array>
@@ -44,12 +47,14 @@ struct ViewResult {
   bool classified = false;  ///< classFractions hold the strict classes of this frame's rays
   std::array<double, kRayClasses> classFractions{};
   std::string error;  ///< a refused option (the picture is then empty)
+  std::string device = "cpu";  ///< where the tracer ran ("gpu": --device gpu and a tracer with a GPU version)
 };
 
 /// Checks --frames and the screenshot paths (InputError naming the option).
 void validateViewOptions(const ViewOptions& options);
 
 struct ViewCache;
+class GpuContext;
 
 class ViewSession {
  public:
@@ -70,6 +75,7 @@ class ViewSession {
   Frame frame_;
   ViewRequest initial_;
   std::unique_ptr<ViewCache> cache_;  ///< view-independent structures built so far (refer to frame_)
+  std::shared_ptr<GpuContext> gpu_;   ///< --device gpu
 };
 
 }  // namespace lt

@@ -96,10 +96,11 @@ GpuContext::GpuContext() {
 GpuContext::~GpuContext() {
   if (!display_) return;
   auto display = static_cast<EGLDisplay>(display_);
-  eglMakeCurrent(display, EGL_NO_SURFACE, EGL_NO_SURFACE, EGL_NO_CONTEXT);
+  release();
   if (context_) eglDestroyContext(display, static_cast<EGLContext>(context_));
-  eglTerminate(display);
-  eglReleaseThread();
+  // No eglTerminate: EGL hands every context on the same device the same display, and
+  // terminating it would end the other contexts of the process (the viewer's and a test's).
+  // The display's connection lives until the process ends.
 }
 
 bool GpuContext::software() const {
@@ -112,6 +113,11 @@ void GpuContext::makeCurrent() const {
   if (eglGetCurrentContext() == static_cast<EGLContext>(context_)) return;
   if (!eglMakeCurrent(static_cast<EGLDisplay>(display_), EGL_NO_SURFACE, EGL_NO_SURFACE, static_cast<EGLContext>(context_)))
     throw InternalError("eglMakeCurrent failed (is the GPU context current on another thread?)");
+}
+
+void GpuContext::release() const {
+  if (eglGetCurrentContext() == static_cast<EGLContext>(context_))
+    eglMakeCurrent(static_cast<EGLDisplay>(display_), EGL_NO_SURFACE, EGL_NO_SURFACE, EGL_NO_CONTEXT);
 }
 
 uint32_t GpuContext::link(std::string_view name, std::initializer_list<std::pair<uint32_t, std::string_view>> stages) const {

@@ -55,6 +55,9 @@ class GpuContext {
   bool software() const;
   /// Makes the context current on the calling thread (it is after construction).
   void makeCurrent() const;
+  /// Releases the context from the calling thread (when it is current there), so that another
+  /// thread can make it current.
+  void release() const;
   /// Compiles and links one compute shader; InternalError with the driver's log on failure
   /// (the build validated every shader, so a failure here is a driver's).
   GpuProgram computeProgram(std::string_view name, std::string_view source) const;

@@ -101,6 +101,9 @@ bool setGpuPersistentThreads(Tracer& tracer, bool on) {
   return true;
 }
 
+void makeGpuCurrent(const GpuContext& gpu) { gpu.makeCurrent(); }
+void releaseGpu(const GpuContext& gpu) { gpu.release(); }
+
 double gpuTraceMs(const Tracer& tracer) {
   const auto* g = dynamic_cast<const GpuScreenTracer*>(&tracer);
   return g ? g->totalTraceMs() : 0.0;
@@ -114,6 +117,8 @@ std::shared_ptr<GpuContext> openGpu() {
   inputError("--device gpu: this build has no GPU back end (apt-get install libepoxy-dev libegl-dev glslang-tools, then rebuild)");
 }
 nlohmann::json gpuStats(const GpuContext&) { return {}; }
+void makeGpuCurrent(const GpuContext&) {}
+void releaseGpu(const GpuContext&) {}
 void rasterizeFrameOnGpu(GpuContext&, const FrameOptions&, const std::string&, Frame&) { openGpu(); }
 BuiltTracer buildGpuTracer(const std::string&, const Frame&, const TracerOptions&, GpuContext&) {
   openGpu();

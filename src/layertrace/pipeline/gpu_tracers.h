@@ -23,6 +23,11 @@ std::shared_ptr<GpuContext> openGpu();
 /// The device as the statistics report it: renderer, OpenGL version, and whether it is a
 /// CPU rasterizer (whose times are CPU times, never GPU speed).
 nlohmann::json gpuStats(const GpuContext& gpu);
+/// Makes the GPU's context current on this thread again (after a window system's context was:
+/// the viewer).
+void makeGpuCurrent(const GpuContext& gpu);
+/// Releases the GPU's context from this thread, for another thread to make it current.
+void releaseGpu(const GpuContext& gpu);
 
 /// The frame's capture on the GPU (--device gpu; `capture` "lists" or "peel"), for a frame whose
 /// scene is loaded (loadFrameScene): its layers, level 0, fragment counts and timings, as
