@@ -13,6 +13,9 @@ common=(--width 320 --height 180 --tracer hssr --effect reflection --bounces 2 -
 xvfb-run -a -s "-screen 0 1024x768x24" "$bin" view "$src/scenes/default.json" "${common[@]}" \
   --frames 3 -o "$tmp/view.png" --screenshot-ui "$tmp/ui.png"
 "$bin" render "$src/scenes/default.json" "${common[@]}" -o "$tmp/render.png"
+# GPU mode (the headless GL context beside the window's): the same picture.
+xvfb-run -a -s "-screen 0 1024x768x24" "$bin" view "$src/scenes/default.json" "${common[@]}" --device gpu \
+  --frames 3 -o "$tmp/view_gpu.png"
 # A scripted screenshot without --frames is refused before any window opens (exit 2, no file).
 if "$bin" view "$src/scenes/default.json" --screenshot "$tmp/bad.png" 2>/dev/null; then
   echo "view --screenshot without --frames was accepted" >&2; exit 1
@@ -23,7 +26,8 @@ import sys
 import matplotlib.image as mpimg
 import numpy as np
 d = sys.argv[1]
-view, render, ui = (mpimg.imread(f"{d}/{n}.png")[..., :3] for n in ("view", "render", "ui"))
+view, render, ui, gpu = (mpimg.imread(f"{d}/{n}.png")[..., :3] for n in ("view", "render", "ui", "view_gpu"))
+assert gpu.shape == render.shape and float(np.abs(gpu - render).mean()) <= 1.0 / 255.0, "the GPU viewer's image differs from render's"
 assert view.shape == render.shape == (180, 320, 3), (view.shape, render.shape)
 mad = float(np.abs(view - render).mean())
 print(f"viewer vs render: mean absolute difference {mad * 255:.4f}/255; ui {ui.shape[1]}x{ui.shape[0]}, std {ui.std():.3f}")
