@@ -37,6 +37,30 @@ struct ListOutput {
   uint32_t* cursor;
 };
 
+/// Every fragment of tile `tile` (inclusive pixel bounds tx0…tx1 × ty0…ty1), in the order the
+/// lists keep (the tile's sub-triangles ascending, rows top-down, pixels left to right):
+/// f(binned sub-triangle, its index in the tile's list, px, py, depth). Returns the count.
+template <class F>
+inline uint64_t forEachFragment(const Scene& scene, const Camera& camera, const RasterSetup& setup, size_t tile, int tx0, int ty0,
+                                int tx1, int ty1, F&& f) {
+  uint64_t gen = 0;
+  float depths[kMaxTileSize];
+  for (uint32_t i = setup.tileStart[tile]; i < setup.tileStart[tile + 1]; ++i) {
+    const RasterSetup::Binned b = setup.binned(scene, i);
+    const raster::SubTriangle& s = b.sub;
+    raster::forEachCoveredSpan(s, std::max(tx0, s.px0), std::max(ty0, s.py0), std::min(tx1, s.px1), std::min(ty1, s.py1),
+                               [&](int py, int xa, int xb) {
+                                 // Depths of the whole span first: one loop the compiler
+                                 // vectorizes (the same IEEE operations per lane, so the same bits).
+                                 const int n = xb - xa + 1;
+                                 raster::spanDepths(camera, b.setup, py, xa, n, depths);
+                                 gen += uint64_t(n);
+                                 for (int d = 0; d < n; ++d) f(b, i, xa + d, py, depths[d]);
+                               });
+  }
+  return gen;
+}
+
 /// One tile: every fragment of the tile's triangles goes straight into its pixel's k slots
 /// (the insertion sort of Hofmann et al. 2017, §4.2, run as the fragments arrive instead of over a
 /// finished list). Without lists, a fragment behind a full pixel's k-th is counted and dropped
@@ -54,47 +78,31 @@ inline void captureTileImpl(const Scene& scene, const Camera& camera, const Rast
     std::fill_n(&out.count[row], tx1 - tx0 + 1, uint8_t(0));
     if constexpr (!kLists) std::fill_n(&complexity[row], tx1 - tx0 + 1, 0u);  // the counting pass set it
   }
-  uint64_t gen = 0;
-  float depths[kMaxTileSize];
-  for (uint32_t i = setup.tileStart[tile]; i < setup.tileStart[tile + 1]; ++i) {
-    const auto [s, ts, vi, albedoSpec] = setup.binned(scene, i);
-    raster::forEachCoveredSpan(s, std::max(tx0, s.px0), std::max(ty0, s.py0), std::min(tx1, s.px1), std::min(ty1, s.py1),
-                               [&](int py, int xa, int xb) {
-                                 // Depths of the whole span first: one loop the compiler
-                                 // vectorizes (the same IEEE operations per lane, so the same bits).
-                                 const int n = xb - xa + 1;
-                                 raster::spanDepths(camera, ts, py, xa, n, depths);
-                                 gen += uint64_t(n);
-                                 for (int d = 0; d < n; ++d) {
-                                   const int px = xa + d;
-                                   const size_t pixel = out.pixelIndex(px, py);
-                                   const float depth = depths[d];
-                                   auto normal = [&] {
-                                     return raster::fragmentNormal(camera, ts, setup.camNormals.data(), vi, raster::pixelRay(camera, px, py), depth);
-                                   };
-                                   uint32_t packed = 0;
-                                   if constexpr (kLists) {
-                                     packed = normal();
-                                     const uint32_t node = lists.cursor[pixel]++;
-                                     lists.nodes[node] = {depth, packed, albedoSpec, node == lists.offset[pixel] ? kNullIndex : node - 1};
-                                     lists.triangle[node] = s.triangle;
-                                   } else {
-                                     ++complexity[pixel];
-                                   }
-                                   FragmentNode* slot = &out.slots[pixel * size_t(k)];
-                                   uint32_t* tri = &out.triangle[pixel * size_t(k)];
-                                   const int count = out.count[pixel];
-                                   // The newest fragment ranks first among equal depths (see capture.h).
-                                   if (count == k && depth > slot[k - 1].depth) continue;
-                                   int j = std::min(count, k - 1);
-                                   for (; j > 0 && depth <= slot[j - 1].depth; --j) slot[j] = slot[j - 1], tri[j] = tri[j - 1];
-                                   if constexpr (!kLists) packed = normal();
-                                   slot[j] = {depth, packed, albedoSpec, 0u};
-                                   tri[j] = s.triangle;
-                                   out.count[pixel] = uint8_t(std::min(count + 1, k));
-                                 }
-                               });
-  }
+  const uint64_t gen = forEachFragment(scene, camera, setup, tile, tx0, ty0, tx1, ty1,
+                                       [&](const RasterSetup::Binned& b, uint32_t, int px, int py, float depth) {
+    const size_t pixel = out.pixelIndex(px, py);
+    auto normal = [&] { return raster::fragmentNormal(camera, b.setup, setup.camNormals.data(), b.vertices, raster::pixelRay(camera, px, py), depth); };
+    uint32_t packed = 0;
+    if constexpr (kLists) {
+      packed = normal();
+      const uint32_t node = lists.cursor[pixel]++;
+      lists.nodes[node] = {depth, packed, b.albedoSpec, node == lists.offset[pixel] ? kNullIndex : node - 1};
+      lists.triangle[node] = b.sub.triangle;
+    } else {
+      ++complexity[pixel];
+    }
+    FragmentNode* slot = &out.slots[pixel * size_t(k)];
+    uint32_t* tri = &out.triangle[pixel * size_t(k)];
+    const int count = out.count[pixel];
+    // The newest fragment ranks first among equal depths (see capture.h).
+    if (count == k && depth > slot[k - 1].depth) return;
+    int j = std::min(count, k - 1);
+    for (; j > 0 && depth <= slot[j - 1].depth; --j) slot[j] = slot[j - 1], tri[j] = tri[j - 1];
+    if constexpr (!kLists) packed = normal();
+    slot[j] = {depth, packed, b.albedoSpec, 0u};
+    tri[j] = b.sub.triangle;
+    out.count[pixel] = uint8_t(std::min(count + 1, k));
+  });
   for (int y = ty0; y <= ty1; ++y)
     for (int x = tx0; x <= tx1; ++x) {
       const size_t pixel = out.pixelIndex(x, y);
@@ -138,37 +146,25 @@ void peelTile(const Scene& scene, const Camera& camera, const RasterSetup& setup
   bestDepth.assign(size_t(tw) * size_t(th), std::numeric_limits<float>::infinity());
   bestTriangle.assign(size_t(tw) * size_t(th), kNone);
   bestBin.assign(size_t(tw) * size_t(th), kNone);
-  uint64_t gen = 0;
-  float depths[kMaxTileSize];
-  for (uint32_t i = setup.tileStart[tile]; i < setup.tileStart[tile + 1]; ++i) {
-    const raster::SubTriangle& s = *setup.subs[setup.tileList[i]];
-    const raster::TriangleSetup& ts = setup.setups[s.triangle];
-    raster::forEachCoveredSpan(s, std::max(tx0, s.px0), std::max(ty0, s.py0), std::min(tx1, s.px1), std::min(ty1, s.py1),
-                               [&](int py, int xa, int xb) {
-                                 const int n = xb - xa + 1;
-                                 raster::spanDepths(camera, ts, py, xa, n, depths);
-                                 gen += uint64_t(n);
-                                 for (int d = 0; d < n; ++d) {
-                                   const int px = xa + d;
-                                   const size_t pixel = out.pixelIndex(px, py);
-                                   const float depth = depths[d];
-                                   if (layer == 0) {
-                                     ++complexity[pixel];
-                                   } else {
-                                     // Only what lies behind the previous layer.
-                                     if (out.count[pixel] != layer) continue;
-                                     const size_t prev = pixel * size_t(k) + size_t(layer - 1);
-                                     const float prevDepth = out.slots[prev].depth;
-                                     if (config.minSeparation > 0.0f ? depth < prevDepth + config.minSeparation
-                                                                     : !(depth > prevDepth || (depth == prevDepth && s.triangle < out.triangle[prev])))
-                                       continue;
-                                   }
-                                   const size_t local = size_t(py - ty0) * size_t(tw) + size_t(px - tx0);
-                                   if (depth < bestDepth[local] || (depth == bestDepth[local] && s.triangle > bestTriangle[local]))
-                                     bestDepth[local] = depth, bestTriangle[local] = s.triangle, bestBin[local] = i;
-                                 }
-                               });
-  }
+  const uint64_t gen = forEachFragment(scene, camera, setup, tile, tx0, ty0, tx1, ty1,
+                                       [&](const RasterSetup::Binned& b, uint32_t i, int px, int py, float depth) {
+    const size_t pixel = out.pixelIndex(px, py);
+    const uint32_t triangle = b.sub.triangle;
+    if (layer == 0) {
+      ++complexity[pixel];
+    } else {
+      // Only what lies behind the previous layer.
+      if (out.count[pixel] != layer) return;
+      const size_t prev = pixel * size_t(k) + size_t(layer - 1);
+      const float prevDepth = out.slots[prev].depth;
+      if (config.minSeparation > 0.0f ? depth < prevDepth + config.minSeparation
+                                      : !(depth > prevDepth || (depth == prevDepth && triangle < out.triangle[prev])))
+        return;
+    }
+    const size_t local = size_t(py - ty0) * size_t(tw) + size_t(px - tx0);
+    if (depth < bestDepth[local] || (depth == bestDepth[local] && triangle > bestTriangle[local]))
+      bestDepth[local] = depth, bestTriangle[local] = triangle, bestBin[local] = i;
+  });
   for (int y = ty0; y <= ty1; ++y)
     for (int x = tx0; x <= tx1; ++x) {
       const size_t local = size_t(y - ty0) * size_t(tw) + size_t(x - tx0), pixel = out.pixelIndex(x, y);
