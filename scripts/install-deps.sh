@@ -8,7 +8,7 @@ set -euo pipefail
 packages=(
   build-essential cmake pkg-config ca-certificates
   libembree-dev libassimp-dev libtbb-dev libglm-dev libcli11-dev nlohmann-json3-dev
-  libopenexr-dev libstb-dev zlib1g-dev
+  libopenexr-dev libstb-dev zlib1g-dev libhwy-dev
   # The GPU back end: OpenGL through headless EGL (libepoxy), shaders checked at build time, and
   # Mesa's drivers (llvmpipe runs it on a machine without a GPU).
   libepoxy-dev libegl-dev glslang-tools libegl-mesa0 libgl1-mesa-dri

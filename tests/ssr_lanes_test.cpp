@@ -1,4 +1,5 @@
-// The SSR march of McGuire and Mara 2014 in AVX-512 lanes (ssr/ssr_march_lanes.h) against the
+// The SSR march of McGuire and Mara 2014 in vector lanes, on every vector target this CPU runs
+// (ssr/ssr_march_lanes.h), against the
 // one-ray march it must equal bit for bit: the same pixel, interval and sample parameter for every
 // ray, over the front layer (ssr) and all k ≤ 4 layers (ssr-layers), strides 1 and 3, with jitter,
 // with a step cap that ends marches early, in batches shorter than the lanes, of the renderer's
@@ -26,7 +27,7 @@ void expectLanesEqualMarch(const Frame& f, const std::vector<Ray>& rays) {
   for (const Case& c : {Case{1, 1.0f, 0.0f, 10000}, Case{f.layers.k, 1.0f, 0.0f, 10000}, Case{2, 3.0f, 0.37f, 10000},
                         Case{3, 1.0f, 0.0f, 7}, Case{f.layers.k, 2.5f, 0.9f, 40}}) {
     const IntervalLayers depth = makeIntervalLayers(f.layers, c.k);
-    if (!ssrLanesAvailable(depth)) std::printf("[  NOTE    ] no AVX-512 lanes here for k = %d: ssrMarchBatch runs ssrMarch\n", depth.k);
+    EXPECT_TRUE(ssrLanesAvailable(depth)) << "k " << c.k;
     std::vector<SsrStart> starts(rays.size());
     for (size_t i = 0; i < rays.size(); ++i) starts[i] = SsrStart(makeScreenSegment(f.camera, rays[i]), c.stride, c.jitter);
     std::vector<SsrSample> one(rays.size());
@@ -37,6 +38,7 @@ void expectLanesEqualMarch(const Frame& f, const std::vector<Ray>& rays) {
       hits += one[i].hit();
     }
     EXPECT_GT(hits, rays.size() / 20) << "too few hits to mean anything (k " << c.k << " stride " << c.stride << ")";
+    test::forEachSimdTarget([&](const SimdTarget&) {
     for (size_t batch : {size_t(5), size_t(256), rays.size()}) {
       std::vector<SsrSample> lanes(rays.size());
       for (size_t b = 0; b < rays.size(); b += batch) {
@@ -54,6 +56,7 @@ void expectLanesEqualMarch(const Frame& f, const std::vector<Ray>& rays) {
       EXPECT_EQ(differ, 0u) << "k " << c.k << " stride " << c.stride << " max steps " << c.maxSteps << " batch " << batch
                             << " first ray " << first;
     }
+    });
   }
   // The tracers: uncounted batches (the lanes, then refinement and the fragment) against one
   // ray at a time with counters (ssrMarch itself).

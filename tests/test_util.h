@@ -16,6 +16,7 @@
 #include "layertrace/trace/tracer.h"
 #include "layertrace/scene/camera.h"
 #include "layertrace/scene/scene.h"
+#include "layertrace/util/simd_targets.h"
 
 namespace lt::test {
 
@@ -32,6 +33,17 @@ int runCli(const std::string& args, std::string* err = nullptr, std::string* out
 
 /// The repository's source directory (for scenes/).
 inline std::string sourceDir() { return LAYERTRACE_SOURCE_DIR; }
+
+/// Runs `body` once on every vector target this build has and this CPU runs (util/simd_targets.h),
+/// the lane loops restricted to that target, each failure naming it.
+template <class Body>
+void forEachSimdTarget(Body&& body) {
+  for (const SimdTarget& t : simdTargets()) {
+    SCOPED_TRACE("vector target " + t.name);
+    const ScopedSimdTarget only(t);
+    body(t);
+  }
+}
 
 /// Frame options for a scene file of scenes/ (a fetched real scene) with one of its cameras.
 FrameOptions realSceneOptions(const std::string& sceneFile, const std::string& camera);

@@ -1,0 +1,33 @@
+// The vector targets the lane loops are compiled for (util/lanes-inl.h, Google Highway), which of
+// them this CPU runs, and a way to run the loops on one of them: the same answers on every
+// target are tested, and `bench --experiment simd` times each.
+#pragma once
+
+#include <cstdint>
+#include <string>
+#include <vector>
+
+namespace lt {
+
+struct SimdTarget {
+  int64_t bits = 0;  ///< Highway's target bit (HWY_AVX3, HWY_AVX2, …)
+  std::string name;  ///< avx512, avx2, sse4, neon, sve, sve2, emu128 (the emulation), …
+};
+
+/// The targets compiled into this build that this CPU runs, best first.
+std::vector<SimdTarget> simdTargets();
+
+/// The target the lane loops run on now (the best one, or the one a ScopedSimdTarget chose).
+SimdTarget activeSimdTarget();
+
+/// While alive, the lane loops run on `target` only (one of simdTargets()); the best target again
+/// afterwards. Dispatch is process-wide: do not change it while other threads run lane loops.
+class ScopedSimdTarget {
+ public:
+  explicit ScopedSimdTarget(const SimdTarget& target);
+  ~ScopedSimdTarget();
+  ScopedSimdTarget(const ScopedSimdTarget&) = delete;
+  ScopedSimdTarget& operator=(const ScopedSimdTarget&) = delete;
+};
+
+}  // namespace lt
