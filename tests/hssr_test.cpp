@@ -72,8 +72,8 @@ void expectExact(const Frame& f, size_t count) {
     }
 }
 
-/// The lane march (hssr_march_lanes.h: sixteen rays at a time with lane refill, AVX-512)
-/// against hssrMarch one ray at a time: the same pixel, interval and entry parameter bit for
+/// The lane march (hssr_march_lanes.h: a ray per vector lane with lane refill), on every vector
+/// target this CPU runs, against hssrMarch one ray at a time: the same pixel, interval and entry parameter bit for
 /// bit, in batches of several sizes (a batch shorter than the lanes, the renderer's 256, all) —
 /// and the same traversal: as many cells tested per ray (hits do not depend on the ascent and
 /// descent rules, so a lane step that dropped one would pass the hit comparison).
@@ -81,7 +81,8 @@ void expectLanesEqualMarch(const Frame& f, const IntervalPyramid& p, int levels,
   const int W = f.camera.width(), H = f.camera.height();
   std::vector<ScreenSegment> segs(rays.size());
   for (size_t i = 0; i < rays.size(); ++i) segs[i] = makeScreenSegment(f.camera, rays[i]);
-  if (!hssrLanesAvailable(p, levels)) std::printf("[  NOTE    ] no AVX-512 lanes here: hssrMarchBatch runs hssrMarch\n");
+  EXPECT_TRUE(hssrLanesAvailable(p, levels)) << "levels " << levels;
+  test::forEachSimdTarget([&](const SimdTarget&) {
   for (size_t batch : {size_t(5), size_t(256), segs.size()}) {
     std::vector<MarchHit> lanes(segs.size());
     std::vector<uint32_t> laneCells(segs.size());
@@ -109,6 +110,7 @@ void expectLanesEqualMarch(const Frame& f, const IntervalPyramid& p, int levels,
     EXPECT_EQ(cellsDiffer, 0u) << "cells tested: levels " << levels << " n_up " << nUp << " batch " << batch << " first ray "
                                << firstCells;
   }
+  });
 }
 
 /// The fast march (incremental spans, κ-domain fixed-slot coarse cells, sentinels) against the

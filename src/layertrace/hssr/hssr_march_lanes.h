@@ -1,6 +1,7 @@
-// The HSSR march (hssr_march.h) for a batch of segments, sixteen at a time in the lanes of
-// AVX-512 registers (SIMD over the rays of a batch). One ray's march is a chain of
-// data-dependent loads and branches that a CPU runs one cell at a time; sixteen rays' cells
+// The HSSR march (hssr_march.h) for a batch of segments, one ray per vector lane (SIMD over the
+// rays of a batch: 16 lanes with AVX-512, 8 with AVX2, 4 with SSE4 or NEON; Google Highway,
+// util/lanes-inl.h, on the best target of the CPU). One ray's march is a chain of
+// data-dependent loads and branches that a CPU runs one cell at a time; the lanes' cells
 // are independent, so their loads overlap and the branches become lane masks. A lane whose ray
 // ends takes the next ray of the batch (lane refill), so the lanes stay busy however unequal
 // the rays' lengths. Measured on this project's real views: the march 1.3–1.4× faster than one
@@ -30,11 +31,10 @@ struct MarchCellCount : NoCounters {
   void iteration(int = 0) { ++cells; }
 };
 
-/// Whether hssrMarchBatch runs in lanes for this pyramid on this CPU: x86-64 with AVX-512
-/// F/VL/BW/DQ, a GCC build (the lane code is GCC vector extensions), k ≤ 4 (a pixel's
-/// intervals are one 32-byte record, like a coarse cell), at most 8 levels and a view narrower
-/// and lower than 2^22 pixels (for the axis-parallel lines' substitution; views are at most
-/// 32768). Otherwise the batch runs hssrMarch one segment after the other.
+/// Whether hssrMarchBatch runs in lanes for this pyramid: k ≤ 4 (a pixel's intervals are one
+/// 32-byte record, like a coarse cell), at most 8 levels, a view narrower and lower than 2^22
+/// pixels (for the axis-parallel lines' substitution; views are at most 32768) and fewer than
+/// 2^29 pixels (record offsets in int32 lanes). Otherwise the batch runs hssrMarchEach.
 bool hssrLanesAvailable(const IntervalPyramid& pyramid, int levels);
 
 /// out[i] = hssrMarch(pyramid, levels, nUp, segs[i], W, H) for every valid segment, {} for an
@@ -46,8 +46,8 @@ bool hssrLanesAvailable(const IntervalPyramid& pyramid, int levels);
 void hssrMarchBatch(const IntervalPyramid& pyramid, int levels, int nUp, std::span<const ScreenSegment> segs, int W, int H,
                     std::span<MarchHit> out, std::span<uint32_t> cells = {});
 
-/// The same, one segment after the other (compiled for the CPU, util/cpu_dispatch.h): the
-/// fallback, and the reference bench_trace measures the lanes against.
+/// The same, one segment after the other (compiled for each vector target and dispatched like
+/// the lanes): the fallback, and the reference bench_trace measures the lanes against.
 void hssrMarchEach(const IntervalPyramid& pyramid, int levels, int nUp, std::span<const ScreenSegment> segs, int W, int H,
                    std::span<MarchHit> out, std::span<uint32_t> cells = {});
 

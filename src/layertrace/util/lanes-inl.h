@@ -99,6 +99,8 @@ inline M outside(VI i, VI n) {
   return toM(hn::RebindMask(DI(), hn::Not(hn::Lt(hn::BitCast(du, i), hn::BitCast(du, n)))));
 }
 inline bool any(M m) { return !hn::AllFalse(DF(), m); }
+/// The mask with no lane set.
+inline M noLanes() { return hn::FirstN(DF(), 0); }
 /// The mask as bits, lane j in bit j.
 inline uint64_t bits(M m) {
   uint8_t b[8] = {};
