@@ -16,7 +16,6 @@
 #include "layertrace/raster/rasterizer.h"
 #include "layertrace/hssr/interval_pyramid.h"
 #include "layertrace/hssr/interval_pyramid_lanes.h"
-#include "layertrace/util/simd512.h"
 #include "layertrace/util/error.h"
 #include "layertrace/util/parallel.h"
 #include "test_util.h"
@@ -387,12 +386,14 @@ IntervalLayers stressLevel0(int width, int height, uint32_t seed) {
   return b;
 }
 
-// The merge in AVX-512 lanes (sixteen cells at once) equals the plain merge on every cell of
-// every level, on level 0s made to stress it (ties, overlaps, +∞ backs, empty pixels), for τ
-// from 0.001 to ∞; so do the pyramids built around it (edge cells one at a time, odd sizes).
+// The merge in vector lanes (sixteen cells per call), on every vector target this CPU runs,
+// equals the plain merge on every cell of every level, on level 0s made to stress it (ties,
+// overlaps, +∞ backs, empty pixels), for τ from 0.001 to ∞; so do the pyramids built around it
+// (edge cells one at a time, odd sizes).
 TEST(Capture, MergeLanesEqualThePlainMerge) {
   const Camera cam(test::originCamera(60.0f, 0.3f, 40.0f), 261, 37);  // level 1: 131 cells, 8 lane groups + 3 cells; odd rows
   size_t groups[4] = {}, refused = 0;
+  test::forEachSimdTarget([&](const SimdTarget&) {
   for (uint32_t seed = 0; seed < 4; ++seed) {
     const IntervalLayers base = stressLevel0(cam.width(), cam.height(), test::testSeed() + seed);
     for (float tau : {0.001f, 2.0f, 25.0f, 3000.0f, std::numeric_limits<float>::infinity()}) {
@@ -434,56 +435,18 @@ TEST(Capture, MergeLanesEqualThePlainMerge) {
       }
     }
   }
+  });
   // A level 0 with nothing stored: every level above is empty (the lanes read no interval).
   IntervalLayers empty = stressLevel0(cam.width(), cam.height(), test::testSeed());
   std::fill(empty.count.begin(), empty.count.end(), uint8_t(0));
   const IntervalPyramid none = buildIntervalPyramid(std::move(empty), cam, PyramidConfig{4, 25.0f});
   for (int L = 1; L < 4; ++L) EXPECT_TRUE(none.levels[size_t(L)].intervals.empty()) << L;
-  if (simd512Available()) {
-    EXPECT_GT(groups[1], 100u);
-    EXPECT_GT(groups[2], 10u);
-    EXPECT_GT(groups[3], 1u);
-    EXPECT_GT(refused, 0u) << "children of more than four intervals are left to the one-cell merge";
-  }
+  EXPECT_GT(groups[1], 100u);
+  EXPECT_GT(groups[2], 10u);
+  EXPECT_GT(groups[3], 1u);
+  EXPECT_GT(refused, 0u) << "children of more than four intervals are left to the one-cell merge";
 }
 
-#if LT_SIMD512
-TEST(Capture, Transpose16) {
-  if (!simd512Available()) {
-    GTEST_SKIP() << "no AVX-512 on this CPU";
-  }
-  alignas(64) float m[16][16], t[16][16];
-  for (int i = 0; i < 16; ++i)
-    for (int j = 0; j < 16; ++j) m[i][j] = float(16 * i + j);
-  simd512::transpose16(&m[0][0], &t[0][0]);
-  for (int i = 0; i < 16; ++i)
-    for (int j = 0; j < 16; ++j) ASSERT_EQ(t[i][j], m[j][i]) << i << ", " << j;
-}
-
-// The lanes' max and min are std::max and std::min bit for bit — which operand wins on ties
-// (−0 against +0) and on NaN in either place is what keeps the lane marches equal to the
-// scalar ones. Swapping the operands of the one-instruction form fails on the zero and NaN pairs.
-TEST(Capture, LaneMaxMinAreStdMaxMinBitForBit) {
-  if (!simd512Available()) {
-    GTEST_SKIP() << "no AVX-512 on this CPU";
-  }
-  const float nan = std::numeric_limits<float>::quiet_NaN(), inf = std::numeric_limits<float>::infinity();
-  const float special[] = {-inf, -1.5f, -0.0f, 0.0f, std::numeric_limits<float>::denorm_min(), 1.5f, inf, nan, -nan, 1.5f};
-  std::vector<float> a, b;
-  for (float x : special)
-    for (float y : special) a.push_back(x), b.push_back(y);
-  while (a.size() % 16) a.push_back(0.0f), b.push_back(-0.0f);
-  auto bits = [](float f) { return std::bit_cast<uint32_t>(f); };
-  for (size_t i = 0; i < a.size(); i += 16) {
-    alignas(64) float mx[16], mn[16];
-    simd512::maxMin16(&a[i], &b[i], mx, mn);
-    for (size_t j = 0; j < 16; ++j) {
-      ASSERT_EQ(bits(mx[j]), bits(std::max(a[i + j], b[i + j]))) << a[i + j] << ", " << b[i + j];
-      ASSERT_EQ(bits(mn[j]), bits(std::min(a[i + j], b[i + j]))) << a[i + j] << ", " << b[i + j];
-    }
-  }
-}
-#endif
 
 // Levels 1… merged tile by tile (PyramidTileBuilder: tiles in any order, concurrently) equal
 // the global build over the same level 0, for tile sizes holding whole cells of every level

@@ -167,7 +167,7 @@ void buildLevel(IntervalPyramid& p, const Camera& camera, const PyramidConfig& c
     const size_t c = child.cellIndex(cx, cy);
     return std::pair{child.intervals.begin() + child.offset[c], child.intervals.begin() + child.offset[c + 1]};
   };
-  // With AVX-512: sixteen cells at a time in lanes where all their children exist and hold ≤ 4
+  // Sixteen cells at a time in vector lanes where all their children exist and hold ≤ 4
   // intervals (interval_pyramid_lanes.h, the same bits); the other cells one at a time.
   const int laneCells = mergeLanesAvailable(p, L) ? child.width / 2 / 16 * 16 : 0;
   parallelFor(tbb::blocked_range<int>(0, lvl.height, 4), [&](const tbb::blocked_range<int>& r) {

@@ -1,6 +1,7 @@
-// The interval pyramid's merge (Hofmann et al. 2017, §4.3) for sixteen cells at once, in the lanes
-// of AVX-512 registers: what most of a pyramid build's time went to (perf: level 1's gather,
-// insertion sort and merge, 60 % of the build) done without a branch per interval.
+// The interval pyramid's merge (Hofmann et al. 2017, §4.3) for sixteen cells per call, one cell per
+// vector lane (Google Highway, util/lanes-inl.h, on the best target of the CPU): what most of a
+// pyramid build's time went to (perf: level 1's gather, insertion sort and merge, 60 % of the
+// build) done without a branch per interval.
 #pragma once
 #include <cstdint>
 #include <vector>
@@ -11,9 +12,8 @@ namespace lt {
 
 struct IntervalPyramid;
 
-/// Whether mergeCellsLanes runs here for level L of p: a GCC build on a CPU with AVX-512
-/// F/VL/BW/DQ; level 1 when level 0 holds k = 4 intervals per pixel (the default; other k take
-/// the one-cell merge), any level above.
+/// Whether mergeCellsLanes runs for level L of p: level 1 when level 0 holds k = 4 intervals per
+/// pixel (the default; other k take the one-cell merge), any level above.
 bool mergeLanesAvailable(const IntervalPyramid& p, int L);
 
 /// Cells x0 … x0 + 15 of row y of level L ≥ 1 of p (level L − 1 built), each with all four
