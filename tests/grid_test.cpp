@@ -150,11 +150,12 @@ size_t batchDifferences(const Scene& scene, const IrregularGrid& grid, const std
       const glm::uvec3 ix = scene.triangles[h.triangle];
       differ += !sameBits(h.ng, glm::cross(scene.positions[ix.y] - scene.positions[ix.x], scene.positions[ix.z] - scene.positions[ix.x]));
     }
+  test::forEachSimdTarget([&](const SimdTarget&) {
   for (size_t batch : {size_t(1), size_t(5), size_t(16), size_t(17), size_t(256), q.size()}) {
     for (size_t b = 0; b < q.size(); b += batch) {
       const size_t n = std::min(batch, q.size() - b);
       const std::span<const IrregularGrid::Query> chunk(&q[b], n);
-      // The batch (AVX-512 lanes where the CPU has them) and the portable batch.
+      // The batch (vector lanes) and the portable batch, on every vector target.
       std::vector<GeoHit> hits(n), portable(n);
       std::vector<uint8_t> any(n, 7), portableAny(n, 7);
       grid.intersect(chunk, hits);
@@ -166,6 +167,7 @@ size_t batchDifferences(const Scene& scene, const IrregularGrid& grid, const std
                   (portableAny[i] != oneAny[b + i]);
     }
   }
+  });
   return differ;
 }
 
@@ -599,7 +601,7 @@ TEST_P(RealSceneGrid, BatchQueriesAnswerAsOneRay) {
 // exit from one cell can fall a hair before its entry into the next. Every such ray must end
 // (no step cap: before the monotone step rule, two cells handed a ray on engine back and forth
 // until the cap and it missed a triangle 52 units away) and agree with robust Embree. The batch
-// queries (the AVX-512 lanes where the CPU has them) must answer these rays as the one-ray
+// queries (the vector lanes) must answer these rays as the one-ray
 // traversal does: they take the same steps, with the same rule against stepping back.
 TEST_P(RealSceneGrid, RaysThroughVoxelEdgesEndAndAgreeWithEmbree) {
   ASSERT_TRUE(test::haveFetchedScenes()) << "run scripts/fetch-scenes.sh";
@@ -638,11 +640,13 @@ TEST_P(RealSceneGrid, RaysThroughVoxelEdgesEndAndAgreeWithEmbree) {
   EXPECT_EQ(giveUps.load(), 0u) << "of " << rays << " rays";
   EXPECT_GT(hits.load(), rays / 4);
   EXPECT_LE(disagree.load(), rays / 100000) << "of " << rays << " rays";
-  std::vector<GeoHit> batch(queries.size());
-  grid.intersect(queries, batch);
-  size_t differ = 0;
-  for (size_t i = 0; i < queries.size(); ++i) differ += !sameBits(batch[i], one[i]);
-  EXPECT_EQ(differ, 0u) << "batch answers differing from the one-ray traversal, of " << rays << " rays";
+  test::forEachSimdTarget([&](const SimdTarget&) {
+    std::vector<GeoHit> batch(queries.size());
+    grid.intersect(queries, batch);
+    size_t differ = 0;
+    for (size_t i = 0; i < queries.size(); ++i) differ += !sameBits(batch[i], one[i]);
+    EXPECT_EQ(differ, 0u) << "batch answers differing from the one-ray traversal, of " << rays << " rays";
+  });
 }
 
 TEST_P(RealSceneGrid, ParallelMergeEqualsSerial) {

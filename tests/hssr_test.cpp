@@ -146,8 +146,8 @@ void expectSameAsReference(const Frame& f, size_t count) {
                                   << " seed " << seed;
       expectLanesEqualMarch(f, p, levels, nUp, rays);
     }
-    // The uncounted batch runs the copy compiled for this CPU (util/cpu_dispatch.h): the same
-    // hits as the one-ray path.
+    // The uncounted batch runs the lanes on this CPU's best vector target: the same hits as the
+    // one-ray path.
     const HssrTracer t(f.camera, f.layers, p, HssrConfig{2, levels});
     std::vector<TraceHit> batch(rays.size());
     t.traceBatch(rays, batch, {});

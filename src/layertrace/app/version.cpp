@@ -9,7 +9,7 @@
 #include "layertrace/commit.h"
 #include "layertrace/pipeline/tracer_registry.h"
 #include "layertrace/render/effects.h"
-#include "layertrace/util/simd512.h"
+#include "layertrace/util/simd_targets.h"
 
 namespace lt {
 
@@ -17,7 +17,9 @@ std::string versionText(bool viewer) {
   std::ostringstream s;
   s << "layertrace " << LAYERTRACE_VERSION << " (commit " << LAYERTRACE_COMMIT << ", " << LAYERTRACE_BUILD_TYPE << " build)\n";
   s << "  per-ray counters: " << (kCountersCompiled ? "on" : "off (compiled out)") << "\n";
-  s << "  AVX-512 march lanes: " << (LT_SIMD512 ? (simd512Available() ? "on" : "compiled, this CPU lacks AVX-512") : "not compiled") << "\n";
+  s << "  vector lanes (Highway): " << activeSimdTarget().name << " (this CPU runs:";
+  for (const SimdTarget& t : simdTargets()) s << " " << t.name;
+  s << ")\n";
 #if defined(__SANITIZE_ADDRESS__)
   s << "  sanitizers: address, undefined\n";
 #elif defined(__SANITIZE_THREAD__)

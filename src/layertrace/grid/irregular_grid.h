@@ -94,15 +94,18 @@ class IrregularGrid {
   /// The answers of intersect / occluded for many rays, bit for bit, with several rays in flight
   /// (uncounted): each ray's next cell is prefetched while the other rays of its group step, so
   /// the traversal's chain of dependent loads (leaf → cell → triangles) overlaps across rays
-  /// instead of stalling each ray (incoherent rays were latency-bound). Sixteen rays per
-  /// AVX-512 register where the CPU has them, the portable batch below elsewhere.
+  /// instead of stalling each ray (incoherent rays were latency-bound). A ray per vector lane on
+  /// the best vector target of the CPU (16 with AVX-512, 8 with AVX2, 4 with SSE4 or NEON).
   void intersect(std::span<const Query> queries, std::span<GeoHit> hits) const;
   void occluded(std::span<const Query> queries, std::span<uint8_t> hits) const;
-  /// The batch without the AVX-512 lanes (sixteen scalar rays in flight), on every CPU: what the
-  /// batch queries run where the CPU has no AVX-512, and what the tests hold to the one-ray
-  /// traversal there too.
+  /// The batch without the vector lanes (sixteen scalar rays in flight): the reference the tests
+  /// hold the lanes to, besides the one-ray traversal.
   void intersectPortable(std::span<const Query> queries, std::span<GeoHit> hits) const;
   void occludedPortable(std::span<const Query> queries, std::span<uint8_t> hits) const;
+
+  /// What the vector lanes (compiled once per vector target) see of the private parts; defined in
+  /// irregular_grid_traverse.cpp.
+  struct LaneAccess;
 
   const GridStats& stats() const { return stats_; }
   size_t memoryBytes() const;
@@ -178,13 +181,10 @@ class IrregularGrid {
   GeoHit finish(const Walk& w) const;
   template <bool AnyHit, class Out>
   void traverseBatch(std::span<const Query> queries, Out out) const;
-  /// traverseBatch's answers with sixteen rays in the lanes of AVX-512 registers (where the CPU
-  /// has them, lanesAvailable): the exit, the next voxel and the voxel-map lookup of sixteen
-  /// cells at once, each lane's triangles tested by testCell. Writes hits (closest) or anyHits.
-  template <bool AnyHit>
-  void traverseLanes(std::span<const Query> queries, std::span<GeoHit> hits, std::span<uint8_t> anyHits) const;
+  /// Whether the batch queries run in vector lanes (a ray per lane: the exit, the next voxel and
+  /// the voxel-map lookup of a vector's count of cells at once, each lane's triangles tested by
+  /// testCell; irregular_grid_traverse.cpp).
   bool lanesAvailable() const;
-  struct GridLanes;
   void packForTraversal();
 
   const Scene* scene_;

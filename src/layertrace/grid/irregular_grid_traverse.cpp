@@ -3,17 +3,22 @@
 // Stackless and ordered; the next cell is found in the voxel map from integer virtual-grid
 // coordinates on the far side of the exit face, so rounding can never step back or skip a cell
 // along the ray.
+//
+// The batch traversals are compiled for every vector target of Google Highway (this file is
+// included once per target through hwy/foreach_target.h; the shared one-ray steps above it only
+// once) and run on the best target of the CPU.
+#ifndef LAYERTRACE_GRID_TRAVERSE_ONCE
+#define LAYERTRACE_GRID_TRAVERSE_ONCE
 #include <algorithm>
 #include <cstring>
 #include <cmath>
 #include <limits>
 
 #include <glm/geometric.hpp>
+#include <hwy/cache_control.h>
 
 #include "layertrace/grid/irregular_grid.h"
 #include "layertrace/geometry/ray_triangle.h"
-#include "layertrace/util/cpu_dispatch.h"
-#include "layertrace/util/simd512.h"
 
 namespace lt {
 namespace {
@@ -181,9 +186,9 @@ namespace {
 /// A cell's record and its first triangle block: three 64-byte lines.
 inline void prefetchCell(const void* cell) {
   const char* p = static_cast<const char*>(cell);
-  __builtin_prefetch(p);
-  __builtin_prefetch(p + 64);
-  __builtin_prefetch(p + 128);
+  hwy::Prefetch(p);
+  hwy::Prefetch(p + 64);
+  hwy::Prefetch(p + 128);
 }
 }  // namespace
 
@@ -232,7 +237,7 @@ void IrregularGrid::traverseBatch(std::span<const Query> queries, Out out) const
       if (enter(walks[s], q.origin, q.dir, q.tnear, q.tfar)) {
         ray[s] = i;
         walks[s].leaf = leafIndex(walks[s].v);
-        __builtin_prefetch(&walkLeaf_[walks[s].leaf]);
+        hwy::Prefetch(&walkLeaf_[walks[s].leaf]);
         return true;
       }
       out(i, GeoHit{});
@@ -252,7 +257,7 @@ void IrregularGrid::traverseBatch(std::span<const Query> queries, Out out) const
       const bool more = exitCell(w, c);
       if (more) {
         w.leaf = leafIndex(w.v);
-        __builtin_prefetch(&walkLeaf_[w.leaf]);
+        hwy::Prefetch(&walkLeaf_[w.leaf]);
       }
       if (!testCell<AnyHit>(w, c, more) && ++w.step != maxSteps) continue;
       out(ray[s], AnyHit ? w.best : finish(w));
@@ -267,122 +272,169 @@ void IrregularGrid::traverseBatch(std::span<const Query> queries, Out out) const
   }
 }
 
-#if LT_SIMD512
-// Sixteen rays in the lanes of AVX-512 registers (SIMD over rays). Where a ray spends
-// its time is the walk from cell to cell — the exit of the cell's expanded box, the voxel beyond
-// it and the voxel-map lookup (with its triangle tests skipped, an AO ray costs 85 % of its full
-// time) — and sixteen rays' walks are the same operations on different data: here they run in
-// lanes, with exitCell's float expressions in the same order and selects for its branches, the
-// top cells and leaves gathered, and rays enter sixteen at a time. Lanes in an empty cell are
-// answered in the registers by testCell's rule; the others' triangles are tested by testCell
-// itself, one lane after the other — so the answers are the one-ray traversal's bit for bit (the
-// batch tests compare them). Three groups of lanes step in turn (traverseLanes says why).
-#pragma GCC push_options
-#pragma GCC target("avx512f,avx512vl,avx512bw,avx512dq")
+/// What the vector lanes (compiled per target below) use of the grid's private parts.
+struct IrregularGrid::LaneAccess {
+  using Walk = IrregularGrid::Walk;
+  using Query = IrregularGrid::Query;
+  static constexpr size_t kUnit = IrregularGrid::kUnit;
+  static constexpr size_t kTopCellBytes = sizeof(TopCell);
+  const IrregularGrid& g;
+  glm::vec3 lo() const { return g.lo_; }
+  glm::vec3 hi() const { return g.hi_; }
+  glm::vec3 voxel() const { return g.voxel_; }
+  glm::vec3 invVoxel() const { return g.invVoxel_; }
+  int top(int a) const { return g.top_[a]; }
+  int depth() const { return g.depth_; }
+  int virt(int a) const { return g.virt_[a]; }
+  const unsigned char* walkBase() const { return reinterpret_cast<const unsigned char*>(g.walk_.data()); }
+  const int32_t* topWords() const { return reinterpret_cast<const int32_t*>(g.topCells_.data()); }
+  const int32_t* leaves() const { return reinterpret_cast<const int32_t*>(g.walkLeaf_.data()); }
+  const uint32_t* leafData() const { return g.walkLeaf_.data(); }
+  void prefetchCellAt(uint32_t unit) const { prefetchCell(&g.walkCell(unit)); }
+  template <bool AnyHit>
+  bool testCell(Walk& w, uint32_t unit, bool more) const { return g.testCell<AnyHit>(w, g.walkCell(unit), more); }
+  GeoHit finish(const Walk& w) const { return g.finish(w); }
+  template <bool AnyHit>
+  GeoHit traverse(glm::vec3 o, glm::vec3 d, float tnear, float tfar, TraversalCounts* counts) const {
+    return g.traverse<AnyHit>(o, d, tnear, tfar, counts);
+  }
+  template <bool AnyHit, class Out>
+  void traverseBatch(std::span<const Query> queries, Out out) const { g.traverseBatch<AnyHit>(queries, out); }
+};
 
-struct IrregularGrid::GridLanes {
-  static constexpr int kL = simd512::kLanes;
-  alignas(64) float o[3][kL], d[3][kL], inv[3][kL], t1[kL], tExit[kL];
-  alignas(64) int32_t v[3][kL];
-  alignas(64) uint32_t unit[kL];  ///< walk_ unit of the cell each lane visits next
-  alignas(64) int32_t ray[kL];    ///< the query's index; −1 for an empty lane
-  alignas(64) int32_t leaf[kL];   ///< the pending lanes' next leaf (walkLeaf_ index)
-  alignas(64) int32_t step[kL];
-  alignas(64) float bestT[kL];    ///< the walks' bestT, for the lanes answered without testCell
-  __mmask16 hasBest = 0;          ///< lanes whose walk has a hit
-  __mmask16 pending = 0;          ///< lanes whose next cell is still to be read from their leaf
-  Walk walk[kL];  ///< what testCell and finish read (the ray, its best hit, the cell's exit)
+}  // namespace lt
+#endif  // LAYERTRACE_GRID_TRAVERSE_ONCE
+
+#undef HWY_TARGET_INCLUDE
+#define HWY_TARGET_INCLUDE "layertrace/grid/irregular_grid_traverse.cpp"
+#include <hwy/foreach_target.h>  // IWYU pragma: keep
+
+#include <hwy/highway.h>
+
+#include "layertrace/util/lanes-inl.h"
+
+HWY_BEFORE_NAMESPACE();
+namespace lt::HWY_NAMESPACE {
+namespace {
+
+using namespace lanes;
+using Access = IrregularGrid::LaneAccess;
+using Query = IrregularGrid::Query;
+constexpr size_t kL = kMaxLanes;
+
+// Rays in vector lanes (SIMD over rays). Where a ray spends its time is the walk from cell to
+// cell — the exit of the cell's expanded box, the voxel beyond it and the voxel-map lookup (with
+// its triangle tests skipped, an AO ray costs 85 % of its full time) — and the lanes' walks are
+// the same operations on different data: here they run in lanes, with exitCell's float
+// expressions in the same order and selects for its branches, the top cells and leaves gathered,
+// and rays enter a vector's count at a time. Lanes in an empty cell are answered in the registers
+// by testCell's rule; the others' triangles are tested by testCell itself, one lane after the
+// other — so the answers are the one-ray traversal's bit for bit (the batch tests compare them
+// on every target). Three groups of lanes step in turn (gridLanes says why).
+struct GridLanes {
+  HWY_ALIGN float o[3][kL], d[3][kL], inv[3][kL], t1[kL], tExit[kL];
+  HWY_ALIGN int32_t v[3][kL];
+  HWY_ALIGN int32_t unit[kL];     ///< walk_ unit of the cell each lane visits next
+  HWY_ALIGN int32_t ray[kL];      ///< the query's index; −1 for an empty lane
+  HWY_ALIGN int32_t leaf[kL];     ///< the pending lanes' next leaf (walkLeaf_ index)
+  HWY_ALIGN int32_t step[kL];
+  HWY_ALIGN float bestT[kL];      ///< the walks' bestT, for the lanes answered without testCell
+  HWY_ALIGN int32_t hasBest[kL];  ///< flags (0 / −1): the lane's walk has a hit
+  uint64_t pending = 0;           ///< lanes whose next cell is still to be read from their leaf
+  Access::Walk walk[kL];  ///< what testCell and finish read (the ray, its best hit, the cell's exit)
+};
+
+/// Rays enter the lanes from a buffer that `enter` fills for a vector's count of queries at once:
+/// the clip to the grid's box, the first voxel and its cell, the watertight test's shear —
+/// enter's and WatertightRay's expressions in lanes, with selects for their branches.
+struct Entered {
+  HWY_ALIGN float o[3][kL], d[3][kL], inv[3][kL], tnear[kL], tfar[kL], t1[kL], sx[kL], sy[kL];
+  HWY_ALIGN int32_t v[3][kL], k[3][kL];  ///< the first voxel; the shear's axes kx, ky, kz
+  HWY_ALIGN int32_t unit[kL];
+  uint64_t in = 0;  ///< the queries that enter the grid
+  size_t first = 0, count = 0, taken = 0;  ///< queries [first, first + count), `taken` of them used
 };
 
 template <bool AnyHit>
-void IrregularGrid::traverseLanes(std::span<const Query> queries, std::span<GeoHit> hits, std::span<uint8_t> anyHits) const {
-  using namespace simd512;
-  const int maxSteps = 4 * (virt_[0] + virt_[1] + virt_[2]) + 16;
-  const unsigned char* walkBase = reinterpret_cast<const unsigned char*>(walk_.data());
-  const int32_t* topWords = reinterpret_cast<const int32_t*>(topCells_.data());
-  const int32_t* leaves = reinterpret_cast<const int32_t*>(walkLeaf_.data());
+void gridLanes(const Access& g, std::span<const Query> queries, std::span<GeoHit> hits, std::span<uint8_t> anyHits) {
+  constexpr float inf = std::numeric_limits<float>::infinity();
+  const int virt[3] = {g.virt(0), g.virt(1), g.virt(2)};
+  const int depth = g.depth();
+  const glm::vec3 lo = g.lo(), hi = g.hi(), voxel = g.voxel(), invVoxel = g.invVoxel();
+  const int maxSteps = 4 * (virt[0] + virt[1] + virt[2]) + 16;
+  const unsigned char* walkBase = g.walkBase();
+  const int32_t* topWords = g.topWords();
+  const int32_t* leaves = g.leaves();
+  const size_t N = laneCount();
+  const VI zero = splat(int32_t(0));
   auto output = [&](size_t i, const GeoHit& h) {
     if (AnyHit) anyHits[i] = h.hit();
     else hits[i] = h;
   };
   // The voxel map (leafIndex) for the lanes of `m`: the top cell's leaf offset and shifts give
-  // the leaf; the leaf holds the cell's record (unitsOf).
-  auto leafOf = [&](const I v[3], M m) {
-    const I zero = I{};
-    const I mask = zero + ((1 << depth_) - 1);
-    const I top = ((v[2] >> depth_) * top_[1] + (v[1] >> depth_)) * top_[0] + (v[0] >> depth_);
-    const I topByte = sel(m, top, zero) * int32_t(sizeof(TopCell));
-    const I offset = (I)_mm512_mask_i32gather_epi32((__m512i)zero, m.bits, (__m512i)topByte, topWords, 1);
-    const I shifts = (I)_mm512_mask_i32gather_epi32((__m512i)zero, m.bits, (__m512i)topByte, topWords + 1, 1);
-    const I byte = zero + 0xff, s0 = shifts & byte, s1 = (shifts >> 8) & byte, s2 = (shifts >> 16) & byte;
-    const I bits1 = (shifts >> 24) & byte, bits2 = bits1 + (depth_ - s1);  // d0 and d0 + d1, d_a = D − shift_a
-    const I l0 = (v[0] & mask) >> s0, l1 = (v[1] & mask) >> s1, l2 = (v[2] & mask) >> s2;  // (non-negative: >> is logical)
+  // the leaf; the leaf holds the cell's record (unitsOf). (Lanes outside m read top cell 0.)
+  auto leafOf = [&](const VI v[3], M m) {
+    const VI mask = splat(int32_t((1 << depth) - 1));
+    const VI top = ((hn::ShiftRightSame(v[2], depth) * splat(int32_t(g.top(1))) + hn::ShiftRightSame(v[1], depth)) *
+                    splat(int32_t(g.top(0)))) + hn::ShiftRightSame(v[0], depth);
+    const VI topByte = sel(m, top, zero) * splat(int32_t(Access::kTopCellBytes));
+    const VI offset = hn::GatherOffset(DI(), topWords, topByte);
+    const VI shifts = hn::GatherOffset(DI(), topWords + 1, topByte);
+    const VI byte = splat(int32_t(0xff));
+    const VI s0 = shifts & byte, s1 = hn::ShiftRight<8>(shifts) & byte, s2 = hn::ShiftRight<16>(shifts) & byte;
+    const VI bits1 = hn::ShiftRight<24>(shifts) & byte, bits2 = bits1 + (splat(int32_t(depth)) - s1);  // d0 and d0 + d1, d_a = D − shift_a
+    const VI l0 = (v[0] & mask) >> s0, l1 = (v[1] & mask) >> s1, l2 = (v[2] & mask) >> s2;  // (non-negative: >> is logical)
     return sel(m, offset + (((l2 << bits2) + (l1 << bits1)) + l0), zero);
   };
-  auto unitsOf = [&](I leaf, M m) { return (I)_mm512_mask_i32gather_epi32((__m512i)I{}, m.bits, (__m512i)leaf, leaves, 4); };
-  // Rays enter the lanes from a buffer that `enter` fills for sixteen queries at once: the clip to
-  // the grid's box, the first voxel and its cell, the watertight test's shear — enter's and
-  // WatertightRay's expressions in lanes, with selects for their branches.
-  constexpr int kL = GridLanes::kL;  // (not the class's kLanes: a triangle block's four)
-  struct alignas(64) Entered {
-    float o[3][kL], d[3][kL], inv[3][kL], tnear[kL], tfar[kL], t1[kL], sx[kL], sy[kL];
-    int32_t v[3][kL], k[3][kL];  ///< the first voxel; the shear's axes kx, ky, kz
-    uint32_t unit[kL];
-    uint32_t in = 0;  ///< the queries that enter the grid
-    size_t first = 0, count = 0, taken = 0;  ///< queries [first, first + count), `taken` of them used
-  } ent;
+  auto unitsOf = [&](VI leaf, M m) { return sel(m, hn::GatherIndex(DI(), leaves, sel(m, leaf, zero)), zero); };
+  Entered ent;
   static_assert(sizeof(Query) == 8 * sizeof(float), "a query is one 32-byte row");
   size_t next = 0;
-  auto enterSixteen = [&] {
-    constexpr float inf = std::numeric_limits<float>::infinity();
-    const size_t n = std::min<size_t>(kL, queries.size() - next);
+  auto enterLanes = [&] {
+    const size_t n = std::min(N, queries.size() - next);
     ent.first = next, ent.count = n, ent.taken = 0;
     next += n;
-    F r[8];
-    for (int j = 0; j < 8; ++j) {
-      F8 lo{}, hi{};
-      if (size_t(j) < n) std::memcpy(&lo, &queries[ent.first + size_t(j)], sizeof lo);
-      if (size_t(j) + 8 < n) std::memcpy(&hi, &queries[ent.first + size_t(j) + 8], sizeof hi);
-      r[j] = joinRows(lo, hi);
-    }
-    F q[8];
-    transposeRows8(r, q);
-    const F* o = q;
-    const F* d = q + 3;
-    F t0 = q[6], t1 = q[7], inv[3];
+    static constexpr float kNoQuery[8] = {};
+    const float* rows[kL] = {};
+    for (size_t j = 0; j < N; ++j) rows[j] = j < n ? reinterpret_cast<const float*>(&queries[ent.first + j]) : kNoQuery;
+    VF q[8];
+    transposeRecords(rows, q);
+    const VF* o = q;
+    const VF* d = q + 3;
+    VF t0 = q[6], t1 = q[7], inv[3];
     for (int a = 0; a < 3; ++a) {
-      inv[a] = 1.0f / d[a];
-      F lo = (lo_[a] - o[a]) * inv[a], hi = (hi_[a] - o[a]) * inv[a];
-      const M swap = gt(lo, hi);
-      const F near = sel(swap, hi, lo), far = sel(swap, lo, hi);
-      lo = sel(eq(near, near), near, F{} - inf);  // 0 · inf
-      hi = sel(eq(far, far), far, F{} + inf);
-      t0 = vmax(t0, lo);
-      t1 = vmin(t1, hi);
+      inv[a] = splat(1.0f) / d[a];
+      VF l = (splat(lo[a]) - o[a]) * inv[a], h = (splat(hi[a]) - o[a]) * inv[a];
+      const M swap = gt(l, h);
+      const VF near = sel(swap, h, l), far = sel(swap, l, h);
+      l = sel(eq(near, near), near, splat(-inf));  // 0 · inf
+      h = sel(eq(far, far), far, splat(inf));
+      t0 = vmax(t0, l);
+      t1 = vmin(t1, h);
     }
-    const M in = M{__mmask16((1u << n) - 1u)} & ~gt(t0, t1);
-    I v[3];
+    const M in = andNot(hn::FirstN(DF(), n), gt(t0, t1));
+    VI v[3];
     for (int a = 0; a < 3; ++a) {
-      const F p = ((o[a] + d[a] * t0) - lo_[a]) * invVoxel_[a];
-      v[a] = imin(imax(__builtin_convertvector(vfloor(p), I), I{}), I{} + (virt_[a] - 1));  // std::clamp
+      const VF p = ((o[a] + d[a] * t0) - splat(lo[a])) * splat(invVoxel[a]);
+      v[a] = imin(imax(toInt(vfloor(p)), zero), splat(int32_t(virt[a] - 1)));  // std::clamp
       store(ent.o[a], o[a]), store(ent.d[a], d[a]), store(ent.inv[a], inv[a]), store(ent.v[a], v[a]);
     }
     store(ent.tnear, q[6]), store(ent.tfar, q[7]), store(ent.t1, t1);
     store(ent.unit, unitsOf(leafOf(v, in), in));
     // WatertightRay: z along the largest |d|, x and y after it, swapped where d_z < 0.
-    const I zero = I{}, one = zero + 1, two = zero + 2;
-    const F ax = vabs(d[0]), ay = vabs(d[1]), az = vabs(d[2]);
-    const I kz = sel(ge(ax, ay), sel(ge(ax, az), zero, two), sel(ge(ay, az), one, two));
-    I kx = sel(eq(kz, two), zero, kz + 1);
-    I ky = sel(eq(kx, two), zero, kx + 1);
-    auto pick = [&](I k) { return sel(eq(k, zero), d[0], sel(eq(k, one), d[1], d[2])); };
-    const F dz = pick(kz);
-    const M flip = lt(dz, F{});
-    const I kx0 = kx;
+    const VI one = splat(int32_t(1)), two = splat(int32_t(2));
+    const VF ax = vabs(d[0]), ay = vabs(d[1]), az = vabs(d[2]);
+    const VI kz = sel(ge(ax, ay), sel(ge(ax, az), zero, two), sel(ge(ay, az), one, two));
+    VI kx = sel(eq(kz, two), zero, kz + one);
+    VI ky = sel(eq(kx, two), zero, kx + one);
+    auto pick = [&](VI k) { return sel(eq(k, zero), d[0], sel(eq(k, one), d[1], d[2])); };
+    const VF dz = pick(kz);
+    const M flip = lt(dz, splat(0.0f));
+    const VI kx0 = kx;
     kx = sel(flip, ky, kx), ky = sel(flip, kx0, ky);
     store(ent.sx, pick(kx) / dz), store(ent.sy, pick(ky) / dz);
     store(ent.k[0], kx), store(ent.k[1], ky), store(ent.k[2], kz);
-    ent.in = in.bits;
+    ent.in = bits(in);
   };
   auto fill = [&](GridLanes& ln, int j) {
     ln.ray[j] = -1;
@@ -390,15 +442,15 @@ void IrregularGrid::traverseLanes(std::span<const Query> queries, std::span<GeoH
     for (;;) {
       if (ent.taken == ent.count) {
         if (next == queries.size()) return false;
-        enterSixteen();
-        for (uint32_t m = ent.in; m; m &= m - 1) prefetchCell(&walkCell(ent.unit[__builtin_ctz(m)]));
+        enterLanes();
+        for (uint64_t m = ent.in; m; m &= m - 1) g.prefetchCellAt(uint32_t(ent.unit[std::countr_zero(m)]));
       }
       const size_t e = ent.taken++, i = ent.first + e;
       if (!(ent.in >> e & 1)) {
         output(i, GeoHit{});
         continue;
       }
-      Walk& w = ln.walk[j];
+      Access::Walk& w = ln.walk[j];
       for (int a = 0; a < 3; ++a) {
         ln.o[a][j] = ent.o[a][e], ln.d[a][j] = ent.d[a][e], ln.inv[a][j] = ent.inv[a][e], ln.v[a][j] = ent.v[a][e];
         w.ray.o[a] = ent.o[a][e], w.ray.d[a] = ent.d[a][e];
@@ -407,7 +459,7 @@ void IrregularGrid::traverseLanes(std::span<const Query> queries, std::span<GeoH
       w.tnear = ent.tnear[e], w.bestT = ent.tfar[e];
       w.best = GeoHit{};
       ln.bestT[j] = ent.tfar[e];
-      ln.hasBest &= __mmask16(~(1u << j));
+      ln.hasBest[j] = 0;
       ln.t1[j] = ent.t1[e];
       ln.step[j] = 0;
       ln.ray[j] = int32_t(i);
@@ -415,81 +467,75 @@ void IrregularGrid::traverseLanes(std::span<const Query> queries, std::span<GeoH
       return true;
     }
   };
-  auto done = [&](GridLanes& ln, int j) { output(size_t(ln.ray[j]), AnyHit ? ln.walk[j].best : finish(ln.walk[j])); };
-  auto step = [&](GridLanes& ln) -> uint32_t {
-    constexpr float inf = std::numeric_limits<float>::infinity();
-    const I zero = I{};
-    const M live = ge(load<I>(ln.ray), zero);
+  auto done = [&](GridLanes& ln, int j) { output(size_t(ln.ray[j]), AnyHit ? ln.walk[j].best : g.finish(ln.walk[j])); };
+  auto step = [&](GridLanes& ln) -> uint64_t {
+    const M live = ge(loadI(ln.ray), zero);
     // The lanes' cell records (exit box and reference count): one 32-byte row per lane.
-    F r[8];
-    for (int j = 0; j < 8; ++j) {
-      F8 lo, hi;
-      std::memcpy(&lo, walkBase + size_t(ln.unit[j]) * kUnit, sizeof lo);
-      std::memcpy(&hi, walkBase + size_t(ln.unit[j + 8]) * kUnit, sizeof hi);
-      r[j] = joinRows(lo, hi);
-    }
-    F field[8];
-    transposeRows8(r, field);
-    I elo[3], ehi[3];
-    for (int a = 0; a < 3; ++a) elo[a] = (I)field[a], ehi[a] = (I)field[3 + a];
+    const float* rows[kL] = {};
+    for (size_t j = 0; j < N; ++j) rows[j] = reinterpret_cast<const float*>(walkBase + size_t(uint32_t(ln.unit[j])) * Access::kUnit);
+    VF field[8];
+    transposeRecords(rows, field);
+    VI elo[3], ehi[3];
+    for (int a = 0; a < 3; ++a) elo[a] = asInt(field[a]), ehi[a] = asInt(field[3 + a]);
     // exitCell: the first axis with the smallest exit distance.
-    F o[3], dir[3], t[3];
+    VF o[3], dir[3], t[3];
     M pos[3], neg[3];
     for (int a = 0; a < 3; ++a) {
-      o[a] = load<F>(ln.o[a]), dir[a] = load<F>(ln.d[a]);
-      pos[a] = gt(dir[a], F{}), neg[a] = lt(dir[a], F{});
-      const F bound = lo_[a] + __builtin_convertvector(sel(pos[a], ehi[a], elo[a]), F) * voxel_[a];
-      t[a] = sel(eq(dir[a], F{}), F{} + inf, (bound - o[a]) * load<F>(ln.inv[a]));
+      o[a] = loadF(ln.o[a]), dir[a] = loadF(ln.d[a]);
+      pos[a] = gt(dir[a], splat(0.0f)), neg[a] = lt(dir[a], splat(0.0f));
+      const VF bound = splat(lo[a]) + toFloat(sel(pos[a], ehi[a], elo[a])) * splat(voxel[a]);
+      t[a] = sel(eq(dir[a], splat(0.0f)), splat(inf), (bound - o[a]) * loadF(ln.inv[a]));
     }
     const M y = lt(t[1], t[0]);
-    const F t01 = sel(y, t[1], t[0]);
+    const VF t01 = sel(y, t[1], t[0]);
     const M z = lt(t[2], t01);
-    const F tExit = sel(z, t[2], t01);
+    const VF tExit = sel(z, t[2], t01);
     store(ln.tExit, tExit);
-    M more = lt(live, tExit, load<F>(ln.t1));
+    M more = lt(live, tExit, loadF(ln.t1));
     const M onAxis[3] = {andNot(~y, z), andNot(y, z), z};
-    I v[3];
+    VI v[3];
     for (int a = 0; a < 3; ++a) {
-      const F q = ((o[a] + dir[a] * tExit) - lo_[a]) * invVoxel_[a];
-      const I cell = __builtin_convertvector(vfloor(q), I);
-      const I face = imin(imax(cell, elo[a]), ehi[a] - 1);  // std::clamp (elo < ehi)
-      const I vOld = load<I>(ln.v[a]);
-      const I beside = sel(pos[a], imax(face, vOld), sel(neg[a], imin(face, vOld), face));
-      v[a] = sel(onAxis[a], sel(pos[a], ehi[a], elo[a] - 1), beside);
-      more = andNot(more, onAxis[a] & outside(v[a], zero + virt_[a]));
+      const VF q = ((o[a] + dir[a] * tExit) - splat(lo[a])) * splat(invVoxel[a]);
+      const VI cell = toInt(vfloor(q));
+      const VI face = imin(imax(cell, elo[a]), ehi[a] - splat(int32_t(1)));  // std::clamp (elo < ehi)
+      const VI vOld = loadI(ln.v[a]);
+      const VI beside = sel(pos[a], imax(face, vOld), sel(neg[a], imin(face, vOld), face));
+      v[a] = sel(onAxis[a], sel(pos[a], ehi[a], elo[a] - splat(int32_t(1))), beside);
+      more = andNot(more, onAxis[a] & outside(v[a], splat(int32_t(virt[a]))));
       store(ln.v[a], sel(more, v[a], vOld));
     }
     store(ln.leaf, leafOf(v, more));
     // The lanes in empty cells are answered here, as testCell answers them — the closest hit so
     // far lies inside this cell, or there is no next cell — and the others' triangles are tested
     // by testCell itself, lane after lane.
-    const M tested = ne(live, (I)field[6], zero);
+    const M tested = ne(live, asInt(field[6]), zero);
     const M empty = andNot(live, tested);
-    const M answered = andNot(empty, more) | le(empty & M{ln.hasBest}, load<F>(ln.bestT), tExit);
-    uint32_t finished = answered.bits;
-    for (uint32_t m = tested.bits; m; m &= m - 1) {
-      const int j = __builtin_ctz(m);
-      Walk& w = ln.walk[j];
+    const M answered = andNot(empty, more) | le(empty & flags(ln.hasBest), loadF(ln.bestT), tExit);
+    uint64_t finished = bits(answered);
+    const uint64_t moreBits = bits(more);
+    for (uint64_t m = bits(tested); m; m &= m - 1) {
+      const int j = std::countr_zero(m);
+      Access::Walk& w = ln.walk[j];
       w.tExit = ln.tExit[j];
-      if (testCell<AnyHit>(w, walkCell(ln.unit[j]), (more.bits >> j) & 1)) finished |= 1u << j;
+      if (g.testCell<AnyHit>(w, uint32_t(ln.unit[j]), (moreBits >> j) & 1)) finished |= uint64_t(1) << j;
       ln.bestT[j] = w.bestT;
-      ln.hasBest |= __mmask16(w.best.hit()) << j;
+      if (w.best.hit()) ln.hasBest[j] = -1;
     }
     // The step cap (a safety net: the steps move forward), as traverse() counts it.
-    const M stepped = andNot(live, M{__mmask16(finished)});
-    const I steps = load<I>(ln.step) + 1;
-    store(ln.step, sel(stepped, steps, load<I>(ln.step)));
-    finished |= eq(stepped, steps, zero + maxSteps).bits;
-    ln.pending = andNot(more, M{__mmask16(finished)}).bits;
-    for (uint32_t m = ln.pending; m; m &= m - 1) __builtin_prefetch(&walkLeaf_[uint32_t(ln.leaf[__builtin_ctz(m)])]);
+    const M stepped = andNot(live, fromBits(finished));
+    const VI stepsBefore = loadI(ln.step), steps = stepsBefore + splat(int32_t(1));
+    store(ln.step, sel(stepped, steps, stepsBefore));
+    finished |= bits(eq(stepped, steps, splat(int32_t(maxSteps))));
+    ln.pending = moreBits & ~finished;
+    for (uint64_t m = ln.pending; m; m &= m - 1) hwy::Prefetch(&leaves[uint32_t(ln.leaf[std::countr_zero(m)])]);
     return finished;
   };
   // The leaves a group's last step asked for (arrived meanwhile) give its lanes' next cells.
   auto advance = [&](GridLanes& ln) {
-    const M pending{ln.pending};
-    if (!pending.bits) return;
-    store(ln.unit, sel(pending, unitsOf(load<I>(ln.leaf), pending), load<I>(ln.unit)));
-    for (uint32_t m = pending.bits; m; m &= m - 1) prefetchCell(&walkCell(ln.unit[__builtin_ctz(m)]));
+    if (!ln.pending) return;
+    const M pending = fromBits(ln.pending);
+    store(ln.unit, sel(pending, unitsOf(loadI(ln.leaf), pending), loadI(ln.unit)));
+    for (uint64_t m = ln.pending; m; m &= m - 1) g.prefetchCellAt(uint32_t(ln.unit[std::countr_zero(m)]));
     ln.pending = 0;
   };
   // Three groups, each lane's cell a chain of two misses (the leaf, then the cell's lines): round
@@ -501,65 +547,91 @@ void IrregularGrid::traverseLanes(std::span<const Query> queries, std::span<GeoH
   GridLanes lanes[kGroups]{};
   int live = 0;
   for (GridLanes& ln : lanes)
-    for (int j = 0; j < kL; ++j) live += fill(ln, j);
+    for (size_t j = 0; j < N; ++j) live += fill(ln, int(j));
   while (live > 0)
-    for (int g = 0; g < kGroups; ++g) {
-      GridLanes& ln = lanes[g];
-      const uint32_t finished = step(ln);
-      advance(lanes[(g + 2) % kGroups]);
-      for (uint32_t m = finished; m; m &= m - 1) {
-        const int j = __builtin_ctz(m);
+    for (int gi = 0; gi < kGroups; ++gi) {
+      GridLanes& ln = lanes[gi];
+      const uint64_t finished = step(ln);
+      advance(lanes[(gi + 2) % kGroups]);
+      for (uint64_t m = finished; m; m &= m - 1) {
+        const int j = std::countr_zero(m);
         done(ln, j);
         live += int(fill(ln, j)) - 1;
       }
     }
 }
 
-template void IrregularGrid::traverseLanes<false>(std::span<const Query>, std::span<GeoHit>, std::span<uint8_t>) const;
-template void IrregularGrid::traverseLanes<true>(std::span<const Query>, std::span<GeoHit>, std::span<uint8_t>) const;
+}  // namespace
 
-#pragma GCC pop_options
-#endif
+void gridIntersectLanes(const IrregularGrid::LaneAccess& g, std::span<const Query> queries, std::span<GeoHit> hits) {
+  gridLanes<false>(g, queries, hits, {});
+}
+void gridOccludedLanes(const IrregularGrid::LaneAccess& g, std::span<const Query> queries, std::span<uint8_t> hits) {
+  gridLanes<true>(g, queries, {}, hits);
+}
 
-/// The lanes need AVX-512, a cell 0 for empty lanes to read, and voxel-map indices (top cells'
-/// byte offsets, leaves) that fit 32-bit lanes.
+// The one-ray traversal and the scalar batch, compiled per target too (flatten: the traversal
+// inlined, so compiled for the target): the compiler's own code for the CPU it runs on.
+[[gnu::flatten]] GeoHit gridIntersectOne(const IrregularGrid::LaneAccess& g, glm::vec3 o, glm::vec3 d, float tnear, float tfar,
+                                         TraversalCounts* counts) {
+  return g.traverse<false>(o, d, tnear, tfar, counts);
+}
+[[gnu::flatten]] GeoHit gridOccludedOne(const IrregularGrid::LaneAccess& g, glm::vec3 o, glm::vec3 d, float tnear, float tfar,
+                                        TraversalCounts* counts) {
+  return g.traverse<true>(o, d, tnear, tfar, counts);
+}
+[[gnu::flatten]] void gridIntersectEach(const IrregularGrid::LaneAccess& g, std::span<const Query> queries, std::span<GeoHit> hits) {
+  g.traverseBatch<false>(queries, [&hits](size_t i, const GeoHit& h) { hits[i] = h; });
+}
+[[gnu::flatten]] void gridOccludedEach(const IrregularGrid::LaneAccess& g, std::span<const Query> queries, std::span<uint8_t> hits) {
+  g.traverseBatch<true>(queries, [&hits](size_t i, const GeoHit& h) { hits[i] = h.hit(); });
+}
+
+}  // namespace lt::HWY_NAMESPACE
+HWY_AFTER_NAMESPACE();
+
+#if HWY_ONCE
+namespace lt {
+
+HWY_EXPORT(gridIntersectLanes);
+HWY_EXPORT(gridOccludedLanes);
+HWY_EXPORT(gridIntersectOne);
+HWY_EXPORT(gridOccludedOne);
+HWY_EXPORT(gridIntersectEach);
+HWY_EXPORT(gridOccludedEach);
+
+/// The lanes need a cell 0 for empty lanes to read, a top cell and a leaf for the lanes outside a
+/// mask to gather, and voxel-map indices (top cells' byte offsets, leaves) that fit 32-bit lanes.
 bool IrregularGrid::lanesAvailable() const {
-#if LT_SIMD512
-  return simd512Available() && !walk_.empty() && topCells_.size() * sizeof(TopCell) < (size_t(1) << 31) &&
+  return !walk_.empty() && !topCells_.empty() && !walkLeaf_.empty() && topCells_.size() * sizeof(TopCell) < (size_t(1) << 31) &&
          walkLeaf_.size() < (size_t(1) << 31);
-#else
-  return false;
-#endif
 }
 
-LT_CPU_DISPATCH GeoHit IrregularGrid::intersect(glm::vec3 origin, glm::vec3 dir, float tnear, float tfar, TraversalCounts* counts) const {
-  return traverse<false>(origin, dir, tnear, tfar, counts);
+GeoHit IrregularGrid::intersect(glm::vec3 origin, glm::vec3 dir, float tnear, float tfar, TraversalCounts* counts) const {
+  return HWY_DYNAMIC_DISPATCH(gridIntersectOne)(LaneAccess{*this}, origin, dir, tnear, tfar, counts);
 }
 
-LT_CPU_DISPATCH bool IrregularGrid::occluded(glm::vec3 origin, glm::vec3 dir, float tnear, float tfar, TraversalCounts* counts) const {
-  return traverse<true>(origin, dir, tnear, tfar, counts).hit();
+bool IrregularGrid::occluded(glm::vec3 origin, glm::vec3 dir, float tnear, float tfar, TraversalCounts* counts) const {
+  return HWY_DYNAMIC_DISPATCH(gridOccludedOne)(LaneAccess{*this}, origin, dir, tnear, tfar, counts).hit();
 }
 
 void IrregularGrid::intersect(std::span<const Query> queries, std::span<GeoHit> hits) const {
-#if LT_SIMD512
-  if (lanesAvailable()) return traverseLanes<false>(queries, hits, {});
-#endif
+  if (lanesAvailable()) return HWY_DYNAMIC_DISPATCH(gridIntersectLanes)(LaneAccess{*this}, queries, hits);
   intersectPortable(queries, hits);
 }
 
 void IrregularGrid::occluded(std::span<const Query> queries, std::span<uint8_t> hits) const {
-#if LT_SIMD512
-  if (lanesAvailable()) return traverseLanes<true>(queries, {}, hits);
-#endif
+  if (lanesAvailable()) return HWY_DYNAMIC_DISPATCH(gridOccludedLanes)(LaneAccess{*this}, queries, hits);
   occludedPortable(queries, hits);
 }
 
-LT_CPU_DISPATCH void IrregularGrid::intersectPortable(std::span<const Query> queries, std::span<GeoHit> hits) const {
-  traverseBatch<false>(queries, [&hits](size_t i, const GeoHit& h) { hits[i] = h; });
+void IrregularGrid::intersectPortable(std::span<const Query> queries, std::span<GeoHit> hits) const {
+  HWY_DYNAMIC_DISPATCH(gridIntersectEach)(LaneAccess{*this}, queries, hits);
 }
 
-LT_CPU_DISPATCH void IrregularGrid::occludedPortable(std::span<const Query> queries, std::span<uint8_t> hits) const {
-  traverseBatch<true>(queries, [&hits](size_t i, const GeoHit& h) { hits[i] = h.hit(); });
+void IrregularGrid::occludedPortable(std::span<const Query> queries, std::span<uint8_t> hits) const {
+  HWY_DYNAMIC_DISPATCH(gridOccludedEach)(LaneAccess{*this}, queries, hits);
 }
 
 }  // namespace lt
+#endif

@@ -131,7 +131,7 @@ bool start(Lanes& ln, int j, const IntervalPyramid& pyramid, const Tables& tb, c
 inline void loadRecords(const Lanes& ln, const Tables& tb, VF field[8]) {
   // (offsets may point into another level's array: the address is formed as an integer)
   const uintptr_t origin = reinterpret_cast<uintptr_t>(tb.origin);
-  const float* rows[kL];
+  const float* rows[kL] = {};
   // A pixel's record is 8k < 32 bytes when k < 4: those lanes read a copy padded to 32 bytes
   // (the last pixel's record ends where the array does).
   HWY_ALIGN float padded[kL][8];

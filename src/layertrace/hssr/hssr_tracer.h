@@ -26,9 +26,9 @@ class HssrTracer : public TracerImpl<HssrTracer> {
   /// The march of Hofmann et al. 2017, §5, written once against the counter calls (trace/tracer.h).
   template <class C>
   TraceHit traceImpl(const Ray& ray, C& counters) const;
-  /// Uncounted batches (timing runs, renders without stats) run a copy of the march compiled
-  /// for the CPU it runs on (util/cpu_dispatch.h): the same answers bit for bit (no FMA
-  /// contraction anywhere), tested against traceImpl.
+  /// Uncounted batches (timing runs, renders without stats) run the march in vector lanes on
+  /// the best vector target of the CPU (hssr_march_lanes.h): the same answers bit for bit (no
+  /// FMA contraction anywhere), tested against traceImpl.
   void traceBatch(std::span<const Ray> rays, std::span<TraceHit> hits, std::span<RayCounters> counters) const override;
   /// Any hit is the closest hit for a screen march (it meets the first surface first): the
   /// same batch path.

@@ -66,7 +66,7 @@ inline void mergeRuns(VF f[16], VF b[16], std::index_sequence<C...>) {
 template <class Children>
 inline void childrenIntoRuns(int dy, Children&& children, VF f[16], VF b[16]) {
   for (int dx = 0; dx < 2; ++dx) {
-    const float* rows[kMaxLanes];
+    const float* rows[kMaxLanes] = {};
     for (size_t j = 0; j < laneCount(); ++j) rows[j] = children(j, dx);
     VF field[8];
     transposeRecords(rows, field);

@@ -1,3 +1,7 @@
+// The tile capture is compiled once per vector target: this file includes itself through
+// hwy/foreach_target.h (the section at its end); everything else in it is compiled once.
+#ifndef LAYERTRACE_RASTER_CAPTURE_ONCE
+#define LAYERTRACE_RASTER_CAPTURE_ONCE
 #include "layertrace/raster/capture.h"
 
 #include <algorithm>
@@ -9,7 +13,6 @@
 #include <tbb/parallel_for.h>
 
 #include "layertrace/raster/raster_setup.h"
-#include "layertrace/util/cpu_dispatch.h"
 #include "layertrace/util/error.h"
 #include "layertrace/util/memory.h"
 #include "layertrace/util/parallel.h"
@@ -115,17 +118,13 @@ inline void captureTileImpl(const Scene& scene, const Camera& camera, const Rast
   generated += gen;
 }
 
-// Compiled twice each (x86-64-v2 and v3, picked at load time): the span's depth loop vectorizes
-// to 8 lanes with AVX2.
-LT_CPU_DISPATCH void captureTile(const Scene& scene, const Camera& camera, const RasterSetup& setup, const LayerConfig& config,
-                                 size_t tile, LayerArrays& out, std::vector<uint32_t>& complexity, uint64_t& generated) {
-  captureTileImpl<false>(scene, camera, setup, config, tile, out, complexity, generated, ListOutput{});
-}
-LT_CPU_DISPATCH void captureTileWithLists(const Scene& scene, const Camera& camera, const RasterSetup& setup, const LayerConfig& config,
-                                          size_t tile, LayerArrays& out, std::vector<uint32_t>& complexity, uint64_t& generated,
-                                          const ListOutput& lists) {
-  captureTileImpl<true>(scene, camera, setup, config, tile, out, complexity, generated, lists);
-}
+// One tile's capture, compiled for every vector target of Google Highway and dispatched to the
+// best one of the CPU (the end of this file): the span's depth loop vectorizes to 8 lanes with
+// AVX2 and 16 with AVX-512.
+void captureTile(const Scene& scene, const Camera& camera, const RasterSetup& setup, const LayerConfig& config, size_t tile,
+                 LayerArrays& out, std::vector<uint32_t>& complexity, uint64_t& generated);
+void captureTileWithLists(const Scene& scene, const Camera& camera, const RasterSetup& setup, const LayerConfig& config, size_t tile,
+                          LayerArrays& out, std::vector<uint32_t>& complexity, uint64_t& generated, const ListOutput& lists);
 
 /// Pass `layer` of depth peeling over one tile (LayerCapture::capturePeeled): the nearest fragment
 /// behind the pixel's layer − 1 becomes its slot `layer`.
@@ -329,3 +328,44 @@ void LayerCapture::captureWithLists(const Scene& scene, const Camera& camera, co
 }
 
 }  // namespace lt
+#endif  // LAYERTRACE_RASTER_CAPTURE_ONCE
+
+#undef HWY_TARGET_INCLUDE
+#define HWY_TARGET_INCLUDE "layertrace/raster/capture.cpp"
+#include <hwy/foreach_target.h>  // IWYU pragma: keep
+
+#include <hwy/highway.h>
+
+HWY_BEFORE_NAMESPACE();
+namespace lt::HWY_NAMESPACE {
+// (flatten: the tile's loops inlined here, so compiled for the target; no FMA contraction, so
+// every target writes the same bytes)
+[[gnu::flatten]] void captureTileTarget(const Scene& scene, const Camera& camera, const RasterSetup& setup, const LayerConfig& config,
+                                        size_t tile, LayerArrays& out, std::vector<uint32_t>& complexity, uint64_t& generated) {
+  captureTileImpl<false>(scene, camera, setup, config, tile, out, complexity, generated, ListOutput{});
+}
+[[gnu::flatten]] void captureTileWithListsTarget(const Scene& scene, const Camera& camera, const RasterSetup& setup,
+                                                 const LayerConfig& config, size_t tile, LayerArrays& out,
+                                                 std::vector<uint32_t>& complexity, uint64_t& generated, const ListOutput& lists) {
+  captureTileImpl<true>(scene, camera, setup, config, tile, out, complexity, generated, lists);
+}
+}  // namespace lt::HWY_NAMESPACE
+HWY_AFTER_NAMESPACE();
+
+#if HWY_ONCE
+namespace lt {
+namespace {
+HWY_EXPORT(captureTileTarget);
+HWY_EXPORT(captureTileWithListsTarget);
+
+void captureTile(const Scene& scene, const Camera& camera, const RasterSetup& setup, const LayerConfig& config, size_t tile,
+                 LayerArrays& out, std::vector<uint32_t>& complexity, uint64_t& generated) {
+  HWY_DYNAMIC_DISPATCH(captureTileTarget)(scene, camera, setup, config, tile, out, complexity, generated);
+}
+void captureTileWithLists(const Scene& scene, const Camera& camera, const RasterSetup& setup, const LayerConfig& config, size_t tile,
+                          LayerArrays& out, std::vector<uint32_t>& complexity, uint64_t& generated, const ListOutput& lists) {
+  HWY_DYNAMIC_DISPATCH(captureTileWithListsTarget)(scene, camera, setup, config, tile, out, complexity, generated, lists);
+}
+}  // namespace
+}  // namespace lt
+#endif

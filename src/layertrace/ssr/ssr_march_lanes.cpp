@@ -91,7 +91,7 @@ HWY_NOINLINE uint64_t step(Lanes& ln, const Tables& tb) {
   const size_t bytes = sizeof(Interval) * size_t(tb.k);
   if (tb.k == 4) {
     // One 32-byte record per lane, read as rows and transposed.
-    const float* rows[kL];
+    const float* rows[kL] = {};
     for (size_t j = 0; j < laneCount(); ++j) rows[j] = reinterpret_cast<const float*>(tb.slots + size_t(ln.pixel[j]) * bytes);
     transposeRecords(rows, field);
   } else {

@@ -109,6 +109,12 @@ inline uint64_t bits(M m) {
   std::memcpy(&v, b, sizeof v);
   return v;  // (little-endian bytes: lane j is bit j on every target Highway supports)
 }
+/// The mask of bits (lane j from bit j).
+inline M fromBits(uint64_t b) {
+  uint8_t bytes[8];
+  std::memcpy(bytes, &b, sizeof bytes);
+  return hn::LoadMaskBits(DF(), bytes);
+}
 /// Per-lane flags kept in memory as int32 0 / −1 (written lane by lane, read as a mask).
 inline M flags(const int32_t* p) { return toM(hn::MaskFromVec(loadI(p))); }
 inline void storeFlags(int32_t* p, M m) { store(p, hn::VecFromMask(DI(), toMI(m))); }
