@@ -15,6 +15,9 @@
 //   ldc         the layered depth cube (Bürger et al. 2007) at 512² and 1K² with blocks of 4, 8, 16 texels
 //               and 1 (the paper's min/max) or 4 intervals per block: construction vs tracing time
 //               (Bürger et al. 2007, Table 1), memory, strict classes, beside plain Embree and HSSR on the same rays
+//   simd        the vector loops on every vector target this CPU runs (AVX-512, AVX2, SSE4, scalar):
+//               capture, pyramid build, HSSR trace and grid traversal, each against the best target and
+//               against plain Embree on the same rays
 // Every time is the median of --repeat runs on the same rays; results carry the machine, the
 // build type and the date, and go to DIR/NAME.csv, DIR/NAME.json and DIR/NAME.png.
 #include <algorithm>
@@ -40,6 +43,7 @@
 #include "layertrace/eval/oracle_observer.h"
 #include "layertrace/eval/verify_layers.h"
 #include "layertrace/util/error.h"
+#include "layertrace/util/simd_targets.h"
 #include "layertrace/util/timing.h"
 
 #ifndef LAYERTRACE_TOOLS_DIR
@@ -138,11 +142,11 @@ Classified measure(const Frame& frame, const Tracer& tracer, const EffectConfig&
 }  // namespace
 
 int runBench(const BenchOptions& o) {
-  static const char* kExperiments[] = {"stride", "layers", "tau", "memory", "resolution", "threads", "warp", "capture", "gamma", "ldc", "stages", "peel"};
+  static const char* kExperiments[] = {"stride", "layers", "tau", "memory", "resolution", "threads", "warp", "capture", "gamma", "ldc", "stages", "peel", "simd"};
   if (std::find_if(std::begin(kExperiments), std::end(kExperiments), [&](const char* e) { return o.experiment == e; }) ==
       std::end(kExperiments))
     inputError("--experiment ", o.experiment.empty() ? "(none)" : o.experiment,
-               ": unknown (use stride, layers, tau, memory, resolution, threads, warp, capture, gamma, ldc, stages, peel)");
+               ": unknown (use stride, layers, tau, memory, resolution, threads, warp, capture, gamma, ldc, stages, peel, simd)");
   if (o.run.device == "gpu" && o.experiment != "stages" && o.experiment != "peel")
     inputError("--device gpu: bench measures the GPU with --experiment stages or peel, not ", o.experiment);
   // The device before the scene: a machine without one is told at once.
@@ -524,6 +528,42 @@ int runBench(const BenchOptions& o) {
       const double lists = times[0][0] + times[0][1], peel = times[1][0] + times[1][1];
       t.rows.push_back({k, times[0][0], times[0][1], lists, times[1][0], times[1][1], peel, lists > 0.0 ? peel / lists : 0.0, bytes[0],
                         bytes[1], frame.lists.generated});
+    }
+  }
+
+  if (e == "simd") {
+    // The same frame and rays on each vector target in turn (the lanes restricted to it):
+    // capture (raster + sort), the pyramid's levels 1…, HSSR's trace and the grid's traversal,
+    // medians of --repeat after a warm-up; plain Embree on the same rays in the same row. Speeds
+    // are relative to the best target (the first row): best time / this time.
+    t.columns = {"target", "lanes", "capture_ms", "pyramid_ms", "hssr_trace_ms", "grid_trace_ms", "embree_trace_ms",
+                 "capture_speed_vs_best", "pyramid_speed_vs_best", "hssr_speed_vs_best", "grid_speed_vs_best",
+                 "hssr_speed_vs_embree", "grid_speed_vs_embree"};
+    const std::vector<SimdTarget> targets = simdTargets();
+    Progress p(o.run.quiet, e, int(targets.size()));
+    rasterizeFrame(o.run.frame, frame);
+    const BuiltTracer embree = buildTracer("embree", frame, o.options);
+    const BuiltTracer grid = buildTracer("grid", frame, o.options);
+    double best[4] = {};
+    for (const SimdTarget& target : targets) {
+      p.step(target.name);
+      const ScopedSimdTarget only(target);
+      std::vector<double> capture;
+      rasterizeFrame(o.run.frame, frame);  // warm-up, discarded
+      for (int i = 0; i < o.repeat; ++i) rasterizeFrame(o.run.frame, frame), capture.push_back(frame.rasterMs + frame.sortMs);
+      IntervalPyramid pyr;
+      buildIntervalPyramid(frame.level0(), frame.camera, o.options.pyramid, pyr);  // warm-up, discarded
+      const double pyramid = medianMs(o.repeat, [&] { buildIntervalPyramid(frame.level0(), frame.camera, o.options.pyramid, pyr); });
+      const BuiltTracer hssr = buildTracer("hssr", frame, o.options);
+      const double hssrMs = measure(frame, *hssr.tracer, ec, o.repeat, nullptr).traceMs;
+      const double gridMs = measure(frame, *grid.tracer, ec, o.repeat, nullptr).traceMs;
+      const double embreeMs = measure(frame, *embree.tracer, ec, o.repeat, nullptr).traceMs;
+      const double times[4] = {median(capture), pyramid, hssrMs, gridMs};
+      if (t.rows.empty()) std::copy(std::begin(times), std::end(times), best);
+      auto speed = [](double a, double b) { return b > 0.0 ? a / b : 0.0; };
+      t.rows.push_back({target.name, simdLaneCount(target), times[0], times[1], times[2], times[3], embreeMs, speed(best[0], times[0]),
+                        speed(best[1], times[1]), speed(best[2], times[2]), speed(best[3], times[3]), speed(embreeMs, times[2]),
+                        speed(embreeMs, times[3])});
     }
   }
 

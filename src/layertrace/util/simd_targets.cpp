@@ -1,10 +1,24 @@
+// (Included once per vector target through hwy/foreach_target.h, for each target's lane count.)
 #include "layertrace/util/simd_targets.h"
+
+#undef HWY_TARGET_INCLUDE
+#define HWY_TARGET_INCLUDE "layertrace/util/simd_targets.cpp"
+#include <hwy/foreach_target.h>  // IWYU pragma: keep
 
 #include <hwy/highway.h>
 #include <hwy/targets.h>
 
+HWY_BEFORE_NAMESPACE();
+namespace lt::HWY_NAMESPACE {
+size_t floatLanes() { return hwy::HWY_NAMESPACE::Lanes(hwy::HWY_NAMESPACE::ScalableTag<float>()); }
+}  // namespace lt::HWY_NAMESPACE
+HWY_AFTER_NAMESPACE();
+
+#if HWY_ONCE
 namespace lt {
 namespace {
+
+HWY_EXPORT(floatLanes);
 
 std::string nameOf(int64_t bits) {
   switch (bits) {
@@ -29,6 +43,14 @@ std::string nameOf(int64_t bits) {
   return s;
 }
 
+/// The dispatch table's entry for `target`, as the lane loops would run it.
+size_t lanesOf(int64_t target) {
+  hwy::SetSupportedTargetsForTest(target);
+  const size_t n = HWY_DYNAMIC_DISPATCH(floatLanes)();
+  hwy::SetSupportedTargetsForTest(0);
+  return n;
+}
+
 }  // namespace
 
 std::vector<SimdTarget> simdTargets() {
@@ -40,10 +62,14 @@ std::vector<SimdTarget> simdTargets() {
 
 SimdTarget activeSimdTarget() {
   const std::vector<int64_t> t = hwy::SupportedAndGeneratedTargets();
-  return t.empty() ? SimdTarget{HWY_STATIC_TARGET, nameOf(HWY_STATIC_TARGET)} : SimdTarget{t.front(), nameOf(t.front())};
+  const int64_t best = t.empty() ? int64_t(HWY_STATIC_TARGET) : t.front();
+  return {best, nameOf(best)};
 }
+
+size_t simdLaneCount(const SimdTarget& target) { return lanesOf(target.bits); }
 
 ScopedSimdTarget::ScopedSimdTarget(const SimdTarget& target) { hwy::SetSupportedTargetsForTest(target.bits); }
 ScopedSimdTarget::~ScopedSimdTarget() { hwy::SetSupportedTargetsForTest(0); }
 
 }  // namespace lt
+#endif

@@ -3,6 +3,7 @@
 // target are tested, and `bench --experiment simd` times each.
 #pragma once
 
+#include <cstddef>
 #include <cstdint>
 #include <string>
 #include <vector>
@@ -11,11 +12,15 @@ namespace lt {
 
 struct SimdTarget {
   int64_t bits = 0;  ///< Highway's target bit (HWY_AVX3, HWY_AVX2, …)
-  std::string name;  ///< avx512, avx2, sse4, neon, sve, sve2, emu128 (the emulation), …
+  std::string name;  ///< avx512, avx2, sse4, neon, sve, sve2, emu128 or scalar (the emulations), …
 };
 
 /// The targets compiled into this build that this CPU runs, best first.
 std::vector<SimdTarget> simdTargets();
+
+/// Float lanes of a vector on `target` (16 for AVX-512, 8 for AVX2, 4 for SSE4 and NEON). Not
+/// while another thread runs lane loops (it switches the dispatch for a moment).
+size_t simdLaneCount(const SimdTarget& target);
 
 /// The target the lane loops run on now (the best one, or the one a ScopedSimdTarget chose).
 SimdTarget activeSimdTarget();
