@@ -60,8 +60,9 @@ run: build-cli
 # installed and the examples built against it).
 # The sanitizer build also compiles the per-ray counters out (LAYERTRACE_COUNTERS=OFF), so
 # both configurations of the tracers are built and tested.
-# Then the unit tests under ThreadSanitizer, and the fuzz targets of our own parsers for 20 s each
-# (the assimp targets find assimp's bugs: `make fuzz`, README "Reliability").
+# Then the unit tests under ThreadSanitizer, the fuzz targets of our own parsers for 20 s each
+# (the assimp targets find assimp's bugs: `make fuzz`, README "Reliability"), and the vector
+# loops and their test compiled for aarch64 (NEON) with the cross compiler.
 test: build build-asan build-tsan fetch
 	cd $(BUILD) && ctest --output-on-failure -j $(JOBS)
 	cd $(ASAN) && ASAN_OPTIONS=detect_leaks=1 UBSAN_OPTIONS=halt_on_error=1:print_stacktrace=1 \
@@ -69,6 +70,7 @@ test: build build-asan build-tsan fetch
 	cd $(TSAN) && TSAN_OPTIONS="halt_on_error=1 suppressions=$(CURDIR)/scripts/tsan.supp" \
 	    LAYERTRACE_SANITIZED=1 ctest --output-on-failure -j $(JOBS) -L unit
 	scripts/run-fuzz.sh $(ASAN) 20 json_scene cli
+	scripts/cross-aarch64.sh
 
 # The contributors' loop: the Release build of the CLI and the unit tests, and the unit and
 # documentation tests (no fetched scenes, no sanitizers). Under 5 minutes after the first build.

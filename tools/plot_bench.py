@@ -103,6 +103,15 @@ def main():
         ax2.plot(list(xs), [100 * (r["correct_hit"] + r["correct_miss"]) for r in rows], "ks--", label="correct %")
         ax2.set_ylabel("correct hit + correct miss [% of rays] (dashed)")
         ax2.set_ylim(0, 100)
+    elif exp == "simd":
+        xs = range(len(rows))
+        stages = [("capture_ms", "capture"), ("pyramid_ms", "pyramid"), ("hssr_trace_ms", "HSSR trace"), ("grid_trace_ms", "grid traversal")]
+        for i, (key, lab) in enumerate(stages):
+            ax.bar([x + (i - 1.5) * 0.2 for x in xs], [r[key] for r in rows], 0.2, label=lab)
+        ax.plot(list(xs), [r["embree_trace_ms"] for r in rows], "k^--", label="plain Embree, same rays")
+        ax.set_xticks(list(xs), [f"{r['target']} ({r['lanes']} lanes)" for r in rows])
+        ax.set_ylabel("time [ms]")
+        title = f"vector targets: {data['scene']} ({data['width']}x{data['height']})"
     elif exp == "warp":
         for i, k in enumerate(sorted({r["k"] for r in rows})):
             for j, tracer in enumerate(["ssr", "hssr", "quadtree"]):

@@ -3,11 +3,14 @@
 #include <algorithm>
 #include <atomic>
 #include <chrono>
+#include <cstdint>
 #include <limits>
 
 #include <embree3/rtcore.h>
+#if defined(__x86_64__) || defined(__i386__)
 #include <pmmintrin.h>
 #include <xmmintrin.h>
+#endif
 
 #include "layertrace/util/error.h"
 #include "layertrace/util/memory.h"
@@ -20,16 +23,27 @@ namespace {
 /// speed), restored on exit: the calling thread — often the main thread, which TBB also lends to
 /// parallel loops — must not keep them, or the caller's own arithmetic on tiny values (a scene
 /// scaled to 1e-20, say) silently flushes to zero. One MXCSR read and two writes, as the two
-/// _MM_SET_* macros cost before.
+/// _MM_SET_* macros cost before. On aarch64 the one FPCR bit FZ (24) does both; elsewhere nothing.
 class FlushDenormalsScope {
  public:
-  FlushDenormalsScope() : saved_(_mm_getcsr()) { _mm_setcsr(saved_ | _MM_FLUSH_ZERO_ON | _MM_DENORMALS_ZERO_ON); }
-  ~FlushDenormalsScope() { _mm_setcsr(saved_); }
+#if defined(__x86_64__) || defined(__i386__)
+  FlushDenormalsScope() : saved_(_mm_getcsr()) { _mm_setcsr(unsigned(saved_) | _MM_FLUSH_ZERO_ON | _MM_DENORMALS_ZERO_ON); }
+  ~FlushDenormalsScope() { _mm_setcsr(unsigned(saved_)); }
+#elif defined(__aarch64__)
+  FlushDenormalsScope() {
+    asm volatile("mrs %0, fpcr" : "=r"(saved_));
+    const uint64_t flush = saved_ | (uint64_t(1) << 24);
+    asm volatile("msr fpcr, %0" : : "r"(flush));
+  }
+  ~FlushDenormalsScope() { asm volatile("msr fpcr, %0" : : "r"(saved_)); }
+#else
+  FlushDenormalsScope() = default;
+#endif
   FlushDenormalsScope(const FlushDenormalsScope&) = delete;
   FlushDenormalsScope& operator=(const FlushDenormalsScope&) = delete;
 
  private:
-  unsigned saved_;
+  uint64_t saved_ = 0;
 };
 
 std::atomic<int64_t> gEmbreeBytes{0};
