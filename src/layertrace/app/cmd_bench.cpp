@@ -21,6 +21,7 @@
 // Every time is the median of --repeat runs on the same rays; results carry the machine, the
 // build type and the date, and go to DIR/NAME.csv, DIR/NAME.json and DIR/NAME.png.
 #include <algorithm>
+#include <array>
 #include <chrono>
 #include <ctime>
 #include <filesystem>
@@ -533,37 +534,50 @@ int runBench(const BenchOptions& o) {
 
   if (e == "simd") {
     // The same frame and rays on each vector target in turn (the lanes restricted to it):
-    // capture (raster + sort), the pyramid's levels 1…, HSSR's trace and the grid's traversal,
-    // medians of --repeat after a warm-up; plain Embree on the same rays in the same row. Speeds
-    // are relative to the best target (the first row): best time / this time.
+    // capture (raster + sort), the pyramid's levels 1…, HSSR's trace and the grid's traversal;
+    // plain Embree on the same rays in the same rounds. A warm-up round, then --repeat rounds,
+    // each running every target once (so that a drift of the machine's speed falls on every
+    // target alike); medians per target. Speeds are relative to the best target (the first row):
+    // best time / this time.
     t.columns = {"target", "lanes", "capture_ms", "pyramid_ms", "hssr_trace_ms", "grid_trace_ms", "embree_trace_ms",
                  "capture_speed_vs_best", "pyramid_speed_vs_best", "hssr_speed_vs_best", "grid_speed_vs_best",
                  "hssr_speed_vs_embree", "grid_speed_vs_embree"};
     const std::vector<SimdTarget> targets = simdTargets();
-    Progress p(o.run.quiet, e, int(targets.size()));
     rasterizeFrame(o.run.frame, frame);
     const BuiltTracer embree = buildTracer("embree", frame, o.options);
     const BuiltTracer grid = buildTracer("grid", frame, o.options);
-    double best[4] = {};
-    for (const SimdTarget& target : targets) {
-      p.step(target.name);
-      const ScopedSimdTarget only(target);
-      std::vector<double> capture;
-      rasterizeFrame(o.run.frame, frame);  // warm-up, discarded
-      for (int i = 0; i < o.repeat; ++i) rasterizeFrame(o.run.frame, frame), capture.push_back(frame.rasterMs + frame.sortMs);
-      IntervalPyramid pyr;
-      buildIntervalPyramid(frame.level0(), frame.camera, o.options.pyramid, pyr);  // warm-up, discarded
-      const double pyramid = medianMs(o.repeat, [&] { buildIntervalPyramid(frame.level0(), frame.camera, o.options.pyramid, pyr); });
-      const BuiltTracer hssr = buildTracer("hssr", frame, o.options);
-      const double hssrMs = measure(frame, *hssr.tracer, ec, o.repeat, nullptr).traceMs;
-      const double gridMs = measure(frame, *grid.tracer, ec, o.repeat, nullptr).traceMs;
-      const double embreeMs = measure(frame, *embree.tracer, ec, o.repeat, nullptr).traceMs;
-      const double times[4] = {median(capture), pyramid, hssrMs, gridMs};
-      if (t.rows.empty()) std::copy(std::begin(times), std::end(times), best);
-      auto speed = [](double a, double b) { return b > 0.0 ? a / b : 0.0; };
-      t.rows.push_back({target.name, simdLaneCount(target), times[0], times[1], times[2], times[3], embreeMs, speed(best[0], times[0]),
-                        speed(best[1], times[1]), speed(best[2], times[2]), speed(best[3], times[3]), speed(embreeMs, times[2]),
-                        speed(embreeMs, times[3])});
+    const BuiltTracer hssr = buildTracer("hssr", frame, o.options);
+    constexpr int kStages = 5;  // capture, pyramid, hssr, grid, embree
+    std::vector<std::array<std::vector<double>, kStages>> times(targets.size());
+    IntervalPyramid pyr;
+    Frame captured;  // (the capture's own frame: the tracers keep reading `frame`'s layers)
+    loadFrameScene(o.run.frame, captured);
+    auto wallMs = [](auto&& f) {
+      const auto start = std::chrono::steady_clock::now();
+      f();
+      return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
+    };
+    Progress p(o.run.quiet, e, o.repeat + 1);
+    for (int round = 0; round <= o.repeat; ++round) {
+      p.step(round == 0 ? std::string("warm-up") : cat("round ", round));
+      for (size_t i = 0; i < targets.size(); ++i) {
+        const ScopedSimdTarget only(targets[i]);
+        rasterizeFrame(o.run.frame, captured);
+        const double pyramidMs = wallMs([&] { buildIntervalPyramid(frame.level0(), frame.camera, o.options.pyramid, pyr); });
+        const double run[kStages] = {captured.rasterMs + captured.sortMs, pyramidMs, measureTrace(frame, *hssr.tracer, ec, 1).traceMs,
+                                     measureTrace(frame, *grid.tracer, ec, 1).traceMs, measureTrace(frame, *embree.tracer, ec, 1).traceMs};
+        if (round > 0)
+          for (int s = 0; s < kStages; ++s) times[i][size_t(s)].push_back(run[s]);
+      }
+    }
+    double best[kStages] = {};
+    auto speed = [](double a, double b) { return b > 0.0 ? a / b : 0.0; };
+    for (size_t i = 0; i < targets.size(); ++i) {
+      double m[kStages];
+      for (int s = 0; s < kStages; ++s) m[s] = median(times[i][size_t(s)]);
+      if (i == 0) std::copy(std::begin(m), std::end(m), best);
+      t.rows.push_back({targets[i].name, simdLaneCount(targets[i]), m[0], m[1], m[2], m[3], m[4], speed(best[0], m[0]), speed(best[1], m[1]),
+                        speed(best[2], m[2]), speed(best[3], m[3]), speed(m[4], m[2]), speed(m[4], m[3])});
     }
   }
 
