@@ -77,7 +77,7 @@ TEST(Lanes, MaxMinAreStdMaxMinBitForBit) {
 TEST(Lanes, TransposeReadsEachLanesRecord) {
   std::vector<float> pool(64 * 8 * 3);
   for (size_t i = 0; i < pool.size(); ++i) pool[i] = float(i) + 0.25f;
-  std::mt19937 rng(uint32_t(test::testSeed()));
+  std::mt19937 rng{uint32_t(test::testSeed())};
   test::forEachSimdTarget([&](const SimdTarget& t) {
     for (int round = 0; round < 20; ++round) {
       const float* rows[64];
