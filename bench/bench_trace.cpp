@@ -169,7 +169,7 @@ void timeOneAgainstLanes(benchmark::State& state, Pass&& pass) {
 }
 
 /// The HSSR march alone (segments made beforehand, no hit shading), one ray at a time
-/// (hssrMarchEach) against the AVX-512 lanes (hssrMarchBatch) on the same segments.
+/// (hssrMarchEach) against the vector lanes (hssrMarchBatch) on the same segments.
 void BM_HssrLanes(benchmark::State& state) {
   Setup& s = setup(int(state.range(0)));
   const lt::Frame& f = s.frame;
@@ -192,7 +192,7 @@ void BM_HssrLanes(benchmark::State& state) {
 }
 
 /// SSR (McGuire and Mara 2014) over the same rays, one ray at a time (the one-ray path of
-/// TracerImpl) against the AVX-512 lanes (SsrTracer::traceBatch). Args: scene, all layers
+/// TracerImpl) against the vector lanes (SsrTracer::traceBatch). Args: scene, all layers
 /// (ssr-layers), stride.
 void BM_SsrLanes(benchmark::State& state) {
   Setup& s = setup(int(state.range(0)));

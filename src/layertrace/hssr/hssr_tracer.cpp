@@ -28,8 +28,8 @@ TraceHit HssrTracer::traceImpl(const Ray& ray, C& c) const {
 
 void HssrTracer::traceBatch(std::span<const Ray> rays, std::span<TraceHit> hits, std::span<RayCounters> counters) const {
   if (kCountersCompiled && !counters.empty()) return TracerImpl::traceBatch(rays, hits, counters);
-  // Uncounted: the batch's segments through the lane march (hssr_march_lanes.h), which runs
-  // sixteen rays at a time where the CPU has AVX-512 and hssrMarch one by one elsewhere.
+  // Uncounted: the batch's segments through the lane march (hssr_march_lanes.h), a ray per
+  // vector lane on the CPU's best target.
   thread_local std::vector<ScreenSegment> segs;
   thread_local std::vector<MarchHit> marched;
   segs.resize(rays.size());

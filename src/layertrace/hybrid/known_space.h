@@ -79,7 +79,7 @@ class KnownSpace {
   template <class C>
   Boundary boundary(const Ray& ray, C& counters) const;
   /// boundary() of every ray of a batch, uncounted: the rule-3 marches run together through
-  /// hssrMarchBatch (AVX-512 lanes where the CPU has them; the same answers bit for bit).
+  /// hssrMarchBatch (vector lanes on the CPU's best target; the same answers bit for bit).
   /// `segments`, when not empty (one per ray), receives makeScreenSegment of each ray, made here
   /// anyway: the caller need not make them again.
   void boundaries(std::span<const Ray> rays, std::span<Boundary> out, std::span<ScreenSegment> segments = {}) const;

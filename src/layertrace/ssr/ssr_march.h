@@ -1,7 +1,7 @@
 // The march of McGuire and Mara 2014 (JCGT, §3: the 2D DDA along the projected ray with
 // perspective-correct depth) as a reusable piece: SsrStart sets a segment up, ssrMarch walks it
 // one sample per stride and reports the first stored interval it meets. SsrTracer refines and
-// shades the hit; the lane march (ssr_march_lanes.h) runs sixteen of these at once and must
+// shades the hit; the lane march (ssr_march_lanes.h) runs a vector's count of these at once and must
 // answer bit for bit like ssrMarch.
 #pragma once
 

@@ -36,8 +36,8 @@ class SsrTracer : public TracerImpl<SsrTracer> {
   /// The march of McGuire and Mara 2014, written once against the counter calls (trace/tracer.h).
   template <class C>
   TraceHit traceImpl(const Ray& ray, C& counters) const;
-  /// Uncounted batches march sixteen rays at a time in AVX-512 lanes where the CPU has them
-  /// (ssr_march_lanes.h): the same samples and hits bit for bit as traceImpl (tested).
+  /// Uncounted batches march a ray per vector lane (ssr_march_lanes.h): the same samples and hits
+  /// bit for bit as traceImpl (tested on every vector target).
   void traceBatch(std::span<const Ray> rays, std::span<TraceHit> hits, std::span<RayCounters> counters) const override;
   /// Any hit is the closest hit for a screen march: the same batch path.
   void occludedBatch(std::span<const Ray> rays, std::span<TraceHit> hits, std::span<RayCounters> counters) const override {
