@@ -213,7 +213,8 @@ HWY_NOINLINE uint64_t step(Lanes& ln, const Tables& tb) {
   M bail = noLanes(), d = noLanes();
   if (any(descend)) {
     const VF sNew = vmax(s, sHit);
-    const VI Ld = L - one, half = one << Ld;
+    // (L − 1 clamped at 0: lanes at level 0 do not descend, and a negative shift is undefined)
+    const VI Ld = L - one, half = one << imax(Ld, zero);
     const VF xMid = toFloat((hn::ShiftLeft<1>(cx) + one) * half), yMid = toFloat((hn::ShiftLeft<1>(cy) + one) * half);
     const VF mx = (xMid - p0x) * invDx, my = (yMid - p0y) * invDy;
     VI best = splat(int32_t(-1));
@@ -269,7 +270,10 @@ HWY_NOINLINE uint64_t step(Lanes& ln, const Tables& tb) {
     // Hofmann et al. 2017, §5.2: only ascend when the coarser cell does not overlap the origin
     // pixel.
     up = ne(up, loadI(ln.ox) >> Lu, px) | ne(up, loadI(ln.oy) >> Lu, py);
-    up = lt(lt(up, px, lookup(tb.width, Lu)), py, lookup(tb.height, Lu)) & ge(cx, zero) & ge(cy, zero);
+    // (the table lookups' level capped at 7, the tables' last: lanes with Lu ≥ levels are out of
+    // `up` already)
+    const VI LuTable = imin(Lu, splat(int32_t(7)));
+    up = lt(lt(up, px, lookup(tb.width, LuTable)), py, lookup(tb.height, LuTable)) & ge(cx, zero) & ge(cy, zero);
     if (any(up)) {
       L = sel(up, Lu, L);
       cx = sel(up, px, cx), cy = sel(up, py, cy);

@@ -27,6 +27,7 @@
 #include <cstddef>
 #include <cstdint>
 #include <cstring>
+#include <limits>
 
 #include <hwy/highway.h>
 
@@ -101,19 +102,30 @@ inline M outside(VI i, VI n) {
 inline bool any(M m) { return !hn::AllFalse(DF(), m); }
 /// The mask with no lane set.
 inline M noLanes() { return hn::FirstN(DF(), 0); }
-/// The mask as bits, lane j in bit j.
+/// The mask as bits, lane j in bit j, and back. (AVX-512 masks are k-registers whose value is
+/// the bits: no trip through memory as Highway's StoreMaskBits / LoadMaskBits take — the grid's
+/// lane step converts five masks a step.)
 inline uint64_t bits(M m) {
+#if HWY_TARGET == HWY_AVX3 || HWY_TARGET == HWY_AVX3_DL
+  return uint64_t(m.raw);
+#else
   uint8_t b[8] = {};
   hn::StoreMaskBits(DF(), m, b);
   uint64_t v = 0;
   std::memcpy(&v, b, sizeof v);
   return v;  // (little-endian bytes: lane j is bit j on every target Highway supports)
+#endif
 }
-/// The mask of bits (lane j from bit j).
 inline M fromBits(uint64_t b) {
+#if HWY_TARGET == HWY_AVX3 || HWY_TARGET == HWY_AVX3_DL
+  M m;
+  m.raw = static_cast<decltype(m.raw)>(b);
+  return m;
+#else
   uint8_t bytes[8];
   std::memcpy(bytes, &b, sizeof bytes);
   return hn::LoadMaskBits(DF(), bytes);
+#endif
 }
 /// Per-lane flags kept in memory as int32 0 / −1 (written lane by lane, read as a mask).
 inline M flags(const int32_t* p) { return toM(hn::MaskFromVec(loadI(p))); }
@@ -146,13 +158,20 @@ inline VI imax(VI a, VI b) { return hn::Max(a, b); }
 inline VI imin(VI a, VI b) { return hn::Min(a, b); }
 inline VF vabs(VF a) { return hn::Abs(a); }
 inline VF vfloor(VF a) { return hn::Floor(a); }
-/// int32 lanes to float and back (toward zero), as static_cast does for values in range.
+/// int32 lanes to float, and float lanes to int32 toward zero as static_cast does for values in
+/// range. Out of range and NaN give INT32_MIN on every target, as x86's conversion does for the
+/// scalar code (lanes the loops do not use hold such values; Highway's own conversion would
+/// saturate on x86 and be undefined in its emulation).
 inline VF toFloat(VI v) { return hn::ConvertTo(DF(), v); }
-inline VI toInt(VF v) { return hn::ConvertTo(DI(), v); }
+inline VI toInt(VF v) {
+  const M inRange = hn::Lt(hn::Abs(v), splat(2147483648.0f));  // (false on NaN)
+  return sel(inRange, hn::ConvertTo(DI(), sel(inRange, v, splat(0.0f))), splat(std::numeric_limits<int32_t>::min()));
+}
 inline VI asInt(VF v) { return hn::BitCast(DI(), v); }
 
-/// table[index] per lane for a table of at most eight entries (index in [0, 8)); the table
-/// array holds at least max(8, kMaxLanes) entries.
+/// table[index] per lane for a table of at most eight entries (every index in [0, 8), in every
+/// lane: Highway checks it in debug builds); the table array holds at least max(8, kMaxLanes)
+/// entries.
 template <class D, class T>
 inline hn::Vec<D> lookup8(D d, const T* table, hn::Vec<hn::RebindToSigned<D>> index) {
 #if HWY_HAVE_SCALABLE
