@@ -92,13 +92,17 @@ TEST(Lanes, TransposeReadsEachLanesRecord) {
       for (const float*& r : rows) r = &pool[size_t(rng() % (pool.size() - 8))];  // unaligned, anywhere
       std::vector<float> out(8 * 64);
       const size_t n = HWY_DYNAMIC_DISPATCH(laneTranspose)(rows, out.data());
-      if (expectedLanes.count(t.name)) ASSERT_EQ(n, expectedLanes.at(t.name)) << t.name;
+      if (expectedLanes.count(t.name)) {
+        ASSERT_EQ(n, expectedLanes.at(t.name)) << t.name;
+      }
       ASSERT_EQ(n, simdLaneCount(t)) << t.name;
       for (size_t j = 0; j < n; ++j)
         for (size_t f = 0; f < 8; ++f) ASSERT_EQ(out[f * n + j], rows[j][f]) << t.name << " lane " << j << " field " << f;
     }
   });
-  if (simdTargets().size() > 1) EXPECT_GT(counts.size(), 1u) << "every target ran with the same lanes: dispatch did not switch";
+  if (simdTargets().size() > 1) {
+    EXPECT_GT(counts.size(), 1u) << "every target ran with the same lanes: dispatch did not switch";
+  }
 }
 
 TEST(Lanes, TargetsListTheBestFirstAndDispatchFollowsTheChoice) {
@@ -109,6 +113,13 @@ TEST(Lanes, TargetsListTheBestFirstAndDispatchFollowsTheChoice) {
   {
     const ScopedSimdTarget only(all.back());
     EXPECT_EQ(activeSimdTarget().bits, all.back().bits);
+    {
+      const ScopedSimdTarget inner(all.front());
+      EXPECT_EQ(activeSimdTarget().bits, all.front().bits);
+    }
+    EXPECT_EQ(activeSimdTarget().bits, all.back().bits) << "an inner scope restores the outer one's choice";
+    simdLaneCount(all.front());
+    EXPECT_EQ(activeSimdTarget().bits, all.back().bits) << "simdLaneCount keeps the scope's choice";
   }
   EXPECT_EQ(activeSimdTarget().bits, all.front().bits);
 }

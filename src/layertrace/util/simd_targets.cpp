@@ -43,11 +43,15 @@ std::string nameOf(int64_t bits) {
   return s;
 }
 
-/// The dispatch table's entry for `target`, as the lane loops would run it.
+/// The target a live ScopedSimdTarget chose (0: none; Highway has no getter for it).
+int64_t gScoped = 0;
+
+/// The dispatch table's entry for `target`, as the lane loops would run it; the choice in force
+/// before is restored.
 size_t lanesOf(int64_t target) {
   hwy::SetSupportedTargetsForTest(target);
   const size_t n = HWY_DYNAMIC_DISPATCH(floatLanes)();
-  hwy::SetSupportedTargetsForTest(0);
+  hwy::SetSupportedTargetsForTest(gScoped);
   return n;
 }
 
@@ -68,8 +72,14 @@ SimdTarget activeSimdTarget() {
 
 size_t simdLaneCount(const SimdTarget& target) { return lanesOf(target.bits); }
 
-ScopedSimdTarget::ScopedSimdTarget(const SimdTarget& target) { hwy::SetSupportedTargetsForTest(target.bits); }
-ScopedSimdTarget::~ScopedSimdTarget() { hwy::SetSupportedTargetsForTest(0); }
+ScopedSimdTarget::ScopedSimdTarget(const SimdTarget& target) : previous_(gScoped) {
+  gScoped = target.bits;
+  hwy::SetSupportedTargetsForTest(gScoped);
+}
+ScopedSimdTarget::~ScopedSimdTarget() {
+  gScoped = previous_;
+  hwy::SetSupportedTargetsForTest(gScoped);
+}
 
 }  // namespace lt
 #endif

@@ -25,14 +25,18 @@ size_t simdLaneCount(const SimdTarget& target);
 /// The target the lane loops run on now (the best one, or the one a ScopedSimdTarget chose).
 SimdTarget activeSimdTarget();
 
-/// While alive, the lane loops run on `target` only (one of simdTargets()); the best target again
-/// afterwards. Dispatch is process-wide: do not change it while other threads run lane loops.
+/// While alive, the lane loops run on `target` only (one of simdTargets()); the choice before
+/// (the best target, or an enclosing scope's) again afterwards. Dispatch is process-wide: do not
+/// change it while other threads run lane loops.
 class ScopedSimdTarget {
  public:
   explicit ScopedSimdTarget(const SimdTarget& target);
   ~ScopedSimdTarget();
   ScopedSimdTarget(const ScopedSimdTarget&) = delete;
   ScopedSimdTarget& operator=(const ScopedSimdTarget&) = delete;
+
+ private:
+  int64_t previous_;
 };
 
 }  // namespace lt
