@@ -289,7 +289,6 @@ struct IrregularGrid::LaneAccess {
   const unsigned char* walkBase() const { return reinterpret_cast<const unsigned char*>(g.walk_.data()); }
   const int32_t* topWords() const { return reinterpret_cast<const int32_t*>(g.topCells_.data()); }
   const int32_t* leaves() const { return reinterpret_cast<const int32_t*>(g.walkLeaf_.data()); }
-  const uint32_t* leafData() const { return g.walkLeaf_.data(); }
   void prefetchCellAt(uint32_t unit) const { prefetchCell(&g.walkCell(unit)); }
   template <bool AnyHit>
   bool testCell(Walk& w, uint32_t unit, bool more) const { return g.testCell<AnyHit>(w, g.walkCell(unit), more); }

@@ -163,10 +163,13 @@ bool ssrLanesAvailable(const IntervalLayers& depth) {
   return depth.k >= 1 && depth.k <= 4 && uint64_t(depth.width) * uint64_t(depth.height) * uint64_t(2 * depth.k) < (uint64_t(1) << 31);
 }
 
+namespace {
+/// The fallback: ssrMarch one start after the other.
 void ssrMarchEach(const IntervalLayers& depth, std::span<const SsrStart> starts, int maxSteps, int W, int H, std::span<SsrSample> out) {
   NoCounters none;
   for (size_t i = 0; i < starts.size(); ++i) out[i] = ssrMarch(depth, starts[i], maxSteps, W, H, none);
 }
+}  // namespace
 
 void ssrMarchBatch(const IntervalLayers& depth, std::span<const SsrStart> starts, int maxSteps, int W, int H,
                    std::span<SsrSample> out) {

@@ -14,13 +14,9 @@
 namespace lt {
 
 /// Whether ssrMarchBatch runs in lanes over `depth`: k ≤ 4 (a pixel's intervals fit one 32-byte
-/// record) and fewer than 2^31 floats of intervals. Otherwise the batch runs ssrMarchEach. The
-/// lanes run on the best vector target of this CPU (util/simd_targets.h).
+/// record) and fewer than 2^31 floats of intervals. Otherwise the batch runs ssrMarch one start
+/// after the other. The lanes run on the best vector target of this CPU (util/simd_targets.h).
 bool ssrLanesAvailable(const IntervalLayers& depth);
-
-/// The reference of the lanes: ssrMarch one start after the other.
-void ssrMarchEach(const IntervalLayers& depth, std::span<const SsrStart> starts, int maxSteps, int W, int H,
-                  std::span<SsrSample> out);
 
 /// out[i] = ssrMarch(depth, starts[i], maxSteps, W, H) for every start; no counters.
 void ssrMarchBatch(const IntervalLayers& depth, std::span<const SsrStart> starts, int maxSteps, int W, int H,
