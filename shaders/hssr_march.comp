@@ -12,6 +12,7 @@ layout(local_size_x = 64) in;
 layout(std430, binding = 4) readonly buffer Cells { vec4 cells[]; };
 
 uniform int uLevels, uNUp;
+uniform bool uParentAscent;  // also ascend on entering another parent cell (false: the paper's pure n_up)
 uniform int uLevelWidth[16], uLevelHeight[16], uLevelOffset[16];
 
 // hssr_detail::Line: P(s) = p0 + s d.
@@ -178,7 +179,7 @@ ivec3 march(Segment seg) {
     // Hofmann et al. 2017, §5.2: ascend after n_up cells without an overlap, or on entering
     // another parent cell (the CPU march's choice, hssr_march.h), unless the coarser cell holds
     // the origin pixel.
-    const bool newParent = (cx >> 1) != parentX || (cy >> 1) != parentY;
+    const bool newParent = uParentAscent && ((cx >> 1) != parentX || (cy >> 1) != parentY);
     if ((++misses >= uNUp || newParent) && L + 1 < uLevels) {
       const int qx = cx >> 1, qy = cy >> 1;
       if ((ox >> (L + 1)) != qx || (oy >> (L + 1)) != qy) {

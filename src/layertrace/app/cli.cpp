@@ -116,10 +116,25 @@ void addParam(CLI::App* app, const lt::TracerParam& p, lt::TracerOptions& option
       p.field(options));
 }
 
-/// The registry's parameters of `groups` (every group when empty), bound to `t`.
+/// The registry's parameters of `groups` (every group when empty), bound to `t`, and --preset.
 void addTracerOptions(CLI::App* app, lt::TracerOptions& t, std::initializer_list<std::string_view> groups = {}) {
+  app->add_option("--preset", t.preset,
+                  "parameter preset: tuned (the defaults) or paper (every method with its paper's parameters and rules; "
+                  "flags given beside it still apply)")
+      ->capture_default_str();
   for (const lt::TracerParam& p : lt::tracerParams())
     if (groups.size() == 0 || std::find(groups.begin(), groups.end(), p.group) != groups.end()) addParam(app, p, t);
+}
+
+/// Applies the --preset of `cmd` to `t`: every parameter the preset sets, except those given on
+/// the command line (under their name or their older spelling).
+void finishPreset(const CLI::App* cmd, lt::TracerOptions& t) {
+  lt::applyPreset(t.preset, t, [cmd](const lt::TracerParam& p) {
+    for (const char* flag : {p.flag, p.alias})
+      if (*flag)
+        if (const CLI::Option* o = cmd->get_option_no_throw(flag); o && o->count() > 0) return true;
+    return false;
+  });
 }
 
 void addEffectOptions(CLI::App* app, lt::EffectConfig& e, std::string& effectName, RawFrameOptions& raw) {
@@ -340,6 +355,10 @@ int runCli(int argc, const char* const* argv, CliMode mode) {
     return 2;
   }
   try {
+    for (auto [cmd, options] : {std::pair{renderCmd, &render.tracers}, std::pair{compareCmd, &compare.options},
+                                std::pair{benchCmd, &bench.options}, std::pair{geobenchCmd, &geobench.tracers},
+                                std::pair{ldcCmd, &ldc.tracers}, std::pair{viewCmd, &view.render.tracers}})
+      if (cmd->parsed()) finishPreset(cmd, *options);
     std::unique_ptr<tbb::global_control> threads;
     // Converts the raw vector options and applies --threads for the subcommand that ran.
     auto prepare = [&](lt::RunOptions& run, const RawFrameOptions& raw) {

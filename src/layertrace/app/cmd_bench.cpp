@@ -596,6 +596,8 @@ int runBench(const BenchOptions& o) {
   result["build_type"] = LAYERTRACE_BUILD_TYPE;
   result["date"] = today();
   result["hssr"] = {{"tau", o.options.pyramid.tau}, {"levels", o.options.pyramid.levels}, {"n_up", o.options.hssr.nUp}};
+  result["preset"] = o.options.preset;
+  result["parameters"] = parameterStats(o.options);
   result["rows"] = t.json();
 
   ensureDirectory(outDir, "-o");

@@ -129,6 +129,8 @@ int runCompare(const CompareOptions& o) {
   stats["threads"] = o.run.threads;
   stats["tracers"] = o.tracers;
   stats["device"] = o.run.device;
+  stats["preset"] = o.options.preset;
+  stats["parameters"] = parameterStats(o.options);
   if (gpu) stats["gpu"] = gpuStats(*gpu), stats["gpu_renderer"] = gpu->renderer();
   stats["reference"] = {{"tracer", "embree"},
                         {"trace_ms", ref.traceMs},

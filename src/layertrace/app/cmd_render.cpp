@@ -241,6 +241,8 @@ int runRender(const RenderOptions& o) {
     stats["rays"]["oracle_mismatch"] = oracleCheck.mismatches();
     stats["rays"]["oracle_ambiguous"] = oracleCheck.ambiguous();
   }
+  stats["preset"] = o.tracers.preset;
+  stats["parameters"] = parameterStats(o.tracers);
   if (built.pyramid && o.tracer == "hssr") {
     const IntervalPyramid& p = *built.pyramid;
     stats["hssr"] = {{"tau", o.tracers.pyramid.tau}, {"levels", o.tracers.pyramid.levels}, {"n_up", o.tracers.hssr.nUp}};

@@ -50,6 +50,7 @@ GpuScreenTracer::GpuScreenTracer(GpuContext& gpu, const Camera& camera, const La
   name_ = levels == 1 ? "exhaustive" : config.name;
   program_.set("uLevels", levels);
   program_.set("uNUp", config.nUp);
+  program_.set("uParentAscent", config.parentAscent);
   program_.set("uLevelWidth", pyramid_->width.data(), GpuPyramid::kMaxLevels);
   program_.set("uLevelHeight", pyramid_->height.data(), GpuPyramid::kMaxLevels);
   program_.set("uLevelOffset", pyramid_->cellBase.data(), GpuPyramid::kMaxLevels);

@@ -6,10 +6,10 @@ namespace lt {
 
 std::span<const Param<GridConfig>> gridParams() {
   static const Param<GridConfig> params[] = {
-      {"--grid-lambda1", "--lambda1", "top-level density (paper: 0.12)", &GridConfig::lambda1},
+      {"--grid-lambda1", "--lambda1", "top-level density (paper: 0.12)", &GridConfig::lambda1, "0.12"},
       {"--grid-lambda2", "--lambda2", "second-level density (paper: 2.4)", &GridConfig::lambda2},
       {"--grid-partial-expansion", "--partial-expansion",
-       "also expand into neighbours whose swept part holds only shared primitives", &GridConfig::partialExpansion},
+       "also expand into neighbours whose swept part holds only shared primitives", &GridConfig::partialExpansion, "false"},
   };
   return params;
 }

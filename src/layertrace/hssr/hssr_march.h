@@ -151,9 +151,18 @@ struct MarchStart {
 
 }  // namespace hssr_detail
 
+/// When the march ascends a level (Hofmann et al. 2017, §5.2): after `nUp` cells of a level
+/// without an overlap, and with `newParent` also as soon as a step enters another parent cell
+/// (below). `newParent = false` is the paper's pure n_up rule (`--preset paper`). An int converts
+/// to the default rule with that n_up.
+struct AscentRule {
+  int nUp = 2;
+  bool newParent = true;
+  constexpr AscentRule(int n, bool parent = true) : nUp(n), newParent(parent) {}  // NOLINT(google-explicit-constructor)
+};
+
 /// The march of Hofmann et al. 2017, §5, over `pyramid` (its first `levels` levels) for a valid
-/// segment of a W×H view. Hits are reported at level 0 only; `nUp` cells without an overlap before
-/// ascending.
+/// segment of a W×H view. Hits are reported at level 0 only; it ascends by `rule`.
 ///
 /// Returns the same hit as hssrMarchReference (tested hit for hit, entry parameter bit for bit);
 /// what differs is the cost per cell — spans are kept incrementally (one crossing per step, two
@@ -163,7 +172,7 @@ struct MarchStart {
 /// entering another parent cell (below), so the two visit different cells on the way to the
 /// same hit.
 template <class C>
-MarchHit hssrMarch(const IntervalPyramid& pyramid, int levels, int nUp, const ScreenSegment& seg, int W, int H, C& c) {
+MarchHit hssrMarch(const IntervalPyramid& pyramid, int levels, AscentRule rule, const ScreenSegment& seg, int W, int H, C& c) {
   using hssr_detail::Line;
   constexpr float inf = std::numeric_limits<float>::infinity();
   const hssr_detail::MarchStart st(seg, W, H);
@@ -287,8 +296,8 @@ MarchHit hssrMarch(const IntervalPyramid& pyramid, int levels, int nUp, const Sc
     // (FZK-Haus 24.6 → 22.6, am_thornish 24.3 → 22.0, engine 20.1 → 18.0 at n_up 2, τ 4), but
     // descents rise 11 % and the lane march gains only 1–3 % in time (BM_HssrLanes, medians of
     // 9 alternating rounds: 68.9 → 68.1 ms FZK-Haus, 70.9 → 68.5 ms am_thornish).
-    const bool newParent = (cx >> 1) != parentX || (cy >> 1) != parentY;
-    if ((++misses >= nUp || newParent) && L + 1 < levels) {
+    const bool newParent = rule.newParent && ((cx >> 1) != parentX || (cy >> 1) != parentY);
+    if ((++misses >= rule.nUp || newParent) && L + 1 < levels) {
       const int px = cx >> 1, py = cy >> 1;
       // Hofmann et al. 2017, §5.2: only ascend when the coarser cell does not overlap the origin
       // pixel.

@@ -52,6 +52,7 @@ struct Tables {
   HWY_ALIGN int64_t base[16] = {};
   const char* origin = nullptr;
   int levels = 1, nUp = 1, k = 4, safety = 0;
+  bool newParent = true;
 };
 
 inline VI lookup(const int32_t* table, VI level) { return lookup8(DI(), table, level); }
@@ -94,7 +95,7 @@ bool start(Lanes& ln, int j, const IntervalPyramid& pyramid, const Tables& tb, c
   const bool flatX = line.stepX == 0, flatY = line.stepY == 0;
   if (flatX && flatY) {
     MarchCellCount c;
-    out = hssrMarch(pyramid, tb.levels, tb.nUp, seg, W, H, c);
+    out = hssrMarch(pyramid, tb.levels, AscentRule(tb.nUp, tb.newParent), seg, W, H, c);
     if (cells) *cells = c.cells;
     return false;
   }
@@ -264,8 +265,9 @@ HWY_NOINLINE uint64_t step(Lanes& ln, const Tables& tb) {
     yIn = sel(my, yOut, yIn), yOut = sel(my, nextY, yOut);
     misses = sel(move, misses + one, misses);
     const VI Lu = L + one, px = hn::ShiftRight<1>(cx), py = hn::ShiftRight<1>(cy);
-    // (after n_up misses, or on entering another parent cell: hssrMarch's rule)
-    M up = lt(ge(move, misses, splat(int32_t(tb.nUp))) | ne(move, px, parentX) | ne(move, py, parentY), Lu,
+    // (after n_up misses, or on entering another parent cell where the rule has it: hssrMarch's rule)
+    const M parentMove = tb.newParent ? move : andNot(move, move);
+    M up = lt(ge(move, misses, splat(int32_t(tb.nUp))) | ne(parentMove, px, parentX) | ne(parentMove, py, parentY), Lu,
               splat(int32_t(tb.levels)));
     // Hofmann et al. 2017, §5.2: only ascend when the coarser cell does not overlap the origin
     // pixel.
@@ -309,11 +311,11 @@ HWY_NOINLINE uint64_t step(Lanes& ln, const Tables& tb) {
 }  // namespace
 
 /// The batch through the lanes: refill every lane that finished with the next segment.
-void hssrMarchLanes(const IntervalPyramid& pyramid, int levels, int nUp, std::span<const ScreenSegment> segs, int W, int H,
+void hssrMarchLanes(const IntervalPyramid& pyramid, int levels, AscentRule rule, std::span<const ScreenSegment> segs, int W, int H,
                     std::span<MarchHit> out, std::span<uint32_t> cells) {
   const IntervalLayers& level0 = *pyramid.base;
   Tables tb;
-  tb.levels = levels, tb.nUp = nUp, tb.k = level0.k, tb.safety = 8 * (W + H) * levels + 64;
+  tb.levels = levels, tb.nUp = rule.nUp, tb.newParent = rule.newParent, tb.k = level0.k, tb.safety = 8 * (W + H) * levels + 64;
   tb.origin = reinterpret_cast<const char*>(level0.slots.data());
   for (int L = 0; L < levels; ++L) {
     const PyramidLevel& lvl = pyramid.levels[size_t(L)];
@@ -345,7 +347,7 @@ void hssrMarchLanes(const IntervalPyramid& pyramid, int levels, int nUp, std::sp
       out[i] = MarchHit{ln.cx[j], ln.cy[j], ln.interval[j], ln.hitS[j]};
     } else if (ln.bailMask[j]) {
       MarchCellCount c;
-      out[i] = hssrMarch(pyramid, levels, nUp, segs[i], W, H, c);
+      out[i] = hssrMarch(pyramid, levels, rule, segs[i], W, H, c);
       tested = c.cells;  // the march that answered (the lane's steps are dropped with its state)
     } else {
       out[i] = {};
@@ -358,7 +360,7 @@ void hssrMarchLanes(const IntervalPyramid& pyramid, int levels, int nUp, std::sp
 /// The portable path (and the reference the lanes are measured against), compiled per target as
 /// well (flatten: the march inlined, so compiled for the target too): the compiler's own code for
 /// the CPU it runs on.
-[[gnu::flatten]] void hssrMarchEachTarget(const IntervalPyramid& pyramid, int levels, int nUp, std::span<const ScreenSegment> segs, int W, int H,
+[[gnu::flatten]] void hssrMarchEachTarget(const IntervalPyramid& pyramid, int levels, AscentRule rule, std::span<const ScreenSegment> segs, int W, int H,
                          std::span<MarchHit> out, std::span<uint32_t> cells) {
   for (size_t i = 0; i < segs.size(); ++i) {
     if (!segs[i].valid) {
@@ -366,10 +368,10 @@ void hssrMarchLanes(const IntervalPyramid& pyramid, int levels, int nUp, std::sp
       if (!cells.empty()) cells[i] = 0;
     } else if (cells.empty()) {
       NoCounters none;  // (the reference bench_trace times: no counting)
-      out[i] = hssrMarch(pyramid, levels, nUp, segs[i], W, H, none);
+      out[i] = hssrMarch(pyramid, levels, rule, segs[i], W, H, none);
     } else {
       MarchCellCount c;
-      out[i] = hssrMarch(pyramid, levels, nUp, segs[i], W, H, c);
+      out[i] = hssrMarch(pyramid, levels, rule, segs[i], W, H, c);
       cells[i] = c.cells;
     }
   }
@@ -384,9 +386,9 @@ namespace lt {
 HWY_EXPORT(hssrMarchLanes);
 HWY_EXPORT(hssrMarchEachTarget);
 
-void hssrMarchEach(const IntervalPyramid& pyramid, int levels, int nUp, std::span<const ScreenSegment> segs, int W, int H,
+void hssrMarchEach(const IntervalPyramid& pyramid, int levels, AscentRule rule, std::span<const ScreenSegment> segs, int W, int H,
                    std::span<MarchHit> out, std::span<uint32_t> cells) {
-  HWY_DYNAMIC_DISPATCH(hssrMarchEachTarget)(pyramid, levels, nUp, segs, W, H, out, cells);
+  HWY_DYNAMIC_DISPATCH(hssrMarchEachTarget)(pyramid, levels, rule, segs, W, H, out, cells);
 }
 
 bool hssrLanesAvailable(const IntervalPyramid& pyramid, int levels) {
@@ -399,10 +401,10 @@ bool hssrLanesAvailable(const IntervalPyramid& pyramid, int levels) {
          pyramid.levels[0].width == base.width && pyramid.levels[0].height == base.height;
 }
 
-void hssrMarchBatch(const IntervalPyramid& pyramid, int levels, int nUp, std::span<const ScreenSegment> segs, int W, int H,
+void hssrMarchBatch(const IntervalPyramid& pyramid, int levels, AscentRule rule, std::span<const ScreenSegment> segs, int W, int H,
                     std::span<MarchHit> out, std::span<uint32_t> cells) {
-  if (hssrLanesAvailable(pyramid, levels)) return HWY_DYNAMIC_DISPATCH(hssrMarchLanes)(pyramid, levels, nUp, segs, W, H, out, cells);
-  hssrMarchEach(pyramid, levels, nUp, segs, W, H, out, cells);
+  if (hssrLanesAvailable(pyramid, levels)) return HWY_DYNAMIC_DISPATCH(hssrMarchLanes)(pyramid, levels, rule, segs, W, H, out, cells);
+  hssrMarchEach(pyramid, levels, rule, segs, W, H, out, cells);
 }
 
 }  // namespace lt

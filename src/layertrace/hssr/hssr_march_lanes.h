@@ -37,18 +37,18 @@ struct MarchCellCount : NoCounters {
 /// 2^29 pixels (record offsets in int32 lanes). Otherwise the batch runs hssrMarchEach.
 bool hssrLanesAvailable(const IntervalPyramid& pyramid, int levels);
 
-/// out[i] = hssrMarch(pyramid, levels, nUp, segs[i], W, H) for every valid segment, {} for an
+/// out[i] = hssrMarch(pyramid, levels, rule, segs[i], W, H) for every valid segment, {} for an
 /// invalid one; no counters (uncounted batches only). With `cells` (as long as `segs`), also
 /// cells[i] = the cells the march that answered segs[i] tested: hssrMarch's c.iteration() count
 /// where it runs the ray (one ray at a time, or a case the lanes hand over, above), else the
 /// lane's steps — the same number when the lanes follow hssrMarch's traversal. Answers do not depend on the traversal, so only this lets the tests hold the lanes to
 /// hssrMarch's traversal (its ascent and descent rules) and not only to its hits.
-void hssrMarchBatch(const IntervalPyramid& pyramid, int levels, int nUp, std::span<const ScreenSegment> segs, int W, int H,
+void hssrMarchBatch(const IntervalPyramid& pyramid, int levels, AscentRule rule, std::span<const ScreenSegment> segs, int W, int H,
                     std::span<MarchHit> out, std::span<uint32_t> cells = {});
 
 /// The same, one segment after the other (compiled for each vector target and dispatched like
 /// the lanes): the fallback, and the reference bench_trace measures the lanes against.
-void hssrMarchEach(const IntervalPyramid& pyramid, int levels, int nUp, std::span<const ScreenSegment> segs, int W, int H,
+void hssrMarchEach(const IntervalPyramid& pyramid, int levels, AscentRule rule, std::span<const ScreenSegment> segs, int W, int H,
                    std::span<MarchHit> out, std::span<uint32_t> cells = {});
 
 }  // namespace lt

@@ -8,15 +8,16 @@ namespace lt {
 
 std::span<const Param<PyramidConfig>> pyramidParams() {
   static const Param<PyramidConfig> params[] = {
-      {"--hssr-tau", "--tau", "merge threshold in pixel footprints (paper: 25)", &PyramidConfig::tau},
-      {"--hssr-levels", "--levels", "pyramid levels including level 0, 1..16 (also Hi-Z's; paper: 5)", &PyramidConfig::levels},
+      {"--hssr-tau", "--tau", "merge threshold in pixel footprints (paper: 25)", &PyramidConfig::tau, "25"},
+      {"--hssr-levels", "--levels", "pyramid levels including level 0, 1..16 (also Hi-Z's; paper: 5)", &PyramidConfig::levels, "5"},
   };
   return params;
 }
 
 std::span<const Param<HssrConfig>> hssrParams() {
   static const Param<HssrConfig> params[] = {
-      {"--hssr-n-up", "--n-up", "cells without overlap before ascending a level (sooner on entering a new parent cell)", &HssrConfig::nUp},
+      {"--hssr-n-up", "--n-up", "cells without overlap before ascending a level", &HssrConfig::nUp},
+      {"--hssr-parent-ascent", "", "also ascend on entering another parent cell (off: the paper's pure n_up rule)", &HssrConfig::parentAscent, "false"},
   };
   return params;
 }

@@ -22,7 +22,7 @@ template <class C>
 TraceHit HssrTracer::traceImpl(const Ray& ray, C& c) const {
   const ScreenSegment seg = makeScreenSegment(camera_, ray);
   if (!seg.valid) return {};
-  const MarchHit m = hssrMarch(pyramid_, levels_, config_.nUp, seg, camera_.width(), camera_.height(), c);
+  const MarchHit m = hssrMarch(pyramid_, levels_, AscentRule(config_.nUp, config_.parentAscent), seg, camera_.width(), camera_.height(), c);
   return m.hit() ? fragmentHit(camera_, layers_, m.x, m.y, m.interval) : TraceHit{};
 }
 
@@ -37,7 +37,7 @@ void HssrTracer::traceBatch(std::span<const Ray> rays, std::span<TraceHit> hits,
   // (results constructed in place, util/in_place.h: assigned, they were ~60 % of this
   // function's samples, FZK-Haus)
   for (size_t i = 0; i < rays.size(); ++i) assignInPlace(segs[i], [&] { return makeScreenSegment(camera_, rays[i]); });
-  hssrMarchBatch(pyramid_, levels_, config_.nUp, segs, camera_.width(), camera_.height(), marched);
+  hssrMarchBatch(pyramid_, levels_, AscentRule(config_.nUp, config_.parentAscent), segs, camera_.width(), camera_.height(), marched);
   // The hit fragments are scattered over the layer arrays: ask for all of them before reading
   // any, so that their cache misses overlap (3–5 % of HSSR's time, measured by alternating
   // passes with and without in one run, FZK-Haus and am_thornish).

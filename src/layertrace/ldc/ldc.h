@@ -56,6 +56,12 @@ struct LdcConfig {
   /// sample depths are left out) — the merged z-intervals of Hofmann et al. 2017 applied to the
   /// LDI.
   int blockIntervals = 4;
+  /// Bürger et al. 2007, §1.4's hit test: a hit where the ray passes a stored sample (its
+  /// texel's centre at its depth) closer than this, in world units (the paper: 0.001). 0, the
+  /// default, intersects the sample's tangent-plane patch instead (above): an absolute distance
+  /// does not scale with the scene or the texel size. Tested against the samples of the texels
+  /// the ray crosses.
+  float hitDistance = 0.0f;
 };
 
 /// InputError naming the option for values out of range (resolution 16..16384, block 1..256,

@@ -220,6 +220,8 @@ void validateLdcConfig(const LdcConfig& c) {
   if (c.resolution < 16 || c.resolution > 16384) inputError("--ldc-resolution ", c.resolution, ": must be between 16 and 16384");
   if (c.block < 1 || c.block > 256) inputError("--ldc-block ", c.block, ": must be between 1 and 256");
   if (!(c.epsilon >= 0.0f && c.epsilon <= 4.0f)) inputError("--ldc-epsilon ", c.epsilon, ": must be between 0 and 4 (texels)");
+  if (!(c.hitDistance >= 0.0f) || !std::isfinite(c.hitDistance))
+    inputError("--ldc-hit-distance ", c.hitDistance, ": must be a finite distance >= 0");
   if (c.blockIntervals < 1 || c.blockIntervals > 16)
     inputError("--ldc-block-intervals ", c.blockIntervals, ": must be between 1 and 16");
 }

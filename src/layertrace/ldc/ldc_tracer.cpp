@@ -90,7 +90,7 @@ LdcTracer::LdcTracer(const Camera& camera, const LayeredDepthCube& ldc) : camera
 template <bool AnyHit, class C>
 bool LdcTracer::traceView(const LdcView& v, glm::vec3 wo, glm::vec3 wd, float tMin, float& tMax, bool found,
                           ViewHit& best, C& counters) const {
-  const float texel = ldc_.texel, inv = 1.0f / texel, eps = ldc_.config.epsilon;
+  const float texel = ldc_.texel, inv = 1.0f / texel, eps = ldc_.config.epsilon, hitDistance = ldc_.config.hitDistance;
   const glm::vec3 o = v.camera.toCamera(wo), d = v.camera.dirToCamera(wd);
   const ViewRay r{float(v.width) * 0.5f + o.x * inv, float(v.height) * 0.5f - o.y * inv, d.x * inv, -d.y * inv, -o.z, -d.z};
   // Clip to the view's box: the texel rectangle and the depth range of the padded scene box.
@@ -138,16 +138,24 @@ bool LdcTracer::traceView(const LdcView& v, glm::vec3 wo, glm::vec3 wd, float tM
             if (s.depth < zLo - margin) continue;
             if (s.depth > zHi + margin) break;
             counters.interval();
-            // Where the ray meets the sample's plane, inside the widened texel.
-            const glm::vec3 n = decodeOctahedral(s.next);
-            const float denom = glm::dot(d, n);
-            if (denom == 0.0f) continue;
             const glm::vec3 P{centre.x, centre.y, -s.depth};
-            const float t = glm::dot(P - o, n) / denom;
-            // Only a strictly nearer sample replaces a hit (ties: the first one met).
-            if (!(t >= tMin && (found ? t < tMax : t <= tMax))) continue;
-            const glm::vec3 X = o + d * t;
-            if (std::abs(X.x - P.x) > half || std::abs(X.y - P.y) > half) continue;
+            float t;
+            if (hitDistance > 0.0f) {
+              // The paper's test: the ray's nearest point to the sample within the distance.
+              t = glm::dot(P - o, d) / glm::dot(d, d);
+              if (!(t >= tMin && (found ? t < tMax : t <= tMax))) continue;
+              if (glm::length(o + d * t - P) >= hitDistance) continue;
+            } else {
+              // Where the ray meets the sample's plane, inside the widened texel.
+              const glm::vec3 n = decodeOctahedral(s.next);
+              const float denom = glm::dot(d, n);
+              if (denom == 0.0f) continue;
+              t = glm::dot(P - o, n) / denom;
+              // Only a strictly nearer sample replaces a hit (ties: the first one met).
+              if (!(t >= tMin && (found ? t < tMax : t <= tMax))) continue;
+              const glm::vec3 X = o + d * t;
+              if (std::abs(X.x - P.x) > half || std::abs(X.y - P.y) > half) continue;
+            }
             tMax = t;
             best = {t, v.axis, i};
             found = true;

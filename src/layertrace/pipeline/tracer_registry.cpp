@@ -28,9 +28,11 @@ namespace {
 template <class Config>
 void bindParams(std::vector<TracerParam>& out, const char* group, Config TracerOptions::*member, std::span<const Param<Config>> params) {
   for (const Param<Config>& p : params)
-    out.push_back({group, p.flag, p.alias, p.help, [member, field = p.field](TracerOptions& o) {
+    out.push_back({group, p.flag, p.alias, p.help,
+                   [member, field = p.field](TracerOptions& o) {
                      return std::visit([&](auto f) { return ParamRef(&(o.*member.*f)); }, field);
-                   }});
+                   },
+                   p.paper});
 }
 
 /// The frame's pyramid: over the level 0 the capture wrote, or from the k-layer arrays.
@@ -190,6 +192,61 @@ std::string paramValue(const TracerParam& param, const TracerOptions& options) {
     else s << *v;
   }, param.field(copy));
   return s.str();
+}
+
+void setParamValue(const TracerParam& param, TracerOptions& options, const std::string& value) {
+  std::visit(
+      [&](auto* v) {
+        using T = std::remove_pointer_t<decltype(v)>;
+        if constexpr (std::is_same_v<T, std::string>) {
+          *v = value;
+        } else if constexpr (std::is_same_v<T, bool>) {
+          if (value != "true" && value != "false") inputError(param.flag, " ", value, ": must be true or false");
+          *v = value == "true";
+        } else {
+          std::istringstream in(value);
+          T parsed{};
+          if (!(in >> parsed) || !in.eof()) inputError(param.flag, " ", value, ": not a number");
+          *v = parsed;
+        }
+      },
+      param.field(options));
+}
+
+void applyPreset(std::string_view name, TracerOptions& options, const std::function<bool(const TracerParam&)>& keep) {
+  const bool paper = name == "paper";
+  if (!paper && name != "tuned") inputError("--preset ", name.empty() ? "(none)" : name, ": unknown (use tuned or paper)");
+  options.preset = std::string(name);
+  TracerOptions defaults;
+  for (const TracerParam& p : tracerParams()) {
+    if (keep && keep(p)) continue;
+    if (paper && p.paper) {
+      setParamValue(p, options, p.paper);
+    } else {
+      const ParamRef from = p.field(defaults);
+      std::visit([&](auto* to) { *to = *std::get<decltype(to)>(from); }, p.field(options));
+    }
+  }
+}
+
+nlohmann::json parameterStats(const TracerOptions& options) {
+  nlohmann::json j = nlohmann::json::object();
+  TracerOptions copy = options;
+  for (const TracerParam& p : tracerParams())
+    std::visit(
+        [&](auto* v) {
+          // Numbers as the CLI prints them (0.12, not float's 0.119999997).
+          if constexpr (std::is_same_v<std::remove_pointer_t<decltype(v)>, std::string>) j[std::string(p.flag + 2)] = *v;
+          else j[std::string(p.flag + 2)] = nlohmann::json::parse(paramValue(p, options));
+        },
+        p.field(copy));
+  return j;
+}
+
+TracerOptions presetOptions(std::string_view name) {
+  TracerOptions o;
+  applyPreset(name, o);
+  return o;
 }
 
 std::span<const TracerEntry> tracerRegistry() {

@@ -11,6 +11,8 @@
 #include <variant>
 #include <vector>
 
+#include <nlohmann/json.hpp>
+
 #include "layertrace/geometry/embree_method.h"
 #include "layertrace/geometry/embree_scene.h"
 #include "layertrace/grid/grid_method.h"
@@ -39,6 +41,7 @@ struct TracerOptions {
   QuadtreeConfig quadtree;
   LdcConfig ldc;
   HybridConfig hybrid;
+  std::string preset = "tuned";  ///< the preset these started from (applyPreset), for the statistics
 };
 
 /// Throws InputError naming the flag for any invalid value, whichever tracer will run.
@@ -52,11 +55,28 @@ struct TracerParam {
   const char* alias;  ///< older spelling, accepted but not listed ("" for none)
   const char* help;
   std::function<ParamRef(TracerOptions&)> field;  ///< the field it sets in a TracerOptions
+  const char* paper = nullptr;  ///< its value under --preset paper (nullptr: the default is the paper's)
 };
 /// Every method parameter, grouped by method, in listing order.
 std::span<const TracerParam> tracerParams();
 /// The current value of a parameter in `options`, as the CLI prints it ("4", "true", "hssr").
 std::string paramValue(const TracerParam& param, const TracerOptions& options);
+/// Sets a parameter from its text ("25", "0.12", "true"); InputError naming the flag for a value
+/// of the wrong type.
+void setParamValue(const TracerParam& param, TracerOptions& options, const std::string& value);
+
+/// The parameter presets: "tuned" (the defaults: what measured fastest here, with the same
+/// answers) and "paper" (every method with its paper's parameters and rules, as published).
+inline constexpr const char* kPresetNames[] = {"tuned", "paper"};
+/// Sets every parameter the preset `name` gives (TracerParam::paper for "paper"; the defaults for
+/// "tuned") except those `keep` returns true for (the ones a user set explicitly).
+/// InputError for an unknown preset.
+void applyPreset(std::string_view name, TracerOptions& options, const std::function<bool(const TracerParam&)>& keep = {});
+/// The options of preset `name` from the defaults.
+TracerOptions presetOptions(std::string_view name);
+/// Every parameter's value by flag without its dashes ({"hssr-tau": 4, …}): the statistics'
+/// "parameters" object.
+nlohmann::json parameterStats(const TracerOptions& options);
 
 struct BuiltTracer;
 struct Frame;

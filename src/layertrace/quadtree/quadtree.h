@@ -47,6 +47,17 @@ struct QuadtreeConfig {
   float gammaDist = 1e-5f;
   /// w = depthScale / depth; 0 = derived from the view (see above).
   float depthScale = 0.0f;
+  /// Algorithm 3, line 1: each layer's walk starts at the root and descends. Off (the default),
+  /// it starts at the ray's first pixel: every box above that pixel holds the surface the ray
+  /// leaves, so the descent decides nothing (quadtree_tracer.cpp).
+  bool rootStart = false;
+  /// Algorithm 1, line 10 as printed: step(λ_h, |d|)·d, which keeps the derivatives at or above
+  /// λ_h and zeroes the small ones. Off (the default), the line does what its comment says: it
+  /// zeroes the large derivatives that connect different surfaces.
+  bool printedLine10 = false;
+  /// A plane crossed from behind is a hit (the back face of an object seen from behind, which
+  /// Embree hits too). Off, as in the single-layer pseudo-code, it is an occlusion only.
+  bool backfaceHits = true;
 };
 
 /// One node: 16 bytes. Plane: w(x, y) = a + b (x − cx) + c (y − cy) about the node's centre
@@ -72,6 +83,7 @@ struct QuadtreeLevel {
 struct Quadtree {
   int width = 0, height = 0, k = 0;
   float depthScale = 1.0f;
+  QuadtreeConfig config;  ///< what it was built with (the tracer reads the traversal rules)
   std::vector<QuadtreeLevel> levels;
   size_t nodesPerLayer = 0;
   PoolVector<QuadNode> nodes;         ///< layer-major: [layer][level offset + y · level width + x]

@@ -86,8 +86,9 @@ QuadNode leafNode(const float* w0, int W, int H, const QuadtreeConfig& cfg, int 
       d = bwd;
     }
     // Line 10's comment ("zero large derivatives that connect different surfaces") is what we
-    // implement; the pseudo-code's step(λ_h, |d|)·d would keep exactly those.
-    grad[axis] = std::abs(d) > cfg.lambdaH ? 0.0f : d;
+    // implement; the pseudo-code's step(λ_h, |d|)·d would keep exactly those (printedLine10).
+    if (cfg.printedLine10) grad[axis] = std::abs(d) >= cfg.lambdaH ? d : 0.0f;
+    else grad[axis] = std::abs(d) > cfg.lambdaH ? 0.0f : d;
   }
   if (laplacian >= cfg.lambdaD) discontinuity = true;
   n.a = w, n.b = grad[0], n.c = grad[1];
@@ -164,6 +165,7 @@ Quadtree buildQuadtree(const LayerArrays& layers, const Camera& camera, const Qu
   const auto start = std::chrono::steady_clock::now();
   Quadtree t;
   t.width = layers.width, t.height = layers.height, t.k = layers.k;
+  t.config = config;
   t.depthScale = config.depthScale > 0.0f ? config.depthScale : defaultDepthScale(layers, camera.focal());
   // Ceil-sized levels up to a 1×1 root (non-power-of-two sizes: nodes past the image are empty).
   for (int w = t.width, h = t.height;; w = (w + 1) / 2, h = (h + 1) / 2) {

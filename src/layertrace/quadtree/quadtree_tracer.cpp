@@ -70,6 +70,7 @@ QuadtreeTracer::LayerResult QuadtreeTracer::traceLayer(int layer, const Line& li
     return std::clamp(cell, 0, size - 1);
   };
   int level = 0, qx = firstCell(p0.x, line.d.x, tree_.width), qy = firstCell(p0.y, line.d.y, tree_.height);
+  if (tree_.config.rootStart) level = top, qx = 0, qy = 0;  // Algorithm 3 as published
   float s = sStart;
   // Which side of this layer's surface the ray was on where the previous node ended (+1 in
   // front, −1 behind, 0 unknown), at which parameter, and whether that node was flagged.
@@ -126,7 +127,8 @@ QuadtreeTracer::LayerResult QuadtreeTracer::traceLayer(int layer, const Line& li
       // layer i + 1 is traced from there), and crossing a stored surface's plane within its
       // footprint from either side is a surface hit — the back face of an object seen from
       // behind, say, which Embree hits too. The nearest hit over the layers is kept.
-      if (behind ? fout >= 0.0f : fout < 0.0f) {
+      // (backfaceHits off: the pseudo-code's rule, a crossing from behind is no hit.)
+      if (behind ? fout >= 0.0f && tree_.config.backfaceHits : fout < 0.0f) {
         hitAt(!behind && fin <= 0.0f ? s : std::clamp(s + (sOut - s) * (fin / (fin - fout)), s, sOut), 1 << level);
         return res;
       }

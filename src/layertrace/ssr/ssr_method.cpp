@@ -8,7 +8,7 @@ std::span<const Param<SsrConfig>> ssrParams() {
   static const Param<SsrConfig> params[] = {
       {"--ssr-stride", "--stride", "pixels per step, >= 1", &SsrConfig::stride},
       {"--ssr-jitter", "--jitter", "start offset in strides, [0, 1]", &SsrConfig::jitter},
-      {"--ssr-max-steps", "--max-steps", "step limit (0 = march to the viewport edge)", &SsrConfig::maxSteps},
+      {"--ssr-max-steps", "--max-steps", "step limit (0 = march to the viewport edge; paper: 25)", &SsrConfig::maxSteps, "25"},
   };
   return params;
 }

@@ -33,6 +33,9 @@ struct Param {
   const char* alias;  ///< an older spelling, still accepted but not listed ("" for none)
   const char* help;   ///< one line; the default is printed beside it
   std::variant<float Config::*, int Config::*, bool Config::*, std::string Config::*> field;
+  /// The value under `--preset paper` ("25", "false"): the paper's own setting where the default
+  /// ("tuned") departs from it; nullptr where the two agree.
+  const char* paper = nullptr;
 };
 
 }  // namespace lt
