@@ -146,6 +146,7 @@ TEST(CliErrors, SweepFindingsAreRefusedByName) {
       {"layers " + kDefault + " --seed -1", "--seed"},
       {"layers " + kDefault + " --max-memory 1K", "--max-memory 1024 bytes"},
       {"compare " + kDefault + " --tracers hssr,grid,hssr", "--tracers hssr: listed twice"},
+      {"render " + kDefault + " --preset papers", "--preset papers"},
   };
   for (const BadCase& c : cases) expectRejected(c, dir);
 }
@@ -271,6 +272,34 @@ TEST(CliRender, HssrStatsKeysAndSameBytesForOneAndTwoThreads) {
   // Exactness: HSSR answers every ray exactly as the exhaustive oracle.
   EXPECT_EQ(j["rays"]["exhaustive_mismatch"], 0);
   EXPECT_TRUE(fs::exists(dir / "ps/iterations.exr"));
+}
+
+// --preset paper sets each method's paper parameters; a flag given beside it, under its name or
+// its older spelling, keeps the user's value; the statistics record the preset and every value.
+TEST(CliRender, PaperPresetSetsThePapersParametersAndExplicitFlagsWin) {
+  test::TempDir dir;
+  const std::string base = "render " + kDefault + " --width 96 --height 54 --tracer hssr --quiet";
+  ASSERT_NO_FATAL_FAILURE(expectRuns(base + " --preset paper -o " + (dir / "p.png")));
+  ASSERT_NO_FATAL_FAILURE(expectRuns(base + " --preset paper --tau 8 --no-hssr-parent-ascent --ssr-max-steps 0 -o " + (dir / "e.png")));
+  ASSERT_NO_FATAL_FAILURE(expectRuns(base + " -o " + (dir / "t.png")));
+  const auto p = readJson(dir / "p.json"), e = readJson(dir / "e.json"), t = readJson(dir / "t.json");
+  EXPECT_EQ(p["preset"], "paper");
+  EXPECT_EQ(t["preset"], "tuned");
+  EXPECT_EQ(p["parameters"]["hssr-tau"], 25);
+  EXPECT_EQ(p["parameters"]["hssr-levels"], 5);
+  EXPECT_EQ(p["parameters"]["hssr-parent-ascent"], false);
+  EXPECT_EQ(p["parameters"]["ssr-max-steps"], 25);
+  EXPECT_EQ(p["parameters"]["ldc-block-intervals"], 1);
+  EXPECT_EQ(p["parameters"]["quadtree-root-start"], true);
+  EXPECT_EQ(p["parameters"]["grid-partial-expansion"], false);
+  EXPECT_EQ(e["parameters"]["hssr-tau"], 8);          // the older spelling, given explicitly
+  EXPECT_EQ(e["parameters"]["hssr-levels"], 5);       // still the preset's
+  EXPECT_EQ(e["parameters"]["ssr-max-steps"], 0);     // given explicitly
+  EXPECT_EQ(t["parameters"]["hssr-tau"], 4);
+  EXPECT_EQ(t["parameters"]["hssr-parent-ascent"], true);
+  // The pure n_up ascent visits more cells for the same image.
+  EXPECT_GT(p["rays"]["iterations_mean"].get<double>(), t["rays"]["iterations_mean"].get<double>());
+  EXPECT_EQ(p["rays"]["hits"], t["rays"]["hits"]);
 }
 
 TEST(CliRender, BadTracerAndEffectAreRejected) {

@@ -120,6 +120,14 @@ TEST_F(Gpu, ParametersReachTheShaders) {
     EXPECT_LE(a.hitsDiffer, allowed(a.rays)) << name;
     EXPECT_LE(a.countersDiffer, allowed(a.rays)) << name;
   }
+  // The paper's preset: HSSR's pure n_up ascent (the cells counted differ from the default's).
+  const TracerOptions paper = presetOptions("paper");
+  ASSERT_FALSE(paper.hssr.parentAscent);
+  for (const char* name : {"ssr", "hssr"}) {
+    const Agreement a = compareDevices(*gpu_, f, name, paper, rays);
+    EXPECT_LE(a.hitsDiffer, allowed(a.rays)) << name << " (paper preset)";
+    EXPECT_LE(a.countersDiffer, allowed(a.rays)) << name << " (paper preset)";
+  }
   // The same rays give other answers with other parameters: the comparison can fail.
   const BuiltTracer capped = buildGpuTracer("ssr", f, o, *gpu_), plain = buildGpuTracer("ssr", f, TracerOptions{}, *gpu_);
   std::vector<GpuMarchHit> a, b;

@@ -117,6 +117,40 @@ TEST(Ldc, BoxRoomRaysHitTheAnalyticWallAlongEveryAxisAndOctant) {
   EXPECT_FALSE(tracer.occludedImpl(freeRay({0, 0, 0}, {0, 0, 1}, 2.5f), c).hit);
 }
 
+// Bürger et al. 2007's hit test (--ldc-hit-distance): a hit where the ray passes a stored sample
+// closer than a world distance. Wide enough to reach every sample of a texel it finds the walls the
+// tangent-plane test finds; at the paper's 0.001 in a room 15 units deep (texels of 0.06) most
+// rays pass between the samples: the absolute tolerance does not scale.
+TEST(Ldc, PaperHitDistanceFindsTheWallsOnlyWhenWideEnough) {
+  const glm::vec3 lo{-5, -3, -12}, hi{5, 4, 3};
+  Scene s = makeBox(lo, hi);
+  s.finalize("room");
+  const Camera cam(test::originCamera(), 64, 48);
+  std::mt19937 rng{uint32_t(test::testSeed() + 5)};
+  std::uniform_real_distribution<float> u(-1.0f, 1.0f);
+  std::vector<Ray> rays;
+  for (int i = 0; i < 2000; ++i) rays.push_back(freeRay({0.3f * u(rng), 0.3f * u(rng), -4.0f + u(rng)}, {u(rng), u(rng), u(rng)}));
+  auto hits = [&](float distance) {
+    LdcConfig c{256, 8, 0.25f, 4};
+    c.hitDistance = distance;
+    const LayeredDepthCube ldc = buildLdc(s, c);
+    const LdcTracer tracer(cam, ldc);
+    size_t n = 0;
+    for (const Ray& r : rays) {
+      RayCounters counters;
+      const TraceHit h = tracer.trace(r, counters);
+      if (!h.hit) continue;
+      // A hit lies on the wall the ray leaves the box through, within the tolerance.
+      EXPECT_NEAR(glm::length(h.point - r.origin), exitDistance(r.origin, r.dir, lo, hi), std::max(distance, 1e-3f) * 2.0f + 0.1f);
+      ++n;
+    }
+    return n;
+  };
+  const size_t texelWide = hits(0.06f), paper = hits(0.001f);
+  EXPECT_GE(double(texelWide), 0.95 * double(rays.size()));
+  EXPECT_LT(double(paper), 0.5 * double(rays.size()));
+}
+
 // The information miss an image-space tracer cannot avoid: mirror rays from the wall the camera
 // faces go back past the camera, out of its frustum. HSSR reports them as information misses;
 // the layered depth cube, which saw the room from all three axes, hits the wall behind the

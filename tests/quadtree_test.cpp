@@ -187,6 +187,88 @@ TEST(Quadtree, AgreesWithTheIndependentOracleOnFlatSurfaces) {
   ::testing::Test::RecordProperty("flat_agreement", std::to_string(double(agree) / double(flat)));
 }
 
+// The paper's rules (--preset paper), each against the default on the same rays.
+
+// Algorithm 3 from the root: mostly the pixel start's hits, for more node visits. Not all of them:
+// from the root the walk also meets the coarse nodes over the origin pixel, whose proxy planes
+// and occlusion volumes can end a layer earlier (3.4 % of these rays answer differently).
+TEST(Quadtree, RootStartFindsThePixelStartsHitsWithMoreVisits) {
+  FrameOptions o;
+  o.scenePath = test::sourceDir() + "/scenes/default.json";
+  o.width = 240, o.height = 136;
+  const Frame f = buildFrame(o);
+  const std::vector<Ray> rays = test::sampleRays(f, 12000, test::testSeed() + 61);
+  TracerOptions root;
+  root.quadtree.rootStart = true;
+  const BuiltTracer a = buildTracer("quadtree", f, TracerOptions{}), b = buildTracer("quadtree", f, root);
+  size_t same = 0, hits = 0;
+  uint64_t visitsA = 0, visitsB = 0;
+  for (const Ray& r : rays) {
+    RayCounters ca, cb;
+    const TraceHit ha = a.tracer->trace(r, ca), hb = b.tracer->trace(r, cb);
+    hits += ha.hit;
+    same += ha.hit == hb.hit && (!ha.hit || (ha.x == hb.x && ha.y == hb.y && ha.layer == hb.layer));
+    visitsA += ca.iterations, visitsB += cb.iterations;
+  }
+  EXPECT_GT(hits, rays.size() / 4);
+  EXPECT_GE(double(same), 0.95 * double(rays.size()));
+  EXPECT_LT(same, rays.size()) << "the rule must change something, or the option does not reach the walk";
+  EXPECT_GT(visitsB, visitsA + rays.size()) << "a root start descends: at least one more visit per ray on average";
+}
+
+// Algorithm 1 line 10 as printed, step(λ_h, |d|)·d: a leaf keeps only the derivatives at or above
+// λ_h. The tilted floor's w slopes are small, so its leaves become fronto-parallel (b = c = 0)
+// where the default keeps the slopes.
+TEST(Quadtree, PrintedLine10ZeroesTheSmallDerivatives) {
+  const Frame f = test::frameOf(tiltedCorridor(), test::originCamera(60.0f, 0.05f, 200.0f), 96, 64, 2, 0.1f);
+  QuadtreeConfig printed;
+  printed.printedLine10 = true;
+  const Quadtree def = buildQuadtree(f.layers, f.camera, QuadtreeConfig{}), pr = buildQuadtree(f.layers, f.camera, printed);
+  size_t sloped = 0, small = 0, planes = 0;
+  for (int y = 0; y < f.camera.height(); ++y)
+    for (int x = 0; x < f.camera.width(); ++x) {
+      const QuadNode& d = def.node(0, 0, x, y);
+      const QuadNode& p = pr.node(0, 0, x, y);
+      if (d.kind() != QuadNode::Plane) continue;
+      ++planes;
+      sloped += d.c != 0.0f;
+      for (float g : {p.b, p.c}) small += g != 0.0f && std::abs(g) < printed.lambdaH;
+    }
+  ASSERT_GT(planes, size_t(f.camera.width() * f.camera.height()) / 2);
+  EXPECT_GT(sloped, planes / 2) << "the default keeps the floor's small w slopes";
+  EXPECT_EQ(small, 0u) << "as printed, no derivative below lambda-h survives";
+}
+
+// The pseudo-code reports a plane crossed from behind as an occlusion, not a hit. Rays from under
+// the tilted floor going up cross it from behind: the default hits it (Embree does too), the
+// paper's rule never does.
+TEST(Quadtree, BackfaceHitsOffNeverHitsAPlaneCrossedFromBehind) {
+  const Frame f = test::frameOf(tiltedCorridor(), test::originCamera(60.0f, 0.05f, 200.0f), 96, 64, 2, 0.1f);
+  TracerOptions paper;
+  paper.quadtree.backfaceHits = false;
+  const BuiltTracer on = buildTracer("quadtree", f, TracerOptions{}), off = buildTracer("quadtree", f, paper);
+  std::mt19937 rng{uint32_t(test::testSeed() + 62)};
+  std::uniform_real_distribution<float> u(0.0f, 1.0f);
+  size_t rays = 0, floorOn = 0, floorOff = 0;
+  for (int y = f.camera.height() / 2 + 4; y < f.camera.height(); y += 2)
+    for (int x = 8; x < f.camera.width() - 8; x += 3) {
+      if (f.layers.countAt(x, y) == 0 || f.layers.triangle[f.layers.pixelIndex(x, y) * size_t(f.layers.k)] / 2 != 0) continue;
+      Ray r;
+      // Just under the floor on the pixel's camera ray, going up and a little sideways.
+      r.origin = f.camera.rayThrough({float(x) + 0.5f, float(y) + 0.5f}) * (f.layers.pixel(x, y)[0].depth * 1.3f);
+      r.dir = glm::normalize(glm::vec3{0.3f * (u(rng) - 0.5f), 1.0f, -0.3f * u(rng)});
+      r.startsOnSurface = false;
+      ++rays;
+      RayCounters c;
+      const TraceHit a = on.tracer->trace(r, c), b = off.tracer->trace(r, c);
+      floorOn += a.hit && a.triangle / 2 == 0;
+      floorOff += b.hit && b.triangle / 2 == 0;
+    }
+  ASSERT_GT(rays, 100u);
+  EXPECT_GE(double(floorOn), 0.9 * double(rays));
+  EXPECT_EQ(floorOff, 0u);
+}
+
 TEST(Quadtree, RejectsNegativeThresholdsNamingTheOption) {
   QuadtreeConfig c;
   c.gammaDist = -1.0f;

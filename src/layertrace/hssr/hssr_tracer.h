@@ -15,10 +15,10 @@ namespace lt {
 
 struct HssrConfig {
   int nUp = 2;  ///< Hofmann et al. 2017, §5.2: cells traversed without an overlap before ascending a level
-  /// Also ascend on entering another parent cell (AscentRule); false is the paper's pure n_up rule.
-  bool parentAscent = true;
   int maxLevels = 16;  ///< use at most this many pyramid levels (1 = the exhaustive oracle)
   const char* name = "hssr";  ///< "hssr", or "hiz" over a min/max pyramid (hiz_pyramid.h)
+  /// Also ascend on entering another parent cell (AscentRule); false is the paper's pure n_up rule.
+  bool parentAscent = true;
 };
 
 class HssrTracer : public TracerImpl<HssrTracer> {

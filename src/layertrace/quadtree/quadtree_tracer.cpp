@@ -113,7 +113,9 @@ QuadtreeTracer::LayerResult QuadtreeTracer::traceLayer(int layer, const Line& li
       // common edge; a ray through that crack is in front of one and behind the next without
       // crossing either. Where neither node carries the discontinuity hint of Algorithm 1 the
       // surface is continuous there, and changing sides across the edge is a hit on it.
-      if (adjacent && !n.discontinuity() && (side > 0 ? behind : fin > tol)) {
+      // (A change from behind to in front crosses the surface from behind: with backfaceHits off,
+      // no hit, as below.)
+      if (adjacent && !n.discontinuity() && (side > 0 ? behind : fin > tol && tree_.config.backfaceHits)) {
         hitAt(s, 1 << level);
         return res;
       }
