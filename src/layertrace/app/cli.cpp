@@ -291,6 +291,22 @@ int runCli(int argc, const char* const* argv, CliMode mode) {
   addTracerOptions(benchCmd, bench.options);
   benchCmd->add_option("--report", bench.report, "also write an HTML report to this folder (default: the output folder)")->expected(0, 1);
 
+  lt::ReproduceOptions reproduce;
+  int reproduceWidth = 0, reproduceHeight = 0;
+  CLI::App* reproduceCmd = app.add_subcommand(
+      "reproduce", "the five papers' hardware-independent results under --preset paper and tuned, on the real scenes: one Markdown page");
+  reproduceCmd->add_option("SCENES", reproduce.scenes,
+                           "scene files, each optionally SCENE:CAMERA (default: the default scene and the fetched real scenes; "
+                           "with --quick the default scene)");
+  reproduceCmd->add_option("-o,--output", reproduce.run.output, "output folder: reproduction.md and reproduction/ (plots, JSON); default out/reproduce");
+  reproduceCmd->add_flag("--quick", reproduce.quick, "the default scene at 640x360, one timed run (under a minute); exit 1 if a claim's outcome differs from the documented one");
+  reproduceCmd->add_option("--width", reproduceWidth, "image width (default 1280, --quick 640)");
+  reproduceCmd->add_option("--height", reproduceHeight, "image height (default 720, --quick 360)");
+  reproduceCmd->add_option("--repeat", reproduce.repeat, "timed runs per time (the median is reported)")->capture_default_str();
+  reproduceCmd->add_option("--threads", reproduce.run.threads, "worker threads (0 = all cores)")->capture_default_str();
+  reproduceCmd->add_option("--seed", reproduce.run.seed, "random seed")->capture_default_str()->check(CLI::NonNegativeNumber);
+  reproduceCmd->add_flag("--quiet", reproduce.run.quiet, "no progress or summary output");
+
   lt::GeobenchOptions geobench;
   RawFrameOptions geobenchRaw;
   CLI::App* geobenchCmd = app.add_subcommand("geobench", "geometric tracers (grid vs embree): build, memory, MRays/s, agreement");
@@ -424,6 +440,18 @@ int runCli(int argc, const char* const* argv, CliMode mode) {
     if (geobenchCmd->parsed()) {
       prepare(geobench.run, geobenchRaw);
       return done(lt::runGeobench(geobench));
+    }
+    if (reproduceCmd->parsed()) {
+      reproduce.run.frame.width = reproduceWidth ? reproduceWidth : reproduce.quick ? 640 : 1280;
+      reproduce.run.frame.height = reproduceHeight ? reproduceHeight : reproduce.quick ? 360 : 720;
+      lt::validateFrameOptions(reproduce.run.frame);
+      for (int i = 0; i < argc; ++i) reproduce.commandLine += (i ? " " : "") + std::string(i ? argv[i] : "layertrace");
+      if (reproduce.run.threads > 0)
+        threads = std::make_unique<tbb::global_control>(tbb::global_control::max_allowed_parallelism, size_t(reproduce.run.threads));
+      // A claim that does not hold (status 1 with --quick) still leaves the page that says which.
+      const int status = lt::runReproduce(reproduce);
+      if (stage) stage->commit();
+      return status;
     }
     if (benchCmd->parsed()) {
       prepare(bench.run, benchRaw);

@@ -57,8 +57,6 @@
 namespace lt {
 namespace fs = std::filesystem;
 
-namespace {
-
 std::string machine() {
   std::ifstream in("/proc/cpuinfo");
   std::string line;
@@ -73,6 +71,32 @@ std::string today() {
   std::strftime(buf, sizeof buf, "%Y-%m-%dT%H:%M:%SZ", std::gmtime(&t));
   return buf;
 }
+
+bool runPlotScript(const std::string& scriptName, const nlohmann::json& data, const std::string& outName,
+                   const std::function<void(const fs::path& scratch)>& collect) {
+  const std::string script = std::string(LAYERTRACE_TOOLS_DIR) + "/" + scriptName;
+  const fs::path scratch = fs::temp_directory_path() / cat("layertrace-plot-", ::getpid());
+  bool plotted = false;
+  std::error_code fsError;
+  if (fs::exists(script) && fs::create_directories(scratch, fsError)) {
+    std::ofstream((scratch / "plot.json").string()) << data.dump(2) << "\n";
+    // Debian's interpreter first: python3-matplotlib is installed for it.
+    const std::string python = fs::exists("/usr/bin/python3") ? "/usr/bin/python3" : "python3";
+    const std::string cmd = python + " '" + script + "' '" + (scratch / "plot.json").string() + "' '" + (scratch / outName).string() +
+                            "' >/dev/null 2>&1";
+    plotted = std::system(cmd.c_str()) == 0 && fs::exists(scratch / outName);
+    if (plotted) collect(scratch);
+  }
+  fs::remove_all(scratch, fsError);
+  return plotted;
+}
+
+std::string fileBytes(const fs::path& path) {
+  std::ifstream in(path, std::ios::binary);
+  return std::string(std::istreambuf_iterator<char>(in), {});
+}
+
+namespace {
 
 /// A table of rows with named columns, written as CSV and JSON.
 struct Table {
@@ -607,31 +631,25 @@ int runBench(const BenchOptions& o) {
   // The plot: python3 + matplotlib (tools/plot_bench.py); a missing Python is not an error. It
   // runs in a scratch folder (the outputs above are staged until the command succeeds), and its
   // PNG is staged beside them.
-  const std::string script = std::string(LAYERTRACE_TOOLS_DIR) + "/plot_bench.py";
-  const fs::path scratch = fs::temp_directory_path() / cat("layertrace-plot-", ::getpid());
-  const std::string plotPng = (scratch / "plot.png").string();
-  bool plotted = false;
-  std::error_code fsError;
-  if (fs::exists(script) && fs::create_directories(scratch, fsError)) {
-    std::ofstream((scratch / "plot.json").string()) << result.dump(2) << "\n";
-    // Debian's interpreter first: python3-matplotlib is installed for it.
-    const std::string python = fs::exists("/usr/bin/python3") ? "/usr/bin/python3" : "python3";
-    const std::string cmd = python + " '" + script + "' '" + (scratch / "plot.json").string() + "' '" + plotPng + "' >/dev/null 2>&1";
-    plotted = std::system(cmd.c_str()) == 0 && fs::exists(plotPng);
-    if (plotted) {
-      std::ifstream in(plotPng, std::ios::binary);
-      writeFileAtomic(base + ".png", std::string(std::istreambuf_iterator<char>(in), {}));
+  const bool plotted = runPlotScript("plot_bench.py", result, "plot.png", [&](const fs::path& scratch) {
+    const std::string png = fileBytes(scratch / "plot.png");
+    writeFileAtomic(base + ".png", png);
+    if (!o.report.empty()) {
+      ReportPage page;
+      page.title = cat("layertrace bench ", e, ": ", frame.scene.name);
+      page.table = t.csv();
+      page.json = result;
+      page.files.push_back({e + ".png", (scratch / "plot.png").string()});
+      writeReport(o.report, page);
     }
-  }
-  if (!o.report.empty()) {
+  });
+  if (!plotted && !o.report.empty()) {
     ReportPage page;
     page.title = cat("layertrace bench ", e, ": ", frame.scene.name);
     page.table = t.csv();
     page.json = result;
-    if (plotted) page.files.push_back({e + ".png", plotPng});
     writeReport(o.report, page);
   }
-  fs::remove_all(scratch, fsError);
   if (!o.run.quiet) {
     std::cout << "bench " << e << ": " << frame.scene.name << " (" << machine() << ", " << LAYERTRACE_BUILD_TYPE << ")\n"
               << t.csv() << "  wrote " << base << ".csv, .json" << (plotted ? ", .png" : " (no plot: python3/matplotlib missing)")

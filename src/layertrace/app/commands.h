@@ -4,7 +4,11 @@
 // layer; nothing under src/layertrace/ outside app/ includes it.
 #pragma once
 
+#include <filesystem>
+#include <functional>
 #include <string>
+
+#include <nlohmann/json.hpp>
 
 #include "layertrace/pipeline/frame.h"
 #include "layertrace/util/image.h"
@@ -50,6 +54,18 @@ ComplexityImages depthComplexityImages(int width, int height, const std::vector<
 Image layerAlbedo(const LayerArrays& layers, int layer);
 /// Creates `dir` (and parents); InputError naming the option if impossible.
 void ensureDirectory(const std::string& dir, const std::string& option);
+
+/// "AMD EPYC 9R14, 2 threads": the CPU model and thread count every measured table carries.
+std::string machine();
+/// The current UTC time, ISO 8601 ("2026-12-06T05:20:00Z").
+std::string today();
+/// Runs `python3 tools/SCRIPT DATA.json SCRATCH/OUT` in a scratch folder and, if it wrote OUT,
+/// hands the folder to `collect` (which stages what it wants) before removing it. A missing
+/// Python or matplotlib is not an error: false, nothing collected.
+bool runPlotScript(const std::string& script, const nlohmann::json& data, const std::string& out,
+                   const std::function<void(const std::filesystem::path& scratch)>& collect);
+/// A file's bytes ("" if it cannot be read).
+std::string fileBytes(const std::filesystem::path& path);
 
 }  // namespace lt
 
@@ -102,6 +118,22 @@ struct BenchOptions {
 
 /// `layertrace bench`: the HSSR paper's experiments (Hofmann et al. 2017, §6) on your scene → CSV, JSON, PNG plot.
 int runBench(const BenchOptions& options);
+
+/// `layertrace reproduce`: the papers' hardware-independent results under both presets.
+struct ReproduceOptions {
+  RunOptions run;
+  std::vector<std::string> scenes;  ///< SCENE or SCENE:CAMERA; empty: kReproduceScenes (--quick: the default scene)
+  bool quick = false;               ///< --quick: the default scene at a small size; exit 1 if a claim fails
+  int repeat = 3;                   ///< timed runs per time (median)
+  std::string commandLine;          ///< as typed, for the page's header
+};
+/// The scenes of the full run: the default scene and the fetched real scenes (scripts/fetch-scenes.sh),
+/// relative to the source tree.
+inline const std::vector<std::string> kReproduceScenes = {"scenes/default.json", "scenes/fzk-haus.json:interior",
+                                                          "scenes/am-thornish.json:hall", "scenes/engine.json:interior"};
+/// Writes OUT/reproduction.md, OUT/reproduction/*.png and reproduction.json; 0, or 1 when --quick
+/// and a paper's claim does not hold.
+int runReproduce(const ReproduceOptions& options);
 
 struct GeobenchOptions {
   RunOptions run;
