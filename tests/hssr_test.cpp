@@ -191,7 +191,8 @@ TEST(Hssr, FastMarchEqualsReferenceMarch) {
   FrameOptions o;
   o.scenePath = test::sourceDir() + "/scenes/default.json";
   o.width = 317, o.height = 179;  // partial cells on every pyramid level
-  expectSameAsReference(buildFrame(o), 40000);
+  // (sanitized builds look for memory and thread errors, not rare rays: a quarter of them)
+  expectSameAsReference(buildFrame(o), std::getenv("LAYERTRACE_SANITIZED") ? 10000 : 40000);
 }
 
 /// The lanes over pyramids of fewer layers (k = 1 is the hybrid's known-space pyramid: one

@@ -20,6 +20,10 @@
 #include "layertrace/util/error.h"
 #include "layertrace/util/timing.h"
 
+#ifndef LAYERTRACE_TOOLS_DIR
+#define LAYERTRACE_TOOLS_DIR "tools"
+#endif
+
 namespace lt {
 namespace fs = std::filesystem;
 
@@ -471,8 +475,8 @@ Section gridTable(Context& c) {
   s.paper = "λ1 = 0.12, λ2 = 2.4 for static scenes; after merging and expansion the grid traverses as fast as the best BVHs "
             "on a GPU, for more memory.";
   s.claim = "the grid answers every ray as Embree does";
-  s.columns = {"view", "preset", "cells (initial → merged)", "references", "grid memory", "Embree memory", "cells / ray", "agreement",
-               "build ms (CPU)"};
+  s.columns = {"view", "preset", "cells (initial → merged)", "references", "grid memory", "Embree memory", "cells / reflection ray",
+               "cells / primary ray", "tests / primary ray", "agreement", "build ms (CPU)"};
   for (const View& v : c.views) {
     c.progress("grid: " + v.label);
     const BuiltTracer ref = buildReference(v.frame);
@@ -482,12 +486,25 @@ Section gridTable(Context& c) {
       const BuiltTracer g = buildTracer("grid", v.frame, presetOptions(preset));
       const Traced t = traced(v.frame, *g.tracer, ec, *ref.tracer);
       const GridStats& st = g.grid->stats();
+      // The slides' per-ray work: cells stepped and triangles tested, on the primary rays of
+      // every fourth pixel in each direction.
+      uint64_t steps = 0, tests = 0, primary = 0;
+      const Camera& cam = v.frame.camera;
+      for (int y = 0; y < cam.height(); y += 4)
+        for (int x = 0; x < cam.width(); x += 4) {
+          const glm::vec2 px{float(x) + 0.5f, float(y) + 0.5f};
+          TraversalCounts counts;
+          g.grid->intersect(cam.toWorld(cam.rayOrigin(px)), glm::normalize(cam.dirToWorld(cam.rayThrough(px))), 0.0f, 1e30f, &counts);
+          steps += counts.steps, tests += counts.tests, ++primary;
+        }
+      const double stepsPerRay = double(steps) / double(primary), testsPerRay = double(tests) / double(primary);
       const double agree = 1.0 - t.falseMiss - t.wrongHit;
       s.holds = s.holds && t.falseMiss + t.wrongHit < 1e-3;
       s.row({v.label, preset, cat(st.cellsInitial, " → ", st.cellsAfterMerge), std::to_string(st.refs), mib(double(g.memoryBytes)),
-             mib(double(embree.memoryBytes)), fmt(t.iterations), pct(agree), fmt(g.buildMs, 1)},
+             mib(double(embree.memoryBytes)), fmt(t.iterations), fmt(stepsPerRay), fmt(testsPerRay), pct(agree), fmt(g.buildMs, 1)},
             {{"view", v.label}, {"preset", preset}, {"cells_initial", st.cellsInitial}, {"cells_merged", st.cellsAfterMerge},
              {"refs", st.refs}, {"memory_bytes", g.memoryBytes}, {"embree_bytes", embree.memoryBytes}, {"cells_per_ray", t.iterations},
+             {"cells_per_primary_ray", stepsPerRay}, {"tests_per_primary_ray", testsPerRay},
              {"agreement", agree}, {"build_ms", g.buildMs}});
     }
   }
@@ -548,6 +565,9 @@ int runReproduce(const ReproduceOptions& o) {
     const size_t colon = spec.rfind(':');
     v.options.scenePath = colon == std::string::npos ? spec : spec.substr(0, colon);
     if (colon != std::string::npos) v.options.cameraName = spec.substr(colon + 1);
+    // The default scenes are the source tree's: found from its root when run elsewhere.
+    const fs::path fromSource = fs::path(LAYERTRACE_TOOLS_DIR).parent_path() / v.options.scenePath;
+    if (o.scenes.empty() && !fs::exists(v.options.scenePath) && fs::exists(fromSource)) v.options.scenePath = fromSource.string();
     if (!fs::exists(v.options.scenePath)) inputError("reproduce: scene ", v.options.scenePath, ": no such file");
     try {
       loadFrameScene(v.options, v.frame);
