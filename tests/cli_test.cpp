@@ -289,6 +289,7 @@ TEST(CliRender, PaperPresetSetsThePapersParametersAndExplicitFlagsWin) {
   EXPECT_EQ(p["parameters"]["hssr-levels"], 5);
   EXPECT_EQ(p["parameters"]["hssr-parent-ascent"], false);
   EXPECT_EQ(p["parameters"]["ssr-max-steps"], 25);
+  EXPECT_EQ(p["parameters"]["ssr-refine"], false);
   EXPECT_EQ(p["parameters"]["ldc-block-intervals"], 1);
   EXPECT_EQ(p["parameters"]["quadtree-root-start"], true);
   EXPECT_EQ(p["parameters"]["grid-partial-expansion"], false);

@@ -213,7 +213,9 @@ TEST(Quadtree, RootStartFindsThePixelStartsHitsWithMoreVisits) {
   EXPECT_GT(hits, rays.size() / 4);
   EXPECT_GE(double(same), 0.95 * double(rays.size()));
   EXPECT_LT(same, rays.size()) << "the rule must change something, or the option does not reach the walk";
-  EXPECT_GT(visitsB, visitsA + rays.size()) << "a root start descends: at least one more visit per ray on average";
+  if (kCountersCompiled) {
+    EXPECT_GT(visitsB, visitsA + rays.size()) << "a root start descends: at least one more visit per ray on average";
+  }
 }
 
 // Algorithm 1 line 10 as printed, step(λ_h, |d|)·d: a leaf keeps only the derivatives at or above

@@ -306,6 +306,10 @@ int runCli(int argc, const char* const* argv, CliMode mode) {
   reproduceCmd->add_option("--threads", reproduce.run.threads, "worker threads (0 = all cores)")->capture_default_str();
   reproduceCmd->add_option("--seed", reproduce.run.seed, "random seed")->capture_default_str()->check(CLI::NonNegativeNumber);
   reproduceCmd->add_flag("--quiet", reproduce.run.quiet, "no progress or summary output");
+  reproduceCmd->add_option("--device", reproduce.run.device,
+                           "cpu, or gpu: also time the construction against k (lists and depth peeling) on the GPU")
+      ->capture_default_str()
+      ->check(CLI::IsMember({"cpu", "gpu"}));
 
   lt::GeobenchOptions geobench;
   RawFrameOptions geobenchRaw;

@@ -17,6 +17,8 @@
 #include "layertrace/app/commands.h"
 #include "layertrace/commit.h"
 #include "layertrace/eval/classify.h"
+#include "layertrace/gpu/gpu_context.h"
+#include "layertrace/pipeline/gpu_tracers.h"
 #include "layertrace/util/error.h"
 #include "layertrace/util/timing.h"
 
@@ -113,6 +115,7 @@ struct Context {
   const ReproduceOptions& o;
   std::vector<View> views;
   int repeat = 1;
+  std::shared_ptr<GpuContext> gpu;  ///< --device gpu: construction is also timed there
   void progress(const std::string& what) const {
     if (!o.run.quiet) std::cerr << "reproduce: " << what << "\n";
   }
@@ -288,6 +291,7 @@ Section constructionTable(Context& c) {
             "at a few layers.";
   s.claim = "peeling rasterizes k times the lists' fragments in k passes, and gives the same layers";
   s.columns = {"view", "k", "lists: passes", "lists: fragments", "lists ms (CPU)", "peel: passes", "peel: fragments", "peel ms (CPU)"};
+  if (c.gpu) s.columns.insert(s.columns.end(), {"lists ms (GPU)", "peel ms (GPU)"});
   for (View& v : c.views) {
     c.progress("construction: " + v.label);
     for (int k : c.o.quick ? std::vector<int>{1, 2, 4} : std::vector<int>{1, 2, 3, 4, 6, 8}) {
@@ -305,14 +309,28 @@ Section constructionTable(Context& c) {
       const uint64_t listsFragments = a.lists.generated, peelFragments = b.fragmentsRasterized;
       const bool same = a.layers.count == b.layers.count && a.layers.triangle == b.layers.triangle;
       s.holds = s.holds && same && b.geometryPasses == k && peelFragments == uint64_t(k) * listsFragments;
-      s.row({v.label, std::to_string(k), std::to_string(a.geometryPasses), std::to_string(listsFragments), fmt(listsMs, 1),
-             std::to_string(b.geometryPasses), std::to_string(peelFragments), fmt(peelMs, 1)},
-            {{"view", v.label}, {"k", k}, {"lists_passes", a.geometryPasses}, {"lists_fragments", listsFragments}, {"lists_ms", listsMs},
-             {"peel_passes", b.geometryPasses}, {"peel_fragments", peelFragments}, {"peel_ms", peelMs}, {"same_layers", same}});
+      std::vector<std::string> cells{v.label, std::to_string(k), std::to_string(a.geometryPasses), std::to_string(listsFragments),
+                                     fmt(listsMs, 1), std::to_string(b.geometryPasses), std::to_string(peelFragments), fmt(peelMs, 1)};
+      nlohmann::json d{{"view", v.label}, {"k", k}, {"lists_passes", a.geometryPasses}, {"lists_fragments", listsFragments}, {"lists_ms", listsMs},
+                       {"peel_passes", b.geometryPasses}, {"peel_fragments", peelFragments}, {"peel_ms", peelMs}, {"same_layers", same}};
+      if (c.gpu) {
+        // GPU milliseconds from timer queries (raster + sort, or the peeling passes), as bench --experiment peel.
+        for (const char* method : {"lists", "peel"}) {
+          Frame g;
+          loadFrameScene(lists, g);
+          rasterizeFrameOnGpu(*c.gpu, lists, method, g);  // warm-up
+          std::vector<double> ms;
+          for (int i = 0; i < c.repeat; ++i) rasterizeFrameOnGpu(*c.gpu, lists, method, g), ms.push_back(g.rasterMs + g.sortMs);
+          cells.push_back(fmt(median(ms), 2));
+          d[std::string(method) + "_gpu_ms"] = median(ms);
+        }
+      }
+      s.row(std::move(cells), std::move(d));
     }
   }
-  s.note = "Times are this CPU's wall time (reference list capture: every fragment into a pool, then the sort); on a GPU "
-           "`layertrace bench --experiment peel --device gpu` measures the same with timer queries.";
+  s.note = "CPU times are wall time (reference list capture: every fragment into a pool, then the sort). With `--device gpu` "
+           "the two GPU columns are GPU milliseconds from timer queries (the GPU's peeling takes two passes per layer); under "
+           "Mesa's llvmpipe they are a CPU's, not a GPU's.";
   return s;
 }
 
@@ -555,6 +573,7 @@ int runReproduce(const ReproduceOptions& o) {
   validateRepeat(o.repeat);
   Context c{o};
   c.repeat = o.quick ? 1 : o.repeat;
+  if (o.run.device == "gpu") c.gpu = openGpu();  // before the scenes: a machine without one is told at once
   std::vector<std::string> scenes = o.scenes;
   if (scenes.empty()) scenes = o.quick ? std::vector<std::string>{"scenes/default.json"} : kReproduceScenes;
   std::vector<std::string> skipped;
@@ -604,6 +623,8 @@ int runReproduce(const ReproduceOptions& o) {
   data["machine"] = machine();
   data["command"] = o.commandLine;
   data["width"] = W, data["height"] = H, data["layers"] = o.run.frame.layers;
+  data["device"] = o.run.device;
+  if (c.gpu) data["gpu_renderer"] = c.gpu->renderer();
   for (const Section& s : sections) data["tables"][s.id] = {{"title", s.title}, {"claim", s.claim}, {"holds", s.holds}, {"expected", s.expected}, {"rows", s.data}};
 
   const fs::path out = o.run.output.empty() ? fs::path("out/reproduce") : fs::path(o.run.output);
@@ -628,7 +649,7 @@ int runReproduce(const ReproduceOptions& o) {
         "this CPU's and are labelled so. Each table ends with the paper's claim and whether it holds here.\n\n"
      << "- Date: " << data["date"].get<std::string>() << "\n"
      << "- Commit: " << LAYERTRACE_COMMIT << "\n"
-     << "- Machine: " << data["machine"].get<std::string>() << "\n"
+     << "- Machine: " << data["machine"].get<std::string>() << (c.gpu ? "; GPU: " + c.gpu->renderer() : std::string()) << "\n"
      << "- Command: `" << o.commandLine << "`\n"
      << "- Views: " << W << "×" << H << ", k = " << o.run.frame.layers << " layers, seed " << o.run.seed << "; ";
   for (size_t i = 0; i < c.views.size(); ++i) md << (i ? ", " : "") << "`" << c.views[i].label << "`";

@@ -9,6 +9,8 @@ std::span<const Param<SsrConfig>> ssrParams() {
       {"--ssr-stride", "--stride", "pixels per step, >= 1", &SsrConfig::stride},
       {"--ssr-jitter", "--jitter", "start offset in strides, [0, 1]", &SsrConfig::jitter},
       {"--ssr-max-steps", "--max-steps", "step limit (0 = march to the viewport edge; paper: 25)", &SsrConfig::maxSteps, "25"},
+      {"--ssr-refine", "", "refine a strided hit by binary search between the last two samples (the listing reports the sample)",
+       &SsrConfig::refine, "false"},
   };
   return params;
 }
