@@ -631,25 +631,16 @@ int runBench(const BenchOptions& o) {
   // The plot: python3 + matplotlib (tools/plot_bench.py); a missing Python is not an error. It
   // runs in a scratch folder (the outputs above are staged until the command succeeds), and its
   // PNG is staged beside them.
+  ReportPage page;
+  page.title = cat("layertrace bench ", e, ": ", frame.scene.name);
+  page.table = t.csv();
+  page.json = result;
   const bool plotted = runPlotScript("plot_bench.py", result, "plot.png", [&](const fs::path& scratch) {
-    const std::string png = fileBytes(scratch / "plot.png");
-    writeFileAtomic(base + ".png", png);
-    if (!o.report.empty()) {
-      ReportPage page;
-      page.title = cat("layertrace bench ", e, ": ", frame.scene.name);
-      page.table = t.csv();
-      page.json = result;
-      page.files.push_back({e + ".png", (scratch / "plot.png").string()});
-      writeReport(o.report, page);
-    }
+    writeFileAtomic(base + ".png", fileBytes(scratch / "plot.png"));
+    page.files.push_back({e + ".png", (scratch / "plot.png").string()});
+    if (!o.report.empty()) writeReport(o.report, page);  // while the plot is still there to inline
   });
-  if (!plotted && !o.report.empty()) {
-    ReportPage page;
-    page.title = cat("layertrace bench ", e, ": ", frame.scene.name);
-    page.table = t.csv();
-    page.json = result;
-    writeReport(o.report, page);
-  }
+  if (!plotted && !o.report.empty()) writeReport(o.report, page);
   if (!o.run.quiet) {
     std::cout << "bench " << e << ": " << frame.scene.name << " (" << machine() << ", " << LAYERTRACE_BUILD_TYPE << ")\n"
               << t.csv() << "  wrote " << base << ".csv, .json" << (plotted ? ", .png" : " (no plot: python3/matplotlib missing)")

@@ -123,6 +123,14 @@ struct Context {
 
 constexpr const char* kPresets[] = {"paper", "tuned"};
 
+/// `v`'s scene and view in `f`, for other frame options of the same size (k, the capture): the
+/// scene is copied, not loaded again (an IFC house takes seconds to import).
+void sameView(const View& v, const FrameOptions& options, Frame& f) {
+  f.scene = v.frame.scene;
+  setFrameView(options, v.frame.camera.desc(), f);
+  f.lights = v.frame.lights;
+}
+
 EffectConfig effect(Effect e, uint64_t seed) {
   EffectConfig ec;
   ec.effect = e;
@@ -189,7 +197,7 @@ Section memoryTable(Context& c) {
       fo.layers = k;
       fo.referenceCapture = true;  // the lists exist (the tile-local capture keeps none)
       Frame f;
-      loadFrameScene(fo, f);
+      sameView(v, fo, f);
       rasterizeFrame(fo, f);
       const size_t paper = buildIntervalPyramid(f.layers, f.camera, presetOptions("paper").pyramid).memoryBytes();
       const size_t tuned = buildIntervalPyramid(f.layers, f.camera, presetOptions("tuned").pyramid).memoryBytes();
@@ -300,8 +308,8 @@ Section constructionTable(Context& c) {
       lists.referenceCapture = true;
       peel.depthPeeling = true;
       Frame a, b;
-      loadFrameScene(lists, a);
-      loadFrameScene(peel, b);
+      sameView(v, lists, a);
+      sameView(v, peel, b);
       rasterizeFrame(lists, a);  // warm-up
       const double listsMs = medianMs(c.repeat, [&] { rasterizeFrame(lists, a); });
       rasterizeFrame(peel, b);
@@ -317,7 +325,7 @@ Section constructionTable(Context& c) {
         // GPU milliseconds from timer queries (raster + sort, or the peeling passes), as bench --experiment peel.
         for (const char* method : {"lists", "peel"}) {
           Frame g;
-          loadFrameScene(lists, g);
+          sameView(v, lists, g);
           rasterizeFrameOnGpu(*c.gpu, lists, method, g);  // warm-up
           std::vector<double> ms;
           for (int i = 0; i < c.repeat; ++i) rasterizeFrameOnGpu(*c.gpu, lists, method, g), ms.push_back(g.rasterMs + g.sortMs);
@@ -466,7 +474,7 @@ Section warpTable(Context& c) {
         FrameOptions fo = v.options;
         fo.layers = k;
         Frame f;
-        loadFrameScene(fo, f);
+        sameView(v, fo, f);
         rasterizeFrame(fo, f);
         const EffectResult r = renderEffect(f, *buildTracer("quadtree", f, presetOptions(preset)).tracer, w);
         const WarpHoles h = countWarpHoles(wr, r.holes);
