@@ -39,6 +39,18 @@ extract assimp-testmodels usr/share/assimp/models/invalid/OutOfMemory.off "$DATA
 extract glmark2-data usr/share/glmark2/models/bunny.obj "$DATA/models/bunny.obj"
 extract embree-tools usr/share/doc/embree3/models/cornell_box.obj "$DATA/models/cornell_box.obj"
 extract embree-tools usr/share/doc/embree3/models/cornell_box.mtl "$DATA/models/cornell_box.mtl"
+# A textured Collada model: the duck and its texture, which it names as ./duckCM.tga.
+extract assimp-testmodels usr/share/assimp/models/Collada/duck.dae "$DATA/models/duck/duck.dae"
+extract assimp-testmodels usr/share/assimp/models/Collada/duckCM.tga "$DATA/models/duck/duckCM.tga"
+
+# OpenArena's game archives, where the maps below find their textures and shader scripts
+# (scene/quake3_textures.h looks in a baseoa/ folder beside a map): OpenArena 0.8.1's data and
+# textures and the 0.8.5 and 0.8.8 patches.
+OA=usr/share/games/openarena/baseoa
+extract openarena-data "$OA/pak0.pk3" "$DATA/models/baseoa/pak0.pk3"
+extract openarena-081-textures "$OA/pak4-textures.pk3" "$DATA/models/baseoa/pak4-textures.pk3"
+extract openarena-085-data "$OA/pak6-patch085.pk3" "$DATA/models/baseoa/pak6-patch085.pk3"
+extract openarena-088-data "$OA/pak6-patch088.pk3" "$DATA/models/baseoa/pak6-patch088.pk3"
 
 # OpenArena maps: assimp reads only the first maps/*.bsp of an archive, so each map is repacked
 # into its own uncompressed .pk3. am_thornish is the hall of the README's tables; oa_shouse has
@@ -46,10 +58,9 @@ extract embree-tools usr/share/doc/embree3/models/cornell_box.mtl "$DATA/models/
 repack_map() {
   local map=$1 dest="$DATA/models/$1.pk3"
   [ -s "$dest" ] && return 0
-  extract openarena-088-data usr/share/games/openarena/baseoa/pak6-patch088.pk3 "$DATA/debs/pak6-patch088.pk3"
   local tmp
   tmp=$(mktemp -d)
-  unzip -q -o "$DATA/debs/pak6-patch088.pk3" "maps/$map.bsp" -d "$tmp"
+  unzip -q -o "$DATA/models/baseoa/pak6-patch088.pk3" "maps/$map.bsp" -d "$tmp"
   (cd "$tmp" && zip -q -0 map.pk3 "maps/$map.bsp")
   mv "$tmp/map.pk3" "$dest.tmp" && mv "$dest.tmp" "$dest"
   rm -rf "$tmp"

@@ -15,6 +15,7 @@
 #include "layertrace/scene/load.h"
 #include "layertrace/util/error.h"
 #include "layertrace/util/image.h"
+#include "layertrace/util/warning.h"
 #include "test_util.h"
 
 namespace lt {
@@ -331,7 +332,8 @@ TEST(SceneQuake3, AnArchivesPatchesJoinTheImportersGeometry) {
   ASSERT_EQ(s.triangleCount(), 1 + p.triangles.size());
   size_t onArch = 0;
   for (size_t t = 0; t < s.triangleCount(); ++t) {
-    EXPECT_EQ(s.materials[s.triMaterial[t]].name, "0.-1") << "one material for the polygon and the patch";
+    EXPECT_EQ(s.triMaterial[t], s.triMaterial[0]) << "one material for the polygon and the patch";
+    EXPECT_EQ(s.materials[s.triMaterial[t]].name, "t/wall") << "named by the shader of the face's texture record";
     const glm::vec3 c = (s.positions[s.triangles[t].x] + s.positions[s.triangles[t].y] + s.positions[s.triangles[t].z]) / 3.0f;
     onArch += distanceToArch({c.x - 10.0f, c.z}) < 1.0 + 1e-4 && c.z >= 0.0f && c.x < 11.5f;
   }
@@ -348,9 +350,10 @@ TEST(SceneQuake3, AnArchivesPatchesJoinTheImportersGeometry) {
   }
 }
 
-// A material's diffuse texture gives its albedo the texture's mean colour (averaged in linear
-// space, times the material's colour); a texture that cannot be read leaves a colour derived from
-// its name, and the model still loads.
+// A material's diffuse texture multiplies its colour; under --textures off (flattenTextures) the
+// albedo is the texture's mean colour (averaged in linear space) times the material's colour. A
+// texture that cannot be read leaves the material's colour, with one warning naming the file,
+// and the model still loads.
 TEST(SceneLoad, TexturedMaterialsTakeTheTexturesMeanColour) {
   test::TempDir dir;
   const uint8_t texels[] = {255, 0, 0, 0, 0, 255, 255, 255, 255, 0, 0, 0};  // red, blue, white, black
@@ -358,9 +361,23 @@ TEST(SceneLoad, TexturedMaterialsTakeTheTexturesMeanColour) {
   std::ofstream(dir / "m.mtl") << "newmtl white\nKd 1 1 1\nmap_Kd tex.png\n"
                                   "newmtl grey\nKd 0.5 0.5 0.5\nmap_Kd tex.png\n"
                                   "newmtl lost\nKd 1 1 1\nmap_Kd missing.png\n";
-  std::ofstream(dir / "m.obj") << "mtllib m.mtl\nv 0 0 0\nv 1 0 0\nv 0 1 0\nv 1 1 0\n"
-                                  "usemtl white\nf 1 2 3\nusemtl grey\nf 2 4 3\nusemtl lost\nf 1 3 4\n";
-  const Scene s = loadModel(dir / "m.obj");
+  std::ofstream(dir / "m.obj") << "mtllib m.mtl\nv 0 0 0\nv 1 0 0\nv 0 1 0\nv 1 1 0\nvt 0 0\nvt 1 0\nvt 0 1\nvt 1 1\n"
+                                  "usemtl white\nf 1/1 2/2 3/3\nusemtl grey\nf 2/2 4/4 3/3\nusemtl lost\nf 1/1 3/3 4/4\n";
+  std::vector<std::string> warnings;
+  const WarningSink previous = setWarningSink([&](const std::string& w) { warnings.push_back(w); });
+  Scene s = loadModel(dir / "m.obj");
+  setWarningSink(previous);
+  ASSERT_EQ(warnings.size(), 1u);
+  EXPECT_NE(warnings[0].find("missing.png"), std::string::npos) << warnings[0];
+  std::map<std::string, Material> byName;
+  for (const Material& m : s.materials) byName[m.name] = m;
+  ASSERT_EQ(s.textures.size(), 1u) << "decoded once for both materials";
+  EXPECT_EQ(byName["white"].baseTexture, 0);
+  EXPECT_EQ(byName["grey"].baseTexture, 0);
+  EXPECT_EQ(byName["lost"].baseTexture, -1);
+  EXPECT_EQ(byName["lost"].albedo, glm::vec3(1.0f)) << "an unreadable texture: the material's colour";
+  EXPECT_EQ(s.texcoords.size(), s.positions.size());
+  flattenTextures(s);
   std::map<std::string, glm::vec3> albedo;
   for (const Material& m : s.materials) albedo[m.name] = m.albedo;
   const glm::vec3 mean(0.5f, 0.25f, 0.5f);  // (1 + 0 + 1 + 0) / 4 red, (0 + 0 + 1 + 0) / 4 green, …
@@ -368,8 +385,6 @@ TEST(SceneLoad, TexturedMaterialsTakeTheTexturesMeanColour) {
     EXPECT_NEAR(albedo["white"][c], mean[c], 1e-6f) << c;
     EXPECT_NEAR(albedo["grey"][c], 0.5f * mean[c], 1e-6f) << c;
   }
-  EXPECT_NE(albedo["lost"], glm::vec3(1.0f)) << "an unreadable texture: a colour from its name";
-  EXPECT_NE(albedo["lost"], mean);
   // The header is read first: an image above the pixel limit is not decoded.
   const std::string png = [&] {
     std::ifstream in(dir / "tex.png", std::ios::binary);
@@ -394,7 +409,8 @@ std::string base64(const std::string& bytes) {
 }
 
 // The same for a texture embedded in the model (a glTF image as a data URI, assimp's "*0"), times
-// the material's base colour factor.
+// the material's base colour factor; a mesh without texture coordinates gets the mean colour
+// without being asked.
 TEST(SceneLoad, EmbeddedTexturesGiveTheirMeanColourToo) {
   test::TempDir dir;
   const uint8_t texels[] = {255, 0, 0, 0, 0, 255, 255, 255, 255, 0, 0, 0};
@@ -410,12 +426,87 @@ TEST(SceneLoad, EmbeddedTexturesGiveTheirMeanColourToo) {
     "buffers": [{"byteLength": 36, "uri": "data:application/octet-stream;base64,)" + base64(positions) + R"("}],
     "bufferViews": [{"buffer": 0, "byteOffset": 0, "byteLength": 36}],
     "accessors": [{"bufferView": 0, "componentType": 5126, "count": 3, "type": "VEC3", "min": [0, 0, 0], "max": [1, 1, 0]}]})";
-  const Scene s = loadModel(dir / "t.gltf");
+  const Scene s = loadModel(dir / "t.gltf");  // no texture coordinates: the texture's mean colour
   const auto m = std::find_if(s.materials.begin(), s.materials.end(), [](const Material& x) { return x.name == "tex"; });
   ASSERT_NE(m, s.materials.end());
   EXPECT_NEAR(m->albedo.x, 0.5f, 1e-6f);
   EXPECT_NEAR(m->albedo.y, 0.125f, 1e-6f);
   EXPECT_NEAR(m->albedo.z, 0.5f, 1e-6f);
+}
+
+/// A one-triangle glTF whose material's base colour texture is `png` (embedded), with `material`
+/// spliced into the material's JSON (alphaMode and alphaCutoff) and texture coordinates.
+std::string texturedGltf(const std::string& png, const std::string& material) {
+  std::string data;
+  for (float v : {0.0f, 0.0f, 0.0f, 1.0f, 0.0f, 0.0f, 0.0f, 1.0f, 0.0f, 0.0f, 0.0f, 1.0f, 0.0f, 0.0f, 1.0f})
+    data.append(reinterpret_cast<const char*>(&v), 4);
+  return R"({"asset": {"version": "2.0"}, "scene": 0, "scenes": [{"nodes": [0]}], "nodes": [{"mesh": 0}],
+    "meshes": [{"primitives": [{"attributes": {"POSITION": 0, "TEXCOORD_0": 1}, "material": 0}]}],
+    "materials": [{"name": "tex", "pbrMetallicRoughness": {"baseColorTexture": {"index": 0}})" + material + R"(}],
+    "textures": [{"source": 0, "sampler": 0}], "samplers": [{"wrapS": 33071, "wrapT": 33648}],
+    "images": [{"uri": "data:image/png;base64,)" + base64(png) + R"("}],
+    "buffers": [{"byteLength": 60, "uri": "data:application/octet-stream;base64,)" + base64(data) + R"("}],
+    "bufferViews": [{"buffer": 0, "byteOffset": 0, "byteLength": 36}, {"buffer": 0, "byteOffset": 36, "byteLength": 24}],
+    "accessors": [{"bufferView": 0, "componentType": 5126, "count": 3, "type": "VEC3", "min": [0, 0, 0], "max": [1, 1, 0]},
+                  {"bufferView": 1, "componentType": 5126, "count": 3, "type": "VEC2"}]})";
+}
+
+std::string pngOf(const test::TempDir& dir, int w, int h, int channels, const std::vector<uint8_t>& px) {
+  writePngBytes(dir / "img.png", w, h, channels, px.data());
+  std::ifstream in(dir / "img.png", std::ios::binary);
+  return std::string((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+}
+
+// Alpha tests as glTF asks for them: MASK with its cut-off; OPAQUE (the default) and BLEND
+// ignore alpha. (Formats without an alpha mode cut out 1-bit alpha: CliTextures.)
+// The sampler's wrap modes (CLAMP_TO_EDGE, MIRRORED_REPEAT) reach the material.
+TEST(SceneLoad, GltfAlphaModesAndWrapModes) {
+  test::TempDir dir;
+  const std::string binary = pngOf(dir, 2, 1, 4, {255, 0, 0, 255, 0, 255, 0, 0});
+  const std::string partial = pngOf(dir, 2, 1, 4, {255, 0, 0, 255, 0, 255, 0, 100});
+  auto cutoff = [&](const std::string& png, const std::string& material) {
+    std::ofstream(dir / "a.gltf") << texturedGltf(png, material);
+    const Scene s = loadModel(dir / "a.gltf");
+    const auto m = std::find_if(s.materials.begin(), s.materials.end(), [](const Material& x) { return x.name == "tex"; });
+    EXPECT_NE(m, s.materials.end());
+    EXPECT_GE(m->baseTexture, 0);
+    EXPECT_EQ(m->wrapU, TextureWrap::Clamp);
+    EXPECT_EQ(m->wrapV, TextureWrap::Mirror);
+    EXPECT_EQ(s.texcoords.size(), s.positions.size());
+    return m->alphaCutoff;
+  };
+  EXPECT_FLOAT_EQ(cutoff(partial, R"(, "alphaMode": "MASK", "alphaCutoff": 0.3)"), 0.3f);
+  EXPECT_FLOAT_EQ(cutoff(partial, R"(, "alphaMode": "MASK")"), 0.5f);
+  EXPECT_LT(cutoff(binary, R"(, "alphaMode": "OPAQUE")"), 0.0f);
+  EXPECT_LT(cutoff(binary, ""), 0.0f) << "glTF's default alpha mode is OPAQUE";
+  EXPECT_LT(cutoff(partial, R"(, "alphaMode": "BLEND")"), 0.0f) << "blending is drawn opaque";
+}
+
+// A texture over 16384 pixels a side is refused with one line naming it; one that does not
+// decode leaves the material untextured with a warning, and the model loads.
+TEST(SceneLoad, OversizedTexturesAreRefusedAndUndecodableOnesWarn) {
+  test::TempDir dir;
+  const std::string wide = pngOf(dir, 16385, 1, 3, std::vector<uint8_t>(16385 * 3, 7));
+  std::ofstream(dir / "wide.gltf") << texturedGltf(wide, "");
+  try {
+    loadModel(dir / "wide.gltf");
+    ADD_FAILURE() << "a 16385-pixel-wide texture loaded";
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("16385"), std::string::npos) << e.what();
+    EXPECT_EQ(std::string(e.what()).find('\n'), std::string::npos) << "one line";
+  }
+  std::ofstream(dir / "bad.png") << "not an image at all";
+  std::ofstream(dir / "m.mtl") << "newmtl m\nKd 0.3 0.4 0.5\nmap_Kd bad.png\n";
+  std::ofstream(dir / "m.obj") << "mtllib m.mtl\nv 0 0 0\nv 1 0 0\nv 0 1 0\nvt 0 0\nusemtl m\nf 1/1 2/1 3/1\n";
+  std::vector<std::string> warnings;
+  const WarningSink previous = setWarningSink([&](const std::string& w) { warnings.push_back(w); });
+  const Scene s = loadModel(dir / "m.obj");
+  setWarningSink(previous);
+  ASSERT_EQ(warnings.size(), 1u);
+  EXPECT_NE(warnings[0].find("bad.png"), std::string::npos) << warnings[0];
+  EXPECT_NE(warnings[0].find("does not decode"), std::string::npos) << warnings[0];
+  EXPECT_EQ(s.materials[s.triMaterial[0]].baseTexture, -1);
+  EXPECT_NEAR(s.materials[s.triMaterial[0]].albedo.y, 0.4f, 1e-6f);
 }
 
 // A 3MF file with a thumbnail, as most 3MF writers make them: assimp 5.2.5's importer leaves the

@@ -66,6 +66,7 @@ struct RawFrameOptions {
   std::string warpEye, warpTarget;  ///< --warp-eye / --warp-target (effect options)
   std::string belowSurface = "mirror";  ///< --below-surface mirror|bend
   std::string maxMemory;            ///< --max-memory
+  std::string textures = "on";      ///< --textures on|off
 };
 
 void addFrameOptions(CLI::App* app, lt::RunOptions& run, RawFrameOptions& raw, const char* outputHelp) {
@@ -86,6 +87,10 @@ void addFrameOptions(CLI::App* app, lt::RunOptions& run, RawFrameOptions& raw, c
   app->add_option("--min-separation", f.minSeparation, "minimum depth separation of kept layers (0 = off)")->capture_default_str();
   app->add_flag("--adaptive-thickness", f.adaptiveThickness, "merge fragments that start inside the previous kept interval (Hofmann et al. 2017, §4.2)");
   app->add_flag("--front-faces-only", f.frontFacesOnly, "capture only triangles facing the camera (layers = nearest front surfaces)");
+  app->add_option("--textures", raw.textures, "map textures and alpha cut-outs per fragment and hit (on), or give each material its textures' mean colour (off)")
+      ->capture_default_str()
+      ->check(CLI::IsMember({"on", "off"}));
+  app->add_flag("--lightmaps", f.lightmaps, "multiply the albedo by the level's lightmaps (Quake 3 maps)");
   app->add_option("--pool", f.pool, "fragment pool capacity (0 = automatic, grows on overflow)")->capture_default_str()->check(CLI::NonNegativeNumber);
   app->add_option("--max-memory", raw.maxMemory, "refuse, before allocating, any structure that would take the process past this size, e.g. 4G (default: the memory available)");
   app->add_option("--light", raw.lights, "add a point light x,y,z[,intensity] (repeatable; default light: above the eye)");
@@ -173,6 +178,7 @@ void finishFrameOptions(lt::RunOptions& run, const RawFrameOptions& raw) {
   if (!raw.fov.empty()) f.fov = parseFloat("--fov", raw.fov);
   if (!raw.thickness.empty()) f.thickness = parseFloat("--thickness", raw.thickness);
   if (!raw.thicknessPx.empty()) f.thicknessPx = parseFloat("--thickness-px", raw.thicknessPx);
+  f.textures = raw.textures == "on";
   for (const std::string& l : raw.lights) {
     const auto v = parseNumbers("--light", l, 3, 4);
     f.lights.push_back({v[0], v[1], v[2], v.size() == 4 ? v[3] : 1.0});

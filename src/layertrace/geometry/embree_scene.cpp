@@ -12,6 +12,7 @@
 #include <xmmintrin.h>
 #endif
 
+#include "layertrace/scene/surface.h"
 #include "layertrace/util/error.h"
 #include "layertrace/util/memory.h"
 
@@ -90,12 +91,34 @@ void collectFilter(const RTCFilterFunctionNArguments* args) {
   }
 }
 
+/// Alpha-tested triangles (Scene::cutOut): a hit where surfacePresent says the texel is cut away
+/// is rejected, so traversal goes on behind it. Embree's (u, v) are the weights of the second and
+/// third vertex, surfacePresent's (b1, b2). The geometry's user data is the scene it reads.
+void rejectCutAway(const RTCFilterFunctionNArguments* args) {
+  const auto* scene = static_cast<const Scene*>(args->geometryUserPtr);
+  for (unsigned i = 0; i < args->N; ++i) {
+    if (args->valid[i] == 0) continue;
+    const uint32_t tri = RTCHitN_primID(args->hit, args->N, i);
+    if (scene->cutOut(tri) && !surfacePresent(*scene, tri, RTCHitN_u(args->hit, args->N, i), RTCHitN_v(args->hit, args->N, i)))
+      args->valid[i] = 0;
+  }
+}
+
+/// Capture mode with cut-outs: the alpha test, then the all-hit collection of what remains.
+void rejectCutAwayThenCollect(const RTCFilterFunctionNArguments* args) {
+  rejectCutAway(args);
+  collectFilter(args);
+}
+
 }  // namespace
 
 struct EmbreeScene::Impl {
   RTCDevice device = nullptr;
   RTCScene scene = nullptr;
   int64_t bytes = 0;
+  /// What the alpha test reads (triangles, materials, texture coordinates and textures; no
+  /// positions), kept here so that the filter does not depend on the caller's scene living on.
+  Scene cutOuts;
   ~Impl() {
     if (scene) rtcReleaseScene(scene);
     if (device) rtcReleaseDevice(device);
@@ -129,7 +152,18 @@ EmbreeScene::EmbreeScene(const Scene& scene, Mode mode) : impl_(std::make_unique
     idx[3 * i] = scene.triangles[i].x, idx[3 * i + 1] = scene.triangles[i].y, idx[3 * i + 2] = scene.triangles[i].z;
   // Capture mode: the all-hit filter on the geometry (no scene flag needed); allHits passes the
   // collecting context, other queries never run on this scene.
-  if (mode == Mode::Capture) rtcSetGeometryIntersectFilterFunction(geom, collectFilter);
+  // Geometry filters run before a context's filter (allHits in robust mode collects in the
+  // context filter, so it sees only hits the alpha test kept).
+  if (scene.anyCutOut()) {
+    Scene& cut = impl_->cutOuts;
+    cut.triangles = scene.triangles, cut.triMaterial = scene.triMaterial, cut.materials = scene.materials;
+    cut.texcoords = scene.texcoords, cut.textures = scene.textures;
+    rtcSetGeometryUserData(geom, &cut);
+    rtcSetGeometryIntersectFilterFunction(geom, mode == Mode::Capture ? rejectCutAwayThenCollect : rejectCutAway);
+    rtcSetGeometryOccludedFilterFunction(geom, rejectCutAway);
+  } else if (mode == Mode::Capture) {
+    rtcSetGeometryIntersectFilterFunction(geom, collectFilter);
+  }
   rtcCommitGeometry(geom);
   rtcAttachGeometry(impl_->scene, geom);
   rtcReleaseGeometry(geom);

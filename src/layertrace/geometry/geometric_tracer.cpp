@@ -6,6 +6,7 @@
 #include <glm/geometric.hpp>
 
 #include "layertrace/raster/fragment.h"
+#include "layertrace/scene/surface.h"
 #include "layertrace/util/in_place.h"
 
 namespace lt {
@@ -31,13 +32,27 @@ TraceHit GeometricHits::makeHit(const Ray& ray, const GeoHit& g) const {
   const glm::vec3 n = glm::cross(b - a, cc - a);
   const float area = glm::dot(n, n);
   glm::vec3 normal = glm::normalize(n);
+  float u = 1.0f, v = 0.0f;  // the weights of the first and second vertex
   if (area > 0.0f) {
-    const float u = glm::dot(glm::cross(cc - b, pw - b), n) / area, v = glm::dot(glm::cross(a - cc, pw - cc), n) / area;
+    u = glm::dot(glm::cross(cc - b, pw - b), n) / area, v = glm::dot(glm::cross(a - cc, pw - cc), n) / area;
     const glm::vec3 s = scene_.normals[t.x] * u + scene_.normals[t.y] * v + scene_.normals[t.z] * (1.0f - u - v);
     if (glm::length(s) > 0.0f) normal = glm::normalize(s);
   }
   h.normal = glm::normalize(camera_.dirToCamera(normal));
   h.albedoSpec = packed_[scene_.triMaterial[g.triangle]];
+  if (surfaceTextured(scene_, g.triangle)) {
+    // The texture's level of detail as the capture chooses it for a fragment at this point: the
+    // frame camera's pixel footprint at the point's depth over the cosine between the geometric
+    // normal and the camera's view ray (raster::fragmentAlbedoSpec), so that the reference and
+    // the layers sample the same texels.
+    const float depth = std::max(-h.point.z, camera_.near());
+    const glm::vec3 view = camera_.orthographic() ? glm::vec3(0.0f, 0.0f, -1.0f) : h.point;
+    const glm::vec3 nc = camera_.dirToCamera(n);
+    const float nl = glm::length(nc), vl = glm::length(view);
+    const float cosine = nl > 0.0f && vl > 0.0f ? glm::dot(nc, view) / (nl * vl) : 1.0f;
+    h.albedoSpec = packSurfaceColor(surfaceColor(scene_, g.triangle, std::clamp(v, 0.0f, 1.0f), std::clamp(1.0f - u - v, 0.0f, 1.0f),
+                                                 textureFootprint(camera_.pixelFootprint(depth), cosine)));
+  }
   h.triangle = g.triangle;
   if (h.point.z < 0.0f) {
     const glm::vec2 p = camera_.project(h.point);

@@ -188,6 +188,7 @@ class IrregularGrid {
   void packForTraversal();
 
   const Scene* scene_;
+  bool cutOuts_ = false;  ///< the scene has alpha-tested triangles (surfacePresent decides each hit on them)
   glm::vec3 lo_{0.0f}, hi_{0.0f}, voxel_{1.0f};
   glm::vec3 invVoxel_{1.0f};  ///< 1 / voxel_: the traversal multiplies instead of dividing
   int top_[3] = {1, 1, 1};

@@ -391,7 +391,7 @@ struct GridBuilder {
   }
 };
 
-IrregularGrid::IrregularGrid(const Scene& scene, const GridConfig& config) : scene_(&scene) {
+IrregularGrid::IrregularGrid(const Scene& scene, const GridConfig& config) : scene_(&scene), cutOuts_(scene.anyCutOut()) {
   if (!(config.lambda1 > 0.0f)) inputError("--lambda1 ", config.lambda1, ": must be positive");
   if (!(config.lambda2 > 0.0f)) inputError("--lambda2 ", config.lambda2, ": must be positive");
   if (config.maxDepth < 0 || config.maxDepth > 10) inputError("grid max depth ", config.maxDepth, ": must be in [0, 10]");

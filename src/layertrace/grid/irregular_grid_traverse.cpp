@@ -19,6 +19,7 @@
 
 #include "layertrace/grid/irregular_grid.h"
 #include "layertrace/geometry/ray_triangle.h"
+#include "layertrace/scene/surface.h"
 
 namespace lt {
 namespace {
@@ -42,7 +43,8 @@ inline bool any(Mask4 m) { return (m[0] | m[1] | m[2] | m[3]) != 0; }
 /// where lane i of the returned mask is set (all ones), with t in (tmin, tmax]. (A template so
 /// that it need not name IrregularGrid's private TriangleBlock.)
 template <class Block>
-inline Mask4 hitBlock(const WatertightRay& r, const Block& b, float tmin, float tmax, Float4& t) {
+/// `bary`: the hit's unnormalised barycentric weights of the three vertices (divide by their sum).
+inline Mask4 hitBlock(const WatertightRay& r, const Block& b, float tmin, float tmax, Float4& t, Float4 (&bary)[3]) {
   static_assert(sizeof(b.id) == sizeof(Mask4), "one vector lane per triangle of a block");
   const Float4 zero{};
   const Float4 sx = zero + r.sx, sy = zero + r.sy;
@@ -53,6 +55,7 @@ inline Mask4 hitBlock(const WatertightRay& r, const Block& b, float tmin, float 
   const Float4 bx = p[1][r.kx] - sx * p[1][r.kz], by = p[1][r.ky] - sy * p[1][r.kz];
   const Float4 cx = p[2][r.kx] - sx * p[2][r.kz], cy = p[2][r.ky] - sy * p[2][r.kz];
   const Float4 u = cx * by - cy * bx, v = ax * cy - ay * cx, w = bx * ay - by * ax;
+  bary[0] = u, bary[1] = v, bary[2] = w;
   const Mask4 inside = ~(((u < zero) | (v < zero) | (w < zero)) & ((u > zero) | (v > zero) | (w > zero))) & (u + v + w != zero);
   if (!any(inside)) return inside;  // most blocks: the ray passes beside all four triangles
   // The plane's distance (see hitTriangleWatertight), from the stored vertices.
@@ -153,12 +156,16 @@ inline bool IrregularGrid::testCell(Walk& w, const TraversalCell& c, bool more) 
   const TriangleBlock* blocks = walkBlocks(c);
   for (uint32_t k = 0; k < (c.refs + kLanes - 1) / kLanes; ++k) {
     const TriangleBlock& b = blocks[k];
-    Float4 t;
-    const Mask4 hit = hitBlock(w.ray, b, w.tnear, w.bestT, t);
+    Float4 t, bary[3];
+    const Mask4 hit = hitBlock(w.ray, b, w.tnear, w.bestT, t, bary);
     if (!any(hit)) continue;
     for (int l = 0; l < kLanes; ++l) {
       if (!hit[l]) continue;
       const uint32_t tri = b.id[l];
+      if (cutOuts_ && scene_->cutOut(tri)) {  // alpha-tested: the ray passes where the texel is cut away
+        const float sum = bary[0][l] + bary[1][l] + bary[2][l];
+        if (!surfacePresent(*scene_, tri, bary[1][l] / sum, bary[2][l] / sum)) continue;
+      }
       if (AnyHit) {
         w.best.t = t[l], w.best.triangle = tri;
         return true;

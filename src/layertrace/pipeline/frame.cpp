@@ -51,6 +51,8 @@ void loadFrameScene(const FrameOptions& o, Frame& frame) {
   validateFrameOptions(o);
   const auto t0 = std::chrono::steady_clock::now();
   frame.scene = loadScene(o.scenePath);
+  if (!o.lightmaps) dropLightmaps(frame.scene);
+  if (!o.textures) flattenTextures(frame.scene);
   frame.loadMs = msSince(t0);
   CameraDesc desc;
   if (!o.cameraName.empty()) {

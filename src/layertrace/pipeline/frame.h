@@ -71,6 +71,10 @@ struct FrameOptions {
   /// (docs/architecture.md, capture). Tile-local capture only.
   bool pyramidPerTile = false;
   std::vector<glm::dvec4> lights;      ///< --light x,y,z[,intensity] (repeatable), world coordinates
+  /// --textures on|off: map the materials' textures per fragment and hit, with their alpha
+  /// cut-outs (on), or give each material its textures' mean colour (off, flattenTextures).
+  bool textures = true;
+  bool lightmaps = false;              ///< --lightmaps: Quake 3 lightmaps multiply the albedo
 };
 
 struct Frame {

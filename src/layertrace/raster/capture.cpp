@@ -43,6 +43,7 @@ struct ListOutput {
 /// Every fragment of tile `tile` (inclusive pixel bounds tx0…tx1 × ty0…ty1), in the order the
 /// lists keep (the tile's sub-triangles ascending, rows top-down, pixels left to right):
 /// f(binned sub-triangle, its index in the tile's list, px, py, depth). Returns the count.
+/// Fragments an alpha test removes (raster::fragmentPresent) are skipped and not counted.
 template <class F>
 inline uint64_t forEachFragment(const Scene& scene, const Camera& camera, const RasterSetup& setup, size_t tile, int tx0, int ty0,
                                 int tx1, int ty1, F&& f) {
@@ -57,8 +58,14 @@ inline uint64_t forEachFragment(const Scene& scene, const Camera& camera, const 
                                  // vectorizes (the same IEEE operations per lane, so the same bits).
                                  const int n = xb - xa + 1;
                                  raster::spanDepths(camera, b.setup, py, xa, n, depths);
-                                 gen += uint64_t(n);
-                                 for (int d = 0; d < n; ++d) f(b, i, xa + d, py, depths[d]);
+                                 if (!(b.flags & RasterSetup::kCutOut)) {
+                                   gen += uint64_t(n);
+                                   for (int d = 0; d < n; ++d) f(b, i, xa + d, py, depths[d]);
+                                   return;
+                                 }
+                                 for (int d = 0; d < n; ++d)  // alpha-tested: cut-away fragments do not exist
+                                   if (raster::fragmentPresent(scene, camera, b.setup, s.triangle, raster::pixelRay(camera, xa + d, py), depths[d]))
+                                     ++gen, f(b, i, xa + d, py, depths[d]);
                                });
   }
   return gen;
@@ -85,11 +92,13 @@ inline void captureTileImpl(const Scene& scene, const Camera& camera, const Rast
                                        [&](const RasterSetup::Binned& b, uint32_t, int px, int py, float depth) {
     const size_t pixel = out.pixelIndex(px, py);
     auto normal = [&] { return raster::fragmentNormal(camera, b.setup, setup.camNormals.data(), b.vertices, raster::pixelRay(camera, px, py), depth); };
-    uint32_t packed = 0;
+    auto albedoSpec = [&] { return raster::fragmentAlbedoSpec(scene, camera, b, raster::pixelRay(camera, px, py), depth); };
+    uint32_t packed = 0, colour = 0;
     if constexpr (kLists) {
       packed = normal();
+      colour = albedoSpec();
       const uint32_t node = lists.cursor[pixel]++;
-      lists.nodes[node] = {depth, packed, b.albedoSpec, node == lists.offset[pixel] ? kNullIndex : node - 1};
+      lists.nodes[node] = {depth, packed, colour, node == lists.offset[pixel] ? kNullIndex : node - 1};
       lists.triangle[node] = b.sub.triangle;
     } else {
       ++complexity[pixel];
@@ -101,8 +110,8 @@ inline void captureTileImpl(const Scene& scene, const Camera& camera, const Rast
     if (count == k && depth > slot[k - 1].depth) return;
     int j = std::min(count, k - 1);
     for (; j > 0 && depth <= slot[j - 1].depth; --j) slot[j] = slot[j - 1], tri[j] = tri[j - 1];
-    if constexpr (!kLists) packed = normal();
-    slot[j] = {depth, packed, b.albedoSpec, 0u};
+    if constexpr (!kLists) packed = normal(), colour = albedoSpec();
+    slot[j] = {depth, packed, colour, 0u};
     tri[j] = b.sub.triangle;
     out.count[pixel] = uint8_t(std::min(count + 1, k));
   });
@@ -169,12 +178,13 @@ void peelTile(const Scene& scene, const Camera& camera, const RasterSetup& setup
       const size_t local = size_t(y - ty0) * size_t(tw) + size_t(x - tx0), pixel = out.pixelIndex(x, y);
       const size_t slot = pixel * size_t(k) + size_t(layer);
       if (bestBin[local] != kNone) {
-        const auto [s, ts, vi, albedoSpec] = setup.binned(scene, bestBin[local]);
+        const RasterSetup::Binned b = setup.binned(scene, bestBin[local]);
         const float depth = bestDepth[local];
-        const uint32_t packed = raster::fragmentNormal(camera, ts, setup.camNormals.data(), vi, raster::pixelRay(camera, x, y), depth);
-        out.slots[slot] = {depth, packed, albedoSpec, 0u};
+        const raster::PixelRay ray = raster::pixelRay(camera, x, y);
+        const uint32_t packed = raster::fragmentNormal(camera, b.setup, setup.camNormals.data(), b.vertices, ray, depth);
+        out.slots[slot] = {depth, packed, raster::fragmentAlbedoSpec(scene, camera, b, ray, depth), 0u};
         out.slots[slot].setThickness(config.thicknessAt(depth));
-        out.triangle[slot] = s.triangle;
+        out.triangle[slot] = b.sub.triangle;
         out.count[pixel] = uint8_t(layer + 1);
       } else {
         out.slots[slot] = FragmentNode{0.0f, 0u, 0u, 0u};
@@ -184,17 +194,26 @@ void peelTile(const Scene& scene, const Camera& camera, const RasterSetup& setup
   generated += gen;
 }
 
-/// The counting pass of the list-producing capture: fragments per pixel (coverage only).
-void countTile(const Camera& camera, const RasterSetup& setup, size_t tile, int width, std::vector<uint32_t>& complexity) {
+/// The counting pass of the list-producing capture: fragments per pixel (coverage, and for
+/// alpha-tested triangles the alpha test at the fragment's depth, as forEachFragment).
+void countTile(const Scene& scene, const Camera& camera, const RasterSetup& setup, size_t tile, int width, std::vector<uint32_t>& complexity) {
   int tx0, ty0, tx1, ty1;
   setup.tileBounds(tile, camera, tx0, ty0, tx1, ty1);
   for (int y = ty0; y <= ty1; ++y) std::fill_n(&complexity[size_t(y) * size_t(width) + size_t(tx0)], tx1 - tx0 + 1, 0u);
+  float depths[kMaxTileSize];
   for (uint32_t i = setup.tileStart[tile]; i < setup.tileStart[tile + 1]; ++i) {
-    const raster::SubTriangle& s = *setup.subs[setup.tileList[i]];
+    const RasterSetup::Binned b = setup.binned(scene, i);
+    const raster::SubTriangle& s = b.sub;
     raster::forEachCoveredSpan(s, std::max(tx0, s.px0), std::max(ty0, s.py0), std::min(tx1, s.px1), std::min(ty1, s.py1),
                                [&](int py, int xa, int xb) {
                                  uint32_t* row = &complexity[size_t(py) * size_t(width)];
-                                 for (int x = xa; x <= xb; ++x) ++row[x];
+                                 if (!(b.flags & RasterSetup::kCutOut)) {
+                                   for (int x = xa; x <= xb; ++x) ++row[x];
+                                   return;
+                                 }
+                                 raster::spanDepths(camera, b.setup, py, xa, xb - xa + 1, depths);
+                                 for (int x = xa; x <= xb; ++x)
+                                   row[x] += raster::fragmentPresent(scene, camera, b.setup, s.triangle, raster::pixelRay(camera, x, py), depths[x - xa]);
                                });
   }
 }
@@ -305,7 +324,7 @@ void LayerCapture::captureWithLists(const Scene& scene, const Camera& camera, co
   const size_t pixels = size_t(W) * size_t(camera.height());
   lists.width = W;
   lists.height = camera.height();
-  forEachTile(setup, camera, nullptr, [&](size_t tile, uint64_t&) { countTile(camera, setup, tile, W, lists.complexity); });
+  forEachTile(setup, camera, nullptr, [&](size_t tile, uint64_t&) { countTile(scene, camera, setup, tile, W, lists.complexity); });
   // Exact-size storage: pixel p's nodes start at the prefix sum of the counts before it.
   std::vector<uint32_t>& offset = setup.listOffset;
   offset.resize(pixels);

@@ -19,6 +19,7 @@
 #include "layertrace/raster/rasterizer.h"
 #include "layertrace/scene/camera.h"
 #include "layertrace/scene/scene.h"
+#include "layertrace/scene/surface.h"
 
 namespace lt::raster {
 
@@ -55,6 +56,8 @@ struct RasterSetup {
   std::vector<glm::vec4> clip;
   std::vector<glm::vec3> camPos, camNormals;
   std::vector<uint32_t> materialPacked;
+  /// Per material: kSampled (textured: the albedo is sampled per fragment), kCutOut (alpha-tested).
+  std::vector<uint8_t> materialFlags;
   std::vector<TriangleSetup> setups;
   std::vector<std::vector<SubTriangle>> chunkSubs;
   std::vector<uint32_t> chunkBase;
@@ -72,11 +75,14 @@ struct RasterSetup {
     const SubTriangle& sub;
     const TriangleSetup& setup;
     glm::uvec3 vertices;
-    uint32_t albedoSpec;
+    uint32_t albedoSpec;  ///< the material's constant albedo and specular (used unless kSampled)
+    uint8_t flags;        ///< materialFlags of its material
   };
+  static constexpr uint8_t kSampled = 1, kCutOut = 2;
   Binned binned(const Scene& scene, uint32_t i) const {
     const SubTriangle& s = *subs[tileList[i]];
-    return {s, setups[s.triangle], scene.triangles[s.triangle], materialPacked[scene.triMaterial[s.triangle]]};
+    const uint32_t m = scene.triMaterial[s.triangle];
+    return {s, setups[s.triangle], scene.triangles[s.triangle], materialPacked[m], materialFlags[m]};
   }
   /// Inclusive pixel bounds of `tile`, clamped to the screen.
   void tileBounds(size_t tile, const Camera& camera, int& x0, int& y0, int& x1, int& y1) const {
@@ -193,10 +199,10 @@ inline void spanDepths(const Camera& camera, const TriangleSetup& ts, int py, in
   }
 }
 
-/// The octahedral-encoded interpolated normal at that depth (barycentrics clamped to the
-/// triangle: a pixel centre on a silhouette may meet the plane just outside it).
-inline uint32_t fragmentNormal(const Camera& camera, const TriangleSetup& ts, const glm::vec3* camNormals, glm::uvec3 vi,
-                               const PixelRay& ray, float depth) {
+/// The barycentric weights (of the second and third vertex) where the pixel-centre ray meets the
+/// triangle's plane at `depth`, clamped to the triangle: a pixel centre on a silhouette may meet
+/// the plane just outside it.
+inline glm::vec2 fragmentBarycentrics(const Camera& camera, const TriangleSetup& ts, const PixelRay& ray, float depth) {
   const glm::vec3 vp = (camera.orthographic() ? ray.origin + ray.dir * depth : ray.dir * depth) - ts.v0;
   const float d20 = glm::dot(vp, ts.e1), d21 = glm::dot(vp, ts.e2);
   float b1 = std::clamp((ts.d11 * d20 - ts.d01 * d21) * ts.invDen, 0.0f, 1.0f);
@@ -205,8 +211,33 @@ inline uint32_t fragmentNormal(const Camera& camera, const TriangleSetup& ts, co
     const float sum = b1 + b2;
     b1 /= sum, b2 /= sum;
   }
-  const glm::vec3 n = camNormals[vi.x] * (1.0f - b1 - b2) + camNormals[vi.y] * b1 + camNormals[vi.z] * b2;
+  return {b1, b2};
+}
+
+/// The octahedral-encoded interpolated normal at that depth.
+inline uint32_t fragmentNormal(const Camera& camera, const TriangleSetup& ts, const glm::vec3* camNormals, glm::uvec3 vi,
+                               const PixelRay& ray, float depth) {
+  const glm::vec2 b = fragmentBarycentrics(camera, ts, ray, depth);
+  const glm::vec3 n = camNormals[vi.x] * (1.0f - b.x - b.y) + camNormals[vi.y] * b.x + camNormals[vi.z] * b.y;
   return encodeOctahedral(n);
+}
+
+/// Whether the fragment survives its material's alpha test (Binned::kCutOut; a fragment shader's
+/// discard): a cut-away fragment is not generated at all, in every capture alike.
+inline bool fragmentPresent(const Scene& scene, const Camera& camera, const TriangleSetup& ts, uint32_t triangle, const PixelRay& ray,
+                            float depth) {
+  const glm::vec2 b = fragmentBarycentrics(camera, ts, ray, depth);
+  return surfacePresent(scene, triangle, b.x, b.y);
+}
+
+/// The fragment's albedo and specular: its material's constant, or (Binned::kSampled) its textures
+/// sampled at the fragment with the footprint of the pixel at that depth (surfaceColor).
+inline uint32_t fragmentAlbedoSpec(const Scene& scene, const Camera& camera, const RasterSetup::Binned& b, const PixelRay& ray, float depth) {
+  if (!(b.flags & RasterSetup::kSampled)) return b.albedoSpec;
+  const glm::vec2 w = fragmentBarycentrics(camera, b.setup, ray, depth);
+  const float nl = glm::length(b.setup.planeNormal), dl = glm::length(ray.dir);
+  const float cosine = nl > 0.0f && dl > 0.0f ? glm::dot(b.setup.planeNormal, ray.dir) / (nl * dl) : 1.0f;
+  return packSurfaceColor(surfaceColor(scene, b.sub.triangle, w.x, w.y, textureFootprint(camera.pixelFootprint(depth), cosine)));
 }
 
 }  // namespace lt::raster

@@ -40,9 +40,15 @@ struct ListPass {
         int tx0, ty0, tx1, ty1;
         setup.tileBounds(tile, camera, tx0, ty0, tx1, ty1);
         for (uint32_t i = setup.tileStart[tile]; i < setup.tileStart[tile + 1]; ++i) {
-          const auto [s, ts, vi, albedoSpec] = setup.binned(scene, i);
+          const RasterSetup::Binned b = setup.binned(scene, i);
+          const raster::SubTriangle& s = b.sub;
+          const raster::TriangleSetup& ts = b.setup;
           raster::forEachCovered(s, std::max(tx0, s.px0), std::max(ty0, s.py0), std::min(tx1, s.px1), std::min(ty1, s.py1),
                                  [&](int px, int py) {
+                                   const raster::PixelRay ray = raster::pixelRay(camera, px, py);
+                                   const float depth = raster::fragmentDepth(camera, ts, ray);
+                                   if ((b.flags & RasterSetup::kCutOut) && !raster::fragmentPresent(scene, camera, ts, s.triangle, ray, depth))
+                                     return;  // discarded by the alpha test
                                    ++gen;
                                    const size_t pixel = lists.pixelIndex(px, py);
                                    ++lists.complexity[pixel];
@@ -54,11 +60,10 @@ struct ListPass {
                                    }
                                    const uint32_t node = alloc.next++;
                                    ++sto;
-                                   const raster::PixelRay ray = raster::pixelRay(camera, px, py);
                                    FragmentNode& f = lists.nodes[node];
-                                   f.depth = raster::fragmentDepth(camera, ts, ray);
-                                   f.normal = raster::fragmentNormal(camera, ts, setup.camNormals.data(), vi, ray, f.depth);
-                                   f.albedoSpec = albedoSpec;
+                                   f.depth = depth;
+                                   f.normal = raster::fragmentNormal(camera, ts, setup.camNormals.data(), b.vertices, ray, depth);
+                                   f.albedoSpec = raster::fragmentAlbedoSpec(scene, camera, b, ray, depth);
                                    f.next = lists.head[pixel];
                                    lists.head[pixel] = node;
                                    lists.triangle[node] = s.triangle;

@@ -72,7 +72,16 @@ struct Quake3Patches {
   std::vector<uint32_t> triKey;               ///< per triangle, an index into keys
   /// The names assimp's importer gives the faces' materials: "texture.lightmap" (its createKey).
   std::vector<std::string> keys;
+  /// Per vertex: texture and lightmap coordinates (quake3TexCoord).
+  std::vector<glm::vec2> texcoords, lightmapCoords;
+  /// The whole map's, not only the patches': the shader name of each texture record ("texture" in
+  /// a key indexes it), and the lightmaps, 128 × 128 RGB8 each, rows top-down.
+  std::vector<std::string> shaders;
+  std::vector<unsigned char> lightmaps;
 };
+/// A Quake 3 texture or lightmap coordinate (s, t; t grows down the image) in the scene's
+/// convention (texture.h: v grows up the image).
+glm::vec2 quake3TexCoord(glm::vec2 st);
 /// `data` must pass validateQuake3Bsp (checked again). `tolerance`: the largest distance (map
 /// units) between a patch and its triangles, where 64 segments per patch side reach it.
 Quake3Patches tessellateQuake3Patches(const unsigned char* data, size_t size, float tolerance);

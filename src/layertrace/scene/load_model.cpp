@@ -30,9 +30,12 @@
 #include <glm/gtc/matrix_inverse.hpp>
 
 #include "layertrace/scene/load.h"
+#include "layertrace/scene/quake3_textures.h"
+#include "layertrace/scene/zip_archive.h"
 #include "layertrace/util/error.h"
 #include "layertrace/util/image.h"
 #include "layertrace/util/memory.h"
+#include "layertrace/util/warning.h"
 
 namespace lt {
 namespace fs = std::filesystem;
@@ -55,46 +58,79 @@ glm::vec3 colorFromName(const std::string& name) {
   return 0.25f + 0.5f * c;  // muted: keep albedo well inside (0, 1)
 }
 
-/// The mean colours of the textures a model's materials name, each decoded once: embedded in the
-/// model (assimp's "*N", or by file name) or a file beside it (`modelDir`; none for a model read
-/// from memory). A texture that is missing or does not decode has no colour.
-class TextureColours {
- public:
-  TextureColours(const aiScene* as, std::string modelDir) : as_(as), dir_(std::move(modelDir)) {}
+/// The most bytes a scene's decoded textures (with their mip chains) may take.
+constexpr uint64_t kMaxTextureBytes = uint64_t(2) << 30;
 
-  std::optional<glm::vec3> operator()(const std::string& name) {
-    const auto [it, added] = cache_.try_emplace(name);
-    if (added) it->second = decode(name);
+/// The textures of a model, decoded once each into scene.textures (makeTexture builds the mip
+/// chain): embedded in the model (assimp's "*N", or by file name) or a file beside it
+/// (`modelDir`; none for a model read from memory). A texture that is missing or does not decode
+/// is reported in one warning line and has no index (-1); one over kMaxImageSide per side, or
+/// past kMaxTextureBytes for the scene, is refused (InputError).
+class TextureLoader {
+ public:
+  TextureLoader(const aiScene* as, std::string modelDir, std::string source, Scene& scene)
+      : as_(as), dir_(std::move(modelDir)), source_(std::move(source)), scene_(scene) {}
+
+  int32_t operator()(const std::string& name) {
+    const auto [it, added] = cache_.try_emplace(name, -1);
+    if (added) it->second = load(name);
     return it->second;
   }
 
- private:
-  std::optional<glm::vec3> decode(const std::string& name) const {
-    if (const aiTexture* t = as_->GetEmbeddedTexture(name.c_str())) {
-      if (!t->pcData) return std::nullopt;
-      if (t->mHeight == 0) return meanColorOfEncoded(reinterpret_cast<const uint8_t*>(t->pcData), t->mWidth);
-      std::vector<uint8_t> rgb;  // raw texels: ARGB8888 as b, g, r, a bytes
-      const size_t n = size_t(t->mWidth) * size_t(t->mHeight);
-      rgb.reserve(3 * n);
-      for (size_t i = 0; i < n; ++i) rgb.insert(rgb.end(), {t->pcData[i].r, t->pcData[i].g, t->pcData[i].b});
-      return meanColorOfPixels(rgb.data(), n, 3);
+  /// Decodes an encoded image (`label` names it in messages).
+  int32_t decode(const std::string& label, const uint8_t* data, size_t size) {
+    const std::optional<Rgba8Image> image = decodeRgba8(data, size, label);
+    if (!image) {
+      warning(cat("scene ", source_, ": texture ", label, " does not decode (PNG, JPEG, TGA and BMP are read); its material keeps its colour"));
+      return -1;
     }
-    if (dir_.empty()) return std::nullopt;
+    return add(label, image->width, image->height, image->pixels.data());
+  }
+
+  const Texture& texture(int32_t index) const { return *scene_.textures[size_t(index)]; }
+
+  int32_t add(const std::string& label, int width, int height, const uint8_t* rgba) {
+    bytes_ += uint64_t(width) * uint64_t(height) * 4 * 4 / 3 + 4;  // the chain: at most 4/3 of level 0
+    if (bytes_ > kMaxTextureBytes)
+      inputError("scene ", source_, ": its textures take more than the budget of ", kMaxTextureBytes >> 20, " MiB (at ", label, ")");
+    checkAllocation(cat("texture ", label), uint64_t(width) * uint64_t(height) * 8);
+    scene_.textures.push_back(std::make_shared<const Texture>(makeTexture(label, width, height, rgba)));
+    return int32_t(scene_.textures.size() - 1);
+  }
+
+ private:
+  int32_t load(const std::string& name) {
+    if (const aiTexture* t = as_->GetEmbeddedTexture(name.c_str())) {
+      if (!t->pcData) return -1;
+      if (t->mHeight == 0) return decode(name, reinterpret_cast<const uint8_t*>(t->pcData), t->mWidth);
+      if (t->mWidth > uint32_t(kMaxImageSide) || t->mHeight > uint32_t(kMaxImageSide))
+        inputError("texture ", name, ": ", t->mWidth, "×", t->mHeight, " pixels, more than the limit of ", kMaxImageSide, " per side");
+      std::vector<uint8_t> rgba;  // raw texels: ARGB8888 as b, g, r, a bytes
+      const size_t n = size_t(t->mWidth) * size_t(t->mHeight);
+      rgba.reserve(4 * n);
+      for (size_t i = 0; i < n; ++i) rgba.insert(rgba.end(), {t->pcData[i].r, t->pcData[i].g, t->pcData[i].b, t->pcData[i].a});
+      return add(name, int(t->mWidth), int(t->mHeight), rgba.data());
+    }
+    const std::string missing = cat("scene ", source_, ": texture ", name, " not found");
+    if (dir_.empty()) return warning(missing + " (a model read from memory has no folder)"), -1;
     std::string file = name;
     std::replace(file.begin(), file.end(), '\\', '/');
     const fs::path path = fs::path(file).is_absolute() ? fs::path(file) : fs::path(dir_) / file;
     std::error_code ec;
-    if (!fs::is_regular_file(path, ec)) return std::nullopt;
+    if (!fs::is_regular_file(path, ec)) return warning(cat(missing, " (", path.string(), "); its material keeps its colour")), -1;
     const uintmax_t size = fs::file_size(path, ec);
-    if (ec || size > (uintmax_t(256) << 20)) return std::nullopt;
+    if (ec || size > (uintmax_t(256) << 20))
+      return warning(cat("scene ", source_, ": texture ", path.string(), " is over 256 MiB; its material keeps its colour")), -1;
     std::ifstream in(path, std::ios::binary);
     const std::vector<uint8_t> bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
-    return meanColorOfEncoded(bytes.data(), bytes.size());
+    return decode(path.string(), bytes.data(), bytes.size());
   }
 
   const aiScene* as_;
-  std::string dir_;
-  std::map<std::string, std::optional<glm::vec3>> cache_;
+  std::string dir_, source_;
+  Scene& scene_;
+  uint64_t bytes_ = 0;
+  std::map<std::string, int32_t> cache_;
 };
 
 }  // namespace
@@ -126,7 +162,15 @@ bool getNumber(const aiMaterial* am, const char* key, unsigned semantic, unsigne
   return readableNumber(am, key, semantic, index) && am->Get(key, semantic, index, out) == AI_SUCCESS;
 }
 
-Material convertMaterial(const aiMaterial* am, TextureColours& textures) {
+TextureWrap wrapMode(const aiMaterial* am, aiTextureType type, bool u) {
+  int mode = aiTextureMapMode_Wrap;
+  if (!getNumber(am, u ? _AI_MATKEY_MAPPINGMODE_U_BASE : _AI_MATKEY_MAPPINGMODE_V_BASE, unsigned(type), 0, mode)) return TextureWrap::Repeat;
+  return mode == aiTextureMapMode_Clamp || mode == aiTextureMapMode_Decal ? TextureWrap::Clamp
+         : mode == aiTextureMapMode_Mirror                                 ? TextureWrap::Mirror
+                                                                           : TextureWrap::Repeat;
+}
+
+Material convertMaterial(const aiMaterial* am, TextureLoader& textures, const Scene& scene) {
   Material m;
   if (const auto name = materialString(am, AI_MATKEY_NAME)) m.name = *name;
   aiColor4D c;
@@ -135,15 +179,31 @@ Material convertMaterial(const aiMaterial* am, TextureColours& textures) {
     m.albedo = glm::clamp(glm::vec3(c.r, c.g, c.b), 0.0f, 1.0f);
     haveColor = true;
   }
+  aiTextureType type = aiTextureType_BASE_COLOR;
   std::optional<std::string> tex = materialString(am, AI_MATKEY_TEXTURE(aiTextureType_BASE_COLOR, 0));
-  if (!tex) tex = materialString(am, AI_MATKEY_TEXTURE(aiTextureType_DIFFUSE, 0));
+  if (!tex) type = aiTextureType_DIFFUSE, tex = materialString(am, AI_MATKEY_TEXTURE(aiTextureType_DIFFUSE, 0));
   if (tex && !tex->empty()) {
-    // A texture multiplies the colour (glTF's base colour factor, OBJ's Kd; usually white): one
-    // albedo per material, so its mean colour stands for it. One that cannot be read gets a
-    // colour derived from its name, so that surfaces stay distinguishable.
-    if (const std::optional<glm::vec3> mean = textures(*tex)) m.albedo = glm::clamp((haveColor ? m.albedo : glm::vec3(1.0f)) * *mean, 0.0f, 1.0f);
-    else if (!haveColor || m.albedo == glm::vec3(1.0f)) m.albedo = colorFromName(*tex);
+    // The texture multiplies the colour factor (glTF's base colour factor, OBJ's Kd; white when
+    // the material gives none). One that cannot be read leaves the factor alone (a warning says so).
+    m.baseTexture = textures(*tex);
+    if (m.baseTexture >= 0) {
+      if (!haveColor) m.albedo = glm::vec3(1.0f);
+      m.wrapU = wrapMode(am, type, true), m.wrapV = wrapMode(am, type, false);
+      // Alpha test: glTF's MASK with its cut-off (0.5 by default); glTF's OPAQUE (its default)
+      // and BLEND (layertrace draws blending opaque) ignore alpha; a material of a format
+      // without alpha modes whose texture's alpha is 1-bit is a cut-out at 0.5.
+      const std::optional<std::string> mode = materialString(am, "$mat.gltf.alphaMode", 0, 0);
+      float cutoff = 0.5f;
+      if (mode == "MASK") {
+        if (getNumber(am, "$mat.gltf.alphaCutoff", 0, 0, cutoff) && std::isfinite(cutoff)) m.alphaCutoff = std::clamp(cutoff, 0.0f, 1.0f);
+        else m.alphaCutoff = 0.5f;
+      } else if (!mode && scene.textures[size_t(m.baseTexture)]->binaryAlpha) {
+        m.alphaCutoff = 0.5f;
+      }
+    }
   }
+  if (const std::optional<std::string> spec = materialString(am, AI_MATKEY_TEXTURE(aiTextureType_SPECULAR, 0)); spec && !spec->empty())
+    m.specularTexture = textures(*spec);
   aiColor4D s;
   if (getNumber(am, AI_MATKEY_COLOR_SPECULAR, s))
     m.specular = std::clamp(0.2126f * s.r + 0.7152f * s.g + 0.0722f * s.b, 0.0f, 1.0f);
@@ -318,91 +378,9 @@ const aiScene* guardedImport(ImporterPtr& importer, const std::string& source, c
 Scene convertScene(const aiScene* as, const std::string& path, const std::string& name, const std::string& ext, const glm::mat4& transform,
                    const std::string& modelDir, const Quake3Patches* patches = nullptr);
 
-uint32_t le32(const unsigned char* p) { return uint32_t(p[0]) | uint32_t(p[1]) << 8 | uint32_t(p[2]) << 16 | uint32_t(p[3]) << 24; }
-uint16_t le16(const unsigned char* p) { return uint16_t(p[0] | p[1] << 8); }
-
 }  // namespace
 
 namespace {
-
-/// One entry of a zip central directory.
-struct ZipEntry {
-  std::string name;
-  uint16_t method = 0;
-  uint64_t packed = 0, unpacked = 0, localHeader = 0;
-};
-
-/// A zip archive's central directory, read without trusting it: every offset is checked
-/// against the file before it is followed.
-class ZipDirectory {
- public:
-  explicit ZipDirectory(const std::string& path) : path_(path), in_(path, std::ios::binary | std::ios::ate) {
-    if (!in_) inputError("scene ", path, ": cannot open");
-    size_ = uint64_t(in_.tellg());
-    // The end-of-central-directory record lies in the last 64 KiB + 22 bytes.
-    const uint64_t tailSize = std::min<uint64_t>(size_, 65557);
-    const std::vector<unsigned char> tail = read(size_ - tailSize, tailSize, "end record");
-    const unsigned char* e = nullptr;
-    for (size_t i = tail.size() >= 22 ? tail.size() - 22 + 1 : 0; i-- > 0 && !e;)
-      if (le32(&tail[i]) == 0x06054b50u) e = &tail[i];
-    if (!e) inputError("scene ", path, ": not a zip archive (no end of central directory)");
-    const uint64_t count = le16(e + 10), cdSize = le32(e + 12), cdOffset = le32(e + 16);
-    if (cdOffset + cdSize > size_) inputError("scene ", path, ": zip central directory lies beyond the end of the file");
-    const std::vector<unsigned char> cd = read(cdOffset, cdSize, "central directory");
-    size_t at = 0;
-    for (uint64_t n = 0; n < count; ++n) {
-      if (at + 46 > cd.size() || le32(&cd[at]) != 0x02014b50u) inputError("scene ", path, ": malformed zip central directory");
-      const unsigned char* h = &cd[at];
-      const size_t nameLength = le16(h + 28);
-      if (at + 46 + nameLength > cd.size()) inputError("scene ", path, ": malformed zip central directory");
-      ZipEntry z;
-      z.name.assign(reinterpret_cast<const char*>(h + 46), nameLength);
-      // ZIP64 markers (0xFFFFFFFF) count as the largest size they stand for.
-      z.method = le16(h + 10), z.packed = le32(h + 20), z.unpacked = le32(h + 24), z.localHeader = le32(h + 42);
-      if (z.unpacked == 0xFFFFFFFFu) z.unpacked = uint64_t(1) << 32;
-      entries.push_back(std::move(z));
-      at += 46 + nameLength + le16(h + 30) + le16(h + 32);
-    }
-  }
-
-  /// Reads `n` bytes at `offset`, or fails naming what was being read.
-  std::vector<unsigned char> read(uint64_t offset, uint64_t n, const char* what) {
-    if (offset > size_ || n > size_ - offset) inputError("scene ", path_, ": the zip ", what, " lies beyond the end of the file");
-    std::vector<unsigned char> bytes(n);
-    in_.clear();
-    in_.seekg(std::streamoff(offset));
-    if (!in_.read(reinterpret_cast<char*>(bytes.data()), std::streamsize(n))) inputError("scene ", path_, ": cannot read the zip ", what);
-    return bytes;
-  }
-
-  /// The entry's bytes, inflated (stored and deflated entries; the only methods .pk3 files use).
-  std::vector<unsigned char> contents(const ZipEntry& z) {
-    const std::vector<unsigned char> local = read(z.localHeader, 30, "local header");
-    if (le32(local.data()) != 0x04034b50u) inputError("scene ", path_, ": malformed zip local header of ", z.name);
-    const std::vector<unsigned char> packed = read(z.localHeader + 30 + le16(&local[26]) + le16(&local[28]), z.packed, "entry data");
-    if (z.method == 0) return packed;
-    if (z.method != 8) inputError("scene ", path_, ": zip entry ", z.name, " uses compression method ", z.method);
-    checkAllocation(cat("scene ", path_, ": zip entry ", z.name), z.unpacked);
-    std::vector<unsigned char> out(z.unpacked);
-    z_stream zs{};
-    if (inflateInit2(&zs, -MAX_WBITS) != Z_OK) throw InternalError("zlib: inflateInit2 failed");
-    zs.next_in = const_cast<unsigned char*>(packed.data()), zs.avail_in = uInt(packed.size());
-    zs.next_out = out.data(), zs.avail_out = uInt(out.size());
-    const int rc = inflate(&zs, Z_FINISH);
-    const uint64_t produced = zs.total_out;
-    inflateEnd(&zs);
-    if (rc != Z_STREAM_END || produced != z.unpacked)
-      inputError("scene ", path_, ": zip entry ", z.name, " does not inflate to its declared ", z.unpacked, " bytes");
-    return out;
-  }
-
-  std::vector<ZipEntry> entries;
-
- private:
-  std::string path_;
-  std::ifstream in_;
-  uint64_t size_ = 0;
-};
 
 bool endsWithBsp(const std::string& name) {
   if (name.size() < 4) return false;
@@ -560,26 +538,87 @@ Scene loadModelFromMemory(const void* data, size_t size, const std::string& form
 
 namespace {
 
-/// Appends a Quake 3 map's tessellated curved surfaces, transformed by `m`, each in the material
-/// assimp made for the same key (it makes one for every key, patches' too; one it did not make
-/// is added, coloured by its name as the others are).
-void addPatches(Scene& scene, const Quake3Patches& p, const glm::mat4& m) {
-  std::vector<uint32_t> material(p.keys.size());
-  for (size_t k = 0; k < p.keys.size(); ++k) {
-    const auto it = std::find_if(scene.materials.begin(), scene.materials.end(), [&](const Material& x) { return x.name == p.keys[k]; });
-    material[k] = uint32_t(it - scene.materials.begin());
-    if (it == scene.materials.end()) {
-      Material added{p.keys[k]};
-      added.albedo = colorFromName(added.name), added.specular = 0.1f;
-      scene.materials.push_back(added);
+/// A Quake 3 surface without its texture: coloured by its key, so that surfaces stay distinguishable.
+Material quake3Untextured(const std::string& key) {
+  Material m{key};
+  m.albedo = colorFromName(key), m.specular = 0.1f;
+  return m;
+}
+
+/// The materials of a Quake 3 map's faces, from assimp's keys "texture.lightmap": the texture
+/// record's shader name resolved to its image over the game's archives (Quake3Textures), and the
+/// face's lightmap (a map's lightmaps hold light at half intensity: the engine's default
+/// overbright shift doubles them, and so does this). A shader whose image is not found is
+/// coloured by its name, with one warning line.
+class Quake3Materials {
+ public:
+  Quake3Materials(const Quake3Patches& map, const std::string& path, TextureLoader& loader)
+      : map_(map), path_(path), loader_(loader), archives_(Quake3Textures::forMap(path)) {}
+
+  Material operator()(const std::string& key) {
+    Material m = quake3Untextured(key);
+    const size_t dot = key.find('.');
+    long texture = -1, lightmap = -1;
+    try {
+      texture = std::stol(key.substr(0, dot));
+      if (dot != std::string::npos) lightmap = std::stol(key.substr(dot + 1));
+    } catch (const std::exception&) {
+      return m;  // not a key of assimp's: nothing to look up
     }
+    if (texture >= 0 && size_t(texture) < map_.shaders.size()) {
+      const std::string& shader = map_.shaders[size_t(texture)];
+      m.name = shader;
+      const auto [it, added] = images_.try_emplace(shader, -1);
+      if (added) {
+        if (const std::optional<Quake3Textures::Image> image = archives_.find(shader))
+          it->second = loader_.decode(image->archive + ":" + image->name, image->bytes.data(), image->bytes.size());
+        else
+          warning(cat("scene ", path_, ": no image for shader ", shader, " in ", archives_.archiveCount(), " archives; it is coloured by its name"));
+      }
+      if (it->second >= 0) {
+        m.baseTexture = it->second, m.albedo = glm::vec3(1.0f);
+        if (loader_.texture(it->second).binaryAlpha) m.alphaCutoff = 0.5f;
+      }
+    }
+    const size_t lightmaps = map_.lightmaps.size() / kLightmapBytes;
+    if (lightmap >= 0 && size_t(lightmap) < lightmaps) {
+      const auto [it, added] = lightmaps_.try_emplace(lightmap, -1);
+      if (added) {
+        std::vector<uint8_t> rgba(size_t(kLightmapSide) * kLightmapSide * 4, 255);
+        const unsigned char* src = &map_.lightmaps[size_t(lightmap) * kLightmapBytes];
+        for (size_t i = 0; i < size_t(kLightmapSide) * kLightmapSide; ++i)
+          for (int c = 0; c < 3; ++c) rgba[4 * i + size_t(c)] = uint8_t(std::min(2 * int(src[3 * i + size_t(c)]), 255));
+        it->second = loader_.add(cat(path_, ": lightmap ", lightmap), kLightmapSide, kLightmapSide, rgba.data());
+      }
+      m.lightmap = it->second;
+    }
+    return m;
   }
+
+ private:
+  static constexpr int kLightmapSide = 128;
+  static constexpr size_t kLightmapBytes = size_t(kLightmapSide) * kLightmapSide * 3;
+  const Quake3Patches& map_;
+  std::string path_;
+  TextureLoader& loader_;
+  Quake3Textures archives_;
+  std::map<std::string, int32_t> images_;
+  std::map<long, int32_t> lightmaps_;
+};
+
+/// Appends a Quake 3 map's tessellated curved surfaces, transformed by `m`, each in the material
+/// `materialFor` gives its key (the one made for assimp's faces of the same key, or a new one).
+void addPatches(Scene& scene, const Quake3Patches& p, const glm::mat4& m, const std::function<uint32_t(const std::string&)>& materialFor) {
+  std::vector<uint32_t> material(p.keys.size());
+  for (size_t k = 0; k < p.keys.size(); ++k) material[k] = materialFor(p.keys[k]);
   const glm::mat3 nm = glm::inverseTranspose(glm::mat3(m));
   const bool mirrored = glm::determinant(glm::mat3(m)) < 0.0f;  // keeps each triangle's front side (convertScene)
   const auto base = uint32_t(scene.positions.size());
   for (size_t v = 0; v < p.positions.size(); ++v) {
     scene.positions.push_back(glm::vec3(m * glm::vec4(p.positions[v], 1.0f)));
     scene.normals.push_back(nm * p.normals[v]);  // zero length → derived from faces in finalize()
+    scene.texcoords.push_back(p.texcoords[v]);
+    scene.lightmapCoords.push_back(p.lightmapCoords[v]);
   }
   for (size_t t = 0; t < p.triangles.size(); ++t) {
     const glm::uvec3 c = p.triangles[t] + base;
@@ -593,14 +632,21 @@ Scene convertScene(const aiScene* as, const std::string& path, const std::string
   const bool q3 = isQuake3(ext);
   Scene scene;
   scene.name = name;
-  TextureColours textures(as, modelDir);
+  TextureLoader textures(as, modelDir, path, scene);
+  std::optional<Quake3Materials> q3materials;
+  if (q3 && patches) q3materials.emplace(*patches, path, textures);
+  std::map<std::string, uint32_t> q3keys;  // assimp's material key → the scene's material (patches share them)
   for (unsigned i = 0; i < as->mNumMaterials; ++i) {
-    Material m = convertMaterial(as->mMaterials[i], textures);
-    // Quake 3 surfaces are textured shaders without colours: colour them by shader name.
-    if (q3) m.albedo = colorFromName(m.name), m.specular = 0.1f;
-    scene.materials.push_back(m);
+    if (q3) {
+      const std::optional<std::string> key = materialString(as->mMaterials[i], AI_MATKEY_NAME);
+      q3keys.emplace(key.value_or(""), uint32_t(scene.materials.size()));
+      scene.materials.push_back(q3materials ? (*q3materials)(key.value_or("")) : quake3Untextured(key.value_or("")));
+      continue;
+    }
+    scene.materials.push_back(convertMaterial(as->mMaterials[i], textures, scene));
   }
   if (scene.materials.empty()) scene.materials.push_back(Material{"default"});
+  bool uv = false;  // whether any mesh has texture coordinates
 
   std::function<void(const aiNode*, const glm::mat4&)> visit = [&](const aiNode* node, const glm::mat4& parent) {
     const glm::mat4 m = parent * toGlm(node->mTransformation);
@@ -624,7 +670,12 @@ Scene convertScene(const aiScene* as, const std::string& path, const std::string
           n = nm * glm::vec3(an.x, an.y, an.z);
         }
         scene.normals.push_back(n);  // zero length → derived from faces in finalize()
+        const aiVector3D st = mesh->mTextureCoords[0] ? mesh->mTextureCoords[0][v] : aiVector3D(0.0f);
+        const aiVector3D lm = mesh->mTextureCoords[1] ? mesh->mTextureCoords[1][v] : aiVector3D(0.0f);
+        scene.texcoords.push_back(q3 ? quake3TexCoord({st.x, st.y}) : glm::vec2(st.x, st.y));
+        if (q3) scene.lightmapCoords.push_back(quake3TexCoord({lm.x, lm.y}));
       }
+      uv = uv || mesh->mTextureCoords[0];
       const uint32_t material = mesh->mMaterialIndex < scene.materials.size() ? mesh->mMaterialIndex : 0;
       if (q3) {
         // Consecutive vertices form triangles; Quake 3 winds front faces clockwise.
@@ -648,7 +699,19 @@ Scene convertScene(const aiScene* as, const std::string& path, const std::string
       if (node->mChildren[c]) visit(node->mChildren[c], m);
   };
   visit(as->mRootNode, transform);
-  if (patches && !patches->triangles.empty()) addPatches(scene, *patches, transform * toGlm(as->mRootNode->mTransformation));
+  if (patches && !patches->triangles.empty()) addPatches(scene, *patches, transform * toGlm(as->mRootNode->mTransformation), [&](const std::string& key) {
+      const auto [it, added] = q3keys.try_emplace(key, uint32_t(scene.materials.size()));
+      if (added) scene.materials.push_back(q3materials ? (*q3materials)(key) : quake3Untextured(key));
+      return it->second;
+    });
+  // Texture coordinates only where a material has a texture to map.
+  const bool textured = std::any_of(scene.materials.begin(), scene.materials.end(), [](const Material& m) {
+    return m.baseTexture >= 0 || m.specularTexture >= 0 || m.lightmap >= 0;
+  });
+  // A model whose meshes have no texture coordinates cannot map its textures: each material
+  // takes its textures' mean colour instead (flattenTextures).
+  if (textured && !uv && !(patches && !patches->triangles.empty())) flattenTextures(scene);
+  if (!textured) scene.texcoords.clear(), scene.lightmapCoords.clear();
 
   // Cameras and point lights placed by their nodes.
   for (unsigned i = 0; i < as->mNumCameras; ++i) {

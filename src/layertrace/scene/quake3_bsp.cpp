@@ -65,6 +65,8 @@ int segmentsFor(float deviation, float tolerance) {
 
 }  // namespace
 
+glm::vec2 quake3TexCoord(glm::vec2 st) { return {st.x, 1.0f - st.y}; }
+
 namespace {
 
 /// The lump directory: each lump's records and their count.
@@ -121,6 +123,11 @@ Quake3Patches tessellateQuake3Patches(const unsigned char* data, size_t size, fl
   validateQuake3Bsp(data, size, "map");  // every index below is checked
   const Directory d = readDirectory(data, size, [](const auto&...) {});
   Quake3Patches out;
+  for (int64_t t = 0; t < d.count[Textures]; ++t) {
+    const char* name = reinterpret_cast<const char*>(d.lump[Textures] + t * kRecord[Textures]);
+    out.shaders.emplace_back(name, std::find(name, name + 64, '\0'));
+  }
+  out.lightmaps.assign(d.lump[Lightmaps], d.lump[Lightmaps] + d.count[Lightmaps] * kRecord[Lightmaps]);
   std::map<std::string, uint32_t> keyIndex;
   uint64_t bytes = 0;
   for (int64_t f = 0; f < d.count[Faces]; ++f) {
@@ -159,14 +166,20 @@ Quake3Patches tessellateQuake3Patches(const unsigned char* data, size_t size, fl
         const int pu = std::min(gc / lu, nu - 1);
         const std::array<float, 3> wu = bernstein(float(gc - pu * lu) / float(lu));
         glm::vec3 p(0.0f), n(0.0f);
+        glm::vec2 st(0.0f), lm(0.0f);
         for (int a = 0; a < 3; ++a)
           for (int b = 0; b < 3; ++b) {
             const unsigned char* v = point(2 * pv + a, 2 * pu + b);
-            p += (wv[a] * wu[b]) * vec3At(v);
-            n += (wv[a] * wu[b]) * vec3At(v + 28);  // the vertex record: position, two uv pairs, normal, colour
+            const float w = wv[a] * wu[b];
+            p += w * vec3At(v);  // the vertex record: position, texture st, lightmap st, normal, colour
+            st += w * glm::vec2(f32(v + 12), f32(v + 16));
+            lm += w * glm::vec2(f32(v + 20), f32(v + 24));
+            n += w * vec3At(v + 28);
           }
         out.positions.push_back(p);
         out.normals.push_back(n);
+        out.texcoords.push_back(quake3TexCoord(st));
+        out.lightmapCoords.push_back(quake3TexCoord(lm));
       }
     }
     // Two triangles per cell, each wound counter-clockwise around its vertices' normals (the

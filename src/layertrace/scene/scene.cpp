@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 
+#include <glm/common.hpp>
 #include <glm/geometric.hpp>
 
 #include "layertrace/util/error.h"
@@ -31,15 +32,43 @@ Bounds Scene::bounds() const {
   return b;
 }
 
+bool Scene::anyCutOut() const {
+  if (texcoords.empty()) return false;
+  for (const Material& m : materials)
+    if (m.alphaCutoff >= 0.0f && m.baseTexture >= 0) return true;
+  return false;
+}
+
+size_t Scene::textureBytes() const {
+  size_t bytes = 0;
+  for (const auto& t : textures) bytes += t ? t->bytes() : 0;
+  return bytes;
+}
+
 void Scene::append(const Scene& other) {
   const auto vbase = uint32_t(positions.size());
   const auto mbase = uint32_t(materials.size());
+  const auto tbase = int32_t(textures.size());
+  // Per-vertex attributes one side lacks read (0, 0) there.
+  auto appendCoords = [&](std::vector<glm::vec2>& mine, const std::vector<glm::vec2>& theirs) {
+    if (mine.empty() && theirs.empty()) return;
+    mine.resize(vbase, glm::vec2(0.0f));
+    mine.insert(mine.end(), theirs.begin(), theirs.end());
+    mine.resize(vbase + other.positions.size(), glm::vec2(0.0f));
+  };
+  appendCoords(texcoords, other.texcoords);
+  appendCoords(lightmapCoords, other.lightmapCoords);
   positions.insert(positions.end(), other.positions.begin(), other.positions.end());
   normals.insert(normals.end(), other.normals.begin(), other.normals.end());
   normals.resize(positions.size(), glm::vec3(0.0f));
   for (const glm::uvec3& t : other.triangles) triangles.push_back(t + glm::uvec3(vbase));
   for (uint32_t m : other.triMaterial) triMaterial.push_back(m + mbase);
-  materials.insert(materials.end(), other.materials.begin(), other.materials.end());
+  for (Material m : other.materials) {
+    for (int32_t* t : {&m.baseTexture, &m.specularTexture, &m.lightmap})
+      if (*t >= 0) *t += tbase;
+    materials.push_back(std::move(m));
+  }
+  textures.insert(textures.end(), other.textures.begin(), other.textures.end());
   lights.insert(lights.end(), other.lights.begin(), other.lights.end());
   cameras.insert(cameras.end(), other.cameras.begin(), other.cameras.end());
 }
@@ -79,6 +108,48 @@ void Scene::finalize(const std::string& source) {
     inputError("scene ", source, ": coordinates up to ", largest, " overflow float arithmetic (the bounding-box diagonal is not finite)");
   }
   if (diagonal <= 0.0f) inputError("scene ", source, ": all vertices coincide");
+  for (std::vector<glm::vec2>* coords : {&texcoords, &lightmapCoords}) {
+    if (coords->empty()) continue;
+    coords->resize(positions.size(), glm::vec2(0.0f));
+    for (glm::vec2& c : *coords)
+      if (!std::isfinite(c.x) || !std::isfinite(c.y)) c = glm::vec2(0.0f);  // a texture coordinate is never worth a failure
+  }
+  for (Material& m : materials)
+    for (int32_t* t : {&m.baseTexture, &m.specularTexture, &m.lightmap})
+      if (*t >= int32_t(textures.size()) || (*t >= 0 && !textures[size_t(*t)])) *t = -1;
+  triUvScaleLog2.clear();
+  if (!texcoords.empty()) {
+    triUvScaleLog2.resize(triangles.size());
+    for (size_t i = 0; i < triangles.size(); ++i) {
+      const glm::uvec3 t = triangles[i];
+      const float world = glm::length(glm::cross(positions[t.y] - positions[t.x], positions[t.z] - positions[t.x]));
+      const glm::vec2 a = texcoords[t.y] - texcoords[t.x], b = texcoords[t.z] - texcoords[t.x];
+      const float uv = std::abs(a.x * b.y - a.y * b.x);
+      // Degenerate either way: no minification from this triangle's shape (level 0 up close).
+      triUvScaleLog2[i] = world > 0.0f && uv > 0.0f ? 0.5f * std::log2(uv / world) : -64.0f;
+    }
+  }
+}
+
+void flattenTextures(Scene& scene) {
+  auto mean = [&](int32_t t) { return t >= 0 ? scene.textures[size_t(t)]->mean() : glm::vec4(1.0f); };
+  for (Material& m : scene.materials) {
+    m.albedo *= glm::vec3(mean(m.baseTexture)) * glm::vec3(mean(m.lightmap));
+    const glm::vec4 s = mean(m.specularTexture);
+    m.specular *= 0.2126f * s.x + 0.7152f * s.y + 0.0722f * s.z;
+    m.albedo = glm::clamp(m.albedo, 0.0f, 1.0f);
+    m.baseTexture = m.specularTexture = m.lightmap = -1;
+    m.alphaCutoff = -1.0f;
+  }
+  scene.textures.clear();
+  scene.texcoords.clear();
+  scene.lightmapCoords.clear();
+  scene.triUvScaleLog2.clear();
+}
+
+void dropLightmaps(Scene& scene) {
+  for (Material& m : scene.materials) m.lightmap = -1;
+  scene.lightmapCoords.clear();
 }
 
 void recentre(Scene& scene) {

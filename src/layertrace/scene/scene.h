@@ -8,11 +8,15 @@
 #pragma once
 
 #include <cstdint>
+#include <memory>
 #include <string>
 #include <vector>
 
+#include <glm/vec2.hpp>
 #include <glm/vec3.hpp>
 #include <glm/ext/vector_double3.hpp>
+
+#include "layertrace/scene/texture.h"
 
 namespace lt {
 
@@ -25,6 +29,17 @@ struct Material {
   float mirror = 0.0f;        ///< weight of the mirror-reflected colour in [0,1]
   float transmission = 0.0f;  ///< weight of the refracted colour in [0,1]
   float ior = 1.5f;           ///< index of refraction for transmission
+  /// Textures (indices into Scene::textures, -1: none). The base colour texture multiplies
+  /// `albedo` (glTF's base colour factor, OBJ's Kd) at the surface's texture coordinates; the
+  /// specular texture's luminance multiplies `specular`; a lightmap (Quake 3 levels, behind
+  /// --lightmaps) multiplies the albedo at the lightmap coordinates.
+  int32_t baseTexture = -1;
+  int32_t specularTexture = -1;
+  int32_t lightmap = -1;
+  TextureWrap wrapU = TextureWrap::Repeat, wrapV = TextureWrap::Repeat;
+  /// Alpha test: where the base texture's alpha (alphaNearest) is below it, there is no surface.
+  /// Negative: opaque (the alpha is ignored; blended transparency is drawn opaque).
+  float alphaCutoff = -1.0f;
 };
 
 struct PointLight {
@@ -62,9 +77,18 @@ struct Scene {
   std::string name;
   std::vector<glm::vec3> positions;      ///< world-space vertex positions
   std::vector<glm::vec3> normals;        ///< per-vertex shading normals (same size as positions)
+  std::vector<glm::vec2> texcoords;      ///< per vertex (same size as positions), or empty: no texture mapping
+  std::vector<glm::vec2> lightmapCoords; ///< per vertex, or empty
   std::vector<glm::uvec3> triangles;     ///< vertex indices
   std::vector<uint32_t> triMaterial;     ///< material index per triangle
   std::vector<Material> materials;
+  /// Decoded textures, shared between copies of a scene (they are never changed once loaded).
+  std::vector<std::shared_ptr<const Texture>> textures;
+  /// Derived by finalize() where there are texture coordinates: per triangle, log2 of its texture
+  /// coordinates' scale (sqrt of uv area over world area), the ray-cone texture LOD's
+  /// triangle term (Akenine-Möller et al., "Improved Shader and Texture Level of Detail Using Ray
+  /// Cones", JCGT 10(1), 2021, §3).
+  std::vector<float> triUvScaleLog2;
   std::vector<PointLight> lights;
   std::vector<CameraDesc> cameras;
   glm::vec3 environment{0.05f, 0.06f, 0.08f};  ///< colour of rays that leave the scene
@@ -80,13 +104,32 @@ struct Scene {
   Bounds bounds() const;
   size_t triangleCount() const { return triangles.size(); }
 
-  /// Appends another scene's geometry (materials re-indexed), lights and cameras.
+  /// The material of triangle t.
+  const Material& material(uint32_t t) const { return materials[triMaterial[t]]; }
+  /// Whether triangle t's material has an alpha test (a cut-out that rays may pass).
+  bool cutOut(uint32_t t) const {
+    const Material& m = material(t);
+    return m.alphaCutoff >= 0.0f && m.baseTexture >= 0 && !texcoords.empty();
+  }
+  bool anyCutOut() const;
+  /// Bytes the textures hold.
+  size_t textureBytes() const;
+
+  /// Appends another scene's geometry (materials and textures re-indexed), lights and cameras.
   void append(const Scene& other);
 
   /// Replaces missing vertex normals by area-weighted face normals; validates indices.
   /// Throws InputError naming `source` when the scene is empty or an index is out of range.
   void finalize(const std::string& source);
 };
+
+/// `--textures off`: every texture replaced by its mean colour (multiplied into the material's
+/// albedo and specular weight), no alpha tests, and the textures and texture coordinates dropped
+/// — the untextured scene that experiments measuring only the tracers use. Lightmaps (when kept)
+/// are averaged the same way.
+void flattenTextures(Scene& scene);
+/// `--lightmaps` not given: materials keep no lightmap (their texture alone colours them).
+void dropLightmaps(Scene& scene);
 
 /// Moves a scene that lies far from the origin of its coordinates next to it, so that every
 /// tracer computes with coordinates a few scene diagonals large instead of 10⁵ (a float has 24

@@ -205,6 +205,21 @@ glm::vec3 meanColorOfPixels(const uint8_t* pixels, size_t count, int channels) {
   return glm::vec3(float(sum[0] / n), float(sum[1] / n), float(sum[2] / n));
 }
 
+std::optional<Rgba8Image> decodeRgba8(const uint8_t* data, size_t size, const std::string& source) {
+  if (size == 0 || size > size_t(INT32_MAX)) return std::nullopt;
+  int w = 0, h = 0, c = 0;
+  if (!stbi_info_from_memory(data, int(size), &w, &h, &c) || w <= 0 || h <= 0) return std::nullopt;
+  if (w > kMaxImageSide || h > kMaxImageSide)
+    inputError("texture ", source, ": ", w, "×", h, " pixels, more than the limit of ", kMaxImageSide, " per side");
+  unsigned char* px = stbi_load_from_memory(data, int(size), &w, &h, &c, 4);
+  if (!px) return std::nullopt;
+  Rgba8Image image;
+  image.width = w, image.height = h;
+  image.pixels.assign(px, px + size_t(w) * size_t(h) * 4);
+  stbi_image_free(px);
+  return image;
+}
+
 std::optional<glm::vec3> meanColorOfEncoded(const uint8_t* data, size_t size, uint64_t maxPixels) {
   if (size == 0 || size > size_t(INT32_MAX)) return std::nullopt;
   int w = 0, h = 0, c = 0;

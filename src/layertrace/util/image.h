@@ -56,6 +56,18 @@ glm::vec3 meanColorOfPixels(const uint8_t* pixels, size_t count, int channels);
 /// nothing when it does not decode or would hold more than `maxPixels` pixels.
 std::optional<glm::vec3> meanColorOfEncoded(const uint8_t* data, size_t size, uint64_t maxPixels = uint64_t(1) << 26);
 
+/// A decoded 8-bit RGBA image, row 0 at the top.
+struct Rgba8Image {
+  int width = 0, height = 0;
+  std::vector<uint8_t> pixels;  ///< width × height × 4 bytes
+};
+/// The largest side of an image decodeRgba8 accepts.
+inline constexpr int kMaxImageSide = 16384;
+/// Decodes an encoded PNG, JPEG, TGA or BMP image in memory to RGBA8 (no alpha channel: 255).
+/// Nothing when it does not decode. Throws InputError naming `source` and both sides when the
+/// header declares a side over kMaxImageSide (the header is read before any pixel is decoded).
+std::optional<Rgba8Image> decodeRgba8(const uint8_t* data, size_t size, const std::string& source);
+
 /// Writes `bytes` to `path` through `path.tmp.<pid>` and a rename.
 void writeFileAtomic(const std::string& path, const std::string& bytes);
 /// An image as the bytes of a PNG file (sRGB 8 bit when `srgb`), written nowhere.
