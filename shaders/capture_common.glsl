@@ -6,7 +6,7 @@
 // raster_setup.h TriangleSetup, with the triangle's vertices and packed material.
 struct TriangleSetup {
   vec4 v0;          // xyz; w = 1 when the triangle is culled (front faces only)
-  vec4 e1, e2;      // xyz
+  vec4 e1, e2;      // xyz; e1.w: the triangle's material index (its bits)
   vec4 plane;       // normal xyz, offset w
   vec4 dots;        // d00, d01, d11, invDen
   uvec4 info;       // vertex indices xyz, albedoSpec w

@@ -6,6 +6,7 @@
 // of fragments is known and the capture runs again with a pool that fits.
 
 #include "capture_common.glsl"
+#include "capture_surface.glsl"
 
 layout(std430, binding = 0) readonly buffer Setups { TriangleSetup setups[]; };
 layout(std430, binding = 1) readonly buffer CamNormals { vec4 camNormals[]; };
@@ -21,15 +22,17 @@ void main() {
   const uint t = uint(gl_PrimitiveID);
   const TriangleSetup ts = setups[t];
   if (ts.v0.w != 0.0) return;  // culled: a back face with --front-faces-only
+  vec3 origin, dir;
+  pixelRay(px, py, origin, dir);
+  const float depth = fragmentDepth(ts, origin, dir);
+  uint albedoSpec;
+  if (!fragmentSurface(ts, t, origin, dir, depth, true, albedoSpec)) return;  // cut away by the alpha test: no fragment
   const uint pixel = uint(py) * uint(uWidth) + uint(px);
   atomicAdd(complexity[pixel], 1u);
   const uint node = atomicAdd(generated, 1u);
   if (node >= uCapacity) return;  // pool exhausted: counted, not stored
-  vec3 origin, dir;
-  pixelRay(px, py, origin, dir);
-  const float depth = fragmentDepth(ts, origin, dir);
   const uint normal = fragmentNormal(ts, camNormals[ts.info.x].xyz, camNormals[ts.info.y].xyz, camNormals[ts.info.z].xyz, origin, dir, depth);
   nodeTriangle[node] = t;
   const uint next = atomicExchange(heads[pixel], node);
-  nodes[node] = uvec4(floatBitsToUint(depth), normal, ts.info.w, next);
+  nodes[node] = uvec4(floatBitsToUint(depth), normal, albedoSpec, next);
 }

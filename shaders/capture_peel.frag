@@ -7,6 +7,7 @@
 // order). Nothing is stored per fragment: capture_peel_resolve.comp evaluates the winners.
 
 #include "capture_common.glsl"
+#include "capture_surface.glsl"
 
 layout(std430, binding = 0) readonly buffer Setups { TriangleSetup setups[]; };
 layout(std430, binding = 1) buffer PeelDepth { uint peelDepth[]; };      // per pixel and layer; 0xFFFFFFFF: none
@@ -20,11 +21,13 @@ void main() {
   const uint t = uint(gl_PrimitiveID);
   const TriangleSetup ts = setups[t];
   if (ts.v0.w != 0.0) return;
-  const uint pixel = uint(py) * uint(uWidth) + uint(px);
-  if (uLayer == 0 && uPass == 0) atomicAdd(complexity[pixel], 1u);
   vec3 origin, dir;
   pixelRay(px, py, origin, dir);
   const float depth = fragmentDepth(ts, origin, dir);
+  uint unused;
+  if (!fragmentSurface(ts, t, origin, dir, depth, false, unused)) return;  // cut away by the alpha test
+  const uint pixel = uint(py) * uint(uWidth) + uint(px);
+  if (uLayer == 0 && uPass == 0) atomicAdd(complexity[pixel], 1u);
   const uint slot = pixel * uint(uK) + uint(uLayer);
   if (uLayer > 0) {
     // Only what lies behind the previous layer (depth, then triangle descending).

@@ -6,6 +6,7 @@ layout(local_size_x = 64) in;
 uniform int uFirst;  // the first invocation of this dispatch (GpuContext::dispatch)
 
 #include "capture_common.glsl"
+#include "capture_surface.glsl"
 
 layout(std430, binding = 0) readonly buffer Setups { TriangleSetup setups[]; };
 layout(std430, binding = 1) readonly buffer CamNormals { vec4 camNormals[]; };
@@ -35,7 +36,9 @@ void main() {
     const float depth = fragmentDepth(ts, origin, dir);
     const uint normal = fragmentNormal(ts, camNormals[ts.info.x].xyz, camNormals[ts.info.y].xyz, camNormals[ts.info.z].xyz, origin, dir, depth);
     precise float thickness = uThickness + uThicknessPerDepth * depth;
-    slots[slot] = uvec4(floatBitsToUint(depth), normal, ts.info.w, floatBitsToUint(thickness));
+    uint albedoSpec;
+    fragmentSurface(ts, tri - 1u, origin, dir, depth, true, albedoSpec);  // a winner passed the alpha test
+    slots[slot] = uvec4(floatBitsToUint(depth), normal, albedoSpec, floatBitsToUint(thickness));
     slotTriangle[slot] = tri - 1u;
     ++n;
   }

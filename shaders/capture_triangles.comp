@@ -1,6 +1,7 @@
 #version 450
 // The capture's second pass: each triangle's plane and barycentric setup in camera space
-// (raster_setup.cpp prepareRaster), its material, and whether front-face culling drops it.
+// (raster_setup.cpp prepareRaster), its material (packed colour and index), and whether
+// front-face culling drops it.
 layout(local_size_x = 64) in;
 uniform int uFirst;  // the first invocation of this dispatch (GpuContext::dispatch)
 
@@ -34,7 +35,7 @@ void main() {
   }
   precise vec3 e1 = b - a, e2 = c - a;
   s.v0 = vec4(a, culled ? 1.0 : 0.0);
-  s.e1 = vec4(e1, 0.0);
+  s.e1 = vec4(e1, uintBitsToFloat(triMaterial[t]));  // the material, for the fragments' surface (capture_surface.glsl)
   s.e2 = vec4(e2, 0.0);
   const vec3 pn = cross3(e1, e2);
   s.plane = vec4(pn, dot3(pn, a));

@@ -961,36 +961,13 @@ TEST(CliGpu, NoDeviceOrNoGpuVersionIsOneLineStatusTwo) {
 namespace lt {
 namespace {
 
-/// An OBJ scene of a wall, a floor (sharing no edge with it) and, in front of the wall, a grate mapped with a checkerboard
-/// PNG whose alpha is 1-bit (so a cut-out at 0.5): `dir`/grate.obj. With `side` > 16384 the
-/// texture is that wide instead (one row, opaque), which the loader must refuse.
-std::string writeGrateObj(const test::TempDir& dir, int side = 16) {
-  const int w = side, h = side > 16384 ? 1 : side;
-  std::vector<uint8_t> px(size_t(w) * size_t(h) * 4);
-  for (int y = 0; y < h; ++y)
-    for (int x = 0; x < w; ++x) {
-      uint8_t* p = &px[(size_t(y) * size_t(w) + size_t(x)) * 4];
-      p[0] = uint8_t(16 * (x % 16)), p[1] = uint8_t(16 * (y % 16)), p[2] = 180;
-      p[3] = side > 16384 || (x / 2 + y / 2) % 2 ? 255 : 0;  // 2 × 2-texel checks
-    }
-  writePngBytes(dir / "grate.png", w, h, 4, px.data());
-  std::ofstream(dir / "grate.mtl") << "newmtl wall\nKd 0.3 0.6 0.4\nnewmtl grate\nKd 1 1 1\nmap_Kd grate.png\n";
-  std::ofstream(dir / "grate.obj") << "mtllib grate.mtl\n"
-                                      "v -3 -2 -4\nv 3 -2 -4\nv 3 3 -4\nv -3 3 -4\nv -3 -1 0\nv 3 -1 0\nv 3 -1 -3.9\nv -3 -1 -3.9\n"
-                                      "v -1.3 -0.9 -2.1\nv 1.2 -0.8 -1.9\nv 1.25 1.6 -2.0\nv -1.2 1.55 -2.05\n"
-                                      "vt 0 0\nvt 2 0\nvt 2 2\nvt 0 2\n"
-                                      "usemtl wall\nf 1/1 2/2 3/3\nf 1/1 3/3 4/4\nf 5/1 6/2 7/3\nf 5/1 7/3 8/4\n"
-                                      "usemtl grate\nf 9/1 10/2 11/3\nf 9/1 11/3 12/4\n";
-  return dir / "grate.obj";
-}
-
 // An alpha-tested grate through the whole CLI: the capture keeps exactly Embree's surfaces
 // (rays pass through the holes and stop on the bars), compare's tracers answer as the
 // references do, --textures off makes the grate solid, and a texture over the size limit is
 // refused with one line.
 TEST(CliTextures, CutOutGrateIsExactInLayersAndCompare) {
   test::TempDir dir;
-  const std::string scene = writeGrateObj(dir);
+  const std::string scene = test::writeGrateObj(dir);
   // The rasterizer snaps vertices to 1/256 pixel, so a pixel centre within that of a silhouette
   // may disagree with Embree (verify's tolerance in other tests). This view has no such pixel:
   // it is exact with the grate solid (--textures off), and the alpha test must keep it exact.
@@ -1013,7 +990,7 @@ TEST(CliTextures, CutOutGrateIsExactInLayersAndCompare) {
   for (const char* t : {"grid", "hybrid"})
     EXPECT_EQ(c[t]["correct_hit"].get<double>() + c[t]["correct_miss"].get<double>(), 1.0) << t;
   test::TempDir big, out1, out2;
-  expectRejected({"layers " + writeGrateObj(big, 16385) + view, "16385"}, out1);
+  expectRejected({"layers " + test::writeGrateObj(big, 16385) + view, "16385"}, out1);
   expectRejected({"layers " + scene + view + " --textures maybe", "--textures"}, out2);
 }
 

@@ -16,6 +16,7 @@
 #include "layertrace/geometry/ray_triangle.h"
 #include "layertrace/scene/load.h"
 #include "layertrace/util/parallel.h"
+#include "layertrace/scene/surface.h"
 #include "test_util.h"
 
 namespace lt {
@@ -101,7 +102,10 @@ GeoHit referenceTraverse(const IrregularGrid& g, const Scene& scene, glm::vec3 o
       const uint32_t tri = g.refs()[r];
       const glm::uvec3 ix = scene.triangles[tri];
       float t;
-      if (hitTriangleWatertight(ray, scene.positions[ix.x], scene.positions[ix.y], scene.positions[ix.z], tnear, bestT, t)) {
+      glm::vec3 w;
+      if (hitTriangleWatertight(ray, scene.positions[ix.x], scene.positions[ix.y], scene.positions[ix.z], tnear, bestT, t, &w)) {
+        const float sum = w.x + w.y + w.z;  // an alpha-tested triangle's hole lets the ray pass
+        if (scene.cutOut(tri) && !surfacePresent(scene, tri, w.y / sum, w.z / sum)) continue;
         if (anyHit) {
           best.t = t, best.triangle = tri;
           return best;

@@ -8,6 +8,8 @@
 
 #include <glm/geometric.hpp>
 
+#include "layertrace/util/image.h"
+
 #include <sys/wait.h>
 #include <unistd.h>
 #include <zlib.h>
@@ -201,6 +203,26 @@ std::string storedZip(const std::vector<std::pair<std::string, std::string>>& en
   appendLe32(z, 0x06054b50), u16(z, 0), u16(z, 0), u16(z, count), u16(z, count), appendLe32(z, uint32_t(directory.size()));
   appendLe32(z, start), u16(z, 0);
   return z;
+}
+
+std::string writeGrateObj(const TempDir& dir, int side) {
+  const int w = side, h = side > 16384 ? 1 : side;
+  std::vector<uint8_t> px(size_t(w) * size_t(h) * 4);
+  for (int y = 0; y < h; ++y)
+    for (int x = 0; x < w; ++x) {
+      uint8_t* p = &px[(size_t(y) * size_t(w) + size_t(x)) * 4];
+      p[0] = uint8_t(16 * (x % 16)), p[1] = uint8_t(16 * (y % 16)), p[2] = 180;
+      p[3] = side > 16384 || (x / 2 + y / 2) % 2 ? 255 : 0;  // 2 × 2-texel checks
+    }
+  writePngBytes(dir / "grate.png", w, h, 4, px.data());
+  std::ofstream(dir / "grate.mtl") << "newmtl wall\nKd 0.3 0.6 0.4\nnewmtl grate\nKd 1 1 1\nmap_Kd grate.png\n";
+  std::ofstream(dir / "grate.obj") << "mtllib grate.mtl\n"
+                                      "v -3 -2 -4\nv 3 -2 -4\nv 3 3 -4\nv -3 3 -4\nv -3 -1 0\nv 3 -1 0\nv 3 -1 -3.9\nv -3 -1 -3.9\n"
+                                      "v -1.3 -0.9 -2.1\nv 1.2 -0.8 -1.9\nv 1.25 1.6 -2.0\nv -1.2 1.55 -2.05\n"
+                                      "vt 0 0\nvt 2 0\nvt 2 2\nvt 0 2\n"
+                                      "usemtl wall\nf 1/1 2/2 3/3\nf 1/1 3/3 4/4\nf 5/1 6/2 7/3\nf 5/1 7/3 8/4\n"
+                                      "usemtl grate\nf 9/1 10/2 11/3\nf 9/1 11/3 12/4\n";
+  return dir / "grate.obj";
 }
 
 }  // namespace lt::test

@@ -56,6 +56,12 @@ FrameOptions realSceneOptions(const std::string& sceneFile, const std::string& c
 /// named "modelcam" at (0, 0, 10) looking down −z.
 void writeTriangleWithCamera(const std::string& path);
 
+/// An OBJ scene of a wall, a floor (sharing no edge with it) and, in front of the wall, a grate
+/// mapped with a checkerboard PNG whose alpha is 1-bit (so a cut-out at 0.5): `dir`/grate.obj.
+/// With `side` > 16384 the texture is that wide instead (one row, opaque), which the loader must
+/// refuse. Views: the eye near (0.35, 0.45, 1.5) looking at (0, 0.2, -3).
+std::string writeGrateObj(const TempDir& dir, int side = 16);
+
 /// True when the fetched scenes are present (scripts/fetch-scenes.sh).
 bool haveFetchedScenes();
 

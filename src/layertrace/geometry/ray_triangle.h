@@ -70,7 +70,8 @@ struct WatertightRay {
 /// triangle intersectors, t is the plane's: (n · (v0 − o)) / (n · d), n = (v1 − v0) × (v2 − v0).
 /// The grid's 4-lane blocks evaluate exactly these operations in this order, so they answer bit
 /// for bit like this function (tested).
-inline bool hitTriangleWatertight(const WatertightRay& r, glm::vec3 v0, glm::vec3 v1, glm::vec3 v2, float tmin, float tmax, float& t) {
+inline bool hitTriangleWatertight(const WatertightRay& r, glm::vec3 v0, glm::vec3 v1, glm::vec3 v2, float tmin, float tmax, float& t,
+                                  glm::vec3* weights = nullptr) {
   const glm::vec3 a = v0 - r.o, b = v1 - r.o, c = v2 - r.o;
   const float ax = a[r.kx] - r.sx * a[r.kz], ay = a[r.ky] - r.sy * a[r.kz];
   const float bx = b[r.kx] - r.sx * b[r.kz], by = b[r.ky] - r.sy * b[r.kz];
@@ -78,6 +79,7 @@ inline bool hitTriangleWatertight(const WatertightRay& r, glm::vec3 v0, glm::vec
   const float u = cx * by - cy * bx, v = ax * cy - ay * cx, w = bx * ay - by * ax;
   if ((u < 0.0f || v < 0.0f || w < 0.0f) && (u > 0.0f || v > 0.0f || w > 0.0f)) return false;
   if (u + v + w == 0.0f) return false;
+  if (weights) *weights = {u, v, w};  // the vertices' barycentric weights, unnormalised
   const glm::vec3 e1 = v1 - v0, e2 = v2 - v0;
   const float nx = e1.y * e2.z - e1.z * e2.y, ny = e1.z * e2.x - e1.x * e2.z, nz = e1.x * e2.y - e1.y * e2.x;
   const float den = nx * r.d.x + ny * r.d.y + nz * r.d.z;

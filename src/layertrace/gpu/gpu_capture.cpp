@@ -1,6 +1,7 @@
 #include "layertrace/gpu/gpu_capture.h"
 
 #include <algorithm>
+#include <bit>
 
 #include <epoxy/gl.h>
 #include <glm/gtc/type_ptr.hpp>
@@ -8,6 +9,7 @@
 #include "layertrace/gpu/shader_sources.h"
 #include "layertrace/raster/fragment.h"
 #include "layertrace/raster/rasterizer.h"
+#include "layertrace/scene/surface.h"
 #include "layertrace/util/error.h"
 #include "layertrace/util/memory.h"
 
@@ -62,6 +64,52 @@ struct RasterTarget {
   }
 };
 
+/// What shaders/capture_surface.glsl reads of the scene's textured materials: one array of
+/// 32-bit words in sections (their offsets, in words, are the shader's uniforms) and the texels.
+struct SurfaceTables {
+  std::vector<uint32_t> words, texels;
+  uint32_t texcoords = 0, lightmapCoords = 0, uvScale = 0, materials = 0, textures = 0, levels = 0, decode = 0, thresholds = 0;
+
+  explicit SurfaceTables(const Scene& scene) {
+    auto f = [](float v) { return std::bit_cast<uint32_t>(v); };
+    auto section = [&](uint32_t& at) { at = uint32_t(words.size()); };
+    section(texcoords);
+    for (const glm::vec2& c : scene.texcoords) words.insert(words.end(), {f(c.x), f(c.y)});
+    section(lightmapCoords);
+    for (const glm::vec2& c : scene.lightmapCoords) words.insert(words.end(), {f(c.x), f(c.y)});
+    section(uvScale);
+    for (float v : scene.triUvScaleLog2) words.push_back(f(v));
+    section(materials);  // capture_surface.glsl kMaterialWords per material
+    for (const Material& m : scene.materials)
+      words.insert(words.end(), {f(m.albedo.x), f(m.albedo.y), f(m.albedo.z), f(m.specular), uint32_t(m.baseTexture), uint32_t(m.specularTexture),
+                                 uint32_t(m.lightmap), uint32_t(m.wrapU) | uint32_t(m.wrapV) << 8, f(m.alphaCutoff), surfaceFlags(scene, m)});
+    section(textures);  // per texture: its first level (an index into the levels) and its level count
+    uint32_t level = 0;
+    for (const auto& t : scene.textures) {
+      words.insert(words.end(), {level, uint32_t(t->levels.size())});
+      level += uint32_t(t->levels.size());
+    }
+    section(levels);  // per level: width, height, first texel
+    for (const auto& t : scene.textures) {
+      const auto base = uint32_t(texels.size());
+      for (const Texture::Level& l : t->levels) words.insert(words.end(), {uint32_t(l.width), uint32_t(l.height), base + uint32_t(l.offset)});
+      texels.insert(texels.end(), t->texels.begin(), t->texels.end());
+    }
+    section(decode);
+    for (uint32_t c = 0; c < 256; ++c) words.push_back(f(srgb8ToLinear(c)));
+    section(thresholds);
+    for (uint32_t c = 0; c < 255; ++c) words.push_back(f(srgb8Threshold(c)));
+  }
+
+  void setUniforms(const GpuProgram& p, const Scene& scene) const {
+    p.set("uTexcoords", texcoords), p.set("uLightmapCoords", lightmapCoords), p.set("uUvScale", uvScale);
+    p.set("uMaterials", materials), p.set("uTextures", textures), p.set("uLevels", levels);
+    p.set("uDecode", decode), p.set("uThresholds", thresholds);
+    p.set("uHaveTexcoords", int(!scene.texcoords.empty()));
+    p.set("uHaveLightmapCoords", int(!scene.lightmapCoords.empty()));
+  }
+};
+
 /// The CPU's projection with y negated: OpenGL's window rows grow upwards, the CPU's pixel
 /// rows (Camera::project) downwards, so row 0 of both is the top of the view.
 glm::mat4 projectionRowsDown(const Camera& camera) {
@@ -92,6 +140,18 @@ void captureOnGpu(GpuContext& gpu, const Scene& scene, const Camera& camera, con
   const GpuBuffer camPos(V * 16), camNormals(V * 16), setups(T * kSetupBytes);
   const GpuBuffer complexity(pixels * 4), slots(pixels * size_t(k) * 16), counts(pixels * 4), slotTriangle(pixels * size_t(k) * 4);
   const GpuTimer setupBegin, rasterBegin, sortBegin;
+  const SurfaceTables surface(scene);
+  GLint64 largestBlock = 0;
+  glGetInteger64v(GL_MAX_SHADER_STORAGE_BLOCK_SIZE, &largestBlock);
+  for (const size_t bytes : {surface.words.size() * 4, surface.texels.size() * 4})
+    if (int64_t(bytes) > largestBlock)
+      inputError("--device gpu: the scene's textures take ", bytes, " bytes, more than the GPU's largest storage buffer of ", largestBlock,
+                 " bytes (use --textures off)");
+  const GpuBuffer surfaceWords(surface.words.size() * 4, surface.words.data()), surfaceTexels(surface.texels.size() * 4, surface.texels.data());
+  const auto bindSurface = [&](const GpuProgram& p) {
+    surfaceWords.bindStorage(8), surfaceTexels.bindStorage(9);
+    surface.setUniforms(p, scene);
+  };
 
   // Vertices and triangles to camera space.
   const GpuProgram vertices = gpu.computeProgram("capture_vertices.comp", shader_source::capture_vertices_comp);
@@ -115,6 +175,7 @@ void captureOnGpu(GpuContext& gpu, const Scene& scene, const Camera& camera, con
     const GpuProgram lists = gpu.renderProgram("capture.vert + capture_lists.frag", shader_source::capture_vert, shader_source::capture_lists_frag);
     const GpuProgram sort = gpu.computeProgram("capture_sort.comp", shader_source::capture_sort_comp);
     setCamera(lists, camera);
+    bindSurface(lists);
     lists.setMatrix("uProjection", glm::value_ptr(projectionRowsDown(camera)));
     uint64_t capacity = config.poolCapacity ? config.poolCapacity : std::max<uint64_t>(uint64_t(pixels) * 8, 1u << 20);
     for (;;) {
@@ -179,6 +240,7 @@ void captureOnGpu(GpuContext& gpu, const Scene& scene, const Camera& camera, con
     peelTriangle.fill(zero);
     complexity.fill(zero);
     setCamera(peelPass, camera);
+    bindSurface(peelPass);
     peelPass.setMatrix("uProjection", glm::value_ptr(projectionRowsDown(camera)));
     peelPass.set("uK", k);
     peelPass.set("uMinSeparation", lc.minSeparation);
@@ -195,6 +257,7 @@ void captureOnGpu(GpuContext& gpu, const Scene& scene, const Camera& camera, con
     setups.bindStorage(0), camNormals.bindStorage(1), peelTriangle.bindStorage(2), slots.bindStorage(3), counts.bindStorage(4),
         slotTriangle.bindStorage(5);
     setCamera(resolve, camera);
+    bindSurface(resolve);
     resolve.set("uK", k);
     resolve.set("uThickness", lc.thickness);
     resolve.set("uThicknessPerDepth", lc.thicknessPerDepth);
@@ -229,7 +292,7 @@ void captureOnGpu(GpuContext& gpu, const Scene& scene, const Camera& camera, con
   out.setupMs = setupBegin.ms();
   out.rasterMs = rasterBegin.ms();
   out.sortMs = sortBegin.ms();
-  out.memoryBytes += positions.bytes() + normals.bytes() + indices.bytes() + triMaterial.bytes() + materialTable.bytes() + camPos.bytes() +
+  out.memoryBytes += surfaceWords.bytes() + surfaceTexels.bytes() + positions.bytes() + normals.bytes() + indices.bytes() + triMaterial.bytes() + materialTable.bytes() + camPos.bytes() +
                      camNormals.bytes() + setups.bytes() + complexity.bytes() + slots.bytes() + counts.bytes() + slotTriangle.bytes();
 }
 

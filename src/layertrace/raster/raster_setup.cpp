@@ -134,10 +134,7 @@ void prepareRaster(const Scene& scene, const Camera& camera, const RasterConfig&
   setup.materialFlags.clear();
   for (const Material& m : scene.materials) {
     setup.materialPacked.push_back(packAlbedoSpec(m.albedo, m.specular));
-    const bool uv = !scene.texcoords.empty();
-    const bool sampled = (uv && (m.baseTexture >= 0 || m.specularTexture >= 0)) || (m.lightmap >= 0 && !scene.lightmapCoords.empty());
-    const bool cut = uv && m.baseTexture >= 0 && m.alphaCutoff >= 0.0f;
-    setup.materialFlags.push_back(uint8_t((sampled ? RasterSetup::kSampled : 0) | (cut ? RasterSetup::kCutOut : 0)));
+    setup.materialFlags.push_back(surfaceFlags(scene, m));
   }
 
   // Clip and set up triangles in fixed chunks (the chunking, not the thread count, fixes the order).

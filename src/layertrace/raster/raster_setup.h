@@ -78,7 +78,7 @@ struct RasterSetup {
     uint32_t albedoSpec;  ///< the material's constant albedo and specular (used unless kSampled)
     uint8_t flags;        ///< materialFlags of its material
   };
-  static constexpr uint8_t kSampled = 1, kCutOut = 2;
+  static constexpr uint8_t kSampled = kSurfaceSampled, kCutOut = kSurfaceCutOut;
   Binned binned(const Scene& scene, uint32_t i) const {
     const SubTriangle& s = *subs[tileList[i]];
     const uint32_t m = scene.triMaterial[s.triangle];

@@ -46,6 +46,16 @@ inline uint32_t packSurfaceColor(const SurfaceColor& c) {
 /// cone's width at the hit). Cosines below 1/64 count as 1/64.
 float textureFootprint(float pixelFootprintAtDepth, float cosine);
 
+/// What a material's surfaces need per point: kSurfaceSampled, a textured colour (surfaceColor);
+/// kSurfaceCutOut, the alpha test (surfacePresent). 0: its constant colour, always present.
+inline constexpr uint8_t kSurfaceSampled = 1, kSurfaceCutOut = 2;
+inline uint8_t surfaceFlags(const Scene& scene, const Material& m) {
+  const bool uv = !scene.texcoords.empty();
+  const bool sampled = (uv && (m.baseTexture >= 0 || m.specularTexture >= 0)) || (m.lightmap >= 0 && !scene.lightmapCoords.empty());
+  const bool cut = uv && m.baseTexture >= 0 && m.alphaCutoff >= 0.0f;
+  return uint8_t((sampled ? kSurfaceSampled : 0) | (cut ? kSurfaceCutOut : 0));
+}
+
 /// Whether triangle `tri` needs surfaceColor (a textured material) or its material's constant
 /// colour suffices.
 inline bool surfaceTextured(const Scene& scene, uint32_t tri) {

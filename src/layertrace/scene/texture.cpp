@@ -85,6 +85,8 @@ glm::vec4 sampleBilinear(const Texture& t, int level, glm::vec2 uv, TextureWrap 
 
 float srgb8ToLinear(uint32_t c) { return decodeTable()[std::min<uint32_t>(c, 255u)]; }
 
+float srgb8Threshold(uint32_t c) { return thresholdTable()[std::min<uint32_t>(c, 254u)]; }
+
 uint32_t linearToSrgb8(float v) {
   const auto& t = thresholdTable();
   if (!(v > 0.0f)) return 0u;

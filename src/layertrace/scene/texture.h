@@ -58,5 +58,7 @@ float alphaNearest(const Texture& texture, glm::vec2 uv, TextureWrap wrapU, Text
 uint32_t linearToSrgb8(float v);
 /// The linear value of sRGB code `c` (0…255).
 float srgb8ToLinear(uint32_t c);
+/// The linear value where linearToSrgb8 moves from code `c` to c + 1 (c in 0…254).
+float srgb8Threshold(uint32_t c);
 
 }  // namespace lt
