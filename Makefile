@@ -69,7 +69,7 @@ test: build build-asan build-tsan fetch
 	    LAYERTRACE_SANITIZED=1 ctest --output-on-failure -j $(JOBS) -L 'unit|install'
 	cd $(TSAN) && TSAN_OPTIONS="halt_on_error=1 suppressions=$(CURDIR)/scripts/tsan.supp" \
 	    LAYERTRACE_SANITIZED=1 ctest --output-on-failure -j $(JOBS) -L unit
-	scripts/run-fuzz.sh $(ASAN) 20 json_scene cli
+	scripts/run-fuzz.sh $(ASAN) 20 json_scene cli texture
 	scripts/cross-aarch64.sh
 
 # The contributors' loop: the Release build of the CLI and the unit tests, and the unit and

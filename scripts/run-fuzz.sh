@@ -10,7 +10,7 @@ root=$(cd "$(dirname "$0")/.." && pwd)
 mkdir -p "$root/out/fuzz"
 status=0
 targets=("${@:3}")
-[ ${#targets[@]} -gt 0 ] || targets=(json_scene model pk3 cli)
+[ ${#targets[@]} -gt 0 ] || targets=(json_scene model pk3 cli texture)
 for target in "${targets[@]}"; do
   bin="$build/fuzz_$target"
   [ -x "$bin" ] || { echo "run-fuzz: $bin missing" >&2; exit 1; }

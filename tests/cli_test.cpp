@@ -989,6 +989,16 @@ TEST(CliTextures, CutOutGrateIsExactInLayersAndCompare) {
   EXPECT_EQ(c["hssr"]["oracle_mismatch"], 0);
   for (const char* t : {"grid", "hybrid"})
     EXPECT_EQ(c[t]["correct_hit"].get<double>() + c[t]["correct_miss"].get<double>(), 1.0) << t;
+  // bench measures the texturing against --textures off on the same view.
+  ASSERT_NO_FATAL_FAILURE(expectRuns("bench " + scene + view + " --experiment textures --repeat 1 -o " + (dir / "b")));
+  const auto rows = readJson(dir / "b/textures.json")["rows"];
+  ASSERT_EQ(rows.size(), 2u);
+  EXPECT_EQ(rows[0]["textures"], "on");
+  EXPECT_EQ(rows[0]["cut_out_materials"], 1);
+  EXPECT_EQ(rows[1]["textured_materials"], 0);
+  EXPECT_LT(rows[0]["fragments"].get<double>(), rows[1]["fragments"].get<double>());
+  EXPECT_EQ(rows[1]["capture_vs_off"].get<double>(), 1.0);
+  EXPECT_GT(rows[0]["reference_trace_ms"].get<double>(), 0.0);
   test::TempDir big, out1, out2;
   expectRejected({"layers " + test::writeGrateObj(big, 16385) + view, "16385"}, out1);
   expectRejected({"layers " + scene + view + " --textures maybe", "--textures"}, out2);

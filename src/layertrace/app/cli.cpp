@@ -289,10 +289,10 @@ int runCli(int argc, const char* const* argv, CliMode mode) {
 
   lt::BenchOptions bench;
   RawFrameOptions benchRaw;
-  CLI::App* benchCmd = app.add_subcommand("bench", "the papers' experiments: stride|layers|tau|memory|resolution|threads|capture|warp|gamma|ldc|stages|peel|simd");
+  CLI::App* benchCmd = app.add_subcommand("bench", "the papers' experiments: stride|layers|tau|memory|resolution|threads|capture|warp|gamma|ldc|stages|peel|simd|textures");
   addFrameOptions(benchCmd, bench.run, benchRaw, "output folder (default out/bench; EXPERIMENT.json, .csv and .png)");
   addDeviceOption(benchCmd, bench.run);
-  benchCmd->add_option("--experiment", bench.experiment, "stride | layers | tau | memory | resolution | threads | capture | warp | gamma | ldc | stages (every stage on --device cpu or gpu) | peel (per-pixel lists against depth peeling, k = 1..8, on --device cpu or gpu) | simd (capture, pyramid, HSSR and grid on every vector target of this CPU)")->required();
+  benchCmd->add_option("--experiment", bench.experiment, "stride | layers | tau | memory | resolution | threads | capture | warp | gamma | ldc | stages (every stage on --device cpu or gpu) | peel (per-pixel lists against depth peeling, k = 1..8, on --device cpu or gpu) | simd (capture, pyramid, HSSR and grid on every vector target of this CPU) | textures (capture and reference with the textures against --textures off)")->required();
   benchCmd->add_option("--repeat", bench.repeat, "runs per measurement (the median is reported)")->capture_default_str();
   addTracerOptions(benchCmd, bench.options);
   benchCmd->add_option("--report", bench.report, "also write an HTML report to this folder (default: the output folder)")->expected(0, 1);

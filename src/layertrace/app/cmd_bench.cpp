@@ -36,6 +36,7 @@
 #include <tbb/global_control.h>
 
 #include "layertrace/app/commands.h"
+#include "layertrace/scene/surface.h"
 #include "layertrace/gpu/gpu_context.h"
 #include "layertrace/pipeline/gpu_tracers.h"
 #include "layertrace/app/report.h"
@@ -167,11 +168,11 @@ Classified measure(const Frame& frame, const Tracer& tracer, const EffectConfig&
 }  // namespace
 
 int runBench(const BenchOptions& o) {
-  static const char* kExperiments[] = {"stride", "layers", "tau", "memory", "resolution", "threads", "warp", "capture", "gamma", "ldc", "stages", "peel", "simd"};
+  static const char* kExperiments[] = {"stride", "layers", "tau", "memory", "resolution", "threads", "warp", "capture", "gamma", "ldc", "stages", "peel", "simd", "textures"};
   if (std::find_if(std::begin(kExperiments), std::end(kExperiments), [&](const char* e) { return o.experiment == e; }) ==
       std::end(kExperiments))
     inputError("--experiment ", o.experiment.empty() ? "(none)" : o.experiment,
-               ": unknown (use stride, layers, tau, memory, resolution, threads, warp, capture, gamma, ldc, stages, peel, simd)");
+               ": unknown (use stride, layers, tau, memory, resolution, threads, warp, capture, gamma, ldc, stages, peel, simd, textures)");
   if (o.run.device == "gpu" && o.experiment != "stages" && o.experiment != "peel")
     inputError("--device gpu: bench measures the GPU with --experiment stages or peel, not ", o.experiment);
   // The device before the scene: a machine without one is told at once.
@@ -356,6 +357,38 @@ int runBench(const BenchOptions& o) {
                           double(frame.lists.generated) / capture * 1e-3, allHit, hits, allHit / capture, frame.lists.memoryBytes(),
                           frame.layers.memoryBytes(), pyramidBytes, scratchBytes});
       }
+    }
+  }
+  if (e == "textures") {
+    // What texturing costs: the same view with the scene's textures (sampled per fragment in the
+    // capture and per hit in the reference, alpha tests in both) and with each texture replaced
+    // by its mean colour (--textures off). Capture: warm-up discarded, medians of --repeat;
+    // reference: Embree's trace of the effect's rays with its hits' shading inputs (measureTrace).
+    if (!o.run.frame.textures) inputError("--experiment textures: compares --textures on with off itself (leave --textures on)");
+    t.columns = {"textures", "capture_ms", "fragments", "reference_trace_ms", "capture_vs_off", "reference_vs_off", "texture_bytes",
+                 "textured_materials", "cut_out_materials"};
+    Progress p(o.run.quiet, e, 2);
+    for (const bool on : {true, false}) {
+      p.step(on ? "textures on" : "textures off");
+      FrameOptions fo = o.run.frame;
+      fo.textures = on;
+      Frame f;
+      loadFrameScene(fo, f);
+      std::vector<double> cs;
+      rasterizeFrame(fo, f);  // warm-up, discarded
+      for (int i = 0; i < o.repeat; ++i) rasterizeFrame(fo, f), cs.push_back(f.rasterMs + f.sortMs);
+      const BuiltTracer ref = buildReference(f);
+      const double refMs = measureTrace(f, *ref.tracer, ec, o.repeat).traceMs;
+      size_t textured = 0, cut = 0;
+      for (const Material& m : f.scene.materials) {
+        const uint8_t flags = surfaceFlags(f.scene, m);
+        textured += (flags & kSurfaceSampled) != 0, cut += (flags & kSurfaceCutOut) != 0;
+      }
+      t.rows.push_back({on ? "on" : "off", median(cs), f.lists.generated, refMs, 0.0, 0.0, f.scene.textureBytes(), textured, cut});
+    }
+    for (auto& r : t.rows) {
+      r[4] = r[1].get<double>() / t.rows[1][1].get<double>();
+      r[5] = r[3].get<double>() / t.rows[1][3].get<double>();
     }
   }
   if (e == "gamma") {

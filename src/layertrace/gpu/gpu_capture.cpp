@@ -78,7 +78,8 @@ struct SurfaceTables {
     section(lightmapCoords);
     for (const glm::vec2& c : scene.lightmapCoords) words.insert(words.end(), {f(c.x), f(c.y)});
     section(uvScale);
-    for (float v : scene.triUvScaleLog2) words.push_back(f(v));
+    for (size_t t = 0; t < scene.triangles.size() && !scene.texcoords.empty(); ++t)
+      words.push_back(f(t < scene.triUvScaleLog2.size() ? scene.triUvScaleLog2[t] : 0.0f));  // surfaceColor's rule
     section(materials);  // capture_surface.glsl kMaterialWords per material
     for (const Material& m : scene.materials)
       words.insert(words.end(), {f(m.albedo.x), f(m.albedo.y), f(m.albedo.z), f(m.specular), uint32_t(m.baseTexture), uint32_t(m.specularTexture),

@@ -595,6 +595,11 @@ class Quake3Materials {
     return m;
   }
 
+  /// Archives skipped and scripts ignored while looking images up, one warning line each.
+  void reportArchiveWarnings() const {
+    for (const std::string& w : archives_.warnings()) warning(cat("scene ", path_, ": ", w));
+  }
+
  private:
   static constexpr int kLightmapSide = 128;
   static constexpr size_t kLightmapBytes = size_t(kLightmapSide) * kLightmapSide * 3;
@@ -704,6 +709,7 @@ Scene convertScene(const aiScene* as, const std::string& path, const std::string
       if (added) scene.materials.push_back(q3materials ? (*q3materials)(key) : quake3Untextured(key));
       return it->second;
     });
+  if (q3materials) q3materials->reportArchiveWarnings();
   // Texture coordinates only where a material has a texture to map.
   const bool textured = std::any_of(scene.materials.begin(), scene.materials.end(), [](const Material& m) {
     return m.baseTexture >= 0 || m.specularTexture >= 0 || m.lightmap >= 0;

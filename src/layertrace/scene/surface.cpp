@@ -35,7 +35,9 @@ SurfaceColor surfaceColor(const Scene& scene, uint32_t tri, float b1, float b2, 
   if (!scene.texcoords.empty() && (m.baseTexture >= 0 || m.specularTexture >= 0)) {
     const glm::vec2 uv = interpolate(scene.texcoords, t, b1, b2);
     // lod = log2(texels per world unit × world units per sample), per texture.
-    const float lodBase = scene.triUvScaleLog2[tri] + std::log2(std::max(footprint, 1e-30f));
+    // (A scene that skipped finalize() has no scale terms: level 0's scale then.)
+    const float scale = tri < scene.triUvScaleLog2.size() ? scene.triUvScaleLog2[tri] : 0.0f;
+    const float lodBase = scale + std::log2(std::max(footprint, 1e-30f));
     if (m.baseTexture >= 0) {
       const Texture& tex = *scene.textures[size_t(m.baseTexture)];
       c.albedo *= glm::vec3(sampleTrilinear(tex, uv, lodBase + texelsLog2(tex), m.wrapU, m.wrapV));

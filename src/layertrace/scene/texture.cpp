@@ -47,6 +47,7 @@ int wrapIndex(int i, int n, TextureWrap mode) {
     }
     case TextureWrap::Repeat:
     default: {
+      if ((n & (n - 1)) == 0) return i & (n - 1);  // a power of two: the same texel without a division
       const int m = i % n;
       return m < 0 ? m + n : m;
     }
