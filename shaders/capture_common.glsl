@@ -62,9 +62,9 @@ uint encodeOctahedral(vec3 n) {
   return snorm16(px) | (snorm16(py) << 16);
 }
 
-// raster_setup.h fragmentNormal: the interpolated normal at the fragment's point, barycentrics
-// clamped to the triangle.
-uint fragmentNormal(TriangleSetup ts, vec3 n0, vec3 n1, vec3 n2, vec3 origin, vec3 dir, float depth) {
+// raster_setup.h fragmentBarycentrics: the weights of the second and third vertex where the
+// pixel-centre ray meets the triangle's plane, clamped to the triangle.
+vec2 fragmentBarycentrics(TriangleSetup ts, vec3 origin, vec3 dir, float depth) {
   precise vec3 vp = (uOrtho ? origin + dir * depth : dir * depth) - ts.v0.xyz;
   precise float d20 = dot3(vp, ts.e1.xyz), d21 = dot3(vp, ts.e2.xyz);
   precise float b1 = clamp((ts.dots.z * d20 - ts.dots.y * d21) * ts.dots.w, 0.0, 1.0);
@@ -74,6 +74,12 @@ uint fragmentNormal(TriangleSetup ts, vec3 n0, vec3 n1, vec3 n2, vec3 origin, ve
     b1 /= sum;
     b2 /= sum;
   }
-  precise vec3 n = (n0 * (1.0 - b1 - b2) + n1 * b1) + n2 * b2;
+  return vec2(b1, b2);
+}
+
+// raster_setup.h fragmentNormal: the interpolated normal at the fragment's point.
+uint fragmentNormal(TriangleSetup ts, vec3 n0, vec3 n1, vec3 n2, vec3 origin, vec3 dir, float depth) {
+  const vec2 b = fragmentBarycentrics(ts, origin, dir, depth);
+  precise vec3 n = (n0 * (1.0 - b.x - b.y) + n1 * b.x) + n2 * b.y;
   return encodeOctahedral(n);
 }

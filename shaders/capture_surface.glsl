@@ -7,7 +7,7 @@
 // (gpu_capture.cpp SurfaceTables): per vertex the texture and lightmap coordinates, per
 // triangle the texture coordinates' scale, per material its colour, textures and alpha cut-off,
 // per texture its mip levels, and the sRGB tables; the texels in their own buffer.
-// Needs capture_common.glsl (fragment barycentrics) before it.
+// Needs capture_common.glsl (fragmentBarycentrics) before it.
 
 layout(std430, binding = 8) readonly buffer SurfaceWords { uint surface[]; };
 layout(std430, binding = 9) readonly buffer SurfaceTexels { uint texels[]; };
@@ -20,20 +20,6 @@ const uint kSampled = 1u, kCutOut = 2u;
 float word(uint i) { return uintBitsToFloat(surface[i]); }
 int textureOf(uint material, uint which) { return int(surface[uMaterials + material * kMaterialWords + 4u + which]); }
 uint materialFlags(uint material) { return surface[uMaterials + material * kMaterialWords + 9u]; }
-
-// raster_setup.h fragmentBarycentrics.
-vec2 fragmentBarycentrics(TriangleSetup ts, vec3 origin, vec3 dir, float depth) {
-  precise vec3 vp = (uOrtho ? origin + dir * depth : dir * depth) - ts.v0.xyz;
-  precise float d20 = dot3(vp, ts.e1.xyz), d21 = dot3(vp, ts.e2.xyz);
-  precise float b1 = clamp((ts.dots.z * d20 - ts.dots.y * d21) * ts.dots.w, 0.0, 1.0);
-  precise float b2 = clamp((ts.dots.x * d21 - ts.dots.y * d20) * ts.dots.w, 0.0, 1.0);
-  if (b1 + b2 > 1.0) {
-    precise float sum = b1 + b2;
-    b1 /= sum;
-    b2 /= sum;
-  }
-  return vec2(b1, b2);
-}
 
 vec2 coordAt(uint section, uint v) { return vec2(word(section + 2u * v), word(section + 2u * v + 1u)); }
 
