@@ -549,7 +549,7 @@ Material quake3Untextured(const std::string& key) {
 /// record's shader name resolved to its image over the game's archives (Quake3Textures), and the
 /// face's lightmap (a map's lightmaps hold light at half intensity: the engine's default
 /// overbright shift doubles them, and so does this). A shader whose image is not found is
-/// coloured by its name, with one warning line.
+/// coloured by its name (reportArchiveWarnings says which, in one line).
 class Quake3Materials {
  public:
   Quake3Materials(const Quake3Patches& map, const std::string& path, TextureLoader& loader)
@@ -573,7 +573,7 @@ class Quake3Materials {
         if (const std::optional<Quake3Textures::Image> image = archives_.find(shader))
           it->second = loader_.decode(image->archive + ":" + image->name, image->bytes.data(), image->bytes.size());
         else
-          warning(cat("scene ", path_, ": no image for shader ", shader, " in ", archives_.archiveCount(), " archives; it is coloured by its name"));
+          missing_.push_back(shader);
       }
       if (it->second >= 0) {
         m.baseTexture = it->second, m.albedo = glm::vec3(1.0f);
@@ -595,9 +595,15 @@ class Quake3Materials {
     return m;
   }
 
-  /// Archives skipped and scripts ignored while looking images up, one warning line each.
+  /// Archives skipped and scripts ignored while looking images up, one warning line each, and
+  /// one line for the shaders whose image was not found (the first few named).
   void reportArchiveWarnings() const {
     for (const std::string& w : archives_.warnings()) warning(cat("scene ", path_, ": ", w));
+    if (missing_.empty()) return;
+    std::string names;
+    for (size_t i = 0; i < std::min<size_t>(missing_.size(), 3); ++i) names += (i ? ", " : "") + missing_[i];
+    warning(cat("scene ", path_, ": no image for ", missing_.size(), " of ", images_.size(), " shaders (", names, missing_.size() > 3 ? ", …" : "",
+                ") in ", archives_.archiveCount(), " archives; they are coloured by their names"));
   }
 
  private:
@@ -609,6 +615,7 @@ class Quake3Materials {
   Quake3Textures archives_;
   std::map<std::string, int32_t> images_;
   std::map<long, int32_t> lightmaps_;
+  std::vector<std::string> missing_;
 };
 
 /// Appends a Quake 3 map's tessellated curved surfaces, transformed by `m`, each in the material
