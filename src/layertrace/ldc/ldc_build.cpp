@@ -10,6 +10,7 @@
 
 #include "layertrace/raster/rasterizer.h"
 #include "layertrace/ldc/ldc.h"
+#include "layertrace/scene/surface.h"
 #include "layertrace/util/error.h"
 #include "layertrace/util/memory.h"
 #include "layertrace/util/parallel.h"
@@ -101,6 +102,8 @@ void buildView(const Scene& scene, std::span<const uint8_t> axisOf, std::span<co
     if (axisOf[t] != a) continue;
     ++view.triangles;
     if (covered[t]) continue;
+    // A cut-out whose centroid falls in a hole has no surface to sample there.
+    if (scene.cutOut(uint32_t(t)) && !surfacePresent(scene, uint32_t(t), 1.0f / 3.0f, 1.0f / 3.0f)) continue;
     ++view.lostTriangles;
     const glm::uvec3 i = scene.triangles[t];
     const glm::vec3 c = cam.toCamera((scene.positions[i.x] + scene.positions[i.y] + scene.positions[i.z]) / 3.0f);
@@ -115,6 +118,8 @@ void buildView(const Scene& scene, std::span<const uint8_t> axisOf, std::span<co
     e.node.depth = -(c.z - (n.x * (centre.x - c.x) + n.y * (centre.y - c.y)) / n.z);
     e.node.normal = encodeOctahedral(toView * shading);
     e.node.albedoSpec = materialPacked[scene.triMaterial[t]];
+    if (surfaceTextured(scene, uint32_t(t)))  // the centroid's texel, at the level of one texel of this view
+      e.node.albedoSpec = packSurfaceColor(surfaceColor(scene, uint32_t(t), 1.0f / 3.0f, 1.0f / 3.0f, cam.pixelFootprint(1.0f)));
     e.node.next = encodeOctahedral(toView * unitNormals[t]);
     e.triangle = uint32_t(t);
     extras.push_back(e);
