@@ -1,5 +1,7 @@
 // The fetched real scenes (scripts/fetch-scenes.sh; `make test` fetches them first).
 #include <cstring>
+#include <map>
+#include <set>
 #include <filesystem>
 
 #include <tbb/global_control.h>
@@ -70,6 +72,41 @@ INSTANTIATE_TEST_SUITE_P(Scenes, RealSceneVerify,
                          ::testing::Values(VerifyCase{"fzk-haus.json", "interior"}, VerifyCase{"am-thornish.json", "hall"},
                                            VerifyCase{"engine.json", "interior"}),
                          [](const auto& p) { return test::sceneCaseName(p.param.scene); });
+
+}  // namespace
+}  // namespace lt
+
+namespace lt {
+namespace {
+
+// An OpenArena map through the game's archives: its shaders resolve to the game's images (all
+// but a few), the captured fragments show the textures (many colours per material), and
+// --lightmaps adds the map's lightmaps, which change the colours and nothing else.
+TEST(RealSceneTextures, OpenArenaMapLoadsWithItsGameTexturesAndLightmaps) {
+  ASSERT_TRUE(test::haveFetchedScenes()) << "run scripts/fetch-scenes.sh";
+  FrameOptions o = test::realSceneOptions("am-thornish.json", "hall");
+  o.width = 320, o.height = 180;
+  const Frame plain = buildFrame(o);
+  size_t textured = 0, lit = 0;
+  for (const Material& m : plain.scene.materials) textured += m.baseTexture >= 0, lit += m.lightmap >= 0;
+  EXPECT_GE(textured, plain.scene.materials.size() * 9 / 10) << "shaders resolved to images";
+  EXPECT_EQ(lit, 0u) << "lightmaps only with --lightmaps";
+  std::map<uint32_t, std::set<uint32_t>> colours;  // per material, the fragments' distinct colours
+  for (size_t p = 0; p < plain.layers.count.size(); ++p)
+    if (plain.layers.count[p]) colours[plain.scene.triMaterial[plain.layers.triangle[p * size_t(plain.layers.k)]]].insert(plain.layers.slots[p * size_t(plain.layers.k)].albedoSpec);
+  size_t varied = 0;
+  for (const auto& [m, c] : colours) varied += c.size() > 8;
+  EXPECT_GE(varied, colours.size() / 2) << "textures vary across surfaces";
+  o.lightmaps = true;
+  const Frame lightmapped = buildFrame(o);
+  lit = 0;
+  for (const Material& m : lightmapped.scene.materials) lit += m.lightmap >= 0;
+  EXPECT_GE(lit, lightmapped.scene.materials.size() / 2);
+  EXPECT_EQ(lightmapped.layers.triangle, plain.layers.triangle) << "the same geometry";
+  size_t changed = 0;
+  for (size_t s = 0; s < plain.layers.slots.size(); ++s) changed += plain.layers.slots[s].albedoSpec != lightmapped.layers.slots[s].albedoSpec;
+  EXPECT_GT(changed, plain.layers.slots.size() / 4);
+}
 
 }  // namespace
 }  // namespace lt
