@@ -52,11 +52,11 @@ int wrapIndex(int i, int n, uint mode) {
 }
 
 uvec4 levelOf(int texture, int level) {
-  const uint first = surface[uTextures + 2u * uint(texture)];
+  const uint first = surface[uTextures + 3u * uint(texture)];
   const uint i = uLevels + 3u * (first + uint(level));
   return uvec4(surface[i], surface[i + 1u], surface[i + 2u], 0u);  // width, height, first texel
 }
-int levelCount(int texture) { return int(surface[uTextures + 2u * uint(texture) + 1u]); }
+int levelCount(int texture) { return int(surface[uTextures + 3u * uint(texture) + 1u]); }
 
 vec4 texelLinear(uint t) {
   return vec4(word(uDecode + (t & 0xFFu)), word(uDecode + ((t >> 8) & 0xFFu)), word(uDecode + ((t >> 16) & 0xFFu)), float(t >> 24) / 255.0);
@@ -106,10 +106,8 @@ vec4 sampleTrilinear(int texture, vec2 uv, float lod, uint wrapU, uint wrapV) {
   return s;
 }
 
-float texelsLog2(int texture) {
-  const uvec4 L = levelOf(texture, 0);
-  return 0.5 * log2(float(L.x) * float(L.y));
-}
+// Texture::texelsLog2, computed once on the CPU.
+float texelsLog2(int texture) { return word(uTextures + 3u * uint(texture) + 2u); }
 
 // texture.cpp linearToSrgb8: the number of thresholds at or below v (upper_bound).
 uint linearToSrgb8(float v) {

@@ -3,6 +3,7 @@
 // see alike — the captures against Embree's all-hit reference, the grid against Embree, the
 // geometric hits' shading against the captured fragments.
 #include <algorithm>
+#include <bit>
 #include <cmath>
 #include <random>
 #include <vector>
@@ -45,6 +46,24 @@ TEST(Texture, Srgb8RoundTripsEveryCode) {
     const float s = v <= 0.0031308f ? 12.92f * v : 1.055f * std::pow(v, 1.0f / 2.4f) - 0.055f;
     EXPECT_NEAR(double(linearToSrgb8(v)), double(s) * 255.0, 0.5 + 1e-3) << v;
   }
+}
+
+// The bucketed walk of linearToSrgb8 is the binary search it replaces (the count of thresholds
+// ≤ v), bit for bit: at every threshold and its float neighbours, and over [0, 1] in float
+// steps of 257 floats.
+TEST(Texture, Srgb8EncodingEqualsTheThresholdSearch) {
+  std::vector<float> thresholds;
+  for (uint32_t c = 0; c < 255; ++c) thresholds.push_back(srgb8Threshold(c));
+  ASSERT_TRUE(std::is_sorted(thresholds.begin(), thresholds.end()));
+  auto search = [&](float v) { return v > 0.0f ? uint32_t(std::upper_bound(thresholds.begin(), thresholds.end(), v) - thresholds.begin()) : 0u; };
+  for (float t : thresholds)
+    for (float v : {std::nextafter(t, 0.0f), t, std::nextafter(t, 2.0f)}) ASSERT_EQ(linearToSrgb8(v), search(v)) << v;
+  size_t checked = 0;
+  for (uint32_t bits = 0; bits <= std::bit_cast<uint32_t>(1.0f); bits += 257, ++checked) {
+    const float v = std::bit_cast<float>(bits);
+    ASSERT_EQ(linearToSrgb8(v), search(v)) << v;
+  }
+  EXPECT_GT(checked, 4'000'000u);
 }
 
 TEST(Texture, MipChainHalvesSidesAndAveragesInLinearSpace) {

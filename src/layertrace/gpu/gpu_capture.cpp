@@ -84,10 +84,10 @@ struct SurfaceTables {
     for (const Material& m : scene.materials)
       words.insert(words.end(), {f(m.albedo.x), f(m.albedo.y), f(m.albedo.z), f(m.specular), uint32_t(m.baseTexture), uint32_t(m.specularTexture),
                                  uint32_t(m.lightmap), uint32_t(m.wrapU) | uint32_t(m.wrapV) << 8, f(m.alphaCutoff), surfaceFlags(scene, m)});
-    section(textures);  // per texture: its first level (an index into the levels) and its level count
+    section(textures);  // per texture: its first level (an index into the levels), its level count, texelsLog2
     uint32_t level = 0;
     for (const auto& t : scene.textures) {
-      words.insert(words.end(), {level, uint32_t(t->levels.size())});
+      words.insert(words.end(), {level, uint32_t(t->levels.size()), f(t->texelsLog2)});
       level += uint32_t(t->levels.size());
     }
     section(levels);  // per level: width, height, first texel

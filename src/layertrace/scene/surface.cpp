@@ -12,9 +12,6 @@ glm::vec2 interpolate(const std::vector<glm::vec2>& coords, glm::uvec3 t, float 
   return coords[t.x] * (1.0f - b1 - b2) + coords[t.y] * b1 + coords[t.z] * b2;
 }
 
-/// log2 of the texel count per unit of texture coordinate for `texture` (the geometric mean of its sides).
-float texelsLog2(const Texture& texture) { return 0.5f * std::log2(float(texture.width()) * float(texture.height())); }
-
 }  // namespace
 
 bool surfacePresent(const Scene& scene, uint32_t tri, float b1, float b2) {
@@ -40,11 +37,11 @@ SurfaceColor surfaceColor(const Scene& scene, uint32_t tri, float b1, float b2, 
     const float lodBase = scale + std::log2(std::max(footprint, 1e-30f));
     if (m.baseTexture >= 0) {
       const Texture& tex = *scene.textures[size_t(m.baseTexture)];
-      c.albedo *= glm::vec3(sampleTrilinear(tex, uv, lodBase + texelsLog2(tex), m.wrapU, m.wrapV));
+      c.albedo *= glm::vec3(sampleTrilinear(tex, uv, lodBase + tex.texelsLog2, m.wrapU, m.wrapV));
     }
     if (m.specularTexture >= 0) {
       const Texture& tex = *scene.textures[size_t(m.specularTexture)];
-      const glm::vec4 s = sampleTrilinear(tex, uv, lodBase + texelsLog2(tex), m.wrapU, m.wrapV);
+      const glm::vec4 s = sampleTrilinear(tex, uv, lodBase + tex.texelsLog2, m.wrapU, m.wrapV);
       c.specular *= 0.2126f * s.x + 0.7152f * s.y + 0.0722f * s.z;
     }
   }

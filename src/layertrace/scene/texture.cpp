@@ -88,10 +88,35 @@ float srgb8ToLinear(uint32_t c) { return decodeTable()[std::min<uint32_t>(c, 255
 
 float srgb8Threshold(uint32_t c) { return thresholdTable()[std::min<uint32_t>(c, 254u)]; }
 
+namespace {
+
+constexpr int kBuckets = 4096;
+
+/// Per bucket [b / 4096, (b + 1) / 4096) of linear values, the code of its lower end: where
+/// linearToSrgb8's walk starts (a bucket spans less than one code step but at the very bottom,
+/// where it spans 0.8 codes).
+const std::array<uint8_t, kBuckets>& bucketStart() {
+  static const std::array<uint8_t, kBuckets> table = [] {
+    std::array<uint8_t, kBuckets> b{};
+    const auto& t = thresholdTable();
+    for (int i = 0; i < kBuckets; ++i)
+      b[size_t(i)] = uint8_t(std::upper_bound(t.begin(), t.end(), float(i) / float(kBuckets)) - t.begin());
+    return b;
+  }();
+  return table;
+}
+
+}  // namespace
+
 uint32_t linearToSrgb8(float v) {
-  const auto& t = thresholdTable();
   if (!(v > 0.0f)) return 0u;
-  return uint32_t(std::upper_bound(t.begin(), t.end(), v) - t.begin());
+  if (v >= 1.0f) return 255u;
+  // The number of thresholds ≤ v (upper_bound over them), found from the bucket's first code:
+  // thresholds rise, and the bucket's lower end is ≤ v, so the walk only goes up.
+  const auto& t = thresholdTable();
+  uint32_t code = bucketStart()[size_t(v * float(kBuckets))];
+  while (code < 255u && t[code] <= v) ++code;
+  return code;
 }
 
 Texture makeTexture(std::string name, int width, int height, const uint8_t* rgba) {
@@ -112,6 +137,7 @@ Texture makeTexture(std::string name, int width, int height, const uint8_t* rgba
     binary = binary && (p[3] == 0 || p[3] == 255);
   }
   t.binaryAlpha = binary && anyZero;
+  t.texelsLog2 = 0.5f * std::log2(float(width) * float(height));
   double acc[4] = {0.0, 0.0, 0.0, 0.0};
   for (size_t i = 0; i < size_t(width) * size_t(height); ++i) {
     const glm::vec4 v = texelLinear(t.texels[i]);

@@ -32,6 +32,9 @@ struct Texture {
   std::vector<uint32_t> texels;  ///< RGBA8, red in the low byte; rows top-down per level
   /// Every texel's alpha is 0 or 255 and some are 0: an alpha-tested (1-bit) cut-out texture.
   bool binaryAlpha = false;
+  /// log2 of level 0's texels per unit of texture coordinate (the geometric mean of its sides):
+  /// the texture's term of the mip level.
+  float texelsLog2 = 0.0f;
 
   int width() const { return levels.empty() ? 0 : levels[0].width; }
   int height() const { return levels.empty() ? 0 : levels[0].height; }
@@ -54,7 +57,8 @@ glm::vec4 sampleTrilinear(const Texture& texture, glm::vec2 uv, float lod, Textu
 float alphaNearest(const Texture& texture, glm::vec2 uv, TextureWrap wrapU, TextureWrap wrapV);
 
 /// The sRGB 8-bit code nearest (in sRGB space) to linear value `v` (clamped to [0, 1]), exact
-/// and without pow: a search over the 255 decision thresholds.
+/// and without pow: the number of the 255 decision thresholds (srgb8Threshold) at or below v,
+/// found by a table of 4096 buckets and a step or two (texture_test checks it against the search).
 uint32_t linearToSrgb8(float v);
 /// The linear value of sRGB code `c` (0…255).
 float srgb8ToLinear(uint32_t c);
