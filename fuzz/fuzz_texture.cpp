@@ -1,5 +1,5 @@
 // libFuzzer target: the texture path of a model's materials. The bytes are an encoded image
-// (PNG, JPEG, TGA or BMP, as a model embeds or names them): decoded, its mip chain built and
+// (PNG, JPEG, TGA, BMP or DDS, as a model embeds or names them): decoded, its mip chain built and
 // sampled at coordinates, levels and wrap modes taken from the input's first bytes. Any bytes
 // must give a texture, nothing (undecodable) or an InputError (over the size limit).
 #include <cstddef>

@@ -3,6 +3,10 @@
 // see alike — the captures against Embree's all-hit reference, the grid against Embree, the
 // geometric hits' shading against the captured fragments.
 #include <algorithm>
+#include <array>
+#include <cstring>
+#include <optional>
+#include <string>
 #include <bit>
 #include <cmath>
 #include <random>
@@ -18,6 +22,8 @@
 #include "layertrace/raster/rasterizer.h"
 #include "layertrace/scene/surface.h"
 #include "layertrace/scene/texture.h"
+#include "layertrace/util/error.h"
+#include "layertrace/util/image.h"
 #include "layertrace/util/parallel.h"
 #include "test_util.h"
 
@@ -132,6 +138,62 @@ TEST(Texture, WrapModesPickTheTexelsTheirRulesName) {
   EXPECT_EQ(alpha(5.0e6f, TextureWrap::Clamp), 40);
   EXPECT_EQ(alpha(std::numeric_limits<float>::infinity(), TextureWrap::Repeat), 10);
   EXPECT_EQ(alpha(std::nanf(""), TextureWrap::Mirror), 10);
+}
+
+// DirectDraw Surfaces, which stb_image does not read: DXT1 (4- and 3-colour blocks), DXT5's
+// interpolated alpha and uncompressed 32-bit pixels decode to the texels the format defines;
+// truncated data decodes to nothing and an oversized header is refused.
+std::string ddsHeader(uint32_t width, uint32_t height, uint32_t pfFlags, const char* fourcc, uint32_t bits = 0,
+                      std::array<uint32_t, 4> masks = {}) {
+  std::string h(128, '\0');
+  auto put = [&](size_t at, uint32_t v) { for (int k = 0; k < 4; ++k) h[at + size_t(k)] = char((v >> (8 * k)) & 0xFFu); };
+  std::memcpy(h.data(), "DDS ", 4);
+  put(4, 124), put(12, height), put(16, width), put(76, 32), put(80, pfFlags), put(88, bits);
+  if (fourcc) std::memcpy(&h[84], fourcc, 4);
+  for (int c = 0; c < 4; ++c) put(92 + 4 * size_t(c), masks[size_t(c)]);
+  return h;
+}
+
+std::optional<Rgba8Image> decode(const std::string& bytes) {
+  return decodeRgba8(reinterpret_cast<const uint8_t*>(bytes.data()), bytes.size(), "test.dds");
+}
+
+TEST(Texture, DdsBlocksAndPixelsDecodeAsTheFormatDefines) {
+  // DXT1, c0 = red > c1 = blue: 4 colours; texel i of each row takes index i.
+  std::string dxt1 = ddsHeader(4, 4, 0x4, "DXT1") + std::string("\x00\xF8\x1F\x00\xE4\xE4\xE4\xE4", 8);
+  std::optional<Rgba8Image> img = decode(dxt1);
+  ASSERT_TRUE(img);
+  const uint8_t want[4][4] = {{255, 0, 0, 255}, {0, 0, 255, 255}, {170, 0, 85, 255}, {85, 0, 170, 255}};
+  for (int y = 0; y < 4; ++y)
+    for (int x = 0; x < 4; ++x)
+      for (int c = 0; c < 4; ++c) EXPECT_EQ(img->pixels[size_t(y * 4 + x) * 4 + size_t(c)], want[x][c]) << x << "," << y << "," << c;
+  // c0 <= c1: 3 colours and transparent black at index 3.
+  img = decode(ddsHeader(4, 4, 0x4, "DXT1") + std::string("\x1F\x00\x00\xF8\xFF\xFF\xFF\xFF", 8));
+  ASSERT_TRUE(img);
+  EXPECT_EQ(img->pixels[3], 0);
+  EXPECT_EQ(img->pixels[0], 0);
+  // DXT5: alphas 255 and 0 and six between; texel i takes alpha index i % 8.
+  std::string block("\xFF\x00", 2);
+  uint64_t indices = 0;
+  for (int i = 0; i < 16; ++i) indices |= uint64_t(i % 8) << (3 * i);
+  for (int k = 0; k < 6; ++k) block += char((indices >> (8 * k)) & 0xFFu);
+  block += std::string("\x00\xF8\x1F\x00\x00\x00\x00\x00", 8);
+  img = decode(ddsHeader(4, 4, 0x4, "DXT5") + block);
+  ASSERT_TRUE(img);
+  EXPECT_EQ(img->pixels[3], 255);
+  EXPECT_EQ(img->pixels[4 + 3], 0);
+  EXPECT_EQ(img->pixels[8 + 3], (6 * 255) / 7);
+  EXPECT_EQ(img->pixels[0], 255) << "colour index 0: red";
+  // Uncompressed BGRA, 2 × 1.
+  img = decode(ddsHeader(2, 1, 0x41, nullptr, 32, {0x00FF0000u, 0x0000FF00u, 0x000000FFu, 0xFF000000u}) +
+               std::string("\x30\x20\x10\x80\x01\x02\x03\xFF", 8));
+  ASSERT_TRUE(img);
+  const uint8_t rgba[8] = {0x10, 0x20, 0x30, 0x80, 0x03, 0x02, 0x01, 0xFF};
+  for (int i = 0; i < 8; ++i) EXPECT_EQ(img->pixels[size_t(i)], rgba[i]) << i;
+  // Truncated blocks, an unknown block format, an oversized header.
+  EXPECT_FALSE(decode(dxt1.substr(0, dxt1.size() - 1)));
+  EXPECT_FALSE(decode(ddsHeader(4, 4, 0x4, "ATI2") + std::string(16, '\0')));
+  EXPECT_THROW(decode(ddsHeader(20000, 4, 0x4, "DXT1") + std::string(8, '\0')), InputError);
 }
 
 // --- the checkerboard grate ------------------------------------------------------------------

@@ -81,7 +81,7 @@ class TextureLoader {
   int32_t decode(const std::string& label, const uint8_t* data, size_t size) {
     const std::optional<Rgba8Image> image = decodeRgba8(data, size, label);
     if (!image) {
-      warning(cat("scene ", source_, ": texture ", label, " does not decode (PNG, JPEG, TGA and BMP are read); its material keeps its colour"));
+      warning(cat("scene ", source_, ": texture ", label, " does not decode (PNG, JPEG, TGA, BMP and DDS are read); its material keeps its colour"));
       return -1;
     }
     return add(label, image->width, image->height, image->pixels.data());

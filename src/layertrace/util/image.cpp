@@ -1,6 +1,8 @@
 #include "layertrace/util/image.h"
 
 #include <algorithm>
+#include <cstring>
+#include <bit>
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
@@ -205,7 +207,103 @@ glm::vec3 meanColorOfPixels(const uint8_t* pixels, size_t count, int channels) {
   return glm::vec3(float(sum[0] / n), float(sum[1] / n), float(sum[2] / n));
 }
 
+namespace {
+
+// DirectDraw Surface (.dds), which stb_image does not read: the top level of an uncompressed
+// RGB(A) surface or of a DXT1, DXT3 or DXT5 (BC1–BC3) compressed one, as Microsoft's DDS
+// documentation ("DDS_HEADER", "Block compression") lays them out. Other formats (DX10 headers,
+// BC4–BC7, cube maps' other faces) decode to nothing.
+uint32_t le32At(const uint8_t* p) { return uint32_t(p[0]) | uint32_t(p[1]) << 8 | uint32_t(p[2]) << 16 | uint32_t(p[3]) << 24; }
+
+/// The 4 × 4 texels of a BC1 colour block (RGBA, row-major) at `b`; `fourColours` forces the
+/// 4-colour mode (DXT3 and DXT5 colour blocks), otherwise c0 <= c1 selects 3 colours and
+/// transparent black.
+void decodeColourBlock(const uint8_t* b, bool fourColours, uint8_t out[16][4]) {
+  const uint32_t c0 = uint32_t(b[0]) | uint32_t(b[1]) << 8, c1 = uint32_t(b[2]) | uint32_t(b[3]) << 8;
+  auto expand = [](uint32_t c, int channel) {
+    const uint32_t v = channel == 0 ? (c >> 11) & 31u : channel == 1 ? (c >> 5) & 63u : c & 31u;
+    return channel == 1 ? (v << 2) | (v >> 4) : (v << 3) | (v >> 2);
+  };
+  uint8_t palette[4][4];
+  for (int ch = 0; ch < 3; ++ch) {
+    const uint32_t a = expand(c0, ch), z = expand(c1, ch);
+    palette[0][ch] = uint8_t(a), palette[1][ch] = uint8_t(z);
+    if (fourColours || c0 > c1) {
+      palette[2][ch] = uint8_t((2 * a + z) / 3), palette[3][ch] = uint8_t((a + 2 * z) / 3);
+    } else {
+      palette[2][ch] = uint8_t((a + z) / 2), palette[3][ch] = 0;
+    }
+  }
+  palette[0][3] = palette[1][3] = palette[2][3] = 255;
+  palette[3][3] = fourColours || c0 > c1 ? 255 : 0;
+  const uint32_t indices = le32At(b + 4);
+  for (int i = 0; i < 16; ++i) std::memcpy(out[i], palette[(indices >> (2 * i)) & 3u], 4);
+}
+
+std::optional<Rgba8Image> decodeDds(const uint8_t* data, size_t size, const std::string& source) {
+  if (size < 128 || std::memcmp(data, "DDS ", 4) != 0 || le32At(data + 4) != 124) return std::nullopt;
+  const uint32_t height = le32At(data + 12), width = le32At(data + 16);
+  const uint32_t pfFlags = le32At(data + 80), bits = le32At(data + 88);
+  if (width == 0 || height == 0) return std::nullopt;
+  if (width > uint32_t(kMaxImageSide) || height > uint32_t(kMaxImageSide))
+    inputError("texture ", source, ": ", width, "×", height, " pixels, more than the limit of ", kMaxImageSide, " per side");
+  Rgba8Image image;
+  image.width = int(width), image.height = int(height);
+  image.pixels.assign(size_t(width) * height * 4, 255);
+  const uint8_t* body = data + 128;
+  const size_t available = size - 128;
+  if (pfFlags & 0x4u) {  // DDPF_FOURCC: block-compressed
+    const uint32_t fourcc = le32At(data + 84);
+    const int kind = fourcc == le32At(reinterpret_cast<const uint8_t*>("DXT1")) ? 1
+                   : fourcc == le32At(reinterpret_cast<const uint8_t*>("DXT3")) ? 3
+                   : fourcc == le32At(reinterpret_cast<const uint8_t*>("DXT5")) ? 5 : 0;
+    if (kind == 0) return std::nullopt;
+    const size_t blockBytes = kind == 1 ? 8 : 16, bw = (width + 3) / 4, bh = (height + 3) / 4;
+    if (available / blockBytes < bw * bh) return std::nullopt;
+    for (size_t by = 0; by < bh; ++by)
+      for (size_t bx = 0; bx < bw; ++bx) {
+        const uint8_t* b = body + (by * bw + bx) * blockBytes;
+        uint8_t texels[16][4];
+        decodeColourBlock(kind == 1 ? b : b + 8, kind != 1, texels);
+        if (kind == 3) {
+          for (int i = 0; i < 16; ++i) texels[i][3] = uint8_t(((b[i / 2] >> (4 * (i % 2))) & 15u) * 17u);
+        } else if (kind == 5) {
+          const uint32_t a0 = b[0], a1 = b[1];
+          uint32_t alpha[8] = {a0, a1};
+          for (uint32_t k = 1; k <= 6; ++k)
+            alpha[k + 1] = a0 > a1 ? ((7 - k) * a0 + k * a1) / 7 : k <= 4 ? ((5 - k) * a0 + k * a1) / 5 : (k == 5 ? 0u : 255u);
+          uint64_t indices = 0;
+          for (int k = 0; k < 6; ++k) indices |= uint64_t(b[2 + k]) << (8 * k);
+          for (int i = 0; i < 16; ++i) texels[i][3] = uint8_t(alpha[(indices >> (3 * i)) & 7u]);
+        }
+        for (int i = 0; i < 16; ++i) {
+          const size_t x = bx * 4 + size_t(i % 4), y = by * 4 + size_t(i / 4);
+          if (x < width && y < height) std::memcpy(&image.pixels[(y * width + x) * 4], texels[i], 4);
+        }
+      }
+    return image;
+  }
+  if (!(pfFlags & 0x40u) || (bits != 24 && bits != 32)) return std::nullopt;  // DDPF_RGB, 24 or 32 bits
+  const size_t bytes = bits / 8;
+  if (available / bytes / width < height) return std::nullopt;
+  const uint32_t masks[4] = {le32At(data + 92), le32At(data + 96), le32At(data + 100), (pfFlags & 0x1u) ? le32At(data + 104) : 0u};
+  for (size_t p = 0; p < size_t(width) * height; ++p) {
+    uint32_t v = 0;
+    for (size_t k = 0; k < bytes; ++k) v |= uint32_t(body[p * bytes + k]) << (8 * k);
+    for (int c = 0; c < 4; ++c) {
+      if (masks[c] == 0) continue;
+      const int shift = std::countr_zero(masks[c]);
+      const uint64_t max = masks[c] >> shift, value = (v & masks[c]) >> shift;
+      image.pixels[p * 4 + size_t(c)] = uint8_t((value * 255u + max / 2) / max);
+    }
+  }
+  return image;
+}
+
+}  // namespace
+
 std::optional<Rgba8Image> decodeRgba8(const uint8_t* data, size_t size, const std::string& source) {
+  if (size >= 4 && std::memcmp(data, "DDS ", 4) == 0) return decodeDds(data, size, source);
   if (size == 0 || size > size_t(INT32_MAX)) return std::nullopt;
   int w = 0, h = 0, c = 0;
   if (!stbi_info_from_memory(data, int(size), &w, &h, &c) || w <= 0 || h <= 0) return std::nullopt;
