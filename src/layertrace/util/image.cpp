@@ -249,9 +249,10 @@ std::optional<Rgba8Image> decodeDds(const uint8_t* data, size_t size, const std:
     inputError("texture ", source, ": ", width, "×", height, " pixels, more than the limit of ", kMaxImageSide, " per side");
   Rgba8Image image;
   image.width = int(width), image.height = int(height);
-  image.pixels.assign(size_t(width) * height * 4, 255);
   const uint8_t* body = data + 128;
   const size_t available = size - 128;
+  // The pixels are allocated only once the data is known to hold them (a header alone may ask for 1 GiB).
+  auto allocate = [&] { image.pixels.assign(size_t(width) * height * 4, 255); };
   if (pfFlags & 0x4u) {  // DDPF_FOURCC: block-compressed
     const uint32_t fourcc = le32At(data + 84);
     const int kind = fourcc == le32At(reinterpret_cast<const uint8_t*>("DXT1")) ? 1
@@ -260,6 +261,7 @@ std::optional<Rgba8Image> decodeDds(const uint8_t* data, size_t size, const std:
     if (kind == 0) return std::nullopt;
     const size_t blockBytes = kind == 1 ? 8 : 16, bw = (width + 3) / 4, bh = (height + 3) / 4;
     if (available / blockBytes < bw * bh) return std::nullopt;
+    allocate();
     for (size_t by = 0; by < bh; ++by)
       for (size_t bx = 0; bx < bw; ++bx) {
         const uint8_t* b = body + (by * bw + bx) * blockBytes;
@@ -286,6 +288,7 @@ std::optional<Rgba8Image> decodeDds(const uint8_t* data, size_t size, const std:
   if (!(pfFlags & 0x40u) || (bits != 24 && bits != 32)) return std::nullopt;  // DDPF_RGB, 24 or 32 bits
   const size_t bytes = bits / 8;
   if (available / bytes / width < height) return std::nullopt;
+  allocate();
   const uint32_t masks[4] = {le32At(data + 92), le32At(data + 96), le32At(data + 100), (pfFlags & 0x1u) ? le32At(data + 104) : 0u};
   for (size_t p = 0; p < size_t(width) * height; ++p) {
     uint32_t v = 0;
