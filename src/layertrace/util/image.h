@@ -63,7 +63,8 @@ struct Rgba8Image {
 };
 /// The largest side of an image decodeRgba8 accepts.
 inline constexpr int kMaxImageSide = 16384;
-/// Decodes an encoded PNG, JPEG, TGA or BMP image in memory to RGBA8 (no alpha channel: 255).
+/// Decodes an encoded PNG, JPEG, TGA or BMP image (stb_image) or a DDS surface (uncompressed
+/// RGB(A), DXT1, DXT3 or DXT5; its top level) in memory to RGBA8 (no alpha channel: 255).
 /// Nothing when it does not decode. Throws InputError naming `source` and both sides when the
 /// header declares a side over kMaxImageSide (the header is read before any pixel is decoded).
 std::optional<Rgba8Image> decodeRgba8(const uint8_t* data, size_t size, const std::string& source);
