@@ -20,7 +20,7 @@
 #define STB_IMAGE_WRITE_IMPLEMENTATION
 #define STB_IMAGE_IMPLEMENTATION
 #define STBI_ONLY_PNG
-#define STBI_ONLY_JPEG  // model textures (meanColorOfEncoded)
+#define STBI_ONLY_JPEG  // model textures (decodeRgba8)
 #define STBI_ONLY_TGA
 #define STBI_ONLY_BMP
 #include <stb_image.h>
@@ -197,16 +197,6 @@ Image readImage(const std::string& path, bool srgb) {
   inputError("image ", path, ": unknown image extension \"", ext, "\"");
 }
 
-glm::vec3 meanColorOfPixels(const uint8_t* pixels, size_t count, int channels) {
-  float linear[256];
-  for (int v = 0; v < 256; ++v) linear[v] = srgbToLinear(float(v) / 255.0f);
-  double sum[3] = {0.0, 0.0, 0.0};
-  for (size_t i = 0; i < count; ++i)
-    for (int c = 0; c < 3; ++c) sum[c] += linear[pixels[i * size_t(channels) + size_t(c)]];
-  const double n = count ? double(count) : 1.0;
-  return glm::vec3(float(sum[0] / n), float(sum[1] / n), float(sum[2] / n));
-}
-
 namespace {
 
 // DirectDraw Surface (.dds), which stb_image does not read: the top level of an uncompressed
@@ -321,17 +311,6 @@ std::optional<Rgba8Image> decodeRgba8(const uint8_t* data, size_t size, const st
   return image;
 }
 
-std::optional<glm::vec3> meanColorOfEncoded(const uint8_t* data, size_t size, uint64_t maxPixels) {
-  if (size == 0 || size > size_t(INT32_MAX)) return std::nullopt;
-  int w = 0, h = 0, c = 0;
-  // The header first: a small file can declare a huge image.
-  if (!stbi_info_from_memory(data, int(size), &w, &h, &c) || w <= 0 || h <= 0 || uint64_t(w) * uint64_t(h) > maxPixels) return std::nullopt;
-  unsigned char* px = stbi_load_from_memory(data, int(size), &w, &h, &c, 3);
-  if (!px) return std::nullopt;
-  const glm::vec3 mean = meanColorOfPixels(px, size_t(w) * size_t(h), 3);
-  stbi_image_free(px);
-  return mean;
-}
 
 glm::vec3 heatColor(float t) {
   t = std::clamp(t, 0.0f, 1.0f);

@@ -49,13 +49,6 @@ void writePngBytes(const std::string& path, int width, int height, int channels,
 /// Reads `.png` (decoded back to linear when `srgb`) or `.exr`. Used by round-trip tests.
 Image readImage(const std::string& path, bool srgb = true);
 
-/// The mean colour of 8-bit sRGB pixels (`channels` bytes per pixel, red, green, blue first),
-/// averaged in linear space.
-glm::vec3 meanColorOfPixels(const uint8_t* pixels, size_t count, int channels);
-/// The mean colour (as meanColorOfPixels) of an encoded PNG, JPEG, TGA or BMP image in memory;
-/// nothing when it does not decode or would hold more than `maxPixels` pixels.
-std::optional<glm::vec3> meanColorOfEncoded(const uint8_t* data, size_t size, uint64_t maxPixels = uint64_t(1) << 26);
-
 /// A decoded 8-bit RGBA image, row 0 at the top.
 struct Rgba8Image {
   int width = 0, height = 0;
