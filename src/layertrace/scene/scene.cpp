@@ -33,10 +33,7 @@ Bounds Scene::bounds() const {
 }
 
 bool Scene::anyCutOut() const {
-  if (texcoords.empty()) return false;
-  for (const Material& m : materials)
-    if (m.alphaCutoff >= 0.0f && m.baseTexture >= 0) return true;
-  return false;
+  return std::any_of(materials.begin(), materials.end(), [&](const Material& m) { return cutOut(m); });
 }
 
 size_t Scene::textureBytes() const {

@@ -106,11 +106,11 @@ struct Scene {
 
   /// The material of triangle t.
   const Material& material(uint32_t t) const { return materials[triMaterial[t]]; }
-  /// Whether triangle t's material has an alpha test (a cut-out that rays may pass).
-  bool cutOut(uint32_t t) const {
-    const Material& m = material(t);
-    return m.alphaCutoff >= 0.0f && m.baseTexture >= 0 && !texcoords.empty();
-  }
+  /// Whether material `m` has an alpha test here (a cut-out that rays may pass): a cut-off, a
+  /// base texture and texture coordinates to read it at. The one statement of the rule.
+  bool cutOut(const Material& m) const { return m.alphaCutoff >= 0.0f && m.baseTexture >= 0 && !texcoords.empty(); }
+  /// Whether triangle t's material has an alpha test.
+  bool cutOut(uint32_t t) const { return cutOut(material(t)); }
   bool anyCutOut() const;
   /// Bytes the textures hold.
   size_t textureBytes() const;

@@ -50,18 +50,15 @@ float textureFootprint(float pixelFootprintAtDepth, float cosine);
 /// kSurfaceCutOut, the alpha test (surfacePresent). 0: its constant colour, always present.
 inline constexpr uint8_t kSurfaceSampled = 1, kSurfaceCutOut = 2;
 inline uint8_t surfaceFlags(const Scene& scene, const Material& m) {
-  const bool uv = !scene.texcoords.empty();
-  const bool sampled = (uv && (m.baseTexture >= 0 || m.specularTexture >= 0)) || (m.lightmap >= 0 && !scene.lightmapCoords.empty());
-  const bool cut = uv && m.baseTexture >= 0 && m.alphaCutoff >= 0.0f;
-  return uint8_t((sampled ? kSurfaceSampled : 0) | (cut ? kSurfaceCutOut : 0));
+  const bool sampled = (!scene.texcoords.empty() && (m.baseTexture >= 0 || m.specularTexture >= 0)) ||
+                       (m.lightmap >= 0 && !scene.lightmapCoords.empty());
+  return uint8_t((sampled ? kSurfaceSampled : 0) | (scene.cutOut(m) ? kSurfaceCutOut : 0));
 }
 
-/// Whether triangle `tri` needs surfaceColor (a textured material) or its material's constant
+/// Whether triangle `tri` needs surfaceColor (kSurfaceSampled) or its material's constant
 /// colour suffices.
 inline bool surfaceTextured(const Scene& scene, uint32_t tri) {
-  if (scene.texcoords.empty() && scene.lightmapCoords.empty()) return false;
-  const Material& m = scene.material(tri);
-  return m.baseTexture >= 0 || m.specularTexture >= 0 || m.lightmap >= 0;
+  return (surfaceFlags(scene, scene.material(tri)) & kSurfaceSampled) != 0;
 }
 
 }  // namespace lt
