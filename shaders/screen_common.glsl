@@ -87,6 +87,9 @@ Segment makeSegment(GpuRay ray) {
   seg.valid = false;
   seg.clippedEnd = false;
   seg.clippedStart = ray.dirSurface.w == 0.0;
+  // A negative length marks a slot without a ray (gpu/gpu_effects.h: a pixel that emits fewer
+  // rays than its slots): it answers a miss at once, with zero counters.
+  if (ray.originMax.w < 0.0) return seg;
   const float nearZ = -uNear;
   const vec3 dir = ray.dirSurface.xyz;
   precise vec3 origin = ray.originMax.xyz;

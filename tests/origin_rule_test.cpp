@@ -16,33 +16,6 @@
 namespace lt {
 namespace {
 
-/// An inward-facing box [x0, x1] × [y0, y1] × [z1, z0] (z0 > z1), two triangles per wall, with
-/// the smooth-box vertex normals, and a panel inside to be reflected.
-Scene smoothRoom() {
-  const glm::vec3 lo{-0.4f, -1.5f, -9.5f}, hi{9.6f, 1.5f, 0.5f};
-  Scene s;
-  auto corner = [&](int cx, int cy, int cz) { return glm::vec3(cx ? hi.x : lo.x, cy ? hi.y : lo.y, cz ? hi.z : lo.z); };
-  auto normal = [](int cx, int cy, int cz) { return glm::normalize(glm::vec3(cx ? -1.0f : 1.0f, cy ? -1.0f : 1.0f, cz ? -1.0f : 1.0f)); };
-  // Each wall: four corners in order, the triangles (0, 1, 2) and (0, 2, 3) facing inward.
-  const int walls[6][4][3] = {{{0, 0, 0}, {0, 0, 1}, {1, 0, 1}, {1, 0, 0}}, {{0, 1, 0}, {1, 1, 0}, {1, 1, 1}, {0, 1, 1}},
-                              {{0, 0, 0}, {0, 1, 0}, {0, 1, 1}, {0, 0, 1}}, {{1, 0, 0}, {1, 0, 1}, {1, 1, 1}, {1, 1, 0}},
-                              {{0, 0, 0}, {1, 0, 0}, {1, 1, 0}, {0, 1, 0}}, {{0, 0, 1}, {0, 1, 1}, {1, 1, 1}, {1, 0, 1}}};
-  for (const auto& w : walls) {
-    for (const auto& [a, b, c] : {std::array{0, 1, 2}, std::array{0, 2, 3}}) {
-      test::addTriangle(s, corner(w[a][0], w[a][1], w[a][2]), corner(w[b][0], w[b][1], w[b][2]), corner(w[c][0], w[c][1], w[c][2]));
-      const size_t n = s.normals.size();  // (the triangle's three vertices are the last three)
-      s.normals[n - 3] = normal(w[a][0], w[a][1], w[a][2]);
-      s.normals[n - 2] = normal(w[b][0], w[b][1], w[b][2]);
-      s.normals[n - 1] = normal(w[c][0], w[c][1], w[c][2]);
-    }
-  }
-  s.materials[0].mirror = 1.0f;
-  test::addTriangle(s, {3, -1, -6}, {5, -1, -6}, {5, 1, -6});
-  test::addTriangle(s, {3, -1, -6}, {5, 1, -6}, {3, 1, -6});
-  s.finalize("smooth-room");
-  return s;
-}
-
 struct Classes {
   double correct = 0, wrong = 0, falseMiss = 0;
 };
@@ -77,7 +50,7 @@ class OriginWatch : public RayObserver {
 };
 
 Frame alongTheWall() {
-  const Scene room = smoothRoom();
+  const Scene room = test::smoothRoom();
   return test::frameOf(room, test::originCamera(60.0f, 0.05f, 50.0f), 160, 90, 4, 0.05f);
 }
 

@@ -102,6 +102,11 @@ std::string storedZip(const std::vector<std::pair<std::string, std::string>>& en
 /// Appends `v` to `s` as 4 little-endian bytes (Quake 3 maps and zip headers).
 void appendLe32(std::string& s, uint32_t v);
 
+/// An inward-facing box room, two triangles per wall, whose vertex normals are averaged over the
+/// three walls at each corner (every wall's shading normal tilts away from its plane toward the
+/// edges), mirror walls, and a panel inside to be reflected: secondary rays along big flat faces.
+Scene smoothRoom();
+
 /// Seed for randomized tests: LAYERTRACE_TEST_SEED or a fixed default; printed on failure.
 uint64_t testSeed();
 

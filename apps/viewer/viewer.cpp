@@ -167,8 +167,9 @@ bool panel(ViewRequest& q, FlyCamera& cam, const std::vector<CameraDesc>& camera
   ImGui::Text("UI %.1f ms/frame (%.0f fps)", frameMs, frameMs > 0.0 ? 1000.0 / frameMs : 0.0);
   if (shown) {
     if (!shown->error.empty()) ImGui::TextColored(ImVec4(1, 0.4f, 0.4f, 1), "%s", shown->error.c_str());
-    ImGui::Text("%dx%d%s: capture %.0f, structure %.0f, trace %.0f ms (%s)", shown->image.width, shown->image.height,
-                shown->scale > 1 ? " (moving)" : "", shown->captureMs, shown->structureMs, shown->traceMs, shown->device.c_str());
+    ImGui::Text("%dx%d%s: capture %.1f, structure %.1f, trace %.1f (%s), shade %.1f ms (%s)", shown->image.width, shown->image.height,
+                shown->scale > 1 ? " (moving)" : "", shown->captureMs, shown->structureMs, shown->traceMs, shown->device.c_str(),
+                shown->shadeMs, shown->shading.c_str());
     ImGui::Text("picture %.0f ms, %.2f MRays/s", shown->totalMs, shown->traceMs > 0.0 ? double(shown->rays) / shown->traceMs / 1000.0 : 0.0);
     if (shown->iterationsMean > 0.0) ImGui::Text("%.1f iterations/ray", shown->iterationsMean);
   }
@@ -340,9 +341,9 @@ int runViewer(const ViewOptions& o) {
           if (!o.screenshotUi.empty()) writeWindow(o.screenshotUi, fbw, fbh);
           if (!o.screenshot.empty() && shown) writeImage(o.screenshot, shown->traced);
           if (!o.render.run.quiet && shown)
-            std::printf("view: %d frames, last %dx%d: capture %.1f ms, structure %.1f ms, trace %.1f ms (%s), picture %.1f ms\n", o.frames,
-                        shown->traced.width, shown->traced.height, shown->captureMs, shown->structureMs, shown->traceMs,
-                        shown->device.c_str(), shown->totalMs);
+            std::printf("view: %d frames, last %dx%d: capture %.1f ms, structure %.1f ms, trace %.1f ms (%s), shade %.1f ms (%s), picture %.1f ms\n",
+                        o.frames, shown->traced.width, shown->traced.height, shown->captureMs, shown->structureMs, shown->traceMs,
+                        shown->device.c_str(), shown->shadeMs, shown->shading.c_str(), shown->totalMs);
         }
         glfwSwapBuffers(window);
         break;

@@ -503,8 +503,9 @@ int runBench(const BenchOptions& o) {
     // Every stage of a frame on the chosen device, medians of --repeat after a warm-up: capture
     // (raster, sort), the hierarchy, and the trace of each screen tracer over the same rays, with
     // plain Embree on the CPU over those rays as the baseline. On the GPU the times are GL timer
-    // queries of the device's work; ray generation and shading stay on the CPU (cpu_shade_ms).
-    t.columns = {"device", "tracer", "stride", "persistent", "raster_ms", "sort_ms", "hierarchy_ms", "trace_ms", "cpu_shade_ms", "iterations_mean",
+    // queries of the device's work, ray generation and shading included where the effect runs
+    // on the device (shade_device "gpu"; render/effects.h EffectConfig::shadeOnDevice).
+    t.columns = {"device", "tracer", "stride", "persistent", "raster_ms", "sort_ms", "hierarchy_ms", "trace_ms", "shade_ms", "shade_device", "iterations_mean",
                  "memory_bytes", "embree_trace_ms", "trace_vs_embree"};
     Progress p(o.run.quiet, e, gpu ? 8 : 7);
     p.step("capture");
@@ -539,20 +540,22 @@ int runBench(const BenchOptions& o) {
       setGpuPersistentThreads(*b.tracer, persistent);
       EffectConfig timing = ec;
       timing.countRays = false;
-      timing.wholeWaves = gpu != nullptr;
+      timing.wholeWaves = timing.shadeOnDevice = gpu != nullptr;
       std::vector<double> trace, shade;
+      bool onDevice = false;
       renderEffect(frame, *b.tracer, timing);  // warm-up, discarded
       for (int i = 0; i < o.repeat; ++i) {
         const double before = gpuTraceMs(*b.tracer);
         const EffectResult r = renderEffect(frame, *b.tracer, timing);
-        trace.push_back(gpu ? gpuTraceMs(*b.tracer) - before : r.traceMs);
+        trace.push_back(gpu && !r.onDevice ? gpuTraceMs(*b.tracer) - before : r.traceMs);
         shade.push_back(r.shadeMs);
+        onDevice = r.onDevice;
       }
       EffectConfig counted = ec;
-      counted.wholeWaves = gpu != nullptr;
+      counted.wholeWaves = counted.shadeOnDevice = gpu != nullptr;
       const EffectResult c = renderEffect(frame, *b.tracer, counted);
       const double ms = median(trace);
-      t.rows.push_back({device, name, stride, persistent, median(rs), median(ss), median(hs), ms, median(shade),
+      t.rows.push_back({device, name, stride, persistent, median(rs), median(ss), median(hs), ms, median(shade), onDevice ? "gpu" : "cpu",
                         c.rays ? double(c.iterationSum) / double(c.rays) : 0.0, captureBytes + b.memoryBytes, embreeMs,
                         ms > 0.0 ? embreeMs / ms : 0.0});
     }

@@ -208,8 +208,11 @@ int runRender(const RenderOptions& o) {
   ec.seed = o.run.seed;
   ec.progress = !o.run.quiet;
   ec.wholeWaves = gpu != nullptr;  // one dispatch per wave
+  ec.shadeOnDevice = gpu != nullptr;  // rays generated and shaded on the GPU where the effect allows
   EffectResult r = renderEffect(frame, *built.tracer, ec, observers.empty() ? nullptr : &observers);
-  const double gpuMs = gpu ? gpuTraceMs(*built.tracer) : 0.0;  // the counted pass's dispatches
+  // the counted pass's dispatches: the marches alone, or with the origin rule's passes where
+  // the effect ran on the device
+  const double gpuMs = !gpu ? 0.0 : r.onDevice ? r.traceMs : gpuTraceMs(*built.tracer);
   const double countedMs = r.traceMs;
   const nlohmann::json hybrid = built.known ? hybridStats(built, o.tracers) : nlohmann::json();  // of the counted pass alone
   const TraceTiming timed = measureTrace(frame, *built.tracer, ec, o.repeat);  // as compare and bench measure it
@@ -228,10 +231,13 @@ int runRender(const RenderOptions& o) {
   stats["timings_ms"]["total"] = totalMs;
   stats["device"] = o.run.device;
   if (gpu) {
-    // GL timer queries of the trace dispatches; `trace` above adds the rays' upload and the
-    // answers' download. On a software rasterizer (gpu.software) these are CPU times.
+    // GL timer queries of the trace dispatches. With the effect on the device (gpu.shading
+    // "gpu"), `trace` and `shade` above are timer queries too; otherwise `trace` adds the rays'
+    // upload and the answers' download, and `shade` is the CPU's. On a software rasterizer
+    // (gpu.software) these are CPU times.
     stats["timings_ms"]["gpu_trace"] = gpuMs;
     stats["gpu"] = gpuStats(*gpu);
+    stats["gpu"]["shading"] = r.onDevice ? "gpu" : "cpu";
     stats["gpu_renderer"] = gpu->renderer();
   }
   stats["memory_bytes"]["hierarchy"] = built.memoryBytes;

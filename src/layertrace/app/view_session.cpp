@@ -134,9 +134,12 @@ ViewResult ViewSession::render(const ViewRequest& q) {
     ec.progress = false;
     ec.countRays = q.overlay == ViewOverlay::Iterations;  // the heat map needs the counters
     ec.wholeWaves = onGpu;  // one dispatch per wave
+    ec.shadeOnDevice = onGpu;
     out.device = onGpu ? "gpu" : "cpu";
     EffectResult r = renderEffect(frame_, *built->tracer, ec, classes.get());
     out.traceMs = r.traceMs;
+    out.shadeMs = r.shadeMs;
+    out.shading = r.onDevice ? "gpu" : "cpu";
     out.rays = r.rays;
     out.iterationsMean = r.rays ? double(r.iterationSum) / double(r.rays) : 0.0;
     switch (q.overlay) {

@@ -41,13 +41,14 @@ struct ViewResult {
   Image image;   ///< what to show: the traced image or the overlay, width/scale × height/scale
   Image traced;  ///< the effect's image (what `render` writes)
   int scale = 1;
-  double captureMs = 0.0, structureMs = 0.0, traceMs = 0.0, totalMs = 0.0;
+  double captureMs = 0.0, structureMs = 0.0, traceMs = 0.0, shadeMs = 0.0, totalMs = 0.0;
   uint64_t rays = 0;
   double iterationsMean = 0.0;
   bool classified = false;  ///< classFractions hold the strict classes of this frame's rays
   std::array<double, kRayClasses> classFractions{};
   std::string error;  ///< a refused option (the picture is then empty)
   std::string device = "cpu";  ///< where the tracer ran ("gpu": --device gpu and a tracer with a GPU version)
+  std::string shading = "cpu";  ///< where rays were generated and shaded (EffectResult::onDevice)
 };
 
 /// Checks --frames and the screenshot paths (InputError naming the option).

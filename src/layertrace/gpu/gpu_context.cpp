@@ -191,6 +191,12 @@ GpuProgram& GpuProgram::operator=(GpuProgram&& other) noexcept {
 void GpuProgram::set(const char* name, int v) const { glProgramUniform1i(id_, glGetUniformLocation(id_, name), v); }
 void GpuProgram::set(const char* name, uint32_t v) const { glProgramUniform1ui(id_, glGetUniformLocation(id_, name), v); }
 void GpuProgram::set(const char* name, float v) const { glProgramUniform1f(id_, glGetUniformLocation(id_, name), v); }
+void GpuProgram::set(const char* name, const float* v, int count) const {
+  glProgramUniform1fv(id_, glGetUniformLocation(id_, name), count, v);
+}
+void GpuProgram::setVec3(const char* name, const float* xyz, int count) const {
+  glProgramUniform3fv(id_, glGetUniformLocation(id_, name), count, xyz);
+}
 void GpuProgram::setMatrix(const char* name, const float* columns) const {
   glProgramUniformMatrix4fv(id_, glGetUniformLocation(id_, name), 1, GL_FALSE, columns);
 }

@@ -32,6 +32,8 @@ class GpuProgram {
   void set(const char* name, float v) const;
   void setMatrix(const char* name, const float* columns) const;  ///< a 4×4 matrix, 16 floats column-major
   void set(const char* name, const int* v, int count) const;  ///< an int array
+  void set(const char* name, const float* v, int count) const;  ///< a float array
+  void setVec3(const char* name, const float* xyz, int count = 1) const;  ///< a vec3 (array), 3 floats each
 
  private:
   uint32_t id_ = 0;

@@ -105,28 +105,8 @@ void GpuScreenTracer::march(std::span<const Ray> rays, std::vector<GpuMarchHit>&
   if (rays_.bytes() < rayBytes) rays_ = GpuBuffer(std::max(rayBytes, 2 * rays_.bytes()));
   if (hits_.bytes() < hitBytes) hits_ = GpuBuffer(std::max(hitBytes, 2 * hits_.bytes()));
   rays_.write(records.data(), rayBytes);
-  rays_.bindStorage(0);
-  hits_.bindStorage(1);
-  level0_.bindStorage(2);
-  counts_.bindStorage(3);
-  if (pyramid_) pyramid_->cells.bindStorage(4);
-  program_.set("uRayCount", int(rays.size()));
-  const bool persistent = persistent_ && pyramid_;  // a march over a pyramid: hssr, hiz, exhaustive
-  program_.set("uPersistent", persistent);
-  if (persistent) {
-    const uint32_t zero = 0;
-    if (!queue_.id()) queue_ = GpuBuffer(sizeof zero);
-    queue_.write(&zero, sizeof zero);
-    queue_.bindStorage(5);
-  }
   timer_->begin();
-  if (persistent) {
-    // Enough groups to fill a large GPU several times over; each invocation then loops.
-    glUseProgram(program_.id());
-    glDispatchCompute(GLuint(std::min((rays.size() + kGroupSize - 1) / kGroupSize, kPersistentGroups)), 1, 1);
-  } else {
-    gpu_.dispatch(program_, rays.size());
-  }
+  marchResident(rays_, hits_, rays.size());
   timer_->end();
   PoolVector<HitRecord> answers(rays.size());
   hits_.read(answers.data(), hitBytes);
@@ -144,6 +124,30 @@ void GpuScreenTracer::march(std::span<const Ray> rays, std::vector<GpuMarchHit>&
     h.counters.giveUps = a.giveUps;
     std::copy(std::begin(a.levelIterations), std::end(a.levelIterations), h.counters.levelIterations);
   });
+}
+
+void GpuScreenTracer::marchResident(const GpuBuffer& rays, const GpuBuffer& hits, size_t n) const {
+  if (n == 0) return;
+  rays.bindStorage(0);
+  hits.bindStorage(1);
+  level0_.bindStorage(2);
+  counts_.bindStorage(3);
+  if (pyramid_) pyramid_->cells.bindStorage(4);
+  program_.set("uRayCount", int(n));
+  const bool persistent = persistent_ && pyramid_;  // a march over a pyramid: hssr, hiz, exhaustive
+  program_.set("uPersistent", persistent);
+  if (persistent) {
+    const uint32_t zero = 0;
+    if (!queue_.id()) queue_ = GpuBuffer(sizeof zero);
+    queue_.write(&zero, sizeof zero);
+    queue_.bindStorage(5);
+    // Enough groups to fill a large GPU several times over; each invocation then loops.
+    glUseProgram(program_.id());
+    glDispatchCompute(GLuint(std::min((n + kGroupSize - 1) / kGroupSize, kPersistentGroups)), 1, 1);
+    glMemoryBarrier(GL_SHADER_STORAGE_BARRIER_BIT | GL_BUFFER_UPDATE_BARRIER_BIT);
+  } else {
+    gpu_.dispatch(program_, n);
+  }
 }
 
 TraceHit GpuScreenTracer::trace(const Ray& ray, RayCounters& counters) const {

@@ -42,6 +42,8 @@ class GpuScreenTracer final : public Tracer {
   ~GpuScreenTracer() override;
 
   const char* name() const override { return name_; }
+  /// The context the tracer's buffers live in.
+  GpuContext& context() const { return gpu_; }
   TraceHit trace(const Ray& ray, RayCounters& counters) const override;
   /// The whole batch in one dispatch (call it from the context's thread; large batches pay the
   /// dispatch's fixed cost once).
@@ -52,6 +54,11 @@ class GpuScreenTracer final : public Tracer {
   bool persistentThreads() const { return persistent_; }
   /// The fragments the rays hit, with their counters.
   void march(std::span<const Ray> rays, std::vector<GpuMarchHit>& out) const;
+
+  /// Marches `n` rays already on the device (`rays` of shaders/screen_common.glsl GpuRay, a
+  /// negative length for a slot without a ray) into `hits` (GpuHit), without a transfer or a
+  /// timer: the GPU effects (gpu_effects.h) trace their waves through it.
+  void marchResident(const GpuBuffer& rays, const GpuBuffer& hits, size_t n) const;
 
   /// GPU time of the last batch's dispatches (GL timer query), milliseconds.
   double lastTraceMs() const { return lastTraceMs_; }

@@ -12,6 +12,10 @@
 #include <tbb/parallel_for.h>
 
 #include "layertrace/screen/fragment_hit.h"
+#if LAYERTRACE_HAS_GPU
+#include "layertrace/gpu/gpu_effects.h"
+#include "layertrace/gpu/gpu_screen_tracer.h"
+#endif
 #include "layertrace/util/timing.h"
 #include "layertrace/util/error.h"
 #include "layertrace/util/progress.h"
@@ -75,6 +79,17 @@ constexpr int kTile = 8;             ///< rays are laid out in kTile × kTile pi
 
 using Clock = std::chrono::steady_clock;
 double msSince(Clock::time_point t) { return std::chrono::duration<double, std::milli>(Clock::now() - t).count(); }
+
+/// The smallest iteration count that at least 99 % of the `rays` do not exceed.
+template <class Count>
+uint64_t percentile99(const std::vector<Count>& histogram, uint64_t rays) {
+  uint64_t seen = 0;
+  for (size_t i = 0; i < histogram.size(); ++i) {
+    seen += histogram[i];
+    if (rays && double(seen) >= 0.99 * double(rays)) return i;
+  }
+  return 0;
+}
 
 struct Accum {
   uint64_t rays = 0, hits = 0, it = 0, iv = 0, px = 0, giveUps = 0, bent = 0;
@@ -343,14 +358,7 @@ class Renderer {
       for (int l = 0; l < RayCounters::kLevels; ++l) res.levelIterations[l] += a.level[l];
       for (size_t i = 0; i < a.histogram.size(); ++i) histogram[i] += a.histogram[i];
     }
-    uint64_t seen = 0;
-    for (size_t i = 0; config_.countRays && i < histogram.size(); ++i) {
-      seen += histogram[i];
-      if (res.rays && double(seen) >= 0.99 * double(res.rays)) {
-        res.iterationsP99 = i;
-        break;
-      }
-    }
+    if (config_.countRays) res.iterationsP99 = percentile99(histogram, res.rays);
   }
 
   Surface surfaceOf(const TraceHit& h, glm::vec3 incoming) const {
@@ -603,10 +611,65 @@ class Renderer {
   tbb::enumerable_thread_specific<Accum> accums_;
 };
 
+#if LAYERTRACE_HAS_GPU
+/// The effect on the GPU (EffectConfig::shadeOnDevice), with the Renderer's parameters.
+std::optional<EffectResult> renderOnGpu(const Frame& f, const Tracer& tracer, const EffectConfig& c) {
+  const auto* gpuTracer = dynamic_cast<const GpuScreenTracer*>(&tracer);
+  if (!gpuTracer || !GpuEffects::supports(int(f.lights.size()))) return std::nullopt;
+  GpuEffectParams p;
+  switch (c.effect) {
+    case Effect::Shade: p.kind = GpuEffectKind::Shade; break;
+    case Effect::Reflection: p.kind = GpuEffectKind::Reflection; break;
+    case Effect::AO: p.kind = GpuEffectKind::AO; break;
+    case Effect::Shadow: p.kind = GpuEffectKind::Shadow; break;
+    default: return std::nullopt;
+  }
+  const float diag = f.scene.bounds().diagonal();  // as the Renderer resolves them
+  p.bounces = c.bounces;
+  p.aoSamples = c.aoSamples;
+  p.maxDistance = c.maxDistance > 0.0f ? c.maxDistance : diag;
+  p.aoRadius = c.aoRadius > 0.0f ? c.aoRadius : 0.05f * diag;
+  p.eps = 1e-4f * diag;
+  p.seed = c.seed;
+  p.countRays = c.countRays;
+  p.mirrorBelowSurface = c.mirrorBelowSurface;
+  const GpuEffects effects(gpuTracer->context(), f.scene, f.camera, f.layers, f.lights);
+  const GpuEffectOutput out = effects.run(*gpuTracer, p);
+
+  EffectResult res;
+  const int W = out.width, H = out.height;
+  res.image = Image(W, H);
+  res.traced = Image(W, H);
+  res.iterations = Image(W, H, 1);
+  res.intervals = Image(W, H, 1);
+  for (int y = 0; y < H; ++y)
+    for (int x = 0; x < W; ++x) {
+      const size_t q = size_t(y) * size_t(W) + size_t(x);
+      const GpuPixelTally& t = out.tally[q];
+      res.image.set(x, y, out.image[q]);
+      res.traced.set(x, y, out.traced[q]);
+      res.iterations.at(x, y)[0] = float(t.iterations);
+      res.intervals.at(x, y)[0] = float(t.intervals);
+      res.rays += t.rays, res.hits += t.hits, res.bentRays += t.bent;
+      res.iterationSum += t.iterations, res.intervalSum += t.intervals, res.pixelSum += t.pixels, res.giveUps += t.giveUps;
+      for (int l = 0; l < RayCounters::kLevels; ++l) res.levelIterations[l] += t.levelIterations[l];
+    }
+  if (c.countRays) res.iterationsP99 = percentile99(out.histogram, res.rays);
+  res.onDevice = true;
+  res.traceMs = out.traceMs;
+  res.shadeMs = out.shadeMs;
+  return res;
+}
+#endif
+
 }  // namespace
 
 EffectResult renderEffect(const Frame& frame, const Tracer& tracer, const EffectConfig& config, RayObserver* observer) {
   validateEffectConfig(config);
+#if LAYERTRACE_HAS_GPU
+  if (config.shadeOnDevice && config.wholeWaves && !observer)
+    if (std::optional<EffectResult> r = renderOnGpu(frame, tracer, config)) return std::move(*r);
+#endif
   Renderer renderer(frame, tracer, config, observer);
   return renderer.run();
 }

@@ -56,6 +56,12 @@ struct EffectConfig {
   /// (gpu/) then dispatches every ray of the wave at once. Ray generation and shading stay on
   /// the CPU, between the waves; the answers are the same as with bands.
   bool wholeWaves = false;
+  /// With a GPU tracer (gpu/gpu_screen_tracer.h) and wholeWaves: generate the rays and shade on
+  /// the GPU as well (gpu/gpu_effects.h), so that no ray leaves the device between bounces.
+  /// Applies to shade, reflection, AO and shadows with at most 16 lights and no observer;
+  /// anything else keeps ray generation and shading on the CPU (EffectResult::onDevice says
+  /// which ran). traceMs and shadeMs are then GPU timer-query times.
+  bool shadeOnDevice = false;
   /// A secondary direction below the geometric surface it leaves (interpolated normals on a
   /// flat face): mirrored about the geometric plane (true) or bent to graze it (false).
   bool mirrorBelowSurface = true;
@@ -86,6 +92,7 @@ struct EffectResult {
   std::vector<uint8_t> holes;  ///< Effect::Warp: per pixel 1 where the second camera's ray found nothing  ///< secondary rays bent out of their geometric surface (effects.cpp keepOutside)
   uint64_t iterationsP99 = 0;
   uint64_t levelIterations[RayCounters::kLevels] = {};  ///< HSSR: visited cells per level, summed
+  bool onDevice = false;  ///< rays generated and shaded on the GPU (EffectConfig::shadeOnDevice)
   double traceMs = 0.0;  ///< wall time inside the tracer's batch calls
   double shadeMs = 0.0;  ///< wall time of the rest of the effect (rays, shading, observers)
 };

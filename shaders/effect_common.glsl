@@ -1,0 +1,100 @@
+// Shared by the effect passes (effect_step.comp, effect_resolve.comp): the GLSL twins of the ray
+// generation and shading of src/layertrace/render/effects.cpp, written once for every GPU
+// tracer. The tracer's march (hssr_march.comp, ssr_march.comp) runs between these passes on the
+// same ray and answer buffers, so no ray leaves the device.
+//
+// Rays live in fixed slots: pixel slot i (8×8-pixel tiles over the frame rounded up to whole
+// tiles, tiles row by row, pixels row by row inside a tile: the CPU renderer's ray order) owns
+// rays i·R … i·R + R − 1, R the effect's most rays per pixel. A slot without a ray has a negative
+// length, and the march answers it with a miss at once.
+
+// trace/tracer.h Ray as the march reads it (screen_common.glsl GpuRay).
+struct GpuRay {
+  vec4 originMax;
+  vec4 dirSurface;
+};
+// The march's answer (screen_common.glsl GpuHit): the hit fragment, layer −1 for a miss.
+struct GpuHit {
+  int x, y, layer;
+  uint iterations, intervals, pixels, giveUps, pad;
+  uint levelIterations[8];
+};
+// The effect's ray: as emitted, with the triangle it leaves (Ray::originTriangle) and whether it
+// still waits for an answer under the origin rule (Tracer::query).
+struct EffectRay {
+  vec4 originMax;
+  vec4 dirSurface;
+  uint originTriangle, pending, pad0, pad1;
+};
+// One pixel's path between waves (effects.cpp PathState). The surface the next ray leaves is
+// kept as its fragment and recomputed from the layer arrays when needed.
+struct PathState {
+  ivec4 surface;  // x, y, layer of the surface; w: 1 while the path is active
+  vec4 incoming;  // xyz: the direction arriving at the surface; w: the rays of the last wave (as float)
+  vec4 dir;       // the direction of the ray in flight, as computed (unnormalised)
+  vec4 colour;    // reflection: the accumulated colour
+  vec4 weight;    // reflection: the path weight
+  vec4 view;      // the view direction at the front surface
+};
+struct PixelOut {
+  vec4 result;
+  vec4 traced;
+};
+
+const uint kNoTriangle = 0xFFFFFFFFu;
+const uint kEmptySlot = 0xFFFFFFFFu;  // the depth bits of a slot without a fragment
+
+// The layer arrays as the shading reads them: per slot (pixel-major, k per pixel) the depth's
+// bits, the octahedral normal, the packed albedo and specular, and the scene triangle.
+layout(std430, binding = 2) readonly buffer Fragments { uvec4 fragments[]; };
+// Per scene triangle: the camera-space geometric normal (0 for a degenerate triangle) and the
+// mirror weight, then shininess, transmission and ior of its material.
+struct TriangleInfo {
+  vec4 normalMirror;
+  vec4 material;
+};
+layout(std430, binding = 3) readonly buffer Triangles { TriangleInfo triangles[]; };
+
+uniform int uWidth, uHeight, uK;
+uniform int uRaysPerPixel;  // R
+uniform int uFirst;         // the first item of this dispatch (GpuContext::dispatch)
+uniform int uItems;         // pixel slots (step) or ray slots (resolve)
+uniform float uPixelScale;  // 1 / focal
+uniform bool uOrtho;
+
+// The pixel of slot i in tile order; false for a slot beyond the frame's edge.
+bool slotPixel(uint i, out ivec2 p) {
+  const uint tilesX = (uint(uWidth) + 7u) / 8u;
+  const uint tile = i / 64u, inside = i % 64u;
+  p = ivec2(int((tile % tilesX) * 8u + inside % 8u), int((tile / tilesX) * 8u + inside / 8u));
+  return p.x < uWidth && p.y < uHeight;
+}
+
+uvec4 fragmentAt(int x, int y, int layer) {
+  return fragments[(uint(y) * uint(uWidth) + uint(x)) * uint(uK) + uint(layer)];
+}
+
+// scene/camera.h Camera::rayThrough.
+vec3 rayThrough(vec2 pixel) {
+  if (uOrtho) return vec3(0.0, 0.0, -1.0);
+  precise vec3 d = vec3((pixel.x - float(uWidth) * 0.5) * uPixelScale, -((pixel.y - float(uHeight) * 0.5) * uPixelScale), -1.0);
+  return d;
+}
+
+// screen/fragment_hit.h fragmentHit: the point where the pixel-centre ray meets the stored depth.
+vec3 fragmentPoint(int x, int y, uvec4 f) {
+  precise vec3 p = rayThrough(vec2(float(x) + 0.5, float(y) + 0.5)) * uintBitsToFloat(f.x);
+  return p;
+}
+
+// glm::normalize: v · (1 / sqrt(v·v)), the sum from x to z.
+vec3 normalizeStd(vec3 v) {
+  precise float d = v.x * v.x + v.y * v.y + v.z * v.z;
+  precise vec3 n = v * (1.0 / sqrt(d));
+  return n;
+}
+
+float dotStd(vec3 a, vec3 b) {
+  precise float d = a.x * b.x + a.y * b.y + a.z * b.z;
+  return d;
+}

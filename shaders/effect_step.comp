@@ -1,0 +1,322 @@
+#version 450
+// One step of every pixel's path (src/layertrace/render/effects.cpp Renderer, the same floats
+// in the same order): step 0 begins each path at its front fragment and emits its first rays;
+// step w > 0 takes the answers to wave w − 1 (after the origin rule, effect_resolve.comp),
+// counts them, shades, and emits the rays of wave w. One invocation per pixel slot.
+layout(local_size_x = 64) in;
+
+#include "effect_common.glsl"
+
+layout(std430, binding = 0) writeonly buffer Rays { GpuRay rays[]; };
+// [0, 16): unused; [16, 16 + 65537): histogram of iterations per ray (capped at 65536); then 16
+// words per pixel slot: rays, hits, iterations, intervals, pixels, give-ups, bent rays, 0, and
+// the iterations at levels 0…7.
+layout(std430, binding = 1) buffer Tally { uint tally[]; };
+layout(std430, binding = 4) buffer EffectRays { EffectRay effectRays[]; };
+layout(std430, binding = 5) readonly buffer Answers { GpuHit answers[]; };
+layout(std430, binding = 6) buffer States { PathState states[]; };
+layout(std430, binding = 7) writeonly buffer Out { PixelOut pixels[]; };
+
+const int kShade = 0, kReflection = 1, kAO = 2, kShadow = 3;
+const int kMaxLights = 16;
+const uint kHistogram = 16u, kHistogramMax = 65536u, kPixelTally = kHistogram + kHistogramMax + 1u;
+const float kMinElevation = 0.01;  // effects.cpp Renderer::kMinElevation
+
+uniform int uEffect, uWave, uAoSamples;
+uniform int uWaves;  // waves of rays: the bounces (reflection), 1 (AO, shadow) or 0 (shade)
+uniform float uMaxDistance, uAoRadius, uEps;
+uniform uint uSeedLo, uSeedHi;
+uniform bool uCount, uMirrorBelowSurface;
+uniform uint uTriangleCount;  // triangles[uTriangleCount] describes an unknown triangle
+uniform vec3 uEnvironment;
+uniform int uLights;
+uniform vec3 uLightPosition[kMaxLights];  // camera space
+uniform vec3 uLightIntensity[kMaxLights];
+uniform float uSrgb[256];  // raster/fragment.cpp's sRGB decode table
+
+// effects.cpp Surface.
+struct Surface {
+  vec3 p, n, ng, albedo;
+  float specular, mirror, shininess;
+  uint triangle;
+};
+
+// raster/fragment.cpp decodeOctahedral.
+float fromSnorm16(uint bits) {
+  return max(float(bitfieldExtract(int(bits), 0, 16)) / 32767.0, -1.0);
+}
+vec3 decodeOctahedral(uint bits) {
+  const vec2 p = vec2(fromSnorm16(bits & 0xFFFFu), fromSnorm16(bits >> 16));
+  precise vec3 n = vec3(p.x, p.y, 1.0 - abs(p.x) - abs(p.y));
+  if (n.z < 0.0) {
+    const vec2 s = vec2(n.x >= 0.0 ? 1.0 : -1.0, n.y >= 0.0 ? 1.0 : -1.0);
+    precise vec2 q = (1.0 - abs(vec2(n.y, n.x))) * s;
+    n.x = q.x;
+    n.y = q.y;
+  }
+  precise float len = sqrt(n.x * n.x + n.y * n.y + n.z * n.z);
+  return vec3(n.x / len, n.y / len, n.z / len);
+}
+
+// glm::cross.
+vec3 crossStd(vec3 x, vec3 y) {
+  precise vec3 c = vec3(x.y * y.z - y.y * x.z, x.z * y.x - y.z * x.x, x.x * y.y - y.x * x.y);
+  return c;
+}
+
+// std::pow for the specular lobe (GLSL's pow is undefined at 0^0).
+float powStd(float x, float e) {
+  if (e == 0.0) return 1.0;
+  if (x == 0.0) return 0.0;
+  return pow(x, e);
+}
+
+// effects.cpp Renderer::surfaceOf.
+Surface surfaceOf(ivec3 frag, vec3 incoming) {
+  const uvec4 f = fragmentAt(frag.x, frag.y, frag.z);
+  Surface s;
+  s.p = fragmentPoint(frag.x, frag.y, f);
+  s.triangle = f.w;
+  const vec3 normal = decodeOctahedral(f.y);
+  s.n = dotStd(normal, incoming) > 0.0 ? -normal : normal;
+  s.ng = s.n;
+  const TriangleInfo t = triangles[min(f.w, uTriangleCount)];
+  if (f.w < uTriangleCount) {
+    if (t.normalMirror.xyz != vec3(0.0)) s.ng = t.normalMirror.xyz;
+    if (dotStd(s.ng, incoming) > 0.0) s.ng = -s.ng;
+  }
+  s.albedo = vec3(uSrgb[f.z & 0xFFu], uSrgb[(f.z >> 8) & 0xFFu], uSrgb[(f.z >> 16) & 0xFFu]);
+  s.specular = float(f.z >> 24) / 255.0;
+  s.mirror = t.normalMirror.w;
+  s.shininess = t.material.x;
+  return s;
+}
+
+// effects.cpp Renderer::light.
+vec3 light(Surface s, vec3 incoming, int i) {
+  precise vec3 toL = uLightPosition[i] - s.p;
+  precise float d2 = max(dotStd(toL, toL), 1e-12);
+  precise vec3 l = toL / sqrt(d2);
+  const float ndl = dotStd(s.n, l);
+  if (ndl <= 0.0) return vec3(0.0);
+  const vec3 hv = normalizeStd(l - incoming);
+  const float e = s.shininess;
+  precise float spec = s.specular * (e + 8.0) / 8.0 * powStd(max(0.0, dotStd(s.n, hv)), e);
+  precise vec3 c = uLightIntensity[i] / d2 * (s.albedo * ndl + vec3(spec));
+  return c;
+}
+
+// effects.cpp Renderer::local.
+vec3 local(Surface s, vec3 incoming) {
+  precise vec3 c = 0.05 * s.albedo;
+  for (int i = 0; i < uLights; ++i) c += light(s, incoming, i);
+  return c;
+}
+
+uint gBent = 0u;  // this step's rays bent out of their surface
+
+// effects.cpp Renderer::keepOutside.
+vec3 keepOutside(vec3 dir, Surface s) {
+  precise vec3 d = normalizeStd(dir);
+  precise float e = dotStd(d, s.ng);
+  if (e >= kMinElevation) return dir;
+  ++gBent;
+  if (uMirrorBelowSurface && e < 0.0) {
+    d -= 2.0 * e * s.ng;
+    e = -e;
+    if (e >= kMinElevation) return d;
+  }
+  precise vec3 bentUp = d + s.ng * (kMinElevation - e);
+  return bentUp;
+}
+
+// effects.cpp Renderer::ray: a ray leaving surface s, which never answers with s's triangle.
+void emitRay(uint slot, Surface s, vec3 d, float maxDistance) {
+  const vec3 dir = normalizeStd(d);
+  rays[slot].originMax = vec4(s.p, maxDistance);
+  rays[slot].dirSurface = vec4(dir, 1.0);
+  effectRays[slot].originMax = vec4(s.p, maxDistance);
+  effectRays[slot].dirSurface = vec4(dir, 1.0);
+  effectRays[slot].originTriangle = s.triangle;
+  effectRays[slot].pending = 1u;
+}
+
+void noRay(uint slot) {
+  rays[slot].originMax = vec4(0.0, 0.0, 0.0, -1.0);
+  effectRays[slot].originMax = vec4(0.0, 0.0, 0.0, -1.0);
+  effectRays[slot].pending = 0u;
+}
+
+// glm::reflect.
+vec3 reflectStd(vec3 i, vec3 n) {
+  precise vec3 r = i - n * dotStd(n, i) * 2.0;
+  return r;
+}
+
+// splitmix64 (effects.cpp, Effect::AO) in 32-bit halves: x = low word, y = high word.
+uvec2 add64(uvec2 a, uvec2 b) {
+  uint carry;
+  const uint lo = uaddCarry(a.x, b.x, carry);
+  return uvec2(lo, a.y + b.y + carry);
+}
+uvec2 mul64(uvec2 a, uvec2 b) {
+  uint hi, lo;
+  umulExtended(a.x, b.x, hi, lo);
+  return uvec2(lo, hi + a.x * b.y + a.y * b.x);
+}
+uvec2 shr64(uvec2 a, uint n) {  // 0 < n < 32
+  return uvec2((a.x >> n) | (a.y << (32u - n)), a.y >> n);
+}
+const uvec2 kGolden = uvec2(0x7F4A7C15u, 0x9E3779B9u);
+uvec2 gRandom;
+float nextUniform() {
+  gRandom = add64(gRandom, kGolden);
+  uvec2 z = gRandom;
+  z = mul64(z ^ shr64(z, 30u), uvec2(0x1CE4E5B9u, 0xBF58476Du));
+  z = mul64(z ^ shr64(z, 27u), uvec2(0x133111EBu, 0x94D049BBu));
+  z = z ^ shr64(z, 31u);
+  return float(z.y >> 8) * (1.0 / 16777216.0);  // the top 24 bits
+}
+
+void finish(uint i, inout PathState st, vec3 result, vec3 traced) {
+  pixels[i].result = vec4(result, 0.0);
+  pixels[i].traced = vec4(traced, 0.0);
+  st.surface.w = 0;
+}
+
+// Emits the path's rays of wave uWave into its slots; returns how many.
+uint emit(uint i, inout PathState st, ivec2 px) {
+  const uint first = i * uint(uRaysPerPixel);
+  Surface s = surfaceOf(st.surface.xyz, st.incoming.xyz);
+  uint n = 0u;
+  if (uEffect == kReflection) {
+    const float m = s.mirror;
+    precise vec3 colour = st.colour.xyz + st.weight.xyz * (1.0 - m) * local(s, st.incoming.xyz);
+    st.colour.xyz = colour;
+    st.weight.xyz *= m;
+    st.dir.xyz = keepOutside(reflectStd(st.incoming.xyz, s.n), s);
+    emitRay(first, s, st.dir.xyz, uMaxDistance);
+    n = 1u;
+  } else if (uEffect == kShadow) {
+    for (int l = 0; l < uLights; ++l) {
+      precise vec3 toL = uLightPosition[l] - s.p;
+      const float d = sqrt(dotStd(toL, toL));
+      if (dotStd(toL, s.n) <= 0.0) {
+        noRay(first + uint(l));
+        continue;
+      }
+      emitRay(first + uint(l), s, toL, max(d - uEps, 0.0));
+      ++n;
+    }
+  } else if (uEffect == kAO) {
+    gRandom = add64(mul64(uvec2(uSeedLo, uSeedHi), kGolden), add64(mul64(uvec2(uint(px.y), 0u), uvec2(65537u, 0u)), uvec2(uint(px.x), 0u)));
+    const vec3 nn = s.n;
+    const vec3 t = normalizeStd(abs(nn.x) > 0.5 ? crossStd(nn, vec3(0.0, 1.0, 0.0)) : crossStd(nn, vec3(1.0, 0.0, 0.0)));
+    const vec3 bt = crossStd(nn, t);
+    for (int k = 0; k < uAoSamples; ++k) {
+      const float r1 = nextUniform(), r2 = nextUniform();
+      precise float r = sqrt(r1), phi = 6.2831855 * r2;
+      precise vec3 d = t * (r * cos(phi)) + bt * (r * sin(phi)) + nn * sqrt(max(0.0, 1.0 - r1));
+      emitRay(first + uint(k), s, keepOutside(d, s), uAoRadius);
+    }
+    n = uint(uAoSamples);
+  }
+  if (uEffect != kShadow)
+    for (uint j = n; j < uint(uRaysPerPixel); ++j) noRay(first + j);
+  if (uEffect == kShadow && n == 0u) finish(i, st, 0.05 * s.albedo, 0.05 * s.albedo);  // every light behind the surface: dark without a ray
+  st.incoming.w = float(n);
+  return n;
+}
+
+// Takes the answers to the path's rays of wave uWave − 1 (those with a non-negative length).
+void consume(uint i, inout PathState st) {
+  const uint first = i * uint(uRaysPerPixel);
+  const int wave = uWave - 1;
+  const uint t = kPixelTally + i * 16u;
+  uint open = 0u;
+  ivec3 hitFragment = ivec3(-1);
+  Surface s = surfaceOf(st.surface.xyz, st.incoming.xyz);
+  precise vec3 shadowed = 0.05 * s.albedo;
+  for (uint j = 0u; j < uint(uRaysPerPixel); ++j) {
+    if (effectRays[first + j].originMax.w < 0.0) continue;
+    const GpuHit h = answers[first + j];
+    ++tally[t];
+    if (h.layer >= 0) ++tally[t + 1u];
+    if (uCount) {
+      tally[t + 2u] += h.iterations;
+      tally[t + 3u] += h.intervals;
+      tally[t + 4u] += h.pixels;
+      tally[t + 5u] += h.giveUps;
+      for (int l = 0; l < 8; ++l) tally[t + 8u + uint(l)] += h.levelIterations[l];
+      atomicAdd(tally[kHistogram + min(h.iterations, kHistogramMax)], 1u);
+    }
+    if (h.layer < 0) {
+      ++open;
+      if (uEffect == kShadow) shadowed += light(s, st.view.xyz, int(j));
+    } else if (hitFragment.z < 0) {
+      hitFragment = ivec3(h.x, h.y, h.layer);
+    }
+  }
+  if (uEffect == kReflection) {
+    if (hitFragment.z < 0) {
+      precise vec3 c = st.colour.xyz + st.weight.xyz * uEnvironment;
+      finish(i, st, c, uEnvironment);
+      return;
+    }
+    st.surface.xyz = hitFragment;
+    st.incoming.xyz = st.dir.xyz;
+    if (wave + 1 == uWaves) {
+      const vec3 traced = local(surfaceOf(hitFragment, st.incoming.xyz), st.incoming.xyz);
+      precise vec3 c = st.colour.xyz + st.weight.xyz * traced;
+      finish(i, st, c, traced);
+    }
+  } else if (uEffect == kShadow) {
+    finish(i, st, shadowed, shadowed);
+  } else if (uEffect == kAO) {
+    const vec3 ao = vec3(float(open) / float(max(1, uAoSamples)));
+    finish(i, st, ao, ao);
+  }
+}
+
+void main() {
+  const uint i = gl_GlobalInvocationID.x + uint(uFirst);
+  if (i >= uint(uItems)) return;
+  ivec2 px;
+  const bool inside = slotPixel(i, px);
+  PathState st;
+  if (uWave == 0) {
+    // effects.cpp Renderer::begin: the front surface; pixels without fragments show the
+    // environment and trace nothing.
+    st.surface = ivec4(px, 0, 0);
+    st.incoming = vec4(0.0);
+    st.dir = vec4(0.0);
+    st.colour = vec4(0.0);
+    st.weight = vec4(1.0);
+    st.view = vec4(0.0);
+    if (inside) {
+      const uvec4 f = fragmentAt(px.x, px.y, 0);
+      if (f.x == kEmptySlot) {
+        pixels[i].result = vec4(uEnvironment, 0.0);
+        pixels[i].traced = vec4(uEnvironment, 0.0);
+      } else {
+        st.view.xyz = normalizeStd(fragmentPoint(px.x, px.y, f));
+        st.incoming.xyz = st.view.xyz;
+        st.surface.w = 1;
+        if (uEffect == kShade) {
+          const vec3 c = local(surfaceOf(st.surface.xyz, st.view.xyz), st.view.xyz);
+          finish(i, st, c, c);
+        }
+      }
+    }
+  } else {
+    st = states[i];
+    if (st.surface.w != 0 && st.incoming.w > 0.0) consume(i, st);
+  }
+  if (st.surface.w != 0 && uWave < uWaves) {
+    emit(i, st, px);
+  } else {
+    for (uint j = 0u; j < uint(uRaysPerPixel); ++j) noRay(i * uint(uRaysPerPixel) + j);
+  }
+  if (gBent > 0u) tally[kPixelTally + i * 16u + 6u] += gBent;
+  states[i] = st;
+}

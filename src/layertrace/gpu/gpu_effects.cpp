@@ -1,0 +1,238 @@
+#include "layertrace/gpu/gpu_effects.h"
+
+#include <algorithm>
+#include <bit>
+#include <initializer_list>
+
+#include <glm/geometric.hpp>
+
+#include "layertrace/gpu/gpu_screen_tracer.h"
+#include "layertrace/gpu/shader_sources.h"
+#include "layertrace/raster/fragment.h"
+#include "layertrace/trace/tracer.h"
+#include "layertrace/util/default_init.h"
+#include "layertrace/util/error.h"
+#include "layertrace/util/parallel.h"
+
+namespace lt {
+
+namespace {
+
+/// shaders/effect_common.glsl sizes (std430).
+constexpr size_t kRayBytes = 32, kHitBytes = 64, kEffectRayBytes = 48, kStateBytes = 96, kOutBytes = 32;
+/// shaders/effect_step.comp's tally: 16 words, the histogram, then 16 words per pixel slot.
+constexpr size_t kHistogramFirst = 16, kHistogramBins = 65537, kPixelTallyFirst = kHistogramFirst + kHistogramBins;
+static_assert(kOriginSkips == 4, "effect_resolve.comp continues a ray past its own triangle 4 times");
+constexpr int kTile = 8;  ///< pixel slots run in 8×8 tiles (effect_common.glsl slotPixel)
+
+struct TriangleRecord {
+  float normal[3], mirror;
+  float shininess, transmission, ior, unused;
+};
+static_assert(sizeof(TriangleRecord) == 32);
+
+int waves(const GpuEffectParams& p) {
+  switch (p.kind) {
+    case GpuEffectKind::Shade: return 0;
+    case GpuEffectKind::Reflection: return p.bounces;
+    case GpuEffectKind::AO:
+    case GpuEffectKind::Shadow: return 1;
+  }
+  return 0;
+}
+
+}  // namespace
+
+GpuEffects::GpuEffects(GpuContext& gpu, const Scene& scene, const Camera& camera, const LayerArrays& layers,
+                       std::span<const PointLight> lights)
+    : gpu_(gpu), camera_(camera), k_(layers.k), environment_(scene.environment) {
+  LT_CHECK(layers.width == camera.width() && layers.height == camera.height(), layers.width, camera.width());
+  LT_CHECK(lights.size() <= size_t(kMaxLights), lights.size());
+  gpu_.makeCurrent();
+  for (const PointLight& l : lights) lightPosition_.push_back(camera.toCamera(l.position)), lightIntensity_.push_back(l.intensity);
+  step_ = gpu_.computeProgram("effect_step.comp", shader_source::effect_step_comp);
+  resolve_ = gpu_.computeProgram("effect_resolve.comp", shader_source::effect_resolve_comp);
+
+  // The layer arrays as the passes read them: depth bits, normal, albedo/specular, triangle;
+  // a slot without a fragment has depth bits kEmptySlot.
+  const size_t pixels = size_t(layers.width) * size_t(layers.height), slots = pixels * size_t(layers.k);
+  PoolVector<glm::uvec4> fragments(std::max<size_t>(slots, 1));
+  parallelFor(size_t(0), pixels, [&](size_t p) {
+    for (int l = 0; l < layers.k; ++l) {
+      const size_t s = p * size_t(layers.k) + size_t(l);
+      if (l < int(layers.count[p])) {
+        const FragmentNode& f = layers.slots[s];
+        fragments[s] = {std::bit_cast<uint32_t>(f.depth), f.normal, f.albedoSpec, layers.triangle[s]};
+      } else {
+        fragments[s] = {0xFFFFFFFFu, 0u, 0u, kNoTriangle};
+      }
+    }
+  });
+  fragments_ = GpuBuffer(fragments.size() * sizeof(glm::uvec4), fragments.data());
+
+  // Per triangle (render/effects.cpp surfaceOf): the camera-space geometric normal, 0 for a
+  // degenerate triangle, and its material; one more record for a triangle the scene lacks.
+  triangleCount_ = uint32_t(scene.triangles.size());
+  PoolVector<TriangleRecord> triangles(scene.triangles.size() + 1);
+  auto material = [&](size_t t) -> const Material& {
+    return scene.materials[t < scene.triMaterial.size() ? scene.triMaterial[t] : 0];
+  };
+  parallelFor(size_t(0), triangles.size(), [&](size_t t) {
+    glm::vec3 n(0.0f);
+    if (t < scene.triangles.size()) {
+      const glm::uvec3 v = scene.triangles[t];
+      const glm::vec3 a = scene.positions[v.x];
+      const glm::vec3 g = glm::cross(scene.positions[v.y] - a, scene.positions[v.z] - a);
+      if (glm::dot(g, g) > 0.0f) n = glm::normalize(camera.dirToCamera(g));
+    }
+    const Material& m = material(t < scene.triangles.size() ? t : 0);
+    triangles[t] = {{n.x, n.y, n.z}, m.mirror, m.shininess, m.transmission, m.ior, 0.0f};
+  });
+  triangles_ = GpuBuffer(triangles.size() * sizeof(TriangleRecord), triangles.data());
+
+  // The sRGB decode table of raster/fragment.cpp, read through unpackAlbedo.
+  float srgb[256];
+  for (uint32_t i = 0; i < 256; ++i) srgb[i] = unpackAlbedo(i).x;
+  for (const GpuProgram* p : {&step_, &resolve_}) {
+    p->set("uWidth", camera.width());
+    p->set("uHeight", camera.height());
+    p->set("uK", layers.k);
+    p->set("uPixelScale", 1.0f / camera.focal());
+    p->set("uOrtho", int(camera.orthographic()));
+  }
+  step_.set("uSrgb", srgb, 256);
+  step_.set("uTriangleCount", triangleCount_);
+  step_.setVec3("uEnvironment", &environment_.x);
+  step_.set("uLights", int(lightPosition_.size()));
+  if (!lightPosition_.empty()) {
+    step_.setVec3("uLightPosition", &lightPosition_[0].x, int(lightPosition_.size()));
+    step_.setVec3("uLightIntensity", &lightIntensity_[0].x, int(lightIntensity_.size()));
+  }
+  traceTimer_ = std::make_unique<GpuTimer>();
+  shadeTimer_ = std::make_unique<GpuTimer>();
+}
+
+GpuEffects::~GpuEffects() {
+  gpu_.makeCurrent();  // the buffers and the programs go with the context current
+}
+
+size_t GpuEffects::memoryBytes() const {
+  size_t b = 0;
+  for (const GpuBuffer* buf : std::initializer_list<const GpuBuffer*>{&fragments_, &triangles_, &rays_, &hits_, &effectRays_, &answers_, &states_, &out_, &tally_, &pending_})
+    b += buf->bytes();
+  return b;
+}
+
+void GpuEffects::resize(size_t pixelSlots, size_t raySlots) const {
+  auto fit = [](GpuBuffer& b, size_t bytes) {
+    if (b.bytes() < bytes || b.bytes() > 2 * bytes) b = GpuBuffer(bytes);
+  };
+  fit(rays_, raySlots * kRayBytes);
+  fit(hits_, raySlots * kHitBytes);
+  fit(effectRays_, raySlots * kEffectRayBytes);
+  fit(answers_, raySlots * kHitBytes);
+  fit(states_, pixelSlots * kStateBytes);
+  fit(out_, pixelSlots * kOutBytes);
+  fit(tally_, (kPixelTallyFirst + 16 * pixelSlots) * sizeof(uint32_t));
+  fit(pending_, sizeof(uint32_t));
+}
+
+GpuEffectOutput GpuEffects::run(const GpuScreenTracer& tracer, const GpuEffectParams& p) const {
+  LT_CHECK(p.bounces >= 1 && p.bounces <= 16 && p.aoSamples >= 1 && p.aoSamples <= 4096, p.bounces, p.aoSamples);
+  gpu_.makeCurrent();
+  const int W = camera_.width(), H = camera_.height();
+  const size_t tilesX = size_t((W + kTile - 1) / kTile), tilesY = size_t((H + kTile - 1) / kTile);
+  const size_t pixelSlots = tilesX * tilesY * size_t(kTile * kTile);
+  const int R = p.kind == GpuEffectKind::AO ? p.aoSamples
+                : p.kind == GpuEffectKind::Shadow ? std::max(1, int(lightPosition_.size()))
+                                                  : 1;
+  const size_t raySlots = pixelSlots * size_t(R);
+  resize(pixelSlots, raySlots);
+  tally_.fill(0u);
+
+  const int nWaves = waves(p);
+  step_.set("uEffect", int(p.kind));
+  step_.set("uWaves", nWaves);
+  step_.set("uAoSamples", p.aoSamples);
+  step_.set("uMaxDistance", p.maxDistance);
+  step_.set("uAoRadius", p.aoRadius);
+  step_.set("uEps", p.eps);
+  step_.set("uSeedLo", uint32_t(p.seed));
+  step_.set("uSeedHi", uint32_t(p.seed >> 32));
+  step_.set("uCount", int(p.countRays));
+  step_.set("uMirrorBelowSurface", int(p.mirrorBelowSurface));
+  step_.set("uRaysPerPixel", R);
+  step_.set("uItems", int(pixelSlots));
+  resolve_.set("uRaysPerPixel", R);
+  resolve_.set("uItems", int(raySlots));
+
+  GpuEffectOutput out;
+  auto timed = [](const GpuTimer& timer, double& ms, auto&& work) {
+    timer.begin();
+    work();
+    timer.end();
+    ms += timer.ms();
+  };
+  auto step = [&](int wave) {
+    timed(*shadeTimer_, out.shadeMs, [&] {
+      rays_.bindStorage(0);
+      tally_.bindStorage(1);
+      fragments_.bindStorage(2);
+      triangles_.bindStorage(3);
+      effectRays_.bindStorage(4);
+      answers_.bindStorage(5);
+      states_.bindStorage(6);
+      out_.bindStorage(7);
+      step_.set("uWave", wave);
+      gpu_.dispatch(step_, pixelSlots);
+    });
+  };
+  step(0);
+  for (int wave = 0; wave < nWaves; ++wave) {
+    // The wave's march, then the origin rule: more marches while rays wait for an answer.
+    for (int round = 0; round <= kOriginSkips; ++round) {
+      timed(*traceTimer_, out.traceMs, [&] {
+        tracer.marchResident(rays_, hits_, raySlots);
+        pending_.fill(0u);
+        rays_.bindStorage(0);
+        hits_.bindStorage(1);
+        fragments_.bindStorage(2);
+        effectRays_.bindStorage(4);
+        answers_.bindStorage(5);
+        pending_.bindStorage(6);
+        resolve_.set("uRound", round);
+        gpu_.dispatch(resolve_, raySlots);
+      });
+      uint32_t pending = 0;
+      pending_.read(&pending, sizeof pending);
+      if (pending == 0) break;
+    }
+    step(wave + 1);
+  }
+
+  // Read back, from tile order to rows.
+  out.width = W, out.height = H;
+  PoolVector<glm::vec4> pixels(pixelSlots * 2);
+  out_.read(pixels.data(), pixelSlots * kOutBytes);
+  PoolVector<GpuPixelTally> tally(pixelSlots);
+  tally_.read(tally.data(), pixelSlots * sizeof(GpuPixelTally), kPixelTallyFirst * sizeof(uint32_t));
+  if (p.countRays) {
+    out.histogram.resize(kHistogramBins);
+    tally_.read(out.histogram.data(), kHistogramBins * sizeof(uint32_t), kHistogramFirst * sizeof(uint32_t));
+  }
+  out.image.resize(size_t(W) * size_t(H));
+  out.traced.resize(out.image.size());
+  out.tally.resize(out.image.size());
+  parallelFor(size_t(0), pixelSlots, [&](size_t i) {
+    const size_t tile = i / 64, inside = i % 64;
+    const size_t x = (tile % tilesX) * kTile + inside % kTile, y = (tile / tilesX) * kTile + inside / kTile;
+    if (x >= size_t(W) || y >= size_t(H)) return;
+    const size_t q = y * size_t(W) + x;
+    out.image[q] = glm::vec3(pixels[2 * i]);
+    out.traced[q] = glm::vec3(pixels[2 * i + 1]);
+    out.tally[q] = tally[i];
+  });
+  return out;
+}
+
+}  // namespace lt

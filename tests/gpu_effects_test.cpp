@@ -1,0 +1,176 @@
+// The effects on the GPU (gpu/gpu_effects.h: ray generation, the origin rule and shading as
+// compute passes around a GPU tracer's march) against render/effects.cpp with the CPU tracer:
+// the same rays, the same answers, the same counters and the same image.
+#include <algorithm>
+#include <cmath>
+#include <cstdlib>
+#include <memory>
+#include <string>
+
+#include <gtest/gtest.h>
+
+#include "layertrace/pipeline/frame.h"
+#include "layertrace/pipeline/gpu_tracers.h"
+#include "layertrace/pipeline/tracer_registry.h"
+#include "layertrace/render/effects.h"
+#include "test_util.h"
+
+#if LAYERTRACE_HAS_GPU
+#include "layertrace/gpu/gpu_context.h"
+#endif
+
+namespace lt {
+namespace {
+
+#if LAYERTRACE_HAS_GPU
+
+class GpuEffect : public ::testing::Test {
+ protected:
+  static void SetUpTestSuite() {
+    if (std::getenv("LAYERTRACE_SANITIZED")) return;  // the driver is not instrumented (gpu_test.cpp)
+    gpu_ = openGpu();
+  }
+  static void TearDownTestSuite() { gpu_.reset(); }
+  void SetUp() override {
+    if (!gpu_) GTEST_SKIP() << "sanitized build: the GPU driver is not instrumented";
+  }
+  static std::shared_ptr<GpuContext> gpu_;
+};
+std::shared_ptr<GpuContext> GpuEffect::gpu_;
+
+struct ImageAgreement {
+  size_t pixels = 0, differ = 0;
+  float maxDiff = 0.0f;
+};
+
+/// Pixels whose colour differs by more than `tolerance` relative (to max(1, |value|)).
+ImageAgreement compareImages(const Image& a, const Image& b, float tolerance) {
+  ImageAgreement r;
+  for (int y = 0; y < a.height; ++y)
+    for (int x = 0; x < a.width; ++x) {
+      ++r.pixels;
+      float worst = 0.0f;
+      for (int c = 0; c < 3; ++c) {
+        const float u = a.at(x, y)[c], v = b.at(x, y)[c];
+        worst = std::max(worst, std::abs(u - v) / std::max(1.0f, std::abs(u)));
+      }
+      r.maxDiff = std::max(r.maxDiff, worst);
+      r.differ += worst > tolerance;
+    }
+  return r;
+}
+
+/// Renders `ec` with the CPU tracer `name` (the reference path) and on the GPU with its GPU
+/// version, rays generated and shaded on the device, and checks that both agree.
+void expectSameEffect(GpuContext& gpu, const Frame& f, const std::string& name, const EffectConfig& ec) {
+  SCOPED_TRACE(name + " " + effectName(ec.effect));
+  const BuiltTracer cpu = buildTracer(name, f, TracerOptions{});
+  const BuiltTracer onGpu = buildGpuTracer(name, f, TracerOptions{}, gpu);
+  const EffectResult want = renderEffect(f, *cpu.tracer, ec);
+  EffectConfig device = ec;
+  device.wholeWaves = device.shadeOnDevice = true;
+  const EffectResult got = renderEffect(f, *onGpu.tracer, device);
+  ASSERT_TRUE(got.onDevice);
+  if (ec.effect != Effect::Shade) {
+    ASSERT_GT(want.rays, size_t(f.camera.width()) * size_t(f.camera.height()) / 4);
+  }
+  // Counters. On llvmpipe the rays are the CPU's to the bit (IEEE arithmetic, `precise` in the
+  // CPU's order, the same splitmix64 stream), so every ray meets the same fragment with the same
+  // iterations. A GPU with approximate division and square root (GLSL allows 2.5 ulp) may send a
+  // grazing ray to a neighbouring pixel: 0.1 % of the rays.
+  const double slack = gpu.software() ? 0.0 : 1e-3 * double(want.rays);
+  EXPECT_NEAR(double(got.rays), double(want.rays), slack);
+  EXPECT_NEAR(double(got.hits), double(want.hits), slack);
+  EXPECT_NEAR(double(got.bentRays), double(want.bentRays), slack);
+  EXPECT_NEAR(double(got.iterationSum), double(want.iterationSum), gpu.software() ? 0.0 : 1e-3 * double(want.iterationSum));
+  EXPECT_NEAR(double(got.intervalSum), double(want.intervalSum), gpu.software() ? 0.0 : 1e-3 * double(want.intervalSum));
+  EXPECT_EQ(got.giveUps, want.giveUps);
+  if (gpu.software()) {
+    EXPECT_EQ(got.iterationsP99, want.iterationsP99);
+    for (int l = 0; l < RayCounters::kLevels; ++l) EXPECT_EQ(got.levelIterations[l], want.levelIterations[l]) << "level " << l;
+  }
+  // Colours: GLSL's pow, sin and cos are not libm's (a few ulp), so the shaded colour differs in
+  // its last bits; a pixel whose ray changed answer differs by a whole surface.
+  const ImageAgreement image = compareImages(want.image, got.image, 1e-4f);
+  const ImageAgreement traced = compareImages(want.traced, got.traced, 1e-4f);
+  const size_t allowed = gpu.software() ? 0 : image.pixels / 1000;
+  EXPECT_LE(image.differ, allowed) << "largest relative difference " << image.maxDiff;
+  EXPECT_LE(traced.differ, allowed) << "largest relative difference " << traced.maxDiff;
+}
+
+Frame defaultFrame(int W, int H) {
+  FrameOptions o;
+  o.scenePath = test::sourceDir() + "/scenes/default.json";
+  o.width = W, o.height = H;
+  return buildFrame(o);
+}
+
+TEST_F(GpuEffect, EveryEffectOfEveryGpuTracerEqualsTheCpu) {
+  // Odd sizes: tiles cut by the frame's edge.
+  Frame f = defaultFrame(203, 117);
+  // A second light behind the first: shadow rays per pixel with slots left empty.
+  f.lights.push_back({f.camera.desc().eye + glm::vec3(0.0f, 3.0f, -2.0f), glm::vec3(4.0f)});
+  for (const char* name : {"ssr", "ssr-layers", "hiz", "hssr"}) {
+    EffectConfig ec;
+    ec.effect = Effect::Reflection;
+    ec.bounces = 3;
+    expectSameEffect(*gpu_, f, name, ec);
+  }
+  for (Effect effect : {Effect::Shade, Effect::AO, Effect::Shadow}) {
+    EffectConfig ec;
+    ec.effect = effect;
+    ec.aoSamples = 5;
+    ec.seed = test::testSeed();
+    expectSameEffect(*gpu_, f, "hssr", ec);
+  }
+}
+
+TEST_F(GpuEffect, OriginRuleAndBentRaysAlongASmoothWall) {
+  // Most reflections along the wall are first answered by the wall they leave (the origin
+  // rule's continuations), or leave below it (mirrored or bent): both rules on the device.
+  const Frame f = test::frameOf(test::smoothRoom(), test::originCamera(60.0f, 0.05f, 50.0f), 160, 90, 4, 0.05f);
+  for (bool mirror : {true, false}) {
+    EffectConfig ec;
+    ec.effect = Effect::Reflection;
+    ec.bounces = 2;
+    ec.mirrorBelowSurface = mirror;
+    expectSameEffect(*gpu_, f, "hssr", ec);
+    ec.effect = Effect::AO;
+    expectSameEffect(*gpu_, f, "ssr-layers", ec);
+  }
+}
+
+TEST_F(GpuEffect, PersistentThreadsGiveTheSameImage) {
+  const Frame f = defaultFrame(160, 90);
+  const BuiltTracer b = buildGpuTracer("hssr", f, TracerOptions{}, *gpu_);
+  EffectConfig ec;
+  ec.effect = Effect::Reflection;
+  ec.bounces = 2;
+  ec.wholeWaves = ec.shadeOnDevice = true;
+  const EffectResult plain = renderEffect(f, *b.tracer, ec);
+  ASSERT_TRUE(setGpuPersistentThreads(*b.tracer, true));
+  const EffectResult reloaded = renderEffect(f, *b.tracer, ec);
+  EXPECT_EQ(compareImages(plain.image, reloaded.image, 0.0f).differ, 0u);
+  EXPECT_EQ(plain.iterationSum, reloaded.iterationSum);
+}
+
+TEST_F(GpuEffect, RefractionAndViewSynthesisShadeOnTheCpu) {
+  // What the passes do not render runs as before: rays generated on the CPU, traced in whole
+  // waves on the GPU, the same image as without shadeOnDevice.
+  const Frame f = defaultFrame(96, 64);
+  const BuiltTracer b = buildGpuTracer("hssr", f, TracerOptions{}, *gpu_);
+  EffectConfig ec;
+  ec.effect = Effect::Refraction;
+  ec.wholeWaves = true;
+  const EffectResult cpuShaded = renderEffect(f, *b.tracer, ec);
+  ec.shadeOnDevice = true;
+  const EffectResult r = renderEffect(f, *b.tracer, ec);
+  EXPECT_FALSE(r.onDevice);
+  EXPECT_EQ(compareImages(cpuShaded.image, r.image, 0.0f).differ, 0u);
+  EXPECT_EQ(r.rays, cpuShaded.rays);
+}
+
+#endif  // LAYERTRACE_HAS_GPU
+
+}  // namespace
+}  // namespace lt
