@@ -2,7 +2,7 @@
 # The GPU benchmark, prepared for a machine with an NVIDIA (or any OpenGL 4.5) driver and no
 # display, compiler or network. Run it from a bundle made by `make gpu-bundle` (or from a built
 # tree). It writes OUT/gpu-bench.json and OUT/gpu-bench.md:
-#   - every stage (raster, sort, hierarchy, trace; GL timer queries) of ssr (stride 1 and 4),
+#   - every stage (raster, sort, hierarchy, trace, shade; GL timer queries) of ssr (stride 1 and 4),
 #     ssr-layers, hiz, hssr and hssr with persistent threads, with plain Embree on the CPU over
 #     the same rays, iterations per ray and memory, at 1280×720, 1920×1080 and 3840×2160, k = 4,
 #     on the default scene and two fetched real scenes;

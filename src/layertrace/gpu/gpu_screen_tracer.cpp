@@ -51,6 +51,7 @@ GpuScreenTracer::GpuScreenTracer(GpuContext& gpu, const Camera& camera, const La
   program_.set("uLevels", levels);
   program_.set("uNUp", config.nUp);
   program_.set("uParentAscent", config.parentAscent);
+  persistent_ = config.rayReloading;
   program_.set("uLevelWidth", pyramid_->width.data(), GpuPyramid::kMaxLevels);
   program_.set("uLevelHeight", pyramid_->height.data(), GpuPyramid::kMaxLevels);
   program_.set("uLevelOffset", pyramid_->cellBase.data(), GpuPyramid::kMaxLevels);
