@@ -23,6 +23,10 @@ const uint kHistogram = 16u, kHistogramMax = 65536u, kPixelTally = kHistogram + 
 const float kMinElevation = 0.01;  // effects.cpp Renderer::kMinElevation
 
 uniform int uEffect, uWave, uAoSamples;
+// The frame's pixel slots run in chunks (GpuEffects::run): the rays, answers and path states
+// are the chunk's, indexed from its first slot uSlotBase; the picture and the tally are the
+// frame's.
+uniform uint uSlotBase;
 uniform int uWaves;  // waves of rays: the bounces (reflection), 1 (AO, shadow) or 0 (shade)
 uniform float uMaxDistance, uAoRadius, uEps;
 uniform uint uSeedLo, uSeedHi;
@@ -114,6 +118,7 @@ vec3 local(Surface s, vec3 incoming) {
 }
 
 uint gBent = 0u;  // this step's rays bent out of their surface
+uint gSlot;       // the pixel slot of the frame (uSlotBase + this invocation's slot of the chunk)
 
 // effects.cpp Renderer::keepOutside.
 vec3 keepOutside(vec3 dir, Surface s) {
@@ -179,8 +184,8 @@ float nextUniform() {
 }
 
 void finish(uint i, inout PathState st, vec3 result, vec3 traced) {
-  pixels[i].result = vec4(result, 0.0);
-  pixels[i].traced = vec4(traced, 0.0);
+  pixels[gSlot].result = vec4(result, 0.0);
+  pixels[gSlot].traced = vec4(traced, 0.0);
   st.surface.w = 0;
 }
 
@@ -232,7 +237,7 @@ uint emit(uint i, inout PathState st, ivec2 px) {
 void consume(uint i, inout PathState st) {
   const uint first = i * uint(uRaysPerPixel);
   const int wave = uWave - 1;
-  const uint t = kPixelTally + i * 16u;
+  const uint t = kPixelTally + gSlot * 16u;
   uint open = 0u;
   ivec3 hitFragment = ivec3(-1);
   Surface s = surfaceOf(st.surface.xyz, st.incoming.xyz);
@@ -281,8 +286,9 @@ void consume(uint i, inout PathState st) {
 void main() {
   const uint i = gl_GlobalInvocationID.x + uint(uFirst);
   if (i >= uint(uItems)) return;
+  gSlot = uSlotBase + i;
   ivec2 px;
-  const bool inside = slotPixel(i, px);
+  const bool inside = slotPixel(gSlot, px);
   PathState st;
   if (uWave == 0) {
     // effects.cpp Renderer::begin: the front surface; pixels without fragments show the
@@ -296,8 +302,8 @@ void main() {
     if (inside) {
       const uvec4 f = fragmentAt(px.x, px.y, 0);
       if (f.x == kEmptySlot) {
-        pixels[i].result = vec4(uEnvironment, 0.0);
-        pixels[i].traced = vec4(uEnvironment, 0.0);
+        pixels[gSlot].result = vec4(uEnvironment, 0.0);
+        pixels[gSlot].traced = vec4(uEnvironment, 0.0);
       } else {
         st.view.xyz = normalizeStd(fragmentPoint(px.x, px.y, f));
         st.incoming.xyz = st.view.xyz;
@@ -317,6 +323,6 @@ void main() {
   } else {
     for (uint j = 0u; j < uint(uRaysPerPixel); ++j) noRay(i * uint(uRaysPerPixel) + j);
   }
-  if (gBent > 0u) tally[kPixelTally + i * 16u + 6u] += gBent;
+  if (gBent > 0u) tally[kPixelTally + gSlot * 16u + 6u] += gBent;
   states[i] = st;
 }

@@ -885,6 +885,7 @@ TEST(CliGpu, RenderOnTheGpuGivesTheCpuImage) {
       const auto j = readJson(dir / "gpu.json");
       EXPECT_EQ(j["device"], "gpu");
       EXPECT_EQ(j["gpu"]["shading"], "gpu");
+      EXPECT_GT(j["memory_bytes"]["gpu_effect"].get<double>(), 0.0);
       EXPECT_EQ(j["rays"]["count"], readJson(dir / "cpu.json")["rays"]["count"]) << t;
       EXPECT_EQ(j["rays"]["hits"], readJson(dir / "cpu.json")["rays"]["hits"]) << t;
       EXPECT_FALSE(j["gpu_renderer"].get<std::string>().empty());
@@ -938,6 +939,9 @@ TEST(CliGpu, BenchReportsEveryStageOnBothDevicesAndListsAgainstPeeling) {
     for (const auto& row : j["rows"]) {
       EXPECT_GT(row["trace_ms"].get<double>(), 0.0) << row;
       EXPECT_GT(row["memory_bytes"].get<double>(), 0.0) << row;
+      // The default effect (reflection) runs on the device with every GPU tracer.
+      EXPECT_EQ(row["shade_device"], device) << row;
+      EXPECT_EQ(row["effect_bytes"].get<double>() > 0.0, device == "gpu") << row;
       iterations[row["tracer"].get<std::string>() + row["stride"].dump()] = row["iterations_mean"].get<double>();
     }
     EXPECT_LT(iterations["hssr1.0"], iterations["ssr-layers1.0"]) << device << ": the hierarchy skips empty space";

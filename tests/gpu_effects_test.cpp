@@ -4,6 +4,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdlib>
+#include <cstring>
 #include <memory>
 #include <string>
 
@@ -18,6 +19,7 @@
 #if LAYERTRACE_HAS_GPU
 #include "layertrace/eval/verify_layers.h"
 #include "layertrace/gpu/gpu_context.h"
+#include "layertrace/gpu/gpu_effects.h"
 #include "layertrace/gpu/gpu_screen_tracer.h"
 #endif
 
@@ -139,6 +141,30 @@ TEST_F(GpuEffect, OriginRuleAndBentRaysAlongASmoothWall) {
     expectSameEffect(*gpu_, f, "hssr", ec);
     ec.effect = Effect::AO;
     expectSameEffect(*gpu_, f, "ssr-layers", ec);
+  }
+}
+
+// A frame in chunks of one 8×8 tile each gives the picture and the counters of one chunk.
+TEST_F(GpuEffect, ChunksGiveTheWholeFramesAnswers) {
+  const Frame f = defaultFrame(75, 41);
+  const BuiltTracer b = buildGpuTracer("hssr", f, TracerOptions{}, *gpu_);
+  const auto& tracer = dynamic_cast<const GpuScreenTracer&>(*b.tracer);
+  const GpuEffects effects(*gpu_, f.scene, f.camera, f.layers, f.lights);
+  for (GpuEffectKind kind : {GpuEffectKind::Reflection, GpuEffectKind::AO}) {
+    GpuEffectParams p;
+    p.kind = kind;
+    p.bounces = 2;
+    p.aoSamples = 3;
+    const GpuEffectOutput whole = effects.run(tracer, p);
+    p.chunkBytes = 1;  // one tile a chunk
+    const GpuEffectOutput tiles = effects.run(tracer, p);
+    ASSERT_EQ(whole.image.size(), size_t(75 * 41));
+    EXPECT_TRUE(whole.image == tiles.image && whole.traced == tiles.traced);
+    EXPECT_EQ(std::memcmp(whole.tally.data(), tiles.tally.data(), whole.tally.size() * sizeof(GpuPixelTally)), 0);
+    EXPECT_EQ(whole.histogram, tiles.histogram);
+    uint64_t rays = 0;
+    for (const GpuPixelTally& t : whole.tally) rays += t.rays;
+    EXPECT_GT(rays, 75u * 41u / 2);
   }
 }
 

@@ -506,7 +506,7 @@ int runBench(const BenchOptions& o) {
     // queries of the device's work, ray generation and shading included where the effect runs
     // on the device (shade_device "gpu"; render/effects.h EffectConfig::shadeOnDevice).
     t.columns = {"device", "tracer", "stride", "persistent", "raster_ms", "sort_ms", "hierarchy_ms", "trace_ms", "shade_ms", "shade_device", "iterations_mean",
-                 "memory_bytes", "embree_trace_ms", "trace_vs_embree"};
+                 "memory_bytes", "effect_bytes", "embree_trace_ms", "trace_vs_embree"};
     Progress p(o.run.quiet, e, gpu ? 8 : 7);
     p.step("capture");
     std::vector<double> rs, ss;
@@ -556,7 +556,7 @@ int runBench(const BenchOptions& o) {
       const EffectResult c = renderEffect(frame, *b.tracer, counted);
       const double ms = median(trace);
       t.rows.push_back({device, name, stride, persistent, median(rs), median(ss), median(hs), ms, median(shade), onDevice ? "gpu" : "cpu",
-                        c.rays ? double(c.iterationSum) / double(c.rays) : 0.0, captureBytes + b.memoryBytes, embreeMs,
+                        c.rays ? double(c.iterationSum) / double(c.rays) : 0.0, captureBytes + b.memoryBytes, c.deviceBytes, embreeMs,
                         ms > 0.0 ? embreeMs / ms : 0.0});
     }
   } else if (e == "peel") {

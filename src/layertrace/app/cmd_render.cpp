@@ -238,6 +238,7 @@ int runRender(const RenderOptions& o) {
     stats["timings_ms"]["gpu_trace"] = gpuMs;
     stats["gpu"] = gpuStats(*gpu);
     stats["gpu"]["shading"] = r.onDevice ? "gpu" : "cpu";
+    if (r.onDevice) stats["memory_bytes"]["gpu_effect"] = r.deviceBytes;  // the effect's buffers on the GPU
     stats["gpu_renderer"] = gpu->renderer();
   }
   stats["memory_bytes"]["hierarchy"] = built.memoryBytes;

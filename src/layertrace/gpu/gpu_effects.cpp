@@ -123,7 +123,7 @@ size_t GpuEffects::memoryBytes() const {
   return b;
 }
 
-void GpuEffects::resize(size_t pixelSlots, size_t raySlots) const {
+void GpuEffects::resize(size_t pixelSlots, size_t chunkSlots, size_t raySlots) const {
   auto fit = [](GpuBuffer& b, size_t bytes) {
     if (b.bytes() < bytes || b.bytes() > 2 * bytes) b = GpuBuffer(bytes);
   };
@@ -131,7 +131,7 @@ void GpuEffects::resize(size_t pixelSlots, size_t raySlots) const {
   fit(hits_, raySlots * kHitBytes);
   fit(effectRays_, raySlots * kEffectRayBytes);
   fit(answers_, raySlots * kHitBytes);
-  fit(states_, pixelSlots * kStateBytes);
+  fit(states_, chunkSlots * kStateBytes);
   fit(out_, pixelSlots * kOutBytes);
   fit(tally_, (kPixelTallyFirst + 16 * pixelSlots) * sizeof(uint32_t));
   fit(pending_, sizeof(uint32_t));
@@ -146,8 +146,12 @@ GpuEffectOutput GpuEffects::run(const GpuScreenTracer& tracer, const GpuEffectPa
   const int R = p.kind == GpuEffectKind::AO ? p.aoSamples
                 : p.kind == GpuEffectKind::Shadow ? std::max(1, int(lightPosition_.size()))
                                                   : 1;
-  const size_t raySlots = pixelSlots * size_t(R);
-  resize(pixelSlots, raySlots);
+  // Chunks of whole tiles, each run wave by wave to its end.
+  const size_t perRaySlot = kRayBytes + 2 * kHitBytes + kEffectRayBytes;  // rays, hits, answers, effect rays
+  const size_t tilesPerChunk = std::max<size_t>(1, p.chunkBytes / (perRaySlot * size_t(R) * size_t(kTile * kTile)));
+  const size_t chunkSlots = std::min(pixelSlots, tilesPerChunk * size_t(kTile * kTile));
+  const size_t raySlots = chunkSlots * size_t(R);
+  resize(pixelSlots, chunkSlots, raySlots);
   tally_.fill(0u);
 
   const int nWaves = waves(p);
@@ -162,9 +166,7 @@ GpuEffectOutput GpuEffects::run(const GpuScreenTracer& tracer, const GpuEffectPa
   step_.set("uCount", int(p.countRays));
   step_.set("uMirrorBelowSurface", int(p.mirrorBelowSurface));
   step_.set("uRaysPerPixel", R);
-  step_.set("uItems", int(pixelSlots));
   resolve_.set("uRaysPerPixel", R);
-  resolve_.set("uItems", int(raySlots));
 
   GpuEffectOutput out;
   auto timed = [](const GpuTimer& timer, double& ms, auto&& work) {
@@ -173,42 +175,51 @@ GpuEffectOutput GpuEffects::run(const GpuScreenTracer& tracer, const GpuEffectPa
     timer.end();
     ms += timer.ms();
   };
-  auto step = [&](int wave) {
-    timed(*shadeTimer_, out.shadeMs, [&] {
-      rays_.bindStorage(0);
-      tally_.bindStorage(1);
-      fragments_.bindStorage(2);
-      triangles_.bindStorage(3);
-      effectRays_.bindStorage(4);
-      answers_.bindStorage(5);
-      states_.bindStorage(6);
-      out_.bindStorage(7);
-      step_.set("uWave", wave);
-      gpu_.dispatch(step_, pixelSlots);
-    });
-  };
-  step(0);
-  for (int wave = 0; wave < nWaves; ++wave) {
-    // The wave's march, then the origin rule: more marches while rays wait for an answer.
-    for (int round = 0; round <= kOriginSkips; ++round) {
-      timed(*traceTimer_, out.traceMs, [&] {
-        tracer.marchResident(rays_, hits_, raySlots);
-        pending_.fill(0u);
+  // One chunk of `items` pixel slots from `base`, wave by wave: a step pass, then per wave the
+  // march and the origin rule's rounds (more marches while rays wait for an answer), then the
+  // next step pass, which takes the answers and emits the next wave.
+  auto runChunk = [&](size_t base, size_t items) {
+    const size_t rayItems = items * size_t(R);
+    step_.set("uSlotBase", uint32_t(base));
+    step_.set("uItems", int(items));
+    resolve_.set("uItems", int(rayItems));
+    auto step = [&](int wave) {
+      timed(*shadeTimer_, out.shadeMs, [&] {
         rays_.bindStorage(0);
-        hits_.bindStorage(1);
+        tally_.bindStorage(1);
         fragments_.bindStorage(2);
+        triangles_.bindStorage(3);
         effectRays_.bindStorage(4);
         answers_.bindStorage(5);
-        pending_.bindStorage(6);
-        resolve_.set("uRound", round);
-        gpu_.dispatch(resolve_, raySlots);
+        states_.bindStorage(6);
+        out_.bindStorage(7);
+        step_.set("uWave", wave);
+        gpu_.dispatch(step_, items);
       });
-      uint32_t pending = 0;
-      pending_.read(&pending, sizeof pending);
-      if (pending == 0) break;
+    };
+    step(0);
+    for (int wave = 0; wave < nWaves; ++wave) {
+      for (int round = 0; round <= kOriginSkips; ++round) {
+        timed(*traceTimer_, out.traceMs, [&] {
+          tracer.marchResident(rays_, hits_, rayItems);
+          pending_.fill(0u);
+          rays_.bindStorage(0);
+          hits_.bindStorage(1);
+          fragments_.bindStorage(2);
+          effectRays_.bindStorage(4);
+          answers_.bindStorage(5);
+          pending_.bindStorage(6);
+          resolve_.set("uRound", round);
+          gpu_.dispatch(resolve_, rayItems);
+        });
+        uint32_t pending = 0;
+        pending_.read(&pending, sizeof pending);
+        if (pending == 0) break;
+      }
+      step(wave + 1);
     }
-    step(wave + 1);
-  }
+  };
+  for (size_t base = 0; base < pixelSlots; base += chunkSlots) runChunk(base, std::min(chunkSlots, pixelSlots - base));
 
   // Read back, from tile order to rows.
   out.width = W, out.height = H;

@@ -40,6 +40,11 @@ struct GpuEffectParams {
   uint64_t seed = 1;          ///< AO: per-pixel random streams derive from it
   bool countRays = true;      ///< per-ray counters and their histogram
   bool mirrorBelowSurface = true;
+  /// The frame's pixels run in chunks of whole 8×8 tiles whose per-ray buffers (208 bytes a ray
+  /// slot) stay under this many bytes (at least one tile a chunk), so that a large frame with
+  /// many rays per pixel fits the GPU. Choice: 512 MiB, 2.5 M ray slots, more rays than any GPU
+  /// runs at once.
+  size_t chunkBytes = size_t(512) << 20;
 };
 
 /// One pixel's counters, summed over its rays (render/effects.h EffectResult).
@@ -79,7 +84,7 @@ class GpuEffects {
   size_t memoryBytes() const;
 
  private:
-  void resize(size_t pixelSlots, size_t raySlots) const;
+  void resize(size_t pixelSlots, size_t chunkSlots, size_t raySlots) const;
 
   GpuContext& gpu_;
   const Camera& camera_;

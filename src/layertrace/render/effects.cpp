@@ -656,6 +656,7 @@ std::optional<EffectResult> renderOnGpu(const Frame& f, const Tracer& tracer, co
     }
   if (c.countRays) res.iterationsP99 = percentile99(out.histogram, res.rays);
   res.onDevice = true;
+  res.deviceBytes = effects.memoryBytes();
   res.traceMs = out.traceMs;
   res.shadeMs = out.shadeMs;
   return res;

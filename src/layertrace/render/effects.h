@@ -93,6 +93,7 @@ struct EffectResult {
   uint64_t iterationsP99 = 0;
   uint64_t levelIterations[RayCounters::kLevels] = {};  ///< HSSR: visited cells per level, summed
   bool onDevice = false;  ///< rays generated and shaded on the GPU (EffectConfig::shadeOnDevice)
+  size_t deviceBytes = 0;  ///< onDevice: the GPU buffers the effect held (layers, triangles, rays, paths, picture)
   double traceMs = 0.0;  ///< wall time inside the tracer's batch calls
   double shadeMs = 0.0;  ///< wall time of the rest of the effect (rays, shading, observers)
 };
