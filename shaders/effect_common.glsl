@@ -6,19 +6,8 @@
 // Rays live in fixed slots: pixel slot i (8×8-pixel tiles over the frame rounded up to whole
 // tiles, tiles row by row, pixels row by row inside a tile: the CPU renderer's ray order) owns
 // rays i·R … i·R + R − 1, R the effect's most rays per pixel. A slot without a ray has a negative
-// length, and the march answers it with a miss at once.
+// length, and the march answers it with a miss at once. Include after ray_io.glsl.
 
-// trace/tracer.h Ray as the march reads it (screen_common.glsl GpuRay).
-struct GpuRay {
-  vec4 originMax;
-  vec4 dirSurface;
-};
-// The march's answer (screen_common.glsl GpuHit): the hit fragment, layer −1 for a miss.
-struct GpuHit {
-  int x, y, layer;
-  uint iterations, intervals, pixels, giveUps, pad;
-  uint levelIterations[8];
-};
 // The effect's ray: as emitted, with the triangle it leaves (Ray::originTriangle) and whether it
 // still waits for an answer under the origin rule (Tracer::query).
 struct EffectRay {

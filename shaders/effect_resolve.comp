@@ -6,6 +6,7 @@
 // written back as its continuation and counted, so the host knows whether to march again.
 layout(local_size_x = 64) in;
 
+#include "ray_io.glsl"
 #include "effect_common.glsl"
 
 layout(std430, binding = 0) buffer Rays { GpuRay rays[]; };

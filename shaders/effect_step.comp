@@ -5,6 +5,7 @@
 // counts them, shades, and emits the rays of wave w. One invocation per pixel slot.
 layout(local_size_x = 64) in;
 
+#include "ray_io.glsl"
 #include "effect_common.glsl"
 
 layout(std430, binding = 0) writeonly buffer Rays { GpuRay rays[]; };

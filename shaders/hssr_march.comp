@@ -5,6 +5,7 @@
 // n_up = 1 it is the Hi-Z march (src/layertrace/hiz/hiz_pyramid.h). One invocation per ray.
 layout(local_size_x = 64) in;
 
+#include "ray_io.glsl"
 #include "screen_common.glsl"
 
 // Coarse cells of levels 1.. (hssr/interval_pyramid.h CoarseCell): two vec4 per cell, κ of the

@@ -1,22 +1,8 @@
-// Shared by the screen-space tracers' compute shaders: the ray and answer layouts, the camera,
+// Shared by the screen-space tracers' compute shaders (after ray_io.glsl): the camera,
 // the screen segment of McGuire and Mara 2014 and the first-met interval rule. Each function is
 // the GLSL twin of a CPU function (named beside it) and computes the same floats in the same
 // order; `precise` keeps the compiler from contracting a product and a sum into one FMA, which
 // the CPU build does not do either (-ffp-contract=off).
-
-// One ray: camera-space origin and maximum distance, direction and 1 when it starts on a
-// stored surface (trace/tracer.h Ray).
-struct GpuRay {
-  vec4 originMax;
-  vec4 dirSurface;
-};
-// One answer: the hit fragment (x, y, layer; layer -1 for a miss) and the per-ray counters of
-// trace/tracer.h RayCounters.
-struct GpuHit {
-  int x, y, layer;
-  uint iterations, intervals, pixels, giveUps, pad;
-  uint levelIterations[8];
-};
 
 layout(std430, binding = 0) readonly buffer Rays { GpuRay rays[]; };
 layout(std430, binding = 1) writeonly buffer Hits { GpuHit hits[]; };

@@ -5,6 +5,7 @@
 // each pixel (ssr) or all k (ssr-layers). One invocation per ray.
 layout(local_size_x = 64) in;
 
+#include "ray_io.glsl"
 #include "screen_common.glsl"
 
 uniform float uStride, uJitter;

@@ -102,12 +102,7 @@ void expectSameEffect(GpuContext& gpu, const Frame& f, const std::string& name, 
   EXPECT_LE(traced.differ, allowed) << "largest relative difference " << traced.maxDiff;
 }
 
-Frame defaultFrame(int W, int H) {
-  FrameOptions o;
-  o.scenePath = test::sourceDir() + "/scenes/default.json";
-  o.width = W, o.height = H;
-  return buildFrame(o);
-}
+Frame defaultFrame(int W, int H) { return buildFrame(test::defaultSceneOptions(W, H)); }
 
 TEST_F(GpuEffect, EveryEffectOfEveryGpuTracerEqualsTheCpu) {
   // Odd sizes: tiles cut by the frame's edge.

@@ -88,12 +88,7 @@ Agreement compareDevices(GpuContext& gpu, const Frame& f, const std::string& nam
   return a;
 }
 
-Frame defaultFrame(int W, int H) {
-  FrameOptions o;
-  o.scenePath = test::sourceDir() + "/scenes/default.json";
-  o.width = W, o.height = H;
-  return buildFrame(o);
-}
+Frame defaultFrame(int W, int H) { return buildFrame(test::defaultSceneOptions(W, H)); }
 
 TEST_F(Gpu, EveryGpuTracerAnswersAsTheCpuOnTheDefaultScene) {
   // Odd sizes: partial cells on every pyramid level.
@@ -152,10 +147,7 @@ TEST_F(Gpu, RaysFromOutsideTheViewAndAnOrthographicCamera) {
   }
   for (const char* name : {"ssr-layers", "hiz", "hssr"}) EXPECT_LE(compareDevices(*gpu_, f, name, TracerOptions{}, rays).hitsDiffer, allowed(rays.size())) << name;
 
-  FrameOptions o;
-  o.scenePath = test::sourceDir() + "/scenes/default.json";
-  o.width = 160, o.height = 100;
-  Frame ortho = buildFrame(o);
+  Frame ortho = buildFrame(test::defaultSceneOptions(160, 100));
   CameraDesc desc = ortho.camera.desc();
   desc.orthoHeight = 0.8f * d;
   const Frame of = test::frameOf(ortho.scene, desc, 160, 100);
@@ -192,12 +184,7 @@ LayerAgreement compareCaptures(GpuContext& gpu, const FrameOptions& o, const std
   return compareLayerArrays(onGpu.layers, cpu.layers, 1e-5f);
 }
 
-FrameOptions defaultView(int W, int H) {
-  FrameOptions o;
-  o.scenePath = test::sourceDir() + "/scenes/default.json";
-  o.width = W, o.height = H;
-  return o;
-}
+FrameOptions defaultView(int W, int H) { return test::defaultSceneOptions(W, H); }
 
 // The same fragments in the same slots (triangle, depth within 1e-5 relative) as the CPU
 // capture. Both evaluate the pixel-centre ray against the triangle's plane; what may differ is

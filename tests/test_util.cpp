@@ -51,6 +51,13 @@ FrameOptions realSceneOptions(const std::string& sceneFile, const std::string& c
   return o;
 }
 
+FrameOptions defaultSceneOptions(int W, int H) {
+  FrameOptions o;
+  o.scenePath = sourceDir() + "/scenes/default.json";
+  o.width = W, o.height = H;
+  return o;
+}
+
 void writeTriangleWithCamera(const std::string& path) {
   std::ofstream(path) << R"({"asset": {"version": "2.0"}, "scene": 0, "scenes": [{"nodes": [0, 1]}],
     "nodes": [{"mesh": 0}, {"camera": 0, "name": "modelcam", "translation": [0, 0, 10]}],

@@ -51,6 +51,8 @@ void forEachSimdTarget(Body&& body, bool all = true) {
 
 /// Frame options for a scene file of scenes/ (a fetched real scene) with one of its cameras.
 FrameOptions realSceneOptions(const std::string& sceneFile, const std::string& camera);
+/// The embedded default scene (scenes/default.json) at W × H, its first camera.
+FrameOptions defaultSceneOptions(int W, int H);
 
 /// Writes a glTF 2.0 model to `path`: one triangle (0,0,0) (1,0,0) (0,1,0) and a camera node
 /// named "modelcam" at (0, 0, 10) looking down −z.

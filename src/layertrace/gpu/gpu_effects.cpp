@@ -183,14 +183,18 @@ GpuEffectOutput GpuEffects::run(const GpuScreenTracer& tracer, const GpuEffectPa
     step_.set("uSlotBase", uint32_t(base));
     step_.set("uItems", int(items));
     resolve_.set("uItems", int(rayItems));
+    // (the march binds its own buffers: each pass binds all of its own)
+    auto bindRays = [&] {
+      rays_.bindStorage(0);
+      fragments_.bindStorage(2);
+      effectRays_.bindStorage(4);
+      answers_.bindStorage(5);
+    };
     auto step = [&](int wave) {
       timed(*shadeTimer_, out.shadeMs, [&] {
-        rays_.bindStorage(0);
+        bindRays();
         tally_.bindStorage(1);
-        fragments_.bindStorage(2);
         triangles_.bindStorage(3);
-        effectRays_.bindStorage(4);
-        answers_.bindStorage(5);
         states_.bindStorage(6);
         out_.bindStorage(7);
         step_.set("uWave", wave);
@@ -203,11 +207,8 @@ GpuEffectOutput GpuEffects::run(const GpuScreenTracer& tracer, const GpuEffectPa
         timed(*traceTimer_, out.traceMs, [&] {
           tracer.marchResident(rays_, hits_, rayItems);
           pending_.fill(0u);
-          rays_.bindStorage(0);
+          bindRays();
           hits_.bindStorage(1);
-          fragments_.bindStorage(2);
-          effectRays_.bindStorage(4);
-          answers_.bindStorage(5);
           pending_.bindStorage(6);
           resolve_.set("uRound", round);
           gpu_.dispatch(resolve_, rayItems);

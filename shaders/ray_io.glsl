@@ -1,0 +1,17 @@
+// The ray and answer layouts every march reads and writes (screen_common.glsl's tracers, and the
+// effect passes around them: effect_common.glsl), std430 twins of gpu/gpu_screen_tracer.cpp's
+// RayRecord and HitRecord.
+
+// One ray: camera-space origin and maximum distance, direction and 1 when it starts on a
+// stored surface (trace/tracer.h Ray).
+struct GpuRay {
+  vec4 originMax;
+  vec4 dirSurface;
+};
+// One answer: the hit fragment (x, y, layer; layer -1 for a miss) and the per-ray counters of
+// trace/tracer.h RayCounters.
+struct GpuHit {
+  int x, y, layer;
+  uint iterations, intervals, pixels, giveUps, pad;
+  uint levelIterations[8];
+};
