@@ -24,6 +24,9 @@ struct PathState {
   vec4 colour;    // reflection: the accumulated colour
   vec4 weight;    // reflection: the path weight
   vec4 view;      // the view direction at the front surface
+  vec4 refracted; // refraction: xyz the refracted direction in flight, w the Fresnel weight
+  vec4 reflected; // refraction: the colour the reflection ray brought back
+  ivec4 back;     // refraction: the transmissive back surface's fragment
 };
 struct PixelOut {
   vec4 result;

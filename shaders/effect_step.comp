@@ -18,7 +18,7 @@ layout(std430, binding = 5) readonly buffer Answers { GpuHit answers[]; };
 layout(std430, binding = 6) buffer States { PathState states[]; };
 layout(std430, binding = 7) writeonly buffer Out { PixelOut pixels[]; };
 
-const int kShade = 0, kReflection = 1, kAO = 2, kShadow = 3;
+const int kShade = 0, kReflection = 1, kAO = 2, kShadow = 3, kRefraction = 4, kWarp = 5;
 const int kMaxLights = 16;
 const uint kHistogram = 16u, kHistogramMax = 65536u, kPixelTally = kHistogram + kHistogramMax + 1u;
 const float kMinElevation = 0.01;  // effects.cpp Renderer::kMinElevation
@@ -38,11 +38,16 @@ uniform int uLights;
 uniform vec3 uLightPosition[kMaxLights];  // camera space
 uniform vec3 uLightIntensity[kMaxLights];
 uniform float uSrgb[256];  // raster/fragment.cpp's sRGB decode table
+// View synthesis (effects.h Effect::Warp): the second camera, and the first camera's view.
+uniform mat4 uView, uWarpViewInverse;
+uniform float uWarpPixelScale, uWarpMax;
+uniform bool uWarpOrtho;
+uniform vec3 uWarpOrigin;  // the second camera's eye in the first camera's space
 
 // effects.cpp Surface.
 struct Surface {
   vec3 p, n, ng, albedo;
-  float specular, mirror, shininess;
+  float specular, mirror, shininess, transmission, ior;
   uint triangle;
 };
 
@@ -67,6 +72,11 @@ vec3 decodeOctahedral(uint bits) {
 vec3 crossStd(vec3 x, vec3 y) {
   precise vec3 c = vec3(x.y * y.z - y.y * x.z, x.z * y.x - y.z * x.x, x.x * y.y - y.x * x.y);
   return c;
+}
+
+// std::clamp(v, 0, 1).
+float clampUnit(float v) {
+  return v < 0.0 ? 0.0 : (1.0 < v ? 1.0 : v);
 }
 
 // std::pow for the specular lobe (GLSL's pow is undefined at 0^0).
@@ -94,6 +104,8 @@ Surface surfaceOf(ivec3 frag, vec3 incoming) {
   s.specular = float(f.z >> 24) / 255.0;
   s.mirror = t.normalMirror.w;
   s.shininess = t.material.x;
+  s.transmission = t.material.y;
+  s.ior = t.material.z;
   return s;
 }
 
@@ -184,24 +196,80 @@ float nextUniform() {
   return float(z.y >> 8) * (1.0 / 16777216.0);  // the top 24 bits
 }
 
-void finish(uint i, inout PathState st, vec3 result, vec3 traced) {
+void finish(inout PathState st, vec3 result, vec3 traced) {
   pixels[gSlot].result = vec4(result, 0.0);
   pixels[gSlot].traced = vec4(traced, 0.0);
   st.surface.w = 0;
 }
 
+// effects.cpp Renderer::reflectFrom: blend in the surface's own light, continue the mirror path.
+void reflectFrom(uint slot, inout PathState st, Surface s) {
+  const float m = s.mirror;
+  precise vec3 colour = st.colour.xyz + st.weight.xyz * (1.0 - m) * local(s, st.incoming.xyz);
+  st.colour.xyz = colour;
+  st.weight.xyz *= m;
+  st.dir.xyz = keepOutside(reflectStd(st.incoming.xyz, s.n), s);
+  emitRay(slot, s, st.dir.xyz, uMaxDistance);
+}
+
+// glm::refract.
+vec3 refractStd(vec3 i, vec3 n, float eta) {
+  const float d = dotStd(n, i);
+  precise float k = 1.0 - eta * eta * (1.0 - d * d);
+  precise vec3 r = eta * i - (eta * d + sqrt(k)) * n;
+  return k >= 0.0 ? r : vec3(0.0);
+}
+
+// glm::mat4 * glm::vec4(d, 0) in glm's order, as Camera::dirToCamera and dirToWorld compute it.
+vec3 mulDirection(mat4 m, vec3 d) {
+  precise vec4 r = (m[0] * d.x + m[1] * d.y) + (m[2] * d.z + m[3] * 0.0);
+  return r.xyz;
+}
+
 // Emits the path's rays of wave uWave into its slots; returns how many.
 uint emit(uint i, inout PathState st, ivec2 px) {
   const uint first = i * uint(uRaysPerPixel);
-  Surface s = surfaceOf(st.surface.xyz, st.incoming.xyz);
   uint n = 0u;
+  if (uEffect == kWarp) {
+    // The second camera's primary ray through this pixel, in the first camera's space; it
+    // leaves an eye, not a surface.
+    vec3 through = vec3(0.0, 0.0, -1.0);
+    if (!uWarpOrtho)
+      through = vec3((float(px.x) + 0.5 - float(uWidth) * 0.5) * uWarpPixelScale, -((float(px.y) + 0.5 - float(uHeight) * 0.5) * uWarpPixelScale), -1.0);
+    st.dir.xyz = normalizeStd(mulDirection(uView, mulDirection(uWarpViewInverse, through)));
+    rays[first].originMax = vec4(uWarpOrigin, uWarpMax);
+    rays[first].dirSurface = vec4(st.dir.xyz, 0.0);
+    effectRays[first].originMax = vec4(uWarpOrigin, uWarpMax);
+    effectRays[first].dirSurface = vec4(st.dir.xyz, 0.0);
+    effectRays[first].originTriangle = kNoTriangle;
+    effectRays[first].pending = 1u;
+    st.incoming.w = 1.0;
+    return 1u;
+  }
+  const Surface s = surfaceOf(st.surface.xyz, st.incoming.xyz);
   if (uEffect == kReflection) {
-    const float m = s.mirror;
-    precise vec3 colour = st.colour.xyz + st.weight.xyz * (1.0 - m) * local(s, st.incoming.xyz);
-    st.colour.xyz = colour;
-    st.weight.xyz *= m;
-    st.dir.xyz = keepOutside(reflectStd(st.incoming.xyz, s.n), s);
-    emitRay(first, s, st.dir.xyz, uMaxDistance);
+    reflectFrom(first, st, s);
+    n = 1u;
+  } else if (uEffect == kRefraction && uWave == 0) {
+    // Enter (air → ior), travel to the back surface (a deeper layer), leave (ior → air).
+    const float cosi = -dotStd(st.view.xyz, s.n);
+    precise float r0 = (1.0 - s.ior) / (1.0 + s.ior);
+    precise float f0 = r0 * r0;
+    precise float fresnel = f0 + (1.0 - f0) * powStd(1.0 - clampUnit(cosi), 5.0);
+    reflectFrom(first, st, s);
+    const vec3 entering = refractStd(st.view.xyz, s.n, 1.0 / s.ior);
+    st.refracted = vec4(entering, fresnel);
+    n = 1u;
+    if (dotStd(entering, entering) == 0.0) {
+      noRay(first + 1u);
+    } else {
+      emitRay(first + 1u, s, entering, uMaxDistance);
+      n = 2u;
+    }
+  } else if (uEffect == kRefraction) {
+    // Wave 1: leaving the transmissive back surface.
+    emitRay(first, surfaceOf(st.back.xyz, st.refracted.xyz), st.refracted.xyz, uMaxDistance);
+    noRay(first + 1u);
     n = 1u;
   } else if (uEffect == kShadow) {
     for (int l = 0; l < uLights; ++l) {
@@ -214,6 +282,7 @@ uint emit(uint i, inout PathState st, ivec2 px) {
       emitRay(first + uint(l), s, toL, max(d - uEps, 0.0));
       ++n;
     }
+    if (n == 0u) finish(st, 0.05 * s.albedo, 0.05 * s.albedo);  // every light behind the surface: dark without a ray
   } else if (uEffect == kAO) {
     gRandom = add64(mul64(uvec2(uSeedLo, uSeedHi), kGolden), add64(mul64(uvec2(uint(px.y), 0u), uvec2(65537u, 0u)), uvec2(uint(px.x), 0u)));
     const vec3 nn = s.n;
@@ -227,11 +296,24 @@ uint emit(uint i, inout PathState st, ivec2 px) {
     }
     n = uint(uAoSamples);
   }
-  if (uEffect != kShadow)
-    for (uint j = n; j < uint(uRaysPerPixel); ++j) noRay(first + j);
-  if (uEffect == kShadow && n == 0u) finish(i, st, 0.05 * s.albedo, 0.05 * s.albedo);  // every light behind the surface: dark without a ray
   st.incoming.w = float(n);
   return n;
+}
+
+// Refraction's end (effects.cpp, Effect::Refraction): the front surface's own light, and through
+// it the Fresnel blend of what the reflection and the refraction brought back.
+void finishRefraction(inout PathState st, vec3 through) {
+  const Surface s = surfaceOf(st.surface.xyz, st.view.xyz);
+  const float tr = s.transmission, fresnel = st.refracted.w;
+  precise vec3 c = (1.0 - tr) * local(s, st.view.xyz) + tr * ((1.0 - fresnel) * s.albedo * through + fresnel * st.reflected.xyz);
+  finish(st, c, through);
+}
+
+bool hit(GpuHit h) {
+  return h.layer >= 0;
+}
+ivec3 fragmentOf(GpuHit h) {
+  return ivec3(h.x, h.y, h.layer);
 }
 
 // Takes the answers to the path's rays of wave uWave − 1 (those with a non-negative length).
@@ -240,14 +322,12 @@ void consume(uint i, inout PathState st) {
   const int wave = uWave - 1;
   const uint t = kPixelTally + gSlot * 16u;
   uint open = 0u;
-  ivec3 hitFragment = ivec3(-1);
-  Surface s = surfaceOf(st.surface.xyz, st.incoming.xyz);
-  precise vec3 shadowed = 0.05 * s.albedo;
   for (uint j = 0u; j < uint(uRaysPerPixel); ++j) {
     if (effectRays[first + j].originMax.w < 0.0) continue;
     const GpuHit h = answers[first + j];
     ++tally[t];
-    if (h.layer >= 0) ++tally[t + 1u];
+    if (hit(h)) ++tally[t + 1u];
+    else ++open;
     if (uCount) {
       tally[t + 2u] += h.iterations;
       tally[t + 3u] += h.intervals;
@@ -256,31 +336,55 @@ void consume(uint i, inout PathState st) {
       for (int l = 0; l < 8; ++l) tally[t + 8u + uint(l)] += h.levelIterations[l];
       atomicAdd(tally[kHistogram + min(h.iterations, kHistogramMax)], 1u);
     }
-    if (h.layer < 0) {
-      ++open;
-      if (uEffect == kShadow) shadowed += light(s, st.view.xyz, int(j));
-    } else if (hitFragment.z < 0) {
-      hitFragment = ivec3(h.x, h.y, h.layer);
-    }
   }
-  if (uEffect == kReflection) {
-    if (hitFragment.z < 0) {
+  const GpuHit h0 = answers[first];
+  if (uEffect == kWarp) {
+    if (!hit(h0)) tally[t + 7u] = 1u;  // a hole
+    const vec3 c = hit(h0) ? local(surfaceOf(fragmentOf(h0), st.dir.xyz), st.dir.xyz) : uEnvironment;
+    finish(st, c, c);
+  } else if (uEffect == kReflection) {
+    if (!hit(h0)) {
       precise vec3 c = st.colour.xyz + st.weight.xyz * uEnvironment;
-      finish(i, st, c, uEnvironment);
+      finish(st, c, uEnvironment);
       return;
     }
-    st.surface.xyz = hitFragment;
+    st.surface.xyz = fragmentOf(h0);
     st.incoming.xyz = st.dir.xyz;
     if (wave + 1 == uWaves) {
-      const vec3 traced = local(surfaceOf(hitFragment, st.incoming.xyz), st.incoming.xyz);
+      const vec3 traced = local(surfaceOf(st.surface.xyz, st.incoming.xyz), st.incoming.xyz);
       precise vec3 c = st.colour.xyz + st.weight.xyz * traced;
-      finish(i, st, c, traced);
+      finish(st, c, traced);
     }
+  } else if (uEffect == kRefraction && wave == 0) {
+    precise vec3 reflected = st.colour.xyz + st.weight.xyz * (hit(h0) ? local(surfaceOf(fragmentOf(h0), st.dir.xyz), st.dir.xyz) : uEnvironment);
+    st.reflected.xyz = reflected;
+    vec3 through = uEnvironment;
+    const GpuHit h1 = answers[first + 1u];
+    if (effectRays[first + 1u].originMax.w >= 0.0 && hit(h1)) {
+      const vec3 dir = st.refracted.xyz;
+      const Surface back = surfaceOf(fragmentOf(h1), dir);
+      vec3 leaving = refractStd(normalizeStd(dir), back.n, back.transmission > 0.0 ? back.ior : 1.0);
+      if (dotStd(leaving, leaving) == 0.0) leaving = reflectStd(normalizeStd(dir), back.n);  // total internal reflection
+      if (back.transmission <= 0.0) {
+        through = local(back, dir);  // the refracted ray met an opaque surface
+      } else {
+        st.refracted.xyz = leaving;
+        st.back = ivec4(fragmentOf(h1), 0);
+        return;  // wave 1 leaves the back surface
+      }
+    }
+    finishRefraction(st, through);
+  } else if (uEffect == kRefraction) {
+    finishRefraction(st, hit(h0) ? local(surfaceOf(fragmentOf(h0), st.refracted.xyz), st.refracted.xyz) : uEnvironment);
   } else if (uEffect == kShadow) {
-    finish(i, st, shadowed, shadowed);
+    const Surface s = surfaceOf(st.surface.xyz, st.incoming.xyz);
+    precise vec3 c = 0.05 * s.albedo;
+    for (int l = 0; l < uLights; ++l)
+      if (effectRays[first + uint(l)].originMax.w >= 0.0 && !hit(answers[first + uint(l)])) c += light(s, st.view.xyz, l);
+    finish(st, c, c);
   } else if (uEffect == kAO) {
     const vec3 ao = vec3(float(open) / float(max(1, uAoSamples)));
-    finish(i, st, ao, ao);
+    finish(st, ao, ao);
   }
 }
 
@@ -293,14 +397,19 @@ void main() {
   PathState st;
   if (uWave == 0) {
     // effects.cpp Renderer::begin: the front surface; pixels without fragments show the
-    // environment and trace nothing.
+    // environment and trace nothing (view synthesis: every pixel of the second camera traces).
     st.surface = ivec4(px, 0, 0);
     st.incoming = vec4(0.0);
     st.dir = vec4(0.0);
     st.colour = vec4(0.0);
     st.weight = vec4(1.0);
     st.view = vec4(0.0);
-    if (inside) {
+    st.refracted = vec4(0.0);
+    st.reflected = vec4(0.0);
+    st.back = ivec4(0);
+    if (inside && uEffect == kWarp) {
+      st.surface.w = 1;
+    } else if (inside) {
       const uvec4 f = fragmentAt(px.x, px.y, 0);
       if (f.x == kEmptySlot) {
         pixels[gSlot].result = vec4(uEnvironment, 0.0);
@@ -309,9 +418,10 @@ void main() {
         st.view.xyz = normalizeStd(fragmentPoint(px.x, px.y, f));
         st.incoming.xyz = st.view.xyz;
         st.surface.w = 1;
-        if (uEffect == kShade) {
-          const vec3 c = local(surfaceOf(st.surface.xyz, st.view.xyz), st.view.xyz);
-          finish(i, st, c, c);
+        const Surface s = surfaceOf(st.surface.xyz, st.view.xyz);
+        if (uEffect == kShade || (uEffect == kRefraction && s.transmission <= 0.0)) {
+          const vec3 c = local(s, st.view.xyz);
+          finish(st, c, c);
         }
       }
     }
@@ -322,6 +432,7 @@ void main() {
   if (st.surface.w != 0 && uWave < uWaves) {
     emit(i, st, px);
   } else {
+    st.incoming.w = 0.0;
     for (uint j = 0u; j < uint(uRaysPerPixel); ++j) noRay(i * uint(uRaysPerPixel) + j);
   }
   if (gBent > 0u) tally[kPixelTally + gSlot * 16u + 6u] += gBent;

@@ -19,7 +19,7 @@ namespace lt {
 namespace {
 
 /// shaders/effect_common.glsl sizes (std430).
-constexpr size_t kRayBytes = 32, kHitBytes = 64, kEffectRayBytes = 48, kStateBytes = 96, kOutBytes = 32;
+constexpr size_t kRayBytes = 32, kHitBytes = 64, kEffectRayBytes = 48, kStateBytes = 144, kOutBytes = 32;
 /// shaders/effect_step.comp's tally: 16 words, the histogram, then 16 words per pixel slot.
 constexpr size_t kHistogramFirst = 16, kHistogramBins = 65537, kPixelTallyFirst = kHistogramFirst + kHistogramBins;
 static_assert(kOriginSkips == 4, "effect_resolve.comp continues a ray past its own triangle 4 times");
@@ -36,7 +36,9 @@ int waves(const GpuEffectParams& p) {
     case GpuEffectKind::Shade: return 0;
     case GpuEffectKind::Reflection: return p.bounces;
     case GpuEffectKind::AO:
-    case GpuEffectKind::Shadow: return 1;
+    case GpuEffectKind::Shadow:
+    case GpuEffectKind::Warp: return 1;
+    case GpuEffectKind::Refraction: return 2;
   }
   return 0;
 }
@@ -143,9 +145,10 @@ GpuEffectOutput GpuEffects::run(const GpuScreenTracer& tracer, const GpuEffectPa
   const int W = camera_.width(), H = camera_.height();
   const size_t tilesX = size_t((W + kTile - 1) / kTile), tilesY = size_t((H + kTile - 1) / kTile);
   const size_t pixelSlots = tilesX * tilesY * size_t(kTile * kTile);
-  const int R = p.kind == GpuEffectKind::AO ? p.aoSamples
-                : p.kind == GpuEffectKind::Shadow ? std::max(1, int(lightPosition_.size()))
-                                                  : 1;
+  const int R = p.kind == GpuEffectKind::AO           ? p.aoSamples
+                : p.kind == GpuEffectKind::Shadow     ? std::max(1, int(lightPosition_.size()))
+                : p.kind == GpuEffectKind::Refraction ? 2
+                                                      : 1;
   // Chunks of whole tiles, each run wave by wave to its end.
   const size_t perRaySlot = kRayBytes + 2 * kHitBytes + kEffectRayBytes;  // rays, hits, answers, effect rays
   const size_t tilesPerChunk = std::max<size_t>(1, p.chunkBytes / (perRaySlot * size_t(R) * size_t(kTile * kTile)));
@@ -167,6 +170,15 @@ GpuEffectOutput GpuEffects::run(const GpuScreenTracer& tracer, const GpuEffectPa
   step_.set("uMirrorBelowSurface", int(p.mirrorBelowSurface));
   step_.set("uRaysPerPixel", R);
   resolve_.set("uRaysPerPixel", R);
+  if (p.kind == GpuEffectKind::Warp) {
+    LT_CHECK(p.warp.camera.width() == W && p.warp.camera.height() == H, p.warp.camera.width(), W);
+    step_.setMatrix("uView", &camera_.view()[0][0]);
+    step_.setMatrix("uWarpViewInverse", &p.warp.camera.viewInverse()[0][0]);
+    step_.set("uWarpPixelScale", 1.0f / p.warp.camera.focal());
+    step_.set("uWarpOrtho", int(p.warp.camera.orthographic()));
+    step_.setVec3("uWarpOrigin", &p.warp.origin.x);
+    step_.set("uWarpMax", p.warp.maxDistance);
+  }
 
   GpuEffectOutput out;
   auto timed = [](const GpuTimer& timer, double& ms, auto&& work) {

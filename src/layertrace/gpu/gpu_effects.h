@@ -6,8 +6,8 @@
 //
 // What the passes read is uploaded once per frame: the layer arrays (depth, normal, albedo and
 // specular, scene triangle per slot) and per scene triangle its camera-space geometric normal
-// and material. Shade, reflection (1–16 bounces), AO and shadows run here; refraction and view
-// synthesis generate their rays on the CPU (render/effects.cpp, whole waves).
+// and material. Every effect of render/effects.h runs here: shade, reflection (1–16 bounces),
+// refraction through one transmissive layer, AO, shadows and view synthesis.
 #pragma once
 
 #include <cstdint>
@@ -27,7 +27,15 @@ namespace lt {
 
 class GpuScreenTracer;
 
-enum class GpuEffectKind : int { Shade = 0, Reflection = 1, AO = 2, Shadow = 3 };
+enum class GpuEffectKind : int { Shade = 0, Reflection = 1, AO = 2, Shadow = 3, Refraction = 4, Warp = 5 };
+
+/// View synthesis: the second camera (the frame's size), its eye in the first camera's space,
+/// and its rays' length.
+struct GpuWarp {
+  Camera camera;
+  glm::vec3 origin{0.0f};
+  float maxDistance = 1.0f;
+};
 
 /// render/effects.h EffectConfig, with its scene-dependent defaults resolved by the caller.
 struct GpuEffectParams {
@@ -40,6 +48,7 @@ struct GpuEffectParams {
   uint64_t seed = 1;          ///< AO: per-pixel random streams derive from it
   bool countRays = true;      ///< per-ray counters and their histogram
   bool mirrorBelowSurface = true;
+  GpuWarp warp;  ///< GpuEffectKind::Warp
   /// The frame's pixels run in chunks of whole 8×8 tiles whose per-ray buffers (208 bytes a ray
   /// slot) stay under this many bytes (at least one tile a chunk), so that a large frame with
   /// many rays per pixel fits the GPU. Choice: 512 MiB, 2.5 M ray slots, more rays than any GPU
@@ -49,7 +58,8 @@ struct GpuEffectParams {
 
 /// One pixel's counters, summed over its rays (render/effects.h EffectResult).
 struct GpuPixelTally {
-  uint32_t rays, hits, iterations, intervals, pixels, giveUps, bent, unused;
+  uint32_t rays, hits, iterations, intervals, pixels, giveUps, bent;
+  uint32_t hole;  ///< view synthesis: 1 where the second camera's ray found nothing
   uint32_t levelIterations[8];
 };
 static_assert(sizeof(GpuPixelTally) == 64);

@@ -80,6 +80,21 @@ constexpr int kTile = 8;             ///< rays are laid out in kTile × kTile pi
 using Clock = std::chrono::steady_clock;
 double msSince(Clock::time_point t) { return std::chrono::duration<double, std::milli>(Clock::now() - t).count(); }
 
+/// View synthesis: the second camera, its eye in the first camera's space, and its rays' length
+/// (long enough to cross the scene from wherever the eye is).
+struct WarpRays {
+  Camera camera;
+  glm::vec3 origin{0.0f};
+  float maxDistance = 1.0f;
+};
+WarpRays warpRays(const Frame& f, const EffectConfig& c) {
+  WarpRays w;
+  w.camera = warpCamera(f, c);
+  w.origin = f.camera.toCamera(w.camera.desc().eye);
+  w.maxDistance = 2.0f * f.scene.bounds().diagonal() + glm::length(w.camera.desc().eye - f.scene.bounds().center());
+  return w;
+}
+
 /// The smallest iteration count that at least 99 % of the `rays` do not exceed.
 template <class Count>
 uint64_t percentile99(const std::vector<Count>& histogram, uint64_t rays) {
@@ -155,9 +170,8 @@ class Renderer {
     eps_ = 1e-4f * diag;
     query_ = c.effect == Effect::AO || c.effect == Effect::Shadow ? Query::Any : Query::Closest;
     if (c.effect == Effect::Warp) {
-      warp_ = warpCamera(f, c);
-      warpOrigin_ = f.camera.toCamera(warp_.desc().eye);
-      warpMax_ = 2.0f * diag + glm::length(warp_.desc().eye - f.scene.bounds().center());
+      const WarpRays w = warpRays(f, c);
+      warp_ = w.camera, warpOrigin_ = w.origin, warpMax_ = w.maxDistance;
     }
   }
 
@@ -622,7 +636,13 @@ std::optional<EffectResult> renderOnGpu(const Frame& f, const Tracer& tracer, co
     case Effect::Reflection: p.kind = GpuEffectKind::Reflection; break;
     case Effect::AO: p.kind = GpuEffectKind::AO; break;
     case Effect::Shadow: p.kind = GpuEffectKind::Shadow; break;
-    default: return std::nullopt;
+    case Effect::Refraction: p.kind = GpuEffectKind::Refraction; break;
+    case Effect::Warp: {
+      p.kind = GpuEffectKind::Warp;
+      const WarpRays w = warpRays(f, c);
+      p.warp = {w.camera, w.origin, w.maxDistance};
+      break;
+    }
   }
   const float diag = f.scene.bounds().diagonal();  // as the Renderer resolves them
   p.bounces = c.bounces;
@@ -642,6 +662,7 @@ std::optional<EffectResult> renderOnGpu(const Frame& f, const Tracer& tracer, co
   res.traced = Image(W, H);
   res.iterations = Image(W, H, 1);
   res.intervals = Image(W, H, 1);
+  if (c.effect == Effect::Warp) res.holes.assign(size_t(W) * size_t(H), 0);
   for (int y = 0; y < H; ++y)
     for (int x = 0; x < W; ++x) {
       const size_t q = size_t(y) * size_t(W) + size_t(x);
@@ -650,6 +671,7 @@ std::optional<EffectResult> renderOnGpu(const Frame& f, const Tracer& tracer, co
       res.traced.set(x, y, out.traced[q]);
       res.iterations.at(x, y)[0] = float(t.iterations);
       res.intervals.at(x, y)[0] = float(t.intervals);
+      if (!res.holes.empty()) res.holes[q] = uint8_t(t.hole);
       res.rays += t.rays, res.hits += t.hits, res.bentRays += t.bent;
       res.iterationSum += t.iterations, res.intervalSum += t.intervals, res.pixelSum += t.pixels, res.giveUps += t.giveUps;
       for (int l = 0; l < RayCounters::kLevels; ++l) res.levelIterations[l] += t.levelIterations[l];

@@ -54,13 +54,13 @@ struct EffectConfig {
   bool countRays = true;
   /// Trace each wave of the whole frame in one tracer call, on the calling thread: a GPU tracer
   /// (gpu/) then dispatches every ray of the wave at once. Ray generation and shading stay on
-  /// the CPU, between the waves; the answers are the same as with bands.
+  /// the CPU, between the waves (unless shadeOnDevice); the answers are the same as with bands.
   bool wholeWaves = false;
   /// With a GPU tracer (gpu/gpu_screen_tracer.h) and wholeWaves: generate the rays and shade on
   /// the GPU as well (gpu/gpu_effects.h), so that no ray leaves the device between bounces.
-  /// Applies to shade, reflection, AO and shadows with at most 16 lights and no observer;
-  /// anything else keeps ray generation and shading on the CPU (EffectResult::onDevice says
-  /// which ran). traceMs and shadeMs are then GPU timer-query times.
+  /// Applies to every effect with at most 16 lights and no observer; otherwise ray generation
+  /// and shading stay on the CPU (EffectResult::onDevice says which ran). traceMs and shadeMs
+  /// are then GPU timer-query times.
   bool shadeOnDevice = false;
   /// A secondary direction below the geometric surface it leaves (interpolated normals on a
   /// flat face): mirrored about the geometric plane (true) or bent to graze it (false).
