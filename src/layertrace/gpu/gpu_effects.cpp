@@ -47,11 +47,10 @@ int waves(const GpuEffectParams& p) {
 
 GpuEffects::GpuEffects(GpuContext& gpu, const Scene& scene, const Camera& camera, const LayerArrays& layers,
                        std::span<const PointLight> lights)
-    : gpu_(gpu), camera_(camera), k_(layers.k), environment_(scene.environment) {
+    : gpu_(gpu), camera_(camera), lights_(int(lights.size())) {
   LT_CHECK(layers.width == camera.width() && layers.height == camera.height(), layers.width, camera.width());
   LT_CHECK(lights.size() <= size_t(kMaxLights), lights.size());
   gpu_.makeCurrent();
-  for (const PointLight& l : lights) lightPosition_.push_back(camera.toCamera(l.position)), lightIntensity_.push_back(l.intensity);
   step_ = gpu_.computeProgram("effect_step.comp", shader_source::effect_step_comp);
   resolve_ = gpu_.computeProgram("effect_resolve.comp", shader_source::effect_resolve_comp);
 
@@ -74,7 +73,6 @@ GpuEffects::GpuEffects(GpuContext& gpu, const Scene& scene, const Camera& camera
 
   // Per triangle (render/effects.cpp surfaceOf): the camera-space geometric normal, 0 for a
   // degenerate triangle, and its material; one more record for a triangle the scene lacks.
-  triangleCount_ = uint32_t(scene.triangles.size());
   PoolVector<TriangleRecord> triangles(scene.triangles.size() + 1);
   auto material = [&](size_t t) -> const Material& {
     return scene.materials[t < scene.triMaterial.size() ? scene.triMaterial[t] : 0];
@@ -103,12 +101,15 @@ GpuEffects::GpuEffects(GpuContext& gpu, const Scene& scene, const Camera& camera
     p->set("uOrtho", int(camera.orthographic()));
   }
   step_.set("uSrgb", srgb, 256);
-  step_.set("uTriangleCount", triangleCount_);
-  step_.setVec3("uEnvironment", &environment_.x);
-  step_.set("uLights", int(lightPosition_.size()));
-  if (!lightPosition_.empty()) {
-    step_.setVec3("uLightPosition", &lightPosition_[0].x, int(lightPosition_.size()));
-    step_.setVec3("uLightIntensity", &lightIntensity_[0].x, int(lightIntensity_.size()));
+  step_.set("uTriangleCount", uint32_t(scene.triangles.size()));
+  step_.setVec3("uEnvironment", &scene.environment.x);
+  // The lights in camera space, as the CPU renderer moves them.
+  std::vector<glm::vec3> position, intensity;
+  for (const PointLight& l : lights) position.push_back(camera.toCamera(l.position)), intensity.push_back(l.intensity);
+  step_.set("uLights", lights_);
+  if (lights_ > 0) {
+    step_.setVec3("uLightPosition", &position[0].x, lights_);
+    step_.setVec3("uLightIntensity", &intensity[0].x, lights_);
   }
   traceTimer_ = std::make_unique<GpuTimer>();
   shadeTimer_ = std::make_unique<GpuTimer>();
@@ -146,7 +147,7 @@ GpuEffectOutput GpuEffects::run(const GpuScreenTracer& tracer, const GpuEffectPa
   const size_t tilesX = size_t((W + kTile - 1) / kTile), tilesY = size_t((H + kTile - 1) / kTile);
   const size_t pixelSlots = tilesX * tilesY * size_t(kTile * kTile);
   const int R = p.kind == GpuEffectKind::AO           ? p.aoSamples
-                : p.kind == GpuEffectKind::Shadow     ? std::max(1, int(lightPosition_.size()))
+                : p.kind == GpuEffectKind::Shadow     ? std::max(1, lights_)
                 : p.kind == GpuEffectKind::Refraction ? 2
                                                       : 1;
   // Chunks of whole tiles, each run wave by wave to its end.

@@ -77,7 +77,7 @@ class GpuEffects {
  public:
   /// At most this many lights (the shaders hold them in uniforms).
   static constexpr int kMaxLights = 16;
-  /// Whether the passes can render `kind` with `lights` lights.
+  /// Whether the passes can shade a scene with `lights` lights.
   static bool supports(int lights) { return lights <= kMaxLights; }
 
   /// Uploads what the passes read for one frame: `layers` captured with `camera` from `scene`,
@@ -98,10 +98,7 @@ class GpuEffects {
 
   GpuContext& gpu_;
   const Camera& camera_;
-  int k_ = 0;
-  uint32_t triangleCount_ = 0;
-  glm::vec3 environment_{0.0f};
-  std::vector<glm::vec3> lightPosition_, lightIntensity_;  ///< camera space
+  int lights_ = 0;
   GpuProgram step_, resolve_;
   GpuBuffer fragments_, triangles_;
   mutable GpuBuffer rays_, hits_, effectRays_, answers_, states_, out_, tally_, pending_;

@@ -80,6 +80,17 @@ constexpr int kTile = 8;             ///< rays are laid out in kTile × kTile pi
 using Clock = std::chrono::steady_clock;
 double msSince(Clock::time_point t) { return std::chrono::duration<double, std::milli>(Clock::now() - t).count(); }
 
+/// The effect's ray lengths with their scene-dependent defaults: reflection and refraction rays
+/// cross the scene (its diagonal), AO rays 5 % of it, and a shadow ray stops 1e-4 of it short
+/// of its light.
+struct RayLengths {
+  float maxDistance, aoRadius, eps;
+};
+RayLengths rayLengths(const Frame& f, const EffectConfig& c) {
+  const float diag = f.scene.bounds().diagonal();
+  return {c.maxDistance > 0.0f ? c.maxDistance : diag, c.aoRadius > 0.0f ? c.aoRadius : 0.05f * diag, 1e-4f * diag};
+}
+
 /// View synthesis: the second camera, its eye in the first camera's space, and its rays' length
 /// (long enough to cross the scene from wherever the eye is).
 struct WarpRays {
@@ -164,10 +175,8 @@ class Renderer {
   Renderer(const Frame& f, const Tracer& t, const EffectConfig& c, RayObserver* observer)
       : f_(f), tracer_(t), config_(c), observer_(observer) {
     for (const PointLight& l : f.lights) lights_.push_back({f.camera.toCamera(l.position), l.intensity});
-    const float diag = f.scene.bounds().diagonal();
-    maxDist_ = c.maxDistance > 0.0f ? c.maxDistance : diag;
-    aoRadius_ = c.aoRadius > 0.0f ? c.aoRadius : 0.05f * diag;
-    eps_ = 1e-4f * diag;
+    const RayLengths lengths = rayLengths(f, c);
+    maxDist_ = lengths.maxDistance, aoRadius_ = lengths.aoRadius, eps_ = lengths.eps;
     query_ = c.effect == Effect::AO || c.effect == Effect::Shadow ? Query::Any : Query::Closest;
     if (c.effect == Effect::Warp) {
       const WarpRays w = warpRays(f, c);
@@ -644,12 +653,10 @@ std::optional<EffectResult> renderOnGpu(const Frame& f, const Tracer& tracer, co
       break;
     }
   }
-  const float diag = f.scene.bounds().diagonal();  // as the Renderer resolves them
+  const RayLengths lengths = rayLengths(f, c);
   p.bounces = c.bounces;
   p.aoSamples = c.aoSamples;
-  p.maxDistance = c.maxDistance > 0.0f ? c.maxDistance : diag;
-  p.aoRadius = c.aoRadius > 0.0f ? c.aoRadius : 0.05f * diag;
-  p.eps = 1e-4f * diag;
+  p.maxDistance = lengths.maxDistance, p.aoRadius = lengths.aoRadius, p.eps = lengths.eps;
   p.seed = c.seed;
   p.countRays = c.countRays;
   p.mirrorBelowSurface = c.mirrorBelowSurface;
