@@ -886,12 +886,14 @@ TEST(CliGpu, RenderOnTheGpuGivesTheCpuImage) {
       EXPECT_EQ(j["device"], "gpu");
       EXPECT_EQ(j["gpu"]["shading"], "gpu");
       EXPECT_GT(j["memory_bytes"]["gpu_effect"].get<double>(), 0.0);
-      EXPECT_EQ(j["rays"]["count"], readJson(dir / "cpu.json")["rays"]["count"]) << t;
-      EXPECT_EQ(j["rays"]["hits"], readJson(dir / "cpu.json")["rays"]["hits"]) << t;
+      // The same rays and answers (tests/gpu_effects_test.cpp bounds the rare ray whose
+      // direction takes GLSL's sin and cos, or a GPU's approximate division, across a boundary).
+      const auto c = readJson(dir / "cpu.json")["rays"];
+      for (const char* key : {"count", "hits", "iterations_mean"})
+        EXPECT_NEAR(j["rays"][key].get<double>(), c[key].get<double>(), 1e-3 * c[key].get<double>()) << t << " " << key;
       EXPECT_FALSE(j["gpu_renderer"].get<std::string>().empty());
       EXPECT_GT(j["timings_ms"]["gpu_trace"].get<double>(), 0.0);
       EXPECT_EQ(readJson(dir / "cpu.json")["device"], "cpu");
-      EXPECT_EQ(j["rays"]["iterations_mean"], readJson(dir / "cpu.json")["rays"]["iterations_mean"]) << t;
     }
 }
 

@@ -81,26 +81,31 @@ void expectSameEffect(GpuContext& gpu, const Frame& f, const std::string& name, 
   }
   // Counters. On llvmpipe the rays are the CPU's to the bit (IEEE arithmetic, `precise` in the
   // CPU's order, the same splitmix64 stream), so every ray meets the same fragment with the same
-  // iterations. A GPU with approximate division and square root (GLSL allows 2.5 ulp) may send a
-  // grazing ray to a neighbouring pixel: 0.1 % of the rays.
-  const double slack = gpu.software() ? 0.0 : 1e-3 * double(want.rays);
+  // iterations; except AO's directions, which take GLSL's sin and cos (not libm's: a few ulp).
+  // Such a ray may take one more or one fewer cell: measured on FZK-Haus's interior at 640×360
+  // with 24 samples, 1 iteration in 75,322,467 over 5,529,600 rays, every answer the same. A GPU
+  // with approximate division and square root (GLSL allows 2.5 ulp) may also send a grazing ray
+  // to a neighbouring pixel: 0.1 % of the rays.
+  const bool exact = gpu.software() && ec.effect != Effect::AO;
+  const double share = exact ? 0.0 : gpu.software() ? 1e-4 : 1e-3;
+  const double slack = share * double(want.rays);
   EXPECT_NEAR(double(got.rays), double(want.rays), slack);
   EXPECT_NEAR(double(got.hits), double(want.hits), slack);
   EXPECT_NEAR(double(got.bentRays), double(want.bentRays), slack);
-  EXPECT_NEAR(double(got.iterationSum), double(want.iterationSum), gpu.software() ? 0.0 : 1e-3 * double(want.iterationSum));
-  EXPECT_NEAR(double(got.intervalSum), double(want.intervalSum), gpu.software() ? 0.0 : 1e-3 * double(want.intervalSum));
+  EXPECT_NEAR(double(got.iterationSum), double(want.iterationSum), share * double(want.iterationSum));
+  EXPECT_NEAR(double(got.intervalSum), double(want.intervalSum), share * double(want.intervalSum));
   EXPECT_EQ(got.giveUps, want.giveUps);
   ASSERT_EQ(got.holes.size(), want.holes.size());
-  if (gpu.software()) {
+  if (exact) {
     EXPECT_TRUE(got.holes == want.holes);
     EXPECT_EQ(got.iterationsP99, want.iterationsP99);
     for (int l = 0; l < RayCounters::kLevels; ++l) EXPECT_EQ(got.levelIterations[l], want.levelIterations[l]) << "level " << l;
   }
-  // Colours: GLSL's pow, sin and cos are not libm's (a few ulp), so the shaded colour differs in
-  // its last bits; a pixel whose ray changed answer differs by a whole surface.
+  // Colours: GLSL's pow is not libm's (a few ulp), so the shaded colour differs in its last
+  // bits; a pixel whose ray changed answer differs by a whole surface (AO: by one sample).
   const ImageAgreement image = compareImages(want.image, got.image, 1e-4f);
   const ImageAgreement traced = compareImages(want.traced, got.traced, 1e-4f);
-  const size_t allowed = gpu.software() ? 0 : image.pixels / 1000;
+  const size_t allowed = size_t(std::ceil(share * double(want.rays)));
   EXPECT_LE(image.differ, allowed) << "largest relative difference " << image.maxDiff;
   EXPECT_LE(traced.differ, allowed) << "largest relative difference " << traced.maxDiff;
 }
