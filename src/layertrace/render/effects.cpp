@@ -670,7 +670,10 @@ std::optional<EffectResult> renderOnGpu(const Frame& f, const Tracer& tracer, co
   res.iterations = Image(W, H, 1);
   res.intervals = Image(W, H, 1);
   if (c.effect == Effect::Warp) res.holes.assign(size_t(W) * size_t(H), 0);
-  for (int y = 0; y < H; ++y)
+  // Row by row in parallel, each row's counters summed apart, then the rows in order.
+  std::vector<Accum> rows(size_t(std::max(H, 0)));
+  parallelFor(0, H, [&](int y) {
+    Accum& a = rows[size_t(y)];
     for (int x = 0; x < W; ++x) {
       const size_t q = size_t(y) * size_t(W) + size_t(x);
       const GpuPixelTally& t = out.tally[q];
@@ -679,10 +682,16 @@ std::optional<EffectResult> renderOnGpu(const Frame& f, const Tracer& tracer, co
       res.iterations.at(x, y)[0] = float(t.iterations);
       res.intervals.at(x, y)[0] = float(t.intervals);
       if (!res.holes.empty()) res.holes[q] = uint8_t(t.hole);
-      res.rays += t.rays, res.hits += t.hits, res.bentRays += t.bent;
-      res.iterationSum += t.iterations, res.intervalSum += t.intervals, res.pixelSum += t.pixels, res.giveUps += t.giveUps;
-      for (int l = 0; l < RayCounters::kLevels; ++l) res.levelIterations[l] += t.levelIterations[l];
+      a.rays += t.rays, a.hits += t.hits, a.bent += t.bent;
+      a.it += t.iterations, a.iv += t.intervals, a.px += t.pixels, a.giveUps += t.giveUps;
+      for (int l = 0; l < RayCounters::kLevels; ++l) a.level[l] += t.levelIterations[l];
     }
+  });
+  for (const Accum& a : rows) {
+    res.rays += a.rays, res.hits += a.hits, res.bentRays += a.bent;
+    res.iterationSum += a.it, res.intervalSum += a.iv, res.pixelSum += a.px, res.giveUps += a.giveUps;
+    for (int l = 0; l < RayCounters::kLevels; ++l) res.levelIterations[l] += a.level[l];
+  }
   if (c.countRays) res.iterationsP99 = percentile99(out.histogram, res.rays);
   res.onDevice = true;
   res.deviceBytes = effects.memoryBytes();
