@@ -10,8 +10,8 @@ layout(local_size_x = 64) in;
 
 layout(std430, binding = 0) writeonly buffer Rays { GpuRay rays[]; };
 // [0, 16): unused; [16, 16 + 65537): histogram of iterations per ray (capped at 65536); then 16
-// words per pixel slot: rays, hits, iterations, intervals, pixels, give-ups, bent rays, 0, and
-// the iterations at levels 0…7.
+// words per pixel slot: rays, hits, iterations, intervals, pixels, give-ups, bent rays, 1 for a
+// hole (view synthesis), and the iterations at levels 0…7.
 layout(std430, binding = 1) buffer Tally { uint tally[]; };
 layout(std430, binding = 4) buffer EffectRays { EffectRay effectRays[]; };
 layout(std430, binding = 5) readonly buffer Answers { GpuHit answers[]; };
@@ -28,7 +28,7 @@ uniform int uEffect, uWave, uAoSamples;
 // are the chunk's, indexed from its first slot uSlotBase; the picture and the tally are the
 // frame's.
 uniform uint uSlotBase;
-uniform int uWaves;  // waves of rays: the bounces (reflection), 1 (AO, shadow) or 0 (shade)
+uniform int uWaves;  // waves of rays: the bounces (reflection), 2 (refraction), 1 (AO, shadow, view synthesis), 0 (shade)
 uniform float uMaxDistance, uAoRadius, uEps;
 uniform uint uSeedLo, uSeedHi;
 uniform bool uCount, uMirrorBelowSurface;
