@@ -178,6 +178,26 @@ TEST_F(GpuEffect, ChunksGiveTheWholeFramesAnswers) {
   }
 }
 
+// A tracer keeps the passes' uploads for its frame (GpuScreenTracer::effects) and makes them
+// again when the frame's lights change: the second render sees the new light.
+TEST_F(GpuEffect, TheTracersUploadsFollowTheFramesLights) {
+  Frame f = defaultFrame(96, 54);
+  const BuiltTracer b = buildGpuTracer("hssr", f, TracerOptions{}, *gpu_);
+  EffectConfig ec;
+  ec.effect = Effect::Shadow;
+  ec.wholeWaves = ec.shadeOnDevice = true;
+  const EffectResult before = renderEffect(f, *b.tracer, ec);
+  EXPECT_EQ(compareImages(before.image, renderEffect(f, *b.tracer, ec).image, 0.0f).differ, 0u);  // kept, the same
+  f.lights.push_back({f.camera.desc().eye + glm::vec3(0.0f, 1.0f, 0.0f), glm::vec3(3.0f)});
+  const EffectResult after = renderEffect(f, *b.tracer, ec);
+  ASSERT_TRUE(after.onDevice);
+  EXPECT_GT(after.rays, before.rays);  // a ray to the new light from the pixels it faces
+  const BuiltTracer fresh = buildGpuTracer("hssr", f, TracerOptions{}, *gpu_);
+  const EffectResult want = renderEffect(f, *fresh.tracer, ec);
+  EXPECT_EQ(after.rays, want.rays);
+  EXPECT_EQ(compareImages(want.image, after.image, 0.0f).differ, 0u);
+}
+
 // --hssr-ray-reloading (Hofmann et al. 2017, §5.3) changes the schedule, not the answers.
 TEST_F(GpuEffect, RayReloadingGivesTheSameImage) {
   const Frame f = defaultFrame(160, 90);

@@ -151,6 +151,17 @@ void GpuScreenTracer::marchResident(const GpuBuffer& rays, const GpuBuffer& hits
   }
 }
 
+const GpuEffects& GpuScreenTracer::effects(const Scene& scene, std::span<const PointLight> lights) const {
+  auto same = [](const PointLight& a, const PointLight& b) { return a.position == b.position && a.intensity == b.intensity; };
+  if (!effects_ || effectsScene_ != &scene || !std::equal(lights.begin(), lights.end(), effectsLights_.begin(), effectsLights_.end(), same)) {
+    effects_.reset();  // (its buffers go before the new ones are made)
+    effects_ = std::make_unique<GpuEffects>(gpu_, scene, camera_, layers_, lights);
+    effectsScene_ = &scene;
+    effectsLights_.assign(lights.begin(), lights.end());
+  }
+  return *effects_;
+}
+
 TraceHit GpuScreenTracer::trace(const Ray& ray, RayCounters& counters) const {
   TraceHit hit;
   traceBatch(std::span<const Ray>(&ray, 1), std::span<TraceHit>(&hit, 1), std::span<RayCounters>(&counters, 1));

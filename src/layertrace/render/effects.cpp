@@ -660,7 +660,7 @@ std::optional<EffectResult> renderOnGpu(const Frame& f, const Tracer& tracer, co
   p.seed = c.seed;
   p.countRays = c.countRays;
   p.mirrorBelowSurface = c.mirrorBelowSurface;
-  const GpuEffects effects(gpuTracer->context(), f.scene, f.camera, f.layers, f.lights);
+  const GpuEffects& effects = gpuTracer->effects(f.scene, f.lights);
   const GpuEffectOutput out = effects.run(*gpuTracer, p);
 
   EffectResult res;
