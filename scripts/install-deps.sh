@@ -15,6 +15,8 @@ packages=(
 )
 if [ "${1:-}" != "--run" ]; then
   packages+=(libgtest-dev libbenchmark-dev python3 python3-matplotlib unzip zip clang-16 libclang-rt-16-dev)
+  # An independent count of what a GPU frame asks of the driver (tests/gpu_trace_test.sh).
+  packages+=(apitrace)
   # The vector loops compiled for aarch64 (scripts/cross-aarch64.sh).
   packages+=(g++-aarch64-linux-gnu)
   # The viewer (`layertrace view`) and its test under a virtual X server with Mesa's software GL.

@@ -23,6 +23,7 @@ uniform int uPass, uLevel, uK;
 uniform int uWidth, uHeight, uChildWidth, uChildHeight;
 uniform float uTauPerDepth;
 uniform uint uCellBase;  // this level's first cell in Cells
+uniform uint uCapacity;  // intervals the Intervals buffer holds (a resident build may need more: written up to it)
 
 #define kInf uintBitsToFloat(0x7f800000u)
 
@@ -76,7 +77,7 @@ void main() {
         cur.y = max(cur.y, v.y);
         continue;
       }
-      if (uPass == 1) intervals[first + n] = cur;
+      if (uPass == 1 && first + n < uCapacity) intervals[first + n] = cur;
       ++n;
       if (!more) break;
       cur = v;
@@ -86,6 +87,8 @@ void main() {
     offsets[cell] = n;
     return;
   }
+  // A level that overflowed its buffer is built again with a larger one: its cells can wait.
+  if (first + n > uCapacity) return;
   // The κ cell. The intervals are disjoint and sorted, so their backs grow too: merging the
   // pair across the smallest gap, again and again until four remain (ties: the first such pair),
   // keeps exactly the three largest gaps (ties: the later gap) as separators.

@@ -4,7 +4,11 @@
 // memory. It turns the interval counts of a pyramid level's cells into the CSR offsets.
 layout(local_size_x = 1024) in;
 layout(std430, binding = 4) buffer Offset { uint offsets[]; };
+// A resident build (gpu_pyramid.h buildPyramidResident) also keeps the total in status[slot],
+// for the frame's end to read with its other counters.
+layout(std430, binding = 7) writeonly buffer Status { uint status[]; };
 uniform int uCount;
+uniform int uStatusSlot;  // −1: none
 shared uint sums[1024];
 
 void main() {
@@ -27,5 +31,8 @@ void main() {
     offsets[i] = at;
     at += c;
   }
-  if (t == 1023u) offsets[n] = sums[1023];
+  if (t == 1023u) {
+    offsets[n] = sums[1023];
+    if (uStatusSlot >= 0) status[uStatusSlot] = sums[1023];
+  }
 }

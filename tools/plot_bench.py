@@ -121,6 +121,15 @@ def main():
         ax.set_xlabel("second camera offset [% of the eye-target distance]")
         ax.set_ylabel("disocclusion holes [% of pixels inside the first view]")
         title = f"warp: holes vs second-camera offset and k — {data['scene']} ({data['width']}x{data['height']})"
+    elif exp == "frame":
+        idx = [r["frame"] for r in rows]
+        ax.plot(idx, [r["wall_ms"] for r in rows], "o-", label="wall ms (host)")
+        if any(r["gpu_ms"] > 0 for r in rows):
+            soft = data.get("gpu", {}).get("software", False)
+            ax.plot(idx, [r["gpu_ms"] for r in rows], "s--", label="GPU timer ms" + (" (llvmpipe: CPU time)" if soft else ""))
+        ax.set_xlabel("frame (orbit of the camera)")
+        ax.set_ylabel("time [ms]")
+        title = f"frame: {data['device']} {data.get('tracer', '')} {data['effect']} — {data['scene']} ({data['width']}x{data['height']}, k={data['layers']})"
     ax.set_title(title, fontsize=10)
     ax.legend(loc="upper left", fontsize=8)
     fig.text(0.01, 0.01, f"{data['machine']} · {data['build_type']} · {data['date']} · median of {data['repeat']}", fontsize=6)

@@ -289,10 +289,15 @@ int runCli(int argc, const char* const* argv, CliMode mode) {
 
   lt::BenchOptions bench;
   RawFrameOptions benchRaw;
-  CLI::App* benchCmd = app.add_subcommand("bench", "the papers' experiments: stride|layers|tau|memory|resolution|threads|capture|warp|gamma|ldc|stages|peel|simd|textures");
+  std::string benchEffect = "reflection";
+  CLI::App* benchCmd = app.add_subcommand("bench", "the papers' experiments: stride|layers|tau|memory|resolution|threads|capture|warp|gamma|ldc|stages|peel|simd|textures|frame");
   addFrameOptions(benchCmd, bench.run, benchRaw, "output folder (default out/bench; EXPERIMENT.json, .csv and .png)");
   addDeviceOption(benchCmd, bench.run);
-  benchCmd->add_option("--experiment", bench.experiment, "stride | layers | tau | memory | resolution | threads | capture | warp | gamma | ldc | stages (every stage on --device cpu or gpu) | peel (per-pixel lists against depth peeling, k = 1..8, on --device cpu or gpu) | simd (capture, pyramid, HSSR and grid on every vector target of this CPU) | textures (capture and reference with the textures against --textures off)")->required();
+  benchCmd->add_option("--experiment", bench.experiment, "stride | layers | tau | memory | resolution | threads | capture | warp | gamma | ldc | stages (every stage on --device cpu or gpu) | peel (per-pixel lists against depth peeling, k = 1..8, on --device cpu or gpu) | simd (capture, pyramid, HSSR and grid on every vector target of this CPU) | textures (capture and reference with the textures against --textures off) | frame (--frames frames of one effect along an orbit of the camera, each counted: wall and GPU ms, bytes each way, host waits, links, allocations, dispatches)")->required();
+  addEffectOptions(benchCmd, bench.effect, benchEffect, benchRaw);
+  benchCmd->add_option("--tracer", bench.tracer, "frame: the tracer (on --device gpu: hssr, hiz or exhaustive)")->capture_default_str();
+  benchCmd->add_option("--frames", bench.frames, "frame: frames along the orbit (the summary is the median of those after the first)")->capture_default_str();
+  benchCmd->add_flag("--images", bench.images, "frame: also read back and write each frame's picture (frame_NNNN.png)");
   benchCmd->add_option("--repeat", bench.repeat, "runs per measurement (the median is reported)")->capture_default_str();
   addTracerOptions(benchCmd, bench.options);
   benchCmd->add_option("--report", bench.report, "also write an HTML report to this folder (default: the output folder)")->expected(0, 1);
@@ -427,7 +432,7 @@ int runCli(int argc, const char* const* argv, CliMode mode) {
         lt::validateTracerOptions(view.render.tracers), lt::validateViewOptions(view);
       }
       if (compareCmd->parsed()) lt::validateTracerOptions(compare.options);
-      if (benchCmd->parsed()) lt::validateTracerOptions(bench.options);
+      if (benchCmd->parsed()) lt::validateTracerOptions(bench.options), finishEffectOptions(bench.effect, benchEffect, benchRaw), lt::validateEffectConfig(bench.effect);
       if (ldcCmd->parsed()) lt::validateLdcConfig(ldc.tracers.ldc);
       return 0;
     }
@@ -465,6 +470,7 @@ int runCli(int argc, const char* const* argv, CliMode mode) {
     }
     if (benchCmd->parsed()) {
       prepare(bench.run, benchRaw);
+      finishEffectOptions(bench.effect, benchEffect, benchRaw);
       return done(lt::runBench(bench));
     }
     if (compareCmd->parsed()) {

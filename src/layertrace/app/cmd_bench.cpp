@@ -18,6 +18,10 @@
 //   simd        the vector loops on every vector target this CPU runs (AVX-512, AVX2, SSE4, scalar):
 //               capture, pyramid build, HSSR trace and grid traversal, each against the best target and
 //               against plain Embree on the same rays
+//   frame       --frames frames of one effect (--effect, --tracer) along an orbit of the camera, as a
+//               renderer draws them: on --device gpu the whole frame stays on the device, and every
+//               frame is counted (wall and GPU ms, bytes each way, host waits, links, allocations,
+//               dispatches, draws); DIR/frame.json holds the frames and their summary
 // Every time is the median of --repeat runs on the same rays; results carry the machine, the
 // build type and the date, and go to DIR/NAME.csv, DIR/NAME.json and DIR/NAME.png.
 #include <algorithm>
@@ -40,6 +44,7 @@
 #include "layertrace/gpu/gpu_context.h"
 #include "layertrace/pipeline/gpu_tracers.h"
 #include "layertrace/app/report.h"
+#include "layertrace/render/frame_sequence.h"
 #include "layertrace/eval/classify.h"
 #include "layertrace/eval/image_metrics.h"
 #include "layertrace/eval/oracle_observer.h"
@@ -168,13 +173,14 @@ Classified measure(const Frame& frame, const Tracer& tracer, const EffectConfig&
 }  // namespace
 
 int runBench(const BenchOptions& o) {
-  static const char* kExperiments[] = {"stride", "layers", "tau", "memory", "resolution", "threads", "warp", "capture", "gamma", "ldc", "stages", "peel", "simd", "textures"};
+  static const char* kExperiments[] = {"stride", "layers", "tau", "memory", "resolution", "threads", "warp", "capture", "gamma", "ldc", "stages", "peel", "simd", "textures", "frame"};
   if (std::find_if(std::begin(kExperiments), std::end(kExperiments), [&](const char* e) { return o.experiment == e; }) ==
       std::end(kExperiments))
     inputError("--experiment ", o.experiment.empty() ? "(none)" : o.experiment,
-               ": unknown (use stride, layers, tau, memory, resolution, threads, warp, capture, gamma, ldc, stages, peel, simd, textures)");
-  if (o.run.device == "gpu" && o.experiment != "stages" && o.experiment != "peel")
-    inputError("--device gpu: bench measures the GPU with --experiment stages or peel, not ", o.experiment);
+               ": unknown (use stride, layers, tau, memory, resolution, threads, warp, capture, gamma, ldc, stages, peel, simd, textures, frame)");
+  if (o.run.device == "gpu" && o.experiment != "stages" && o.experiment != "peel" && o.experiment != "frame")
+    inputError("--device gpu: bench measures the GPU with --experiment stages, peel or frame, not ", o.experiment);
+  if (o.frames < 1) inputError("--frames ", o.frames, ": must be at least 1");
   // The device before the scene: a machine without one is told at once.
   std::shared_ptr<GpuContext> gpu;
   if (o.run.device == "gpu") gpu = openGpu();
@@ -592,6 +598,30 @@ int runBench(const BenchOptions& o) {
     }
   }
 
+  nlohmann::json frames;
+  std::vector<std::pair<std::string, Image>> frameImages;
+  if (e == "frame") {
+    FrameSequenceConfig fc;
+    fc.tracer = o.tracer;
+    fc.tracers = o.options;
+    fc.effect = ec;
+    fc.effect.countRays = false;  // a renderer's frame: the counter-free marches
+    fc.frames = o.frames;
+    if (o.images) fc.onImage = [&](int i, const Image& img) { frameImages.emplace_back(cat("frame_", std::string(4 - std::min<size_t>(4, std::to_string(i).size()), '0'), i, ".png"), img); };
+    const std::vector<FrameSample> samples = runFrameSequence(o.run.frame, frame, fc, gpu.get());
+    t.columns = {"frame", "wall_ms", "gpu_ms", "capture_ms", "pyramid_ms", "trace_ms", "shade_ms", "upload_bytes", "download_bytes", "host_waits",
+                 "program_links", "buffer_allocations", "dispatches", "draws", "rays", "hits", "fragments", "attempts"};
+    frames = nlohmann::json::array();
+    for (const FrameSample& s : samples) {
+      const nlohmann::json j = frameSampleJson(s);
+      frames.push_back(j);
+      std::vector<nlohmann::json> row;
+      for (const std::string& c : t.columns) row.push_back(j[c]);
+      t.rows.push_back(row);
+    }
+    frames = nlohmann::json{{"frames", frames}, {"summary", frameSummary(samples)}, {"tracer", o.tracer}};
+  }
+
   if (e == "simd") {
     // The same frame and rays on each vector target in turn (the lanes restricted to it):
     // capture (raster + sort), the pyramid's levels 1…, HSSR's trace and the grid's traversal;
@@ -659,8 +689,14 @@ int runBench(const BenchOptions& o) {
   result["preset"] = o.options.preset;
   result["parameters"] = parameterStats(o.options);
   result["rows"] = t.json();
+  if (e == "frame") {
+    result["tracer"] = frames["tracer"];
+    result["frames"] = frames["frames"];
+    result["summary"] = frames["summary"];
+  }
 
   ensureDirectory(outDir, "-o");
+  for (const auto& [name, img] : frameImages) writeImage((fs::path(outDir) / name).string(), img);
   const std::string base = (fs::path(outDir) / e).string();
   writeFileAtomic(base + ".csv", t.csv());
   writeStats(o.run.statsPath, result.dump(2));

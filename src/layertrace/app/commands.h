@@ -114,6 +114,9 @@ struct BenchOptions {
   EffectConfig effect;     ///< one-bounce reflections from every pixel, as in Hofmann et al. 2017, §6
   TracerOptions options;
   std::string report;      ///< --report DIR
+  std::string tracer = "hssr";  ///< --tracer: the frame experiment's tracer
+  int frames = 30;              ///< --frames: the frame experiment's frames
+  bool images = false;          ///< --images: the frame experiment writes each frame's picture
 };
 
 /// `layertrace bench`: the HSSR paper's experiments (Hofmann et al. 2017, §6) on your scene → CSV, JSON, PNG plot.

@@ -29,41 +29,6 @@ void setCamera(const GpuProgram& p, const Camera& c) {
   p.set("uOrtho", c.orthographic());
 }
 
-/// An empty vertex array with the scene's index buffer and a framebuffer without attachments
-/// the size of the view: the geometry passes write buffers only.
-struct RasterTarget {
-  uint32_t vao = 0, fbo = 0;
-  RasterTarget(const GpuBuffer& indices, int W, int H) {
-    glCreateVertexArrays(1, &vao);
-    glVertexArrayElementBuffer(vao, indices.id());
-    glCreateFramebuffers(1, &fbo);
-    glNamedFramebufferParameteri(fbo, GL_FRAMEBUFFER_DEFAULT_WIDTH, W);
-    glNamedFramebufferParameteri(fbo, GL_FRAMEBUFFER_DEFAULT_HEIGHT, H);
-    if (glCheckNamedFramebufferStatus(fbo, GL_FRAMEBUFFER) != GL_FRAMEBUFFER_COMPLETE)
-      inputError("--device gpu: a ", W, "x", H, " view is larger than the GPU's framebuffers");
-  }
-  ~RasterTarget() {
-    glDeleteFramebuffers(1, &fbo);
-    glDeleteVertexArrays(1, &vao);
-  }
-  RasterTarget(const RasterTarget&) = delete;
-  RasterTarget& operator=(const RasterTarget&) = delete;
-  /// Every triangle once, in scene order (gl_PrimitiveID = the triangle's index).
-  void draw(const GpuProgram& program, int W, int H, size_t triangles) const {
-    glBindFramebuffer(GL_FRAMEBUFFER, fbo);
-    glViewport(0, 0, W, H);
-    glDisable(GL_DEPTH_TEST);
-    glDisable(GL_CULL_FACE);
-    glDisable(GL_STENCIL_TEST);
-    glUseProgram(program.id());
-    glBindVertexArray(vao);
-    glDrawElements(GL_TRIANGLES, GLsizei(3 * triangles), GL_UNSIGNED_INT, nullptr);
-    glBindVertexArray(0);
-    glBindFramebuffer(GL_FRAMEBUFFER, 0);
-    glMemoryBarrier(GL_SHADER_STORAGE_BARRIER_BIT);
-  }
-};
-
 /// What shaders/capture_surface.glsl reads of the scene's textured materials: one array of
 /// 32-bit words in sections (their offsets, in words, are the shader's uniforms) and the texels.
 struct SurfaceTables {
@@ -121,180 +86,290 @@ glm::mat4 projectionRowsDown(const Camera& camera) {
 
 }  // namespace
 
-void captureOnGpu(GpuContext& gpu, const Scene& scene, const Camera& camera, const GpuCaptureConfig& config, GpuCaptureResult& out) {
+struct GpuCapture::SceneBuffers {
+  explicit SceneBuffers(const Scene& scene) : surface(scene) {}
+  SurfaceTables surface;
+  GpuBuffer positions, normals, indices, triMaterial, materialTable, surfaceWords, surfaceTexels;
+};
+
+GpuCapture::GpuCapture(GpuContext& gpu, const Scene& scene) : gpu_(gpu), scene_(scene) {
+  const size_t V = scene.positions.size(), T = scene.triangles.size();
+  if (T > size_t(0x7FFFFFFF) / 3) inputError("scene ", scene.name, ": ", T, " triangles exceed one GPU draw");
+  gpu.makeCurrent();
+  GpuDebugGroup group("scene upload");
+  sceneBuffers_ = std::make_unique<SceneBuffers>(scene);
+  SceneBuffers& b = *sceneBuffers_;
+  GLint64 largestBlock = 0;
+  glGetInteger64v(GL_MAX_SHADER_STORAGE_BLOCK_SIZE, &largestBlock);
+  for (const size_t bytes : {b.surface.words.size() * 4, b.surface.texels.size() * 4})
+    if (int64_t(bytes) > largestBlock)
+      inputError("--device gpu: the scene's textures take ", bytes, " bytes, more than the GPU's largest storage buffer of ", largestBlock,
+                 " bytes (use --textures off)");
+  // The scene, as the CPU holds it (packed materials as the CPU rasterizer packs them).
+  std::vector<uint32_t> materials;
+  for (const Material& m : scene.materials) materials.push_back(packAlbedoSpec(m.albedo, m.specular));
+  b.positions = GpuBuffer(V * sizeof(glm::vec3), scene.positions.data());
+  b.normals = GpuBuffer(V * sizeof(glm::vec3), scene.normals.data());
+  b.indices = GpuBuffer(T * sizeof(glm::uvec3), scene.triangles.data());
+  b.triMaterial = GpuBuffer(T * sizeof(uint32_t), scene.triMaterial.data());
+  b.materialTable = GpuBuffer(materials.size() * 4, materials.data());
+  b.surfaceWords = GpuBuffer(b.surface.words.size() * 4, b.surface.words.data());
+  b.surfaceTexels = GpuBuffer(b.surface.texels.size() * 4, b.surface.texels.data());
+  camPos_ = GpuBuffer(V * 16);
+  camNormals_ = GpuBuffer(V * 16);
+  setups_ = GpuBuffer(T * kSetupBytes);
+  counter_ = GpuBuffer(4);
+  glCreateVertexArrays(1, &vao_);
+  glVertexArrayElementBuffer(vao_, b.indices.id());
+  glCreateFramebuffers(1, &fbo_);
+}
+
+GpuCapture::~GpuCapture() {
+  gpu_.makeCurrent();  // the buffers go with the context current
+  glDeleteFramebuffers(1, &fbo_);
+  glDeleteVertexArrays(1, &vao_);
+}
+
+size_t GpuCapture::memoryBytes() const {
+  size_t bytes = 0;
+  const SceneBuffers& b = *sceneBuffers_;
+  for (const GpuBuffer* g : {&b.positions, &b.normals, &b.indices, &b.triMaterial, &b.materialTable, &b.surfaceWords, &b.surfaceTexels, &camPos_,
+                             &camNormals_, &setups_, &complexity_, &slots_, &counts_, &slotTriangle_, &nodes_, &nodeTriangle_, &heads_, &peelDepth_,
+                             &peelTriangle_})
+    bytes += g->bytes();
+  return bytes;
+}
+
+void GpuCapture::bindScene(uint32_t positions, uint32_t indices, uint32_t triMaterial) const {
+  sceneBuffers_->positions.bindStorage(positions);
+  sceneBuffers_->indices.bindStorage(indices);
+  sceneBuffers_->triMaterial.bindStorage(triMaterial);
+}
+
+double GpuCapture::setupMs() const { return setupTimer_.ms(); }
+double GpuCapture::rasterMs() const { return rasterTimer_.ms(); }
+double GpuCapture::sortMs() const { return sortTimer_.ms(); }
+
+void GpuCapture::growPool(uint64_t fragments) { capacity_ = fragments; }
+
+void GpuCapture::submit(const Camera& camera, const GpuCaptureConfig& config) {
   validateLayerConfig(config.layers);
   const bool peel = config.method == GpuCaptureMethod::Peel;
   if (peel && config.layers.adaptiveThickness)
     inputError("--adaptive-thickness: needs every fragment of a pixel, which depth peeling does not keep (use --capture lists)");
   const int W = camera.width(), H = camera.height(), k = config.layers.k;
-  const size_t pixels = size_t(W) * size_t(H), V = scene.positions.size(), T = scene.triangles.size();
-  if (T > size_t(0x7FFFFFFF) / 3) inputError("scene ", scene.name, ": ", T, " triangles exceed one GPU draw");
-  gpu.makeCurrent();
-  out = GpuCaptureResult{};
-
-  // The scene, as the CPU holds it (packed materials as the CPU rasterizer packs them).
-  std::vector<uint32_t> materials;
-  for (const Material& m : scene.materials) materials.push_back(packAlbedoSpec(m.albedo, m.specular));
-  const GpuBuffer positions(V * sizeof(glm::vec3), scene.positions.data()), normals(V * sizeof(glm::vec3), scene.normals.data());
-  const GpuBuffer indices(T * sizeof(glm::uvec3), scene.triangles.data());
-  const GpuBuffer triMaterial(T * sizeof(uint32_t), scene.triMaterial.data()), materialTable(materials.size() * 4, materials.data());
-  const GpuBuffer camPos(V * 16), camNormals(V * 16), setups(T * kSetupBytes);
-  const GpuBuffer complexity(pixels * 4), slots(pixels * size_t(k) * 16), counts(pixels * 4), slotTriangle(pixels * size_t(k) * 4);
-  const GpuTimer setupBegin, rasterBegin, sortBegin;
-  const SurfaceTables surface(scene);
-  GLint64 largestBlock = 0;
-  glGetInteger64v(GL_MAX_SHADER_STORAGE_BLOCK_SIZE, &largestBlock);
-  for (const size_t bytes : {surface.words.size() * 4, surface.texels.size() * 4})
-    if (int64_t(bytes) > largestBlock)
-      inputError("--device gpu: the scene's textures take ", bytes, " bytes, more than the GPU's largest storage buffer of ", largestBlock,
-                 " bytes (use --textures off)");
-  const GpuBuffer surfaceWords(surface.words.size() * 4, surface.words.data()), surfaceTexels(surface.texels.size() * 4, surface.texels.data());
+  const size_t pixels = size_t(W) * size_t(H), V = scene_.positions.size(), T = scene_.triangles.size();
+  gpu_.makeCurrent();
+  GpuDebugGroup group("capture");
+  const SceneBuffers& b = *sceneBuffers_;
   const auto bindSurface = [&](const GpuProgram& p) {
-    surfaceWords.bindStorage(8), surfaceTexels.bindStorage(9);
-    surface.setUniforms(p, scene);
+    b.surfaceWords.bindStorage(8), b.surfaceTexels.bindStorage(9);
+    b.surface.setUniforms(p, scene_);
+  };
+  // Per-view buffers, allocated when the size or k changes.
+  if (pixels != pixels_ || k != k_) {
+    complexity_ = GpuBuffer(pixels * 4);
+    slots_ = GpuBuffer(pixels * size_t(k) * 16);
+    counts_ = GpuBuffer(pixels * 4);
+    slotTriangle_ = GpuBuffer(pixels * size_t(k) * 4);
+    heads_ = GpuBuffer(pixels * 4);
+    peelDepth_ = GpuBuffer();
+    peelTriangle_ = GpuBuffer();
+    pixels_ = pixels, k_ = k;
+  }
+  width_ = W, height_ = H;
+  if (W != fboWidth_ || H != fboHeight_) {
+    glNamedFramebufferParameteri(fbo_, GL_FRAMEBUFFER_DEFAULT_WIDTH, W);
+    glNamedFramebufferParameteri(fbo_, GL_FRAMEBUFFER_DEFAULT_HEIGHT, H);
+    if (glCheckNamedFramebufferStatus(fbo_, GL_FRAMEBUFFER) != GL_FRAMEBUFFER_COMPLETE)
+      inputError("--device gpu: a ", W, "x", H, " view is larger than the GPU's framebuffers");
+    fboWidth_ = W, fboHeight_ = H;
+  }
+  // Every triangle once, in scene order (gl_PrimitiveID = the triangle's index), into a
+  // framebuffer without attachments: the geometry passes write buffers only.
+  const auto draw = [&](const GpuProgram& program) {
+    glBindFramebuffer(GL_FRAMEBUFFER, fbo_);
+    glViewport(0, 0, W, H);
+    glDisable(GL_DEPTH_TEST);
+    glDisable(GL_CULL_FACE);
+    glDisable(GL_STENCIL_TEST);
+    glUseProgram(program.id());
+    glBindVertexArray(vao_);
+    glDrawElements(GL_TRIANGLES, GLsizei(3 * T), GL_UNSIGNED_INT, nullptr);
+    noteGpuDraw();
+    glBindVertexArray(0);
+    glBindFramebuffer(GL_FRAMEBUFFER, 0);
+    glMemoryBarrier(GL_SHADER_STORAGE_BARRIER_BIT);
   };
 
   // Vertices and triangles to camera space.
-  const GpuProgram vertices = gpu.computeProgram("capture_vertices.comp", shader_source::capture_vertices_comp);
-  const GpuProgram triangles = gpu.computeProgram("capture_triangles.comp", shader_source::capture_triangles_comp);
-  setupBegin.begin();
-  positions.bindStorage(0), normals.bindStorage(1), camPos.bindStorage(2), camNormals.bindStorage(3);
+  const GpuProgram& vertices = gpu_.computeProgram("capture_vertices.comp", shader_source::capture_vertices_comp);
+  const GpuProgram& triangles = gpu_.computeProgram("capture_triangles.comp", shader_source::capture_triangles_comp);
+  setupTimer_.begin();
+  b.positions.bindStorage(0), b.normals.bindStorage(1), camPos_.bindStorage(2), camNormals_.bindStorage(3);
   vertices.set("uVertexCount", int(V));
   vertices.setMatrix("uView", glm::value_ptr(camera.view()));
-  gpu.dispatch(vertices, V);
-  indices.bindStorage(0), camPos.bindStorage(1), setups.bindStorage(2), materialTable.bindStorage(3), triMaterial.bindStorage(4);
+  gpu_.dispatch(vertices, V);
+  b.indices.bindStorage(0), camPos_.bindStorage(1), setups_.bindStorage(2), b.materialTable.bindStorage(3), b.triMaterial.bindStorage(4);
   setCamera(triangles, camera);
   triangles.set("uTriangleCount", int(T));
   triangles.set("uFrontFacesOnly", config.frontFacesOnly);
-  gpu.dispatch(triangles, T);
-  setupBegin.end();
-  const RasterTarget target(indices, W, H);
+  gpu_.dispatch(triangles, T);
+  setupTimer_.end();
   const uint32_t zero = 0, none = 0xFFFFFFFFu;
   const LayerConfig& lc = config.layers;
+  peel_ = peel;
 
   if (!peel) {
-    const GpuProgram lists = gpu.renderProgram("capture.vert + capture_lists.frag", shader_source::capture_vert, shader_source::capture_lists_frag);
-    const GpuProgram sort = gpu.computeProgram("capture_sort.comp", shader_source::capture_sort_comp);
+    const GpuProgram& lists = gpu_.renderProgram("capture.vert + capture_lists.frag", shader_source::capture_vert, shader_source::capture_lists_frag);
+    const GpuProgram& sort = gpu_.computeProgram("capture_sort.comp", shader_source::capture_sort_comp);
+    if (capacity_ == 0) capacity_ = config.poolCapacity ? config.poolCapacity : std::max<uint64_t>(uint64_t(pixels) * 8, 1u << 20);
+    if (capacity_ > kMaxPoolFragments) inputError("fragment pool capacity ", capacity_, " exceeds the 32-bit index limit of ", kMaxPoolFragments);
+    if (nodes_.bytes() < capacity_ * 16) {
+      checkAllocation(cat("the GPU's fragment pool (", capacity_, " fragments)"), capacity_ * 20);
+      nodes_ = GpuBuffer(capacity_ * 16);
+      nodeTriangle_ = GpuBuffer(capacity_ * 4);
+    }
     setCamera(lists, camera);
     bindSurface(lists);
     lists.setMatrix("uProjection", glm::value_ptr(projectionRowsDown(camera)));
-    uint64_t capacity = config.poolCapacity ? config.poolCapacity : std::max<uint64_t>(uint64_t(pixels) * 8, 1u << 20);
-    for (;;) {
-      if (capacity > kMaxPoolFragments) inputError("fragment pool capacity ", capacity, " exceeds the 32-bit index limit of ", kMaxPoolFragments);
-      ++out.passes;
-      checkAllocation(cat("the GPU's fragment pool (", capacity, " fragments)"), capacity * 20);
-      const GpuBuffer nodes(capacity * 16), nodeTriangle(capacity * 4), heads(pixels * 4), counter(4, &zero);
-      heads.fill(none);
-      complexity.fill(zero);
-      setups.bindStorage(0), camNormals.bindStorage(1), nodes.bindStorage(2), heads.bindStorage(3), nodeTriangle.bindStorage(4);
-      complexity.bindStorage(5), counter.bindStorage(6), camPos.bindStorage(7);
-      lists.set("uCapacity", uint32_t(capacity));
-      rasterBegin.begin();
-      target.draw(lists, W, H, T);
-      rasterBegin.end();
-      uint32_t generated = 0;
-      counter.read(&generated, 4);
-      out.generated = generated;
-      out.stored = std::min<uint64_t>(generated, capacity);
-      out.poolCapacity = capacity;
-      const uint64_t lost = out.generated - out.stored;
-      if (lost > 0 && config.growOnOverflow && out.passes == 1) {
-        out.overflowLost = lost;
-        capacity = out.generated;
-        continue;
-      }
-      if (lost > 0)
-        inputError("--pool ", config.poolCapacity, ": fragment pool overflow: ", out.generated, " fragments generated, ", out.stored,
-                   " stored, ", lost, " lost (use --pool ", out.generated, " or more, or 0 for automatic)");
-      nodes.bindStorage(0), heads.bindStorage(1), nodeTriangle.bindStorage(2), slots.bindStorage(3), counts.bindStorage(4),
-          slotTriangle.bindStorage(5);
-      sort.set("uPixels", int(pixels));
-      sort.set("uK", k);
-      sort.set("uThickness", lc.thickness);
-      sort.set("uThicknessPerDepth", lc.thicknessPerDepth);
-      sort.set("uMinSeparation", lc.minSeparation);
-      sort.set("uAdaptive", lc.adaptiveThickness);
-      sortBegin.begin();
-      gpu.dispatch(sort, pixels);
-      sortBegin.end();
-      if (config.keepLists) {
-        FragmentLists& fl = out.lists;
-        fl.head.resize(pixels);
-        heads.read(fl.head.data(), pixels * 4);
-        fl.nodes.resize(out.stored);
-        fl.triangle.resize(out.stored);
-        if (out.stored > 0) {
-          nodes.read(fl.nodes.data(), out.stored * sizeof(FragmentNode));
-          nodeTriangle.read(fl.triangle.data(), out.stored * 4);
-        }
-      }
-      out.memoryBytes = nodes.bytes() + nodeTriangle.bytes() + heads.bytes();
-      out.geometryPasses = out.passes;
-      break;
-    }
+    heads_.fill(none);
+    complexity_.fill(zero);
+    counter_.fill(zero);
+    setups_.bindStorage(0), camNormals_.bindStorage(1), nodes_.bindStorage(2), heads_.bindStorage(3), nodeTriangle_.bindStorage(4);
+    complexity_.bindStorage(5), counter_.bindStorage(6), camPos_.bindStorage(7);
+    lists.set("uCapacity", uint32_t(capacity_));
+    rasterTimer_.begin();
+    draw(lists);
+    rasterTimer_.end();
+    // The sort reads only the nodes the pool stored (a full pool links no more).
+    nodes_.bindStorage(0), heads_.bindStorage(1), nodeTriangle_.bindStorage(2), slots_.bindStorage(3), counts_.bindStorage(4),
+        slotTriangle_.bindStorage(5);
+    sort.set("uPixels", int(pixels));
+    sort.set("uK", k);
+    sort.set("uThickness", lc.thickness);
+    sort.set("uThicknessPerDepth", lc.thicknessPerDepth);
+    sort.set("uMinSeparation", lc.minSeparation);
+    sort.set("uAdaptive", lc.adaptiveThickness);
+    GpuDebugGroup sortGroup("sort");
+    sortTimer_.begin();
+    gpu_.dispatch(sort, pixels);
+    sortTimer_.end();
+    geometryPasses_ = 1;
   } else {
     // Depth peeling: per layer, its depth, then its triangle, from the whole scene each time.
-    const GpuProgram peelPass = gpu.renderProgram("capture.vert + capture_peel.frag", shader_source::capture_vert, shader_source::capture_peel_frag);
-    const GpuProgram resolve = gpu.computeProgram("capture_peel_resolve.comp", shader_source::capture_peel_resolve_comp);
-    const GpuBuffer peelDepth(pixels * size_t(k) * 4), peelTriangle(pixels * size_t(k) * 4);
-    peelDepth.fill(none);
-    peelTriangle.fill(zero);
-    complexity.fill(zero);
+    const GpuProgram& peelPass = gpu_.renderProgram("capture.vert + capture_peel.frag", shader_source::capture_vert, shader_source::capture_peel_frag);
+    const GpuProgram& resolve = gpu_.computeProgram("capture_peel_resolve.comp", shader_source::capture_peel_resolve_comp);
+    if (peelDepth_.bytes() < pixels * size_t(k) * 4) peelDepth_ = GpuBuffer(pixels * size_t(k) * 4), peelTriangle_ = GpuBuffer(pixels * size_t(k) * 4);
+    peelDepth_.fill(none);
+    peelTriangle_.fill(zero);
+    complexity_.fill(zero);
     setCamera(peelPass, camera);
     bindSurface(peelPass);
     peelPass.setMatrix("uProjection", glm::value_ptr(projectionRowsDown(camera)));
     peelPass.set("uK", k);
     peelPass.set("uMinSeparation", lc.minSeparation);
-    setups.bindStorage(0), peelDepth.bindStorage(1), peelTriangle.bindStorage(2), complexity.bindStorage(3), camPos.bindStorage(7);
-    rasterBegin.begin();
+    setups_.bindStorage(0), peelDepth_.bindStorage(1), peelTriangle_.bindStorage(2), complexity_.bindStorage(3), camPos_.bindStorage(7);
+    rasterTimer_.begin();
+    geometryPasses_ = 0;
     for (int layer = 0; layer < k; ++layer)
       for (int pass = 0; pass < 2; ++pass) {
         peelPass.set("uLayer", layer);
         peelPass.set("uPass", pass);
-        target.draw(peelPass, W, H, T);
-        ++out.geometryPasses;
+        draw(peelPass);
+        ++geometryPasses_;
       }
-    rasterBegin.end();
-    setups.bindStorage(0), camNormals.bindStorage(1), peelTriangle.bindStorage(2), slots.bindStorage(3), counts.bindStorage(4),
-        slotTriangle.bindStorage(5);
+    rasterTimer_.end();
+    setups_.bindStorage(0), camNormals_.bindStorage(1), peelTriangle_.bindStorage(2), slots_.bindStorage(3), counts_.bindStorage(4),
+        slotTriangle_.bindStorage(5);
     setCamera(resolve, camera);
     bindSurface(resolve);
     resolve.set("uK", k);
     resolve.set("uThickness", lc.thickness);
     resolve.set("uThicknessPerDepth", lc.thicknessPerDepth);
-    sortBegin.begin();
-    gpu.dispatch(resolve, pixels);
-    sortBegin.end();
-    out.passes = 1;
-    out.memoryBytes = peelDepth.bytes() + peelTriangle.bytes();
+    sortTimer_.begin();
+    gpu_.dispatch(resolve, pixels);
+    sortTimer_.end();
   }
+}
 
-  // Download into the CPU's layout.
+void GpuCapture::download(const GpuCaptureConfig& config, uint64_t generated, GpuCaptureResult& out) const {
+  const size_t pixels = pixels_;
+  const int k = k_;
+  out.layers = LayerArrays{};
+  out.lists = FragmentLists{};
   FragmentLists& fl = out.lists;
-  fl.width = W, fl.height = H;
   fl.complexity.resize(pixels);
-  complexity.read(fl.complexity.data(), pixels * 4);
-  if (peel) {
+  complexity_.read(fl.complexity.data(), pixels * 4);
+  if (peel_) {
     uint64_t total = 0;
     for (uint32_t c : fl.complexity) total += c;
     out.generated = out.stored = total;
+    out.memoryBytes = peelDepth_.bytes() + peelTriangle_.bytes();
+  } else {
+    out.generated = generated;
+    out.stored = std::min<uint64_t>(generated, capacity_);
+    out.poolCapacity = capacity_;
+    out.memoryBytes = nodes_.bytes() + nodeTriangle_.bytes() + heads_.bytes();
+    if (config.keepLists) {
+      fl.head.resize(pixels);
+      heads_.read(fl.head.data(), pixels * 4);
+      fl.nodes.resize(out.stored);
+      fl.triangle.resize(out.stored);
+      if (out.stored > 0) {
+        nodes_.read(fl.nodes.data(), out.stored * sizeof(FragmentNode));
+        nodeTriangle_.read(fl.triangle.data(), out.stored * 4);
+      }
+    }
   }
+  out.geometryPasses = geometryPasses_;
+  fl.width = width_, fl.height = height_;
   fl.generated = out.generated, fl.stored = out.stored;
   LayerArrays& L = out.layers;
-  L.width = W, L.height = H, L.k = k;
   checkAllocation(cat("the k-layer arrays (k = ", k, ")"), pixels * (size_t(k) * (sizeof(FragmentNode) + sizeof(uint32_t)) + 1));
+  L.width = width_, L.height = height_, L.k = k;
   L.slots.resize(pixels * size_t(k));
   L.triangle.resize(pixels * size_t(k));
-  slots.read(L.slots.data(), L.slots.size() * sizeof(FragmentNode));
-  slotTriangle.read(L.triangle.data(), L.triangle.size() * 4);
+  slots_.read(L.slots.data(), L.slots.size() * sizeof(FragmentNode));
+  slotTriangle_.read(L.triangle.data(), L.triangle.size() * 4);
   std::vector<uint32_t> n(pixels);
-  counts.read(n.data(), pixels * 4);
+  counts_.read(n.data(), pixels * 4);
   L.count.assign(n.begin(), n.end());
-  out.setupMs = setupBegin.ms();
-  out.rasterMs = rasterBegin.ms();
-  out.sortMs = sortBegin.ms();
-  out.memoryBytes += surfaceWords.bytes() + surfaceTexels.bytes() + positions.bytes() + normals.bytes() + indices.bytes() + triMaterial.bytes() + materialTable.bytes() + camPos.bytes() +
-                     camNormals.bytes() + setups.bytes() + complexity.bytes() + slots.bytes() + counts.bytes() + slotTriangle.bytes();
+  out.setupMs = setupMs();
+  out.rasterMs = rasterMs();
+  out.sortMs = sortMs();
+  out.memoryBytes += memoryBytes() - nodes_.bytes() - nodeTriangle_.bytes() - heads_.bytes() - peelDepth_.bytes() - peelTriangle_.bytes();
+}
+
+void captureOnGpu(GpuContext& gpu, const Scene& scene, const Camera& camera, const GpuCaptureConfig& config, GpuCaptureResult& out) {
+  validateLayerConfig(config.layers);
+  GpuCapture capture(gpu, scene);
+  out = GpuCaptureResult{};
+  uint64_t generated = 0, lost = 0;
+  int passes = 0;
+  for (;;) {
+    capture.submit(camera, config);
+    ++passes;
+    if (config.method == GpuCaptureMethod::Peel) break;
+    uint32_t g = 0;
+    capture.counter().read(&g, 4);
+    generated = g;
+    lost = generated - std::min<uint64_t>(generated, capture.poolCapacity());
+    if (lost > 0 && config.growOnOverflow && passes == 1) {
+      out.overflowLost = lost;
+      capture.growPool(generated);
+      continue;
+    }
+    if (lost > 0)
+      inputError("--pool ", config.poolCapacity, ": fragment pool overflow: ", generated, " fragments generated, ", generated - lost,
+                 " stored, ", lost, " lost (use --pool ", generated, " or more, or 0 for automatic)");
+    break;
+  }
+  const uint64_t overflowLost = out.overflowLost;
+  capture.download(config, generated, out);
+  out.overflowLost = overflowLost;
+  out.passes = config.method == GpuCaptureMethod::Peel ? 1 : passes;
+  if (config.method != GpuCaptureMethod::Peel) out.geometryPasses = passes;
 }
 
 }  // namespace lt

@@ -10,6 +10,7 @@
 #pragma once
 
 #include <cstdint>
+#include <memory>
 #include <vector>
 
 #include "layertrace/gpu/gpu_context.h"
@@ -49,6 +50,65 @@ struct GpuCaptureResult {
   /// the sort (or the peel's resolve).
   double setupMs = 0.0, rasterMs = 0.0, sortMs = 0.0;
   size_t memoryBytes = 0;  ///< GPU memory the capture held: scene, pool, lists and arrays
+};
+
+/// The capture of one scene, kept on the device from frame to frame: the scene (geometry,
+/// materials, textures) uploaded once, the programs the context's, and every buffer allocated
+/// on the first frame, then again only for a new size or k, or a pool that overflowed.
+class GpuCapture {
+ public:
+  /// Uploads `scene`; InputError when its textures exceed the GPU's largest storage buffer.
+  GpuCapture(GpuContext& gpu, const Scene& scene);
+  ~GpuCapture();
+  GpuCapture(const GpuCapture&) = delete;
+  GpuCapture& operator=(const GpuCapture&) = delete;
+
+  /// Issues the capture of the scene seen by `camera` (setup, geometry passes, sort), with no
+  /// read-back: a pool that overflows keeps counting (counter() holds the exact number of
+  /// fragments), stores what fits, and the caller grows it (growPool) and captures again.
+  void submit(const Camera& camera, const GpuCaptureConfig& config);
+  /// A pool of `fragments`, for the next submit.
+  void growPool(uint64_t fragments);
+
+  /// The k-layer arrays of the last submit: per slot (pixel-major, k a pixel) the 16-byte node
+  /// with its z-thickness in place of the list pointer, per pixel the count, per slot the scene
+  /// triangle; the depth complexity per pixel; the fragments generated (one uint, lists).
+  const GpuBuffer& slots() const { return slots_; }
+  const GpuBuffer& counts() const { return counts_; }
+  const GpuBuffer& slotTriangle() const { return slotTriangle_; }
+  const GpuBuffer& complexity() const { return complexity_; }
+  const GpuBuffer& counter() const { return counter_; }
+  /// Binds the scene's world-space positions (3 floats a vertex), its triangles' vertex indices
+  /// (3 uints a triangle) and their materials (a uint a triangle) to these storage bindings.
+  void bindScene(uint32_t positions, uint32_t indices, uint32_t triMaterial) const;
+  /// The pool's fragments (lists).
+  uint64_t poolCapacity() const { return capacity_; }
+  int geometryPasses() const { return geometryPasses_; }
+  /// Bytes held: scene, pool, lists and arrays.
+  size_t memoryBytes() const;
+  /// GPU milliseconds of the last submit (timer queries; waits unless the frame was read).
+  double setupMs() const, rasterMs() const, sortMs() const;
+  /// Downloads the last submit's results (generated: the fragments the counter holds).
+  void download(const GpuCaptureConfig& config, uint64_t generated, GpuCaptureResult& out) const;
+
+ private:
+  struct SceneBuffers;
+  GpuContext& gpu_;
+  const Scene& scene_;
+  std::unique_ptr<SceneBuffers> sceneBuffers_;
+  GpuBuffer camPos_, camNormals_, setups_;
+  GpuBuffer complexity_, slots_, counts_, slotTriangle_;
+  GpuBuffer nodes_, nodeTriangle_, heads_, counter_;
+  GpuBuffer peelDepth_, peelTriangle_;
+  uint64_t capacity_ = 0;
+  size_t pixels_ = 0;
+  int width_ = 0, height_ = 0;
+  int k_ = 0;
+  bool peel_ = false;
+  int geometryPasses_ = 0;
+  uint32_t vao_ = 0, fbo_ = 0;
+  int fboWidth_ = 0, fboHeight_ = 0;
+  GpuTimer setupTimer_, rasterTimer_, sortTimer_;
 };
 
 /// Captures `scene` seen by `camera` on the GPU into `out` (its layers downloaded to the CPU).

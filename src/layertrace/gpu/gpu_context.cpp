@@ -3,6 +3,7 @@
 #include <dlfcn.h>
 
 #include <algorithm>
+#include <atomic>
 #include <cstdlib>
 #include <string_view>
 #include <utility>
@@ -16,6 +17,22 @@
 namespace lt {
 
 namespace {
+
+/// The process's GPU activity (gpuActivity); `submitted`: GPU work was issued since the last
+/// blocking call, so the next one stalls.
+struct Activity {
+  std::atomic<uint64_t> links{0}, allocations{0}, upload{0}, download{0}, waits{0}, dispatches{0}, draws{0};
+  std::atomic<bool> submitted{false};
+} activity;
+
+void noteSubmit() { activity.submitted.store(true, std::memory_order_relaxed); }
+void noteBlockingCall() {
+  if (activity.submitted.exchange(false, std::memory_order_relaxed)) activity.waits.fetch_add(1, std::memory_order_relaxed);
+}
+void noteDispatch() {
+  activity.dispatches.fetch_add(1, std::memory_order_relaxed);
+  noteSubmit();
+}
 
 [[noreturn]] void unavailable(const std::string& why) {
   inputError("--device gpu: no OpenGL 4.5 device (", why, ")");
@@ -50,6 +67,25 @@ EGLDisplay openDisplay() {
 }
 
 }  // namespace
+
+GpuActivity GpuActivity::operator-(const GpuActivity& b) const {
+  return {programLinks - b.programLinks, bufferAllocations - b.bufferAllocations, uploadBytes - b.uploadBytes, downloadBytes - b.downloadBytes,
+          hostWaits - b.hostWaits, dispatches - b.dispatches, draws - b.draws};
+}
+
+GpuActivity gpuActivity() {
+  constexpr auto r = std::memory_order_relaxed;
+  return {activity.links.load(r), activity.allocations.load(r), activity.upload.load(r), activity.download.load(r),
+          activity.waits.load(r), activity.dispatches.load(r), activity.draws.load(r)};
+}
+
+void noteGpuDraw() {
+  activity.draws.fetch_add(1, std::memory_order_relaxed);
+  noteSubmit();
+}
+
+GpuDebugGroup::GpuDebugGroup(const char* name) { glPushDebugGroup(GL_DEBUG_SOURCE_APPLICATION, 0, -1, name); }
+GpuDebugGroup::~GpuDebugGroup() { glPopDebugGroup(); }
 
 GpuContext::GpuContext() {
   // libepoxy aborts the process when it cannot load libEGL: ask first.
@@ -96,6 +132,10 @@ GpuContext::GpuContext() {
 GpuContext::~GpuContext() {
   if (!display_) return;
   auto display = static_cast<EGLDisplay>(display_);
+  if (context_) {
+    makeCurrent();  // the cached programs go with their context current
+    programs_.clear();
+  }
   release();
   if (context_) eglDestroyContext(display, static_cast<EGLContext>(context_));
   // No eglTerminate: EGL hands every context on the same device the same display, and
@@ -148,6 +188,7 @@ uint32_t GpuContext::link(std::string_view name, std::initializer_list<std::pair
     glAttachShader(program, shader);
   }
   glLinkProgram(program);
+  activity.links.fetch_add(1, std::memory_order_relaxed);
   for (GLuint s : shaders) glDeleteShader(s);
   GLint ok = 0;
   glGetProgramiv(program, GL_LINK_STATUS, &ok);
@@ -159,12 +200,28 @@ uint32_t GpuContext::link(std::string_view name, std::initializer_list<std::pair
   return program;
 }
 
-GpuProgram GpuContext::computeProgram(std::string_view name, std::string_view source) const {
-  return GpuProgram(link(name, {{GL_COMPUTE_SHADER, source}}));
+const GpuProgram& GpuContext::computeProgram(std::string_view name, std::string_view source, std::string_view defines) const {
+  std::string key = std::string(name) + "|" + std::string(defines);
+  if (auto it = programs_.find(key); it != programs_.end()) return it->second;
+  std::string variant;
+  if (!defines.empty()) {
+    // After the #version line, which must come first.
+    const size_t line = source.find('\n');
+    variant = std::string(source.substr(0, line + 1)) + std::string(defines) + std::string(source.substr(line + 1));
+    source = variant;
+  }
+  return programs_.emplace(std::move(key), GpuProgram(link(name, {{GL_COMPUTE_SHADER, source}}))).first->second;
 }
 
-GpuProgram GpuContext::renderProgram(std::string_view name, std::string_view vertex, std::string_view fragment) const {
-  return GpuProgram(link(name, {{GL_VERTEX_SHADER, vertex}, {GL_FRAGMENT_SHADER, fragment}}));
+const GpuProgram& GpuContext::renderProgram(std::string_view name, std::string_view vertex, std::string_view fragment) const {
+  std::string key(name);
+  if (auto it = programs_.find(key); it != programs_.end()) return it->second;
+  return programs_.emplace(std::move(key), GpuProgram(link(name, {{GL_VERTEX_SHADER, vertex}, {GL_FRAGMENT_SHADER, fragment}}))).first->second;
+}
+
+bool GpuContext::hasExtension(std::string_view extension) const {
+  makeCurrent();
+  return epoxy_has_gl_extension(std::string(extension).c_str());
 }
 
 void GpuContext::dispatch(const GpuProgram& program, size_t n) const {
@@ -173,8 +230,27 @@ void GpuContext::dispatch(const GpuProgram& program, size_t n) const {
   for (size_t f = 0; f < n; f += perDispatch) {
     program.set("uFirst", int(f));
     glDispatchCompute(GLuint((std::min(perDispatch, n - f) + kGroup - 1) / kGroup), 1, 1);
+    noteDispatch();
   }
-  glMemoryBarrier(GL_SHADER_STORAGE_BARRIER_BIT);
+  glMemoryBarrier(GL_SHADER_STORAGE_BARRIER_BIT | GL_COMMAND_BARRIER_BIT);
+}
+
+void GpuContext::dispatchGroups(const GpuProgram& program, uint32_t groups) const {
+  glUseProgram(program.id());
+  program.set("uFirst", 0);
+  glDispatchCompute(groups, 1, 1);
+  noteDispatch();
+  glMemoryBarrier(GL_SHADER_STORAGE_BARRIER_BIT | GL_COMMAND_BARRIER_BIT);
+}
+
+void GpuContext::dispatchIndirect(const GpuProgram& program, const GpuBuffer& args, size_t offset) const {
+  glUseProgram(program.id());
+  program.set("uFirst", 0);
+  glBindBuffer(GL_DISPATCH_INDIRECT_BUFFER, args.id());
+  glDispatchComputeIndirect(GLintptr(offset));
+  glBindBuffer(GL_DISPATCH_INDIRECT_BUFFER, 0);
+  noteDispatch();
+  glMemoryBarrier(GL_SHADER_STORAGE_BARRIER_BIT | GL_COMMAND_BARRIER_BIT);
 }
 
 GpuProgram::~GpuProgram() {
@@ -207,6 +283,7 @@ void GpuProgram::set(const char* name, const int* v, int count) const {
 GpuBuffer::GpuBuffer(size_t bytes, const void* data) : bytes_(std::max<size_t>(bytes, 16)) {
   glCreateBuffers(1, &id_);
   glNamedBufferStorage(id_, GLsizeiptr(bytes_), nullptr, GL_DYNAMIC_STORAGE_BIT);
+  activity.allocations.fetch_add(1, std::memory_order_relaxed);
   if (glGetError() == GL_OUT_OF_MEMORY) {
     glDeleteBuffers(1, &id_);
     inputError("--device gpu: ", bytes_, " bytes of GPU memory are not available");
@@ -234,6 +311,7 @@ void GpuBuffer::bindStorage(uint32_t index) const { glBindBufferBase(GL_SHADER_S
 void GpuBuffer::write(const void* data, size_t bytes, size_t offset) const {
   LT_CHECK(offset + bytes <= bytes_, offset, bytes, bytes_);
   glNamedBufferSubData(id_, GLintptr(offset), GLsizeiptr(bytes), data);
+  activity.upload.fetch_add(bytes, std::memory_order_relaxed);
 }
 
 void GpuBuffer::fill(uint32_t value) const { glClearNamedBufferData(id_, GL_R32UI, GL_RED_INTEGER, GL_UNSIGNED_INT, &value); }
@@ -241,7 +319,9 @@ void GpuBuffer::fill(uint32_t value) const { glClearNamedBufferData(id_, GL_R32U
 void GpuBuffer::read(void* data, size_t bytes, size_t offset) const {
   LT_CHECK(offset + bytes <= bytes_, offset, bytes, bytes_);
   glMemoryBarrier(GL_BUFFER_UPDATE_BARRIER_BIT);
+  noteBlockingCall();
   glGetNamedBufferSubData(id_, GLintptr(offset), GLsizeiptr(bytes), data);
+  activity.download.fetch_add(bytes, std::memory_order_relaxed);
 }
 
 GpuTimer::GpuTimer() { glCreateQueries(GL_TIMESTAMP, 2, ids_); }
@@ -250,9 +330,44 @@ void GpuTimer::begin() const { glQueryCounter(ids_[0], GL_TIMESTAMP); }
 void GpuTimer::end() const { glQueryCounter(ids_[1], GL_TIMESTAMP); }
 double GpuTimer::ms() const {
   GLuint64 t0 = 0, t1 = 0;
+  noteBlockingCall();
   glGetQueryObjectui64v(ids_[0], GL_QUERY_RESULT, &t0);
   glGetQueryObjectui64v(ids_[1], GL_QUERY_RESULT, &t1);
   return t1 > t0 ? double(t1 - t0) * 1e-6 : 0.0;
+}
+
+GpuTimeline::~GpuTimeline() {
+  if (!pool_.empty()) glDeleteQueries(GLsizei(pool_.size()), pool_.data());
+}
+
+uint32_t GpuTimeline::query() {
+  if (used_ == pool_.size()) {
+    GLuint id = 0;
+    glCreateQueries(GL_TIMESTAMP, 1, &id);
+    pool_.push_back(id);
+  }
+  return pool_[used_++];
+}
+
+void GpuTimeline::begin(int stage) {
+  spans_.emplace_back(stage, used_);
+  glQueryCounter(query(), GL_TIMESTAMP);
+}
+
+void GpuTimeline::end(int) { glQueryCounter(query(), GL_TIMESTAMP); }
+
+std::vector<double> GpuTimeline::collect(int n) {
+  std::vector<double> ms(size_t(std::max(n, 0)), 0.0);
+  if (!spans_.empty()) noteBlockingCall();
+  for (const auto& [stage, first] : spans_) {
+    GLuint64 t0 = 0, t1 = 0;
+    glGetQueryObjectui64v(pool_[first], GL_QUERY_RESULT, &t0);
+    glGetQueryObjectui64v(pool_[first + 1], GL_QUERY_RESULT, &t1);
+    if (stage >= 0 && stage < n && t1 > t0) ms[size_t(stage)] += double(t1 - t0) * 1e-6;
+  }
+  spans_.clear();
+  used_ = 0;
+  return ms;
 }
 
 }  // namespace lt

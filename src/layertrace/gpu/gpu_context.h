@@ -10,9 +10,13 @@
 #include <string>
 #include <string_view>
 #include <initializer_list>
+#include <map>
 #include <utility>
+#include <vector>
 
 namespace lt {
+
+class GpuBuffer;
 
 /// A linked program, deleted with the object, and its uniforms by name (a name the compiler
 /// dropped as unused is ignored, as OpenGL ignores location −1).
@@ -39,6 +43,35 @@ class GpuProgram {
   uint32_t id_ = 0;
 };
 
+/// What the process has asked of the GPU so far, over all contexts: the frame accounting
+/// (stats key gpu.frame) takes the difference of two readings. The same calls an apitrace dump
+/// shows: a host wait is a blocking call (a buffer read, a timer read) after new GPU work was
+/// submitted; blocking calls before the next submission cost no new stall.
+struct GpuActivity {
+  uint64_t programLinks = 0;       ///< programs linked (glLinkProgram)
+  uint64_t bufferAllocations = 0;  ///< buffer objects given storage
+  uint64_t uploadBytes = 0;        ///< bytes written into buffers from the host
+  uint64_t downloadBytes = 0;      ///< bytes read back from buffers
+  uint64_t hostWaits = 0;          ///< times the host stalled on the GPU
+  uint64_t dispatches = 0;         ///< compute dispatches (direct and indirect)
+  uint64_t draws = 0;              ///< draw calls
+  GpuActivity operator-(const GpuActivity& before) const;
+};
+/// The activity so far.
+GpuActivity gpuActivity();
+/// Records a draw call issued outside GpuContext (the capture's geometry passes).
+void noteGpuDraw();
+
+/// A KHR_debug group around the passes of one stage ("capture", "hssr march", …): apitrace,
+/// RenderDoc and Nsight show a frame's structure by these names.
+class GpuDebugGroup {
+ public:
+  explicit GpuDebugGroup(const char* name);
+  ~GpuDebugGroup();
+  GpuDebugGroup(const GpuDebugGroup&) = delete;
+  GpuDebugGroup& operator=(const GpuDebugGroup&) = delete;
+};
+
 class GpuContext {
  public:
   /// Opens the first OpenGL 4.5 device EGL offers: Mesa's surfaceless platform, else the first
@@ -60,15 +93,26 @@ class GpuContext {
   /// Releases the context from the calling thread (when it is current there), so that another
   /// thread can make it current.
   void release() const;
-  /// Compiles and links one compute shader; InternalError with the driver's log on failure
-  /// (the build validated every shader, so a failure here is a driver's).
-  GpuProgram computeProgram(std::string_view name, std::string_view source) const;
+  /// The compute program of shader `name`, compiled and linked on its first request and kept
+  /// for the context's life (a program cache: a frame links nothing). `defines` ("#define X\n"
+  /// lines, inserted after the #version line) make a variant of its own. Uniforms are per
+  /// program, so a caller sets every uniform it relies on before each dispatch. InternalError
+  /// with the driver's log on failure (the build validated every shader, so a failure here is a
+  /// driver's).
+  const GpuProgram& computeProgram(std::string_view name, std::string_view source, std::string_view defines = {}) const;
   /// The same for a vertex and a fragment shader linked together.
-  GpuProgram renderProgram(std::string_view name, std::string_view vertex, std::string_view fragment) const;
+  const GpuProgram& renderProgram(std::string_view name, std::string_view vertex, std::string_view fragment) const;
   /// Runs `program` (a compute shader of local size 64 whose invocation i handles item
   /// uFirst + gl_GlobalInvocationID.x) over `n` items, in dispatches the smallest OpenGL 4.5
   /// limit allows, then makes its buffer writes visible to the next commands.
   void dispatch(const GpuProgram& program, size_t n) const;
+  /// Runs `program` over `groups` work groups, then a barrier for its buffer writes.
+  void dispatchGroups(const GpuProgram& program, uint32_t groups) const;
+  /// Runs `program` over the work groups that the device wrote into `args` at `offset` (three
+  /// uints, glDispatchComputeIndirect), then a barrier for its buffer writes.
+  void dispatchIndirect(const GpuProgram& program, const GpuBuffer& args, size_t offset = 0) const;
+  /// Whether the driver offers `extension` (GL_ARB_shader_ballot, …).
+  bool hasExtension(std::string_view extension) const;
 
  private:
   void* display_ = nullptr;
@@ -76,6 +120,7 @@ class GpuContext {
   uint32_t link(std::string_view name, std::initializer_list<std::pair<uint32_t, std::string_view>> stages) const;
 
   std::string renderer_, version_;
+  mutable std::map<std::string, GpuProgram, std::less<>> programs_;  ///< the program cache, by name and variant
 };
 
 /// An OpenGL buffer object (shader storage) of a fixed size.
@@ -114,11 +159,33 @@ class GpuTimer {
   GpuTimer& operator=(const GpuTimer&) = delete;
   void begin() const;
   void end() const;
-  /// Milliseconds of the last begin()/end(); waits for the GPU to finish them.
+  /// Milliseconds of the last begin()/end(); waits for the GPU to finish them (read after the
+  /// frame's last read-back, it waits no more: the work is done).
   double ms() const;
 
  private:
   uint32_t ids_[2] = {};
+};
+
+/// GPU time per stage over many passes: a pair of GL_TIMESTAMP queries around each, from a pool
+/// kept from frame to frame, read only by collect() — after the frame's read-back, when the
+/// work is done and reading waits no more.
+class GpuTimeline {
+ public:
+  GpuTimeline() = default;
+  ~GpuTimeline();
+  GpuTimeline(const GpuTimeline&) = delete;
+  GpuTimeline& operator=(const GpuTimeline&) = delete;
+  void begin(int stage);
+  void end(int stage);
+  /// Milliseconds per stage (stages 0 … n − 1) since the last collect, which it starts anew.
+  std::vector<double> collect(int n);
+
+ private:
+  uint32_t query();
+  std::vector<uint32_t> pool_;
+  size_t used_ = 0;
+  std::vector<std::pair<int, size_t>> spans_;  ///< stage, its begin query (the end query follows)
 };
 
 }  // namespace lt

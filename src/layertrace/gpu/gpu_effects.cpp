@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <bit>
+#include <array>
 #include <initializer_list>
 
 #include <glm/geometric.hpp>
@@ -45,14 +46,23 @@ int waves(const GpuEffectParams& p) {
 
 }  // namespace
 
-GpuEffects::GpuEffects(GpuContext& gpu, const Scene& scene, const Camera& camera, const LayerArrays& layers,
-                       std::span<const PointLight> lights)
-    : gpu_(gpu), camera_(camera), lights_(int(lights.size())) {
-  LT_CHECK(layers.width == camera.width() && layers.height == camera.height(), layers.width, camera.width());
+GpuEffects::GpuEffects(GpuContext& gpu, const Scene& scene, std::span<const PointLight> lights)
+    : gpu_(gpu), lights_(int(lights.size())), triangleCount_(uint32_t(scene.triangles.size())), environment_(scene.environment) {
   LT_CHECK(lights.size() <= size_t(kMaxLights), lights.size());
   gpu_.makeCurrent();
-  step_ = gpu_.computeProgram("effect_step.comp", shader_source::effect_step_comp);
-  resolve_ = gpu_.computeProgram("effect_resolve.comp", shader_source::effect_resolve_comp);
+  step_ = &gpu_.computeProgram("effect_step.comp", shader_source::effect_step_comp);
+  resolve_ = &gpu_.computeProgram("effect_resolve.comp", shader_source::effect_resolve_comp);
+  rounds_ = &gpu_.computeProgram("effect_rounds.comp", shader_source::effect_rounds_comp);
+  sum_ = &gpu_.computeProgram("effect_sums.comp", shader_source::effect_sums_comp);
+  for (const PointLight& l : lights) lightPosition_.push_back(l.position), lightIntensity_.push_back(l.intensity);
+}
+
+GpuEffects::GpuEffects(GpuContext& gpu, const Scene& scene, const Camera& camera, const LayerArrays& layers,
+                       std::span<const PointLight> lights)
+    : GpuEffects(gpu, scene, lights) {
+  LT_CHECK(layers.width == camera.width() && layers.height == camera.height(), layers.width, camera.width());
+  camera_ = camera;
+  k_ = layers.k;
 
   // The layer arrays as the passes read them: depth bits, normal, albedo/specular, triangle;
   // a slot without a fragment has depth bits kEmptySlot.
@@ -69,7 +79,7 @@ GpuEffects::GpuEffects(GpuContext& gpu, const Scene& scene, const Camera& camera
       }
     }
   });
-  fragments_ = GpuBuffer(fragments.size() * sizeof(glm::uvec4), fragments.data());
+  ownFragments_ = GpuBuffer(fragments.size() * sizeof(glm::uvec4), fragments.data());
 
   // Per triangle (render/effects.cpp surfaceOf): the camera-space geometric normal, 0 for a
   // degenerate triangle, and its material; one more record for a triangle the scene lacks.
@@ -88,47 +98,60 @@ GpuEffects::GpuEffects(GpuContext& gpu, const Scene& scene, const Camera& camera
     const Material& m = material(t < scene.triangles.size() ? t : 0);
     triangles[t] = {{n.x, n.y, n.z}, m.mirror, m.shininess, m.transmission, m.ior, 0.0f};
   });
-  triangles_ = GpuBuffer(triangles.size() * sizeof(TriangleRecord), triangles.data());
-
-  // The sRGB decode table of raster/fragment.cpp, read through unpackAlbedo.
-  float srgb[256];
-  for (uint32_t i = 0; i < 256; ++i) srgb[i] = unpackAlbedo(i).x;
-  for (const GpuProgram* p : {&step_, &resolve_}) {
-    p->set("uWidth", camera.width());
-    p->set("uHeight", camera.height());
-    p->set("uK", layers.k);
-    p->set("uPixelScale", 1.0f / camera.focal());
-    p->set("uOrtho", int(camera.orthographic()));
-  }
-  step_.set("uSrgb", srgb, 256);
-  step_.set("uTriangleCount", uint32_t(scene.triangles.size()));
-  step_.setVec3("uEnvironment", &scene.environment.x);
-  // The lights in camera space, as the CPU renderer moves them.
-  std::vector<glm::vec3> position, intensity;
-  for (const PointLight& l : lights) position.push_back(camera.toCamera(l.position)), intensity.push_back(l.intensity);
-  step_.set("uLights", lights_);
-  if (lights_ > 0) {
-    step_.setVec3("uLightPosition", &position[0].x, lights_);
-    step_.setVec3("uLightIntensity", &intensity[0].x, lights_);
-  }
-  traceTimer_ = std::make_unique<GpuTimer>();
-  shadeTimer_ = std::make_unique<GpuTimer>();
+  ownTriangles_ = GpuBuffer(triangles.size() * sizeof(TriangleRecord), triangles.data());
 }
 
 GpuEffects::~GpuEffects() {
-  gpu_.makeCurrent();  // the buffers and the programs go with the context current
+  gpu_.makeCurrent();  // the buffers go with the context current
+}
+
+void GpuEffects::setFrame(const Camera& camera, const GpuBuffer& fragments, const GpuBuffer& triangles, int k) {
+  camera_ = camera;
+  fragments_ = &fragments;
+  triangles_ = &triangles;
+  k_ = k;
+}
+
+void GpuEffects::setUniforms() const {
+  // The sRGB decode table of raster/fragment.cpp, read through unpackAlbedo.
+  static const std::array<float, 256> srgb = [] {
+    std::array<float, 256> t{};
+    for (uint32_t i = 0; i < 256; ++i) t[i] = unpackAlbedo(i).x;
+    return t;
+  }();
+  for (const GpuProgram* p : {step_, resolve_}) {
+    p->set("uWidth", camera_.width());
+    p->set("uHeight", camera_.height());
+    p->set("uK", k_);
+    p->set("uPixelScale", 1.0f / camera_.focal());
+    p->set("uOrtho", int(camera_.orthographic()));
+  }
+  step_->set("uSrgb", srgb.data(), 256);
+  step_->set("uTriangleCount", triangleCount_);
+  step_->setVec3("uEnvironment", &environment_.x);
+  // The lights in camera space, as the CPU renderer moves them.
+  std::vector<glm::vec3> position;
+  for (const glm::vec3& l : lightPosition_) position.push_back(camera_.toCamera(l));
+  step_->set("uLights", lights_);
+  if (lights_ > 0) {
+    step_->setVec3("uLightPosition", &position[0].x, lights_);
+    step_->setVec3("uLightIntensity", &lightIntensity_[0].x, lights_);
+  }
 }
 
 size_t GpuEffects::memoryBytes() const {
   size_t b = 0;
-  for (const GpuBuffer* buf : std::initializer_list<const GpuBuffer*>{&fragments_, &triangles_, &rays_, &hits_, &effectRays_, &answers_, &states_, &out_, &tally_, &pending_})
+  for (const GpuBuffer* buf : std::initializer_list<const GpuBuffer*>{fragments_, triangles_, &rays_, &hits_, &effectRays_, &answers_, &states_, &out_,
+                                                                      &tally_, &pending_, &groups_, &sums_})
     b += buf->bytes();
   return b;
 }
 
 void GpuEffects::resize(size_t pixelSlots, size_t chunkSlots, size_t raySlots) const {
+  // Grown when too small; shrunk only when more than four times too large (a frame's buffers
+  // stay from frame to frame).
   auto fit = [](GpuBuffer& b, size_t bytes) {
-    if (b.bytes() < bytes || b.bytes() > 2 * bytes) b = GpuBuffer(bytes);
+    if (b.bytes() < bytes || b.bytes() > 4 * std::max<size_t>(bytes, 16)) b = GpuBuffer(bytes);
   };
   fit(rays_, raySlots * kRayBytes);
   fit(hits_, raySlots * kHitBytes);
@@ -138,11 +161,20 @@ void GpuEffects::resize(size_t pixelSlots, size_t chunkSlots, size_t raySlots) c
   fit(out_, pixelSlots * kOutBytes);
   fit(tally_, (kPixelTallyFirst + 16 * pixelSlots) * sizeof(uint32_t));
   fit(pending_, sizeof(uint32_t));
+  fit(groups_, 8 * sizeof(uint32_t));
+  fit(sums_, 32 * sizeof(uint32_t));
 }
 
-GpuEffectOutput GpuEffects::run(const GpuScreenTracer& tracer, const GpuEffectParams& p) const {
+void GpuEffects::collectTimes(double& traceMs, double& shadeMs) const {
+  const std::vector<double> ms = timeline_.collect(2);
+  traceMs = ms[0], shadeMs = ms[1];
+}
+
+GpuEffectOutput GpuEffects::run(const GpuScreenTracer& tracer, const GpuEffectParams& p, const GpuEffectReadback& readback) const {
   LT_CHECK(p.bounces >= 1 && p.bounces <= 16 && p.aoSamples >= 1 && p.aoSamples <= 4096, p.bounces, p.aoSamples);
+  LT_CHECK(camera_.width() == tracer.camera().width() && camera_.height() == tracer.camera().height(), camera_.width(), tracer.camera().width());
   gpu_.makeCurrent();
+  GpuDebugGroup group("effect");
   const int W = camera_.width(), H = camera_.height();
   const size_t tilesX = size_t((W + kTile - 1) / kTile), tilesY = size_t((H + kTile - 1) / kTile);
   const size_t pixelSlots = tilesX * tilesY * size_t(kTile * kTile);
@@ -155,107 +187,133 @@ GpuEffectOutput GpuEffects::run(const GpuScreenTracer& tracer, const GpuEffectPa
   const size_t tilesPerChunk = std::max<size_t>(1, p.chunkBytes / (perRaySlot * size_t(R) * size_t(kTile * kTile)));
   const size_t chunkSlots = std::min(pixelSlots, tilesPerChunk * size_t(kTile * kTile));
   const size_t raySlots = chunkSlots * size_t(R);
+  // One dispatch of 64-invocation groups covers a chunk's rays (indirect dispatches are one).
+  LT_CHECK(raySlots <= size_t(65535) * 64, raySlots, p.chunkBytes);
   resize(pixelSlots, chunkSlots, raySlots);
   tally_.fill(0u);
+  setUniforms();
 
   const int nWaves = waves(p);
-  step_.set("uEffect", int(p.kind));
-  step_.set("uWaves", nWaves);
-  step_.set("uAoSamples", p.aoSamples);
-  step_.set("uMaxDistance", p.maxDistance);
-  step_.set("uAoRadius", p.aoRadius);
-  step_.set("uEps", p.eps);
-  step_.set("uSeedLo", uint32_t(p.seed));
-  step_.set("uSeedHi", uint32_t(p.seed >> 32));
-  step_.set("uCount", int(p.countRays));
-  step_.set("uMirrorBelowSurface", int(p.mirrorBelowSurface));
-  step_.set("uRaysPerPixel", R);
-  resolve_.set("uRaysPerPixel", R);
+  const GpuProgram& step = *step_;
+  const GpuProgram& resolve = *resolve_;
+  step.set("uEffect", int(p.kind));
+  step.set("uWaves", nWaves);
+  step.set("uAoSamples", p.aoSamples);
+  step.set("uMaxDistance", p.maxDistance);
+  step.set("uAoRadius", p.aoRadius);
+  step.set("uEps", p.eps);
+  step.set("uSeedLo", uint32_t(p.seed));
+  step.set("uSeedHi", uint32_t(p.seed >> 32));
+  step.set("uCount", int(p.countRays));
+  step.set("uMirrorBelowSurface", int(p.mirrorBelowSurface));
+  step.set("uRaysPerPixel", R);
+  resolve.set("uRaysPerPixel", R);
   if (p.kind == GpuEffectKind::Warp) {
     LT_CHECK(p.warp.camera.width() == W && p.warp.camera.height() == H, p.warp.camera.width(), W);
-    step_.setMatrix("uView", &camera_.view()[0][0]);
-    step_.setMatrix("uWarpViewInverse", &p.warp.camera.viewInverse()[0][0]);
-    step_.set("uWarpPixelScale", 1.0f / p.warp.camera.focal());
-    step_.set("uWarpOrtho", int(p.warp.camera.orthographic()));
-    step_.setVec3("uWarpOrigin", &p.warp.origin.x);
-    step_.set("uWarpMax", p.warp.maxDistance);
+    step.setMatrix("uView", &camera_.view()[0][0]);
+    step.setMatrix("uWarpViewInverse", &p.warp.camera.viewInverse()[0][0]);
+    step.set("uWarpPixelScale", 1.0f / p.warp.camera.focal());
+    step.set("uWarpOrtho", int(p.warp.camera.orthographic()));
+    step.setVec3("uWarpOrigin", &p.warp.origin.x);
+    step.set("uWarpMax", p.warp.maxDistance);
+  } else {
+    step.setMatrix("uView", &camera_.view()[0][0]);
   }
 
-  GpuEffectOutput out;
-  auto timed = [](const GpuTimer& timer, double& ms, auto&& work) {
-    timer.begin();
-    work();
-    timer.end();
-    ms += timer.ms();
-  };
+  enum Stage { kTrace = 0, kShade = 1 };
   // One chunk of `items` pixel slots from `base`, wave by wave: a step pass, then per wave the
-  // march and the origin rule's rounds (more marches while rays wait for an answer), then the
-  // next step pass, which takes the answers and emits the next wave.
+  // march and the origin rule's rounds, then the next step pass, which takes the answers and
+  // emits the next wave. A round after the first runs only where the last left rays pending:
+  // the rounds pass turns the pending count into the next round's work groups (0 for none), so
+  // the host never waits for it.
   auto runChunk = [&](size_t base, size_t items) {
     const size_t rayItems = items * size_t(R);
-    step_.set("uSlotBase", uint32_t(base));
-    step_.set("uItems", int(items));
-    resolve_.set("uItems", int(rayItems));
+    const uint32_t rayGroups = uint32_t((rayItems + 63) / 64);
     // (the march binds its own buffers: each pass binds all of its own)
     auto bindRays = [&] {
       rays_.bindStorage(0);
-      fragments_.bindStorage(2);
+      fragments_->bindStorage(2);
       effectRays_.bindStorage(4);
       answers_.bindStorage(5);
     };
-    auto step = [&](int wave) {
-      timed(*shadeTimer_, out.shadeMs, [&] {
-        bindRays();
-        tally_.bindStorage(1);
-        triangles_.bindStorage(3);
-        states_.bindStorage(6);
-        out_.bindStorage(7);
-        step_.set("uWave", wave);
-        gpu_.dispatch(step_, items);
-      });
+    auto stepPass = [&](int wave) {
+      GpuDebugGroup g("effect step");
+      timeline_.begin(kShade);
+      bindRays();
+      tally_.bindStorage(1);
+      triangles_->bindStorage(3);
+      states_.bindStorage(6);
+      out_.bindStorage(7);
+      step.set("uSlotBase", uint32_t(base));
+      step.set("uItems", int(items));
+      step.set("uWave", wave);
+      gpu_.dispatch(step, items);
+      timeline_.end(kShade);
     };
-    step(0);
+    stepPass(0);
     for (int wave = 0; wave < nWaves; ++wave) {
+      GpuDebugGroup g("origin rule");
       for (int round = 0; round <= kOriginSkips; ++round) {
-        timed(*traceTimer_, out.traceMs, [&] {
-          tracer.marchResident(rays_, hits_, rayItems);
-          pending_.fill(0u);
-          bindRays();
-          hits_.bindStorage(1);
+        timeline_.begin(kTrace);
+        tracer.marchResident(rays_, hits_, rayItems, round == 0 ? nullptr : &groups_);
+        pending_.fill(0u);
+        bindRays();
+        hits_.bindStorage(1);
+        pending_.bindStorage(6);
+        resolve.set("uItems", int(rayItems));
+        resolve.set("uRound", round);
+        if (round == 0) gpu_.dispatch(resolve, rayItems);
+        else gpu_.dispatchIndirect(resolve, groups_);
+        if (round < kOriginSkips) {
           pending_.bindStorage(6);
-          resolve_.set("uRound", round);
-          gpu_.dispatch(resolve_, rayItems);
-        });
-        uint32_t pending = 0;
-        pending_.read(&pending, sizeof pending);
-        if (pending == 0) break;
+          groups_.bindStorage(7);
+          rounds_->set("uGroups", rayGroups);
+          rounds_->set("uPersistentGroups", std::min(rayGroups, GpuScreenTracer::kPersistentGroups));
+          gpu_.dispatchGroups(*rounds_, 1);
+        }
+        timeline_.end(kTrace);
       }
-      step(wave + 1);
+      stepPass(wave + 1);
     }
   };
   for (size_t base = 0; base < pixelSlots; base += chunkSlots) runChunk(base, std::min(chunkSlots, pixelSlots - base));
+  {
+    // The frame's sums, reduced on the device.
+    GpuDebugGroup g("effect sums");
+    sums_.fill(0u);
+    tally_.bindStorage(1);
+    sums_.bindStorage(6);
+    sum_->set("uItems", int(pixelSlots));
+    gpu_.dispatch(*sum_, pixelSlots);
+  }
 
-  // Read back, from tile order to rows.
+  GpuEffectOutput out;
   out.width = W, out.height = H;
-  PoolVector<glm::vec4> pixels(pixelSlots * 2);
-  out_.read(pixels.data(), pixelSlots * kOutBytes);
-  PoolVector<GpuPixelTally> tally(pixelSlots);
-  tally_.read(tally.data(), pixelSlots * sizeof(GpuPixelTally), kPixelTallyFirst * sizeof(uint32_t));
-  if (p.countRays) {
+  if (!readback.image && !readback.tally && !readback.histogram && !readback.sums) return out;
+  // Read back, from tile order to rows.
+  PoolVector<glm::vec4> pixels(readback.image ? pixelSlots * 2 : 0);
+  if (readback.image) out_.read(pixels.data(), pixelSlots * kOutBytes);
+  PoolVector<GpuPixelTally> tally(readback.tally ? pixelSlots : 0);
+  if (readback.tally) tally_.read(tally.data(), pixelSlots * sizeof(GpuPixelTally), kPixelTallyFirst * sizeof(uint32_t));
+  if (readback.histogram && p.countRays) {
     out.histogram.resize(kHistogramBins);
     tally_.read(out.histogram.data(), kHistogramBins * sizeof(uint32_t), kHistogramFirst * sizeof(uint32_t));
   }
-  out.image.resize(size_t(W) * size_t(H));
-  out.traced.resize(out.image.size());
-  out.tally.resize(out.image.size());
+  if (readback.sums) {
+    uint32_t words[32];
+    sums_.read(words, sizeof words);
+    for (size_t i = 0; i < 16; ++i) out.sums[i] = uint64_t(words[2 * i]) | uint64_t(words[2 * i + 1]) << 32;
+  }
+  collectTimes(out.traceMs, out.shadeMs);
+  if (readback.image) out.image.resize(size_t(W) * size_t(H)), out.traced.resize(size_t(W) * size_t(H));
+  if (readback.tally) out.tally.resize(size_t(W) * size_t(H));
   parallelFor(size_t(0), pixelSlots, [&](size_t i) {
     const size_t tile = i / 64, inside = i % 64;
     const size_t x = (tile % tilesX) * kTile + inside % kTile, y = (tile / tilesX) * kTile + inside / kTile;
     if (x >= size_t(W) || y >= size_t(H)) return;
     const size_t q = y * size_t(W) + x;
-    out.image[q] = glm::vec3(pixels[2 * i]);
-    out.traced[q] = glm::vec3(pixels[2 * i + 1]);
-    out.tally[q] = tally[i];
+    if (readback.image) out.image[q] = glm::vec3(pixels[2 * i]), out.traced[q] = glm::vec3(pixels[2 * i + 1]);
+    if (readback.tally) out.tally[q] = tally[i];
   });
   return out;
 }

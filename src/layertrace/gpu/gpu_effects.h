@@ -10,6 +10,7 @@
 // refraction through one transmissive layer, AO, shadows and view synthesis.
 #pragma once
 
+#include <array>
 #include <cstdint>
 #include <memory>
 #include <span>
@@ -64,11 +65,24 @@ struct GpuPixelTally {
 };
 static_assert(sizeof(GpuPixelTally) == 64);
 
+/// What GpuEffects::run reads back once its passes are issued: the picture (image and traced),
+/// the per-pixel tally, the histogram of iterations, and the frame's sums (GpuEffectOutput::sums,
+/// reduced on the device). A resident frame asks for nothing and reads the sums with its own
+/// counters (gpu_frame.h).
+struct GpuEffectReadback {
+  bool image = true, tally = true, histogram = true, sums = false;
+};
+
+/// The 16 sums of GpuPixelTally's fields over the frame (rays, hits, iterations, intervals,
+/// pixels, give-ups, bent, holes, iterations per level 0…7), 64 bits each.
+using GpuTallySums = std::array<uint64_t, 16>;
+
 struct GpuEffectOutput {
   int width = 0, height = 0;
   std::vector<glm::vec3> image, traced;  ///< row-major, width × height
   std::vector<GpuPixelTally> tally;      ///< row-major, width × height
   std::vector<uint32_t> histogram;       ///< rays per iteration count, the last bin holds ≥ 65536 (countRays)
+  GpuTallySums sums{};                   ///< GpuEffectReadback::sums
   double traceMs = 0.0;  ///< GPU time of the marches and the origin rule (timer queries)
   double shadeMs = 0.0;  ///< GPU time of ray generation and shading (timer queries)
 };
@@ -83,26 +97,51 @@ class GpuEffects {
   /// Uploads what the passes read for one frame: `layers` captured with `camera` from `scene`,
   /// `lights` in scene coordinates. The context must outlive the object.
   GpuEffects(GpuContext& gpu, const Scene& scene, const Camera& camera, const LayerArrays& layers, std::span<const PointLight> lights);
+  /// The passes for a frame that stays on the device (gpu_frame.h): what they read comes from
+  /// setFrame, frame by frame.
+  GpuEffects(GpuContext& gpu, const Scene& scene, std::span<const PointLight> lights);
   ~GpuEffects();
   GpuEffects(const GpuEffects&) = delete;
   GpuEffects& operator=(const GpuEffects&) = delete;
 
+  /// The next frame's camera and, on the device, its layer arrays as the passes read them
+  /// (shaders/effect_common.glsl Fragments, k a pixel) and its per-triangle records (Triangles).
+  void setFrame(const Camera& camera, const GpuBuffer& fragments, const GpuBuffer& triangles, int k);
+
   /// Renders one effect with `tracer`, which must trace the same layers with the same camera.
-  GpuEffectOutput run(const GpuScreenTracer& tracer, const GpuEffectParams& params) const;
+  /// No host wait between passes: the origin rule's rounds run as indirect dispatches sized on
+  /// the device. With a readback, the GPU times are read after it; without one, call
+  /// collectTimes after the frame's own read-back.
+  GpuEffectOutput run(const GpuScreenTracer& tracer, const GpuEffectParams& params, const GpuEffectReadback& readback = {}) const;
+  /// GPU milliseconds of the runs since the last collection: trace (marches and the origin
+  /// rule), shade (ray generation and shading).
+  void collectTimes(double& traceMs, double& shadeMs) const;
+  /// The device's sums of the last run (GpuTallySums as 16 × (low, high) 32-bit words).
+  const GpuBuffer& sums() const { return sums_; }
 
   /// Bytes held on the GPU for the frame (the per-run buffers included once run).
   size_t memoryBytes() const;
 
  private:
   void resize(size_t pixelSlots, size_t chunkSlots, size_t raySlots) const;
+  void setUniforms() const;
 
   GpuContext& gpu_;
-  const Camera& camera_;
+  Camera camera_;
+  int k_ = 0;
   int lights_ = 0;
-  GpuProgram step_, resolve_;
-  GpuBuffer fragments_, triangles_;
-  mutable GpuBuffer rays_, hits_, effectRays_, answers_, states_, out_, tally_, pending_;
-  std::unique_ptr<GpuTimer> traceTimer_, shadeTimer_;
+  std::vector<glm::vec3> lightPosition_, lightIntensity_;  ///< scene coordinates
+  uint32_t triangleCount_ = 0;
+  glm::vec3 environment_{0.0f};
+  const GpuProgram* step_ = nullptr;
+  const GpuProgram* resolve_ = nullptr;
+  const GpuProgram* rounds_ = nullptr;
+  const GpuProgram* sum_ = nullptr;
+  GpuBuffer ownFragments_, ownTriangles_;
+  const GpuBuffer* fragments_ = &ownFragments_;
+  const GpuBuffer* triangles_ = &ownTriangles_;
+  mutable GpuBuffer rays_, hits_, effectRays_, answers_, states_, out_, tally_, pending_, groups_, sums_;
+  mutable GpuTimeline timeline_;
 };
 
 }  // namespace lt

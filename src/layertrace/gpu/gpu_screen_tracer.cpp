@@ -30,72 +30,97 @@ struct HitRecord {
 static_assert(sizeof(RayRecord) == 32 && sizeof(HitRecord) == 64);
 static_assert(RayCounters::kLevels == 8, "the shaders count 8 levels");
 
-/// Persistent threads: work groups launched (16 per multiprocessor of a 132-SM GPU; choice: the
-/// queue balances the load, so more groups than the GPU holds at once only add idle launches).
-constexpr size_t kPersistentGroups = 2112;
 constexpr size_t kGroupSize = 64;  ///< local_size_x of the march shaders
 
 }  // namespace
 
 GpuScreenTracer::GpuScreenTracer(GpuContext& gpu, const Camera& camera, const LayerArrays& layers, const IntervalLayers& level0,
                                  const PyramidConfig& pyramid, const HssrConfig& config)
-    : gpu_(gpu), camera_(camera), layers_(layers) {
+    : gpu_(gpu), camera_(camera), layers_(&layers), hssr_(config), pyramidConfig_(pyramid) {
   validateHssrConfig(config);
   gpu_.makeCurrent();
-  program_ = gpu_.computeProgram("hssr_march.comp", shader_source::hssr_march_comp);
+  program_ = &gpu_.computeProgram("hssr_march.comp", shader_source::hssr_march_comp);
   upload(level0);
   pyramid_ = std::make_unique<GpuPyramid>();
-  buildPyramidOnGpu(gpu, level0_, counts_, camera.width(), camera.height(), level0.k, camera, pyramid, *pyramid_);
-  const int levels = std::max(1, std::min(config.maxLevels, pyramid_->levels));
-  name_ = levels == 1 ? "exhaustive" : config.name;
-  program_.set("uLevels", levels);
-  program_.set("uNUp", config.nUp);
-  program_.set("uParentAscent", config.parentAscent);
+  buildPyramidOnGpu(gpu, *level0_, *counts_, camera.width(), camera.height(), level0.k, camera, pyramid, *pyramid_);
+  name_ = std::max(1, std::min(config.maxLevels, pyramid_->levels)) == 1 ? "exhaustive" : config.name;
   persistent_ = config.rayReloading;
-  program_.set("uLevelWidth", pyramid_->width.data(), GpuPyramid::kMaxLevels);
-  program_.set("uLevelHeight", pyramid_->height.data(), GpuPyramid::kMaxLevels);
-  program_.set("uLevelOffset", pyramid_->cellBase.data(), GpuPyramid::kMaxLevels);
   timer_ = std::make_unique<GpuTimer>();
 }
 
 GpuScreenTracer::GpuScreenTracer(GpuContext& gpu, const Camera& camera, const LayerArrays& layers, const SsrConfig& config)
-    : gpu_(gpu), camera_(camera), layers_(layers), name_(config.allLayers ? "ssr-layers" : "ssr") {
+    : gpu_(gpu), camera_(camera), layers_(&layers), name_(config.allLayers ? "ssr-layers" : "ssr"), ssr_(config), isSsr_(true) {
   validateSsrConfig(config);
   gpu_.makeCurrent();
-  program_ = gpu_.computeProgram("ssr_march.comp", shader_source::ssr_march_comp);
+  program_ = &gpu_.computeProgram("ssr_march.comp", shader_source::ssr_march_comp);
   upload(makeIntervalLayers(layers, config.allLayers ? layers.k : 1));
-  program_.set("uStride", config.stride);
-  program_.set("uJitter", config.jitter);
-  program_.set("uMaxSteps", ssrMaxSteps(config, camera.width(), camera.height()));
-  program_.set("uRefine", config.refine);
   timer_ = std::make_unique<GpuTimer>();
 }
 
+GpuScreenTracer::GpuScreenTracer(GpuContext& gpu, const PyramidConfig& pyramid, const HssrConfig& config)
+    : gpu_(gpu), hssr_(config), pyramidConfig_(pyramid) {
+  validateHssrConfig(config);
+  gpu_.makeCurrent();
+  program_ = &gpu_.computeProgram("hssr_march.comp", shader_source::hssr_march_comp);
+  name_ = std::max(1, std::min(config.maxLevels, pyramid.levels)) == 1 ? "exhaustive" : config.name;
+  persistent_ = config.rayReloading;
+  pyramid_ = std::make_unique<GpuPyramid>();
+  timer_ = std::make_unique<GpuTimer>();
+}
+
+void GpuScreenTracer::rebuild(const Camera& camera, const GpuBuffer& level0, const GpuBuffer& counts, int k) {
+  camera_ = camera;
+  level0_ = &level0;
+  counts_ = &counts;
+  k_ = k;
+  buildPyramidResident(gpu_, level0, counts, camera.width(), camera.height(), k, camera, pyramidConfig_, *pyramid_);
+}
+
 GpuScreenTracer::~GpuScreenTracer() {
-  gpu_.makeCurrent();  // the buffers and the program go with the context current
+  gpu_.makeCurrent();  // the buffers go with the context current
 }
 
 void GpuScreenTracer::upload(const IntervalLayers& level0) {
   static_assert(sizeof(Interval) == 8);
-  level0_ = GpuBuffer(level0.slots.size() * sizeof(Interval), level0.slots.data());
+  ownLevel0_ = GpuBuffer(level0.slots.size() * sizeof(Interval), level0.slots.data());
   const std::vector<uint32_t> counts(level0.count.begin(), level0.count.end());
-  counts_ = GpuBuffer(counts.size() * sizeof(uint32_t), counts.data());
-  program_.set("uWidth", camera_.width());
-  program_.set("uHeight", camera_.height());
-  program_.set("uK", level0.k);
-  program_.set("uNear", camera_.near());
-  program_.set("uOrtho", camera_.orthographic());
-  program_.set("uFocal", camera_.focal());
+  ownCounts_ = GpuBuffer(counts.size() * sizeof(uint32_t), counts.data());
+  k_ = level0.k;
+}
+
+void GpuScreenTracer::setUniforms(const GpuProgram& p, size_t n, bool persistent) const {
+  p.set("uRayCount", int(n));
+  p.set("uWidth", camera_.width());
+  p.set("uHeight", camera_.height());
+  p.set("uK", k_);
+  p.set("uNear", camera_.near());
+  p.set("uOrtho", camera_.orthographic());
+  p.set("uFocal", camera_.focal());
+  if (isSsr_) {
+    p.set("uStride", ssr_.stride);
+    p.set("uJitter", ssr_.jitter);
+    p.set("uMaxSteps", ssrMaxSteps(ssr_, camera_.width(), camera_.height()));
+    p.set("uRefine", ssr_.refine);
+    return;
+  }
+  p.set("uLevels", std::max(1, std::min(hssr_.maxLevels, pyramid_->levels)));
+  p.set("uNUp", hssr_.nUp);
+  p.set("uParentAscent", hssr_.parentAscent);
+  p.set("uLevelWidth", pyramid_->width.data(), GpuPyramid::kMaxLevels);
+  p.set("uLevelHeight", pyramid_->height.data(), GpuPyramid::kMaxLevels);
+  p.set("uLevelOffset", pyramid_->cellBase.data(), GpuPyramid::kMaxLevels);
+  p.set("uPersistent", persistent);
 }
 
 size_t GpuScreenTracer::memoryBytes() const {
-  return level0_.bytes() + counts_.bytes() + (pyramid_ ? pyramid_->memoryBytes() : 0);
+  return level0_->bytes() + counts_->bytes() + (pyramid_ ? pyramid_->memoryBytes() : 0);
 }
 
 void GpuScreenTracer::march(std::span<const Ray> rays, std::vector<GpuMarchHit>& out) const {
   out.resize(rays.size());  // every entry is written below
   lastTraceMs_ = 0.0;
   if (rays.empty()) return;
+  LT_CHECK(layers_ != nullptr, name_);  // a resident tracer answers marchResident only
   gpu_.makeCurrent();
   PoolVector<RayRecord> records(rays.size());
   parallelFor(size_t(0), rays.size(), [&](size_t i) {
@@ -127,27 +152,28 @@ void GpuScreenTracer::march(std::span<const Ray> rays, std::vector<GpuMarchHit>&
   });
 }
 
-void GpuScreenTracer::marchResident(const GpuBuffer& rays, const GpuBuffer& hits, size_t n) const {
+void GpuScreenTracer::marchResident(const GpuBuffer& rays, const GpuBuffer& hits, size_t n, const GpuBuffer* groups) const {
   if (n == 0) return;
+  GpuDebugGroup group(isSsr_ ? "ssr march" : "hssr march");
   rays.bindStorage(0);
   hits.bindStorage(1);
-  level0_.bindStorage(2);
-  counts_.bindStorage(3);
+  level0_->bindStorage(2);
+  counts_->bindStorage(3);
   if (pyramid_) pyramid_->cells.bindStorage(4);
-  program_.set("uRayCount", int(n));
   const bool persistent = persistent_ && pyramid_;  // a march over a pyramid: hssr, hiz, exhaustive
-  program_.set("uPersistent", persistent);
+  setUniforms(*program_, n, persistent);
   if (persistent) {
-    const uint32_t zero = 0;
-    if (!queue_.id()) queue_ = GpuBuffer(sizeof zero);
-    queue_.write(&zero, sizeof zero);
+    if (!queue_.id()) queue_ = GpuBuffer(sizeof(uint32_t));
+    queue_.fill(0u);
     queue_.bindStorage(5);
+  }
+  if (groups) {
+    gpu_.dispatchIndirect(*program_, *groups, persistent ? kPersistentArgs : 0);
+  } else if (persistent) {
     // Enough groups to fill a large GPU several times over; each invocation then loops.
-    glUseProgram(program_.id());
-    glDispatchCompute(GLuint(std::min((n + kGroupSize - 1) / kGroupSize, kPersistentGroups)), 1, 1);
-    glMemoryBarrier(GL_SHADER_STORAGE_BARRIER_BIT | GL_BUFFER_UPDATE_BARRIER_BIT);
+    gpu_.dispatchGroups(*program_, uint32_t(std::min((n + kGroupSize - 1) / kGroupSize, size_t(kPersistentGroups))));
   } else {
-    gpu_.dispatch(program_, n);
+    gpu_.dispatch(*program_, n);
   }
 }
 
@@ -155,7 +181,8 @@ const GpuEffects& GpuScreenTracer::effects(const Scene& scene, std::span<const P
   auto same = [](const PointLight& a, const PointLight& b) { return a.position == b.position && a.intensity == b.intensity; };
   if (!effects_ || effectsScene_ != &scene || !std::equal(lights.begin(), lights.end(), effectsLights_.begin(), effectsLights_.end(), same)) {
     effects_.reset();  // (its buffers go before the new ones are made)
-    effects_ = std::make_unique<GpuEffects>(gpu_, scene, camera_, layers_, lights);
+    LT_CHECK(layers_ != nullptr, name_);
+    effects_ = std::make_unique<GpuEffects>(gpu_, scene, camera_, *layers_, lights);
     effectsScene_ = &scene;
     effectsLights_.assign(lights.begin(), lights.end());
   }
@@ -174,7 +201,7 @@ void GpuScreenTracer::traceBatch(std::span<const Ray> rays, std::span<TraceHit> 
   march(rays, marched);
   parallelFor(size_t(0), rays.size(), [&](size_t i) {
     const GpuMarchHit& m = marched[i];
-    hits[i] = m.hit() ? fragmentHit(camera_, layers_, m.x, m.y, m.layer) : TraceHit{};
+    hits[i] = m.hit() ? fragmentHit(camera_, *layers_, m.x, m.y, m.layer) : TraceHit{};
     if (counters.empty()) return;
     RayCounters& c = counters[i];
     c.iterations += m.counters.iterations, c.intervals += m.counters.intervals, c.pixels += m.counters.pixels;

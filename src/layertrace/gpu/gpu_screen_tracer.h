@@ -40,7 +40,16 @@ class GpuScreenTracer final : public Tracer {
                   const PyramidConfig& pyramid, const HssrConfig& config);
   /// SSR (front layer) or SSR-layers (config.allLayers).
   GpuScreenTracer(GpuContext& gpu, const Camera& camera, const LayerArrays& layers, const SsrConfig& config);
+  /// A resident HSSR tracer (τ = ∞ and n_up = 1: Hi-Z; one level: exhaustive) for a frame that
+  /// stays on the device (gpu_frame.h): no structure until rebuild(), which builds the pyramid
+  /// into the buffers of earlier frames. It answers marchResident only (no CPU layers).
+  GpuScreenTracer(GpuContext& gpu, const PyramidConfig& pyramid, const HssrConfig& config);
   ~GpuScreenTracer() override;
+
+  /// The resident tracer's structure for the next frame: the pyramid over `level0` and `counts`
+  /// (k intervals per pixel, already on the device) for `camera`, built without a read-back into
+  /// the kept buffers, whose fill GpuPyramid::status reports at the frame's end.
+  void rebuild(const Camera& camera, const GpuBuffer& level0, const GpuBuffer& counts, int k);
 
   const char* name() const override { return name_; }
   TraceHit trace(const Ray& ray, RayCounters& counters) const override;
@@ -56,8 +65,17 @@ class GpuScreenTracer final : public Tracer {
 
   /// Marches `n` rays already on the device (`rays` of shaders/screen_common.glsl GpuRay, a
   /// negative length for a slot without a ray) into `hits` (GpuHit), without a transfer or a
-  /// timer: the GPU effects (gpu_effects.h) trace their waves through it.
-  void marchResident(const GpuBuffer& rays, const GpuBuffer& hits, size_t n) const;
+  /// timer: the GPU effects (gpu_effects.h) trace their waves through it. With `groups`, the
+  /// work groups come from that buffer (indirect dispatch; kPersistentArgs: the offset of the
+  /// persistent schedule's), so that the device decides whether a round runs at all.
+  void marchResident(const GpuBuffer& rays, const GpuBuffer& hits, size_t n, const GpuBuffer* groups = nullptr) const;
+  /// Persistent threads: work groups launched (16 per multiprocessor of a 132-SM GPU; choice:
+  /// the queue balances the load, so more groups than the GPU holds at once only add idle
+  /// launches).
+  static constexpr uint32_t kPersistentGroups = 2112;
+  /// Indirect arguments: three uints for the plain march at offset 0, three for the persistent
+  /// march at this offset.
+  static constexpr size_t kPersistentArgs = 12;
 
   /// GPU time of the last batch's dispatches (GL timer query), milliseconds.
   double lastTraceMs() const { return lastTraceMs_; }
@@ -72,16 +90,27 @@ class GpuScreenTracer final : public Tracer {
 
   /// The pyramid built on the GPU (HSSR, Hi-Z, exhaustive), else null (SSR).
   const GpuPyramid* pyramid() const { return pyramid_.get(); }
+  GpuPyramid* pyramid() { return pyramid_.get(); }
+  const Camera& camera() const { return camera_; }
 
  private:
   void upload(const IntervalLayers& level0);
+  /// Every uniform of the march, before each dispatch (the program is the context's, shared).
+  void setUniforms(const GpuProgram& program, size_t n, bool persistent) const;
 
   GpuContext& gpu_;
-  const Camera& camera_;
-  const LayerArrays& layers_;
+  Camera camera_;
+  const LayerArrays* layers_ = nullptr;  ///< the CPU's layers (fragmentHit); null for a resident tracer
   const char* name_;
-  GpuProgram program_;
-  GpuBuffer level0_, counts_;
+  const GpuProgram* program_ = nullptr;
+  GpuBuffer ownLevel0_, ownCounts_;
+  const GpuBuffer* level0_ = &ownLevel0_;
+  const GpuBuffer* counts_ = &ownCounts_;
+  int k_ = 0;
+  HssrConfig hssr_;
+  PyramidConfig pyramidConfig_;
+  SsrConfig ssr_;
+  bool isSsr_ = false;
   mutable GpuBuffer rays_, hits_, queue_;
   bool persistent_ = false;
   mutable double lastTraceMs_ = 0.0, totalTraceMs_ = 0.0;

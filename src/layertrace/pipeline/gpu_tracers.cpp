@@ -33,7 +33,20 @@ const std::string& gpuTracerNames() {
   return names;
 }
 
+nlohmann::json gpuFrameStats(const nlohmann::json& before, const nlohmann::json& after, double wallMs, double gpuMs) {
+  nlohmann::json j = {{"frames", 1}, {"wall_ms", wallMs}, {"gpu_ms", gpuMs}};
+  for (const auto& [key, value] : after.items()) j[key] = value.get<uint64_t>() - before.value(key, uint64_t(0));
+  return j;
+}
+
 #if LAYERTRACE_HAS_GPU
+
+nlohmann::json gpuActivityReading() {
+  const GpuActivity a = gpuActivity();
+  return {{"upload_bytes", a.uploadBytes},         {"download_bytes", a.downloadBytes}, {"host_waits", a.hostWaits},
+          {"program_links", a.programLinks},       {"buffer_allocations", a.bufferAllocations},
+          {"dispatches", a.dispatches},            {"draws", a.draws}};
+}
 
 bool gpuBuilt() { return true; }
 
@@ -112,6 +125,10 @@ double gpuTraceMs(const Tracer& tracer) {
 #else
 
 bool gpuBuilt() { return false; }
+
+nlohmann::json gpuActivityReading() {
+  return {{"upload_bytes", 0}, {"download_bytes", 0}, {"host_waits", 0}, {"program_links", 0}, {"buffer_allocations", 0}, {"dispatches", 0}, {"draws", 0}};
+}
 
 std::shared_ptr<GpuContext> openGpu() {
   inputError("--device gpu: this build has no GPU back end (apt-get install libepoxy-dev libegl-dev glslang-tools, then rebuild)");

@@ -35,6 +35,13 @@ void releaseGpu(const GpuContext& gpu);
 /// (layers --verify). GPU times come from timer queries: raster = setup + geometry passes.
 void rasterizeFrameOnGpu(GpuContext& gpu, const FrameOptions& options, const std::string& capture, Frame& frame);
 
+/// A reading of the process's GPU activity so far (gpu/gpu_context.h GpuActivity) under the keys
+/// of gpu.frame: upload_bytes, download_bytes, host_waits, program_links, buffer_allocations,
+/// dispatches, draws (all 0 in a build without the back end).
+nlohmann::json gpuActivityReading();
+/// gpu.frame for one frame between two readings: frames 1, wall_ms, gpu_ms and the differences.
+nlohmann::json gpuFrameStats(const nlohmann::json& before, const nlohmann::json& after, double wallMs, double gpuMs);
+
 /// The tracers with a GPU version: ssr, ssr-layers, hiz, hssr.
 bool hasGpuTracer(const std::string& name);
 /// "ssr, ssr-layers, hiz, hssr", for messages.

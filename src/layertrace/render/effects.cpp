@@ -15,6 +15,7 @@
 #if LAYERTRACE_HAS_GPU
 #include "layertrace/gpu/gpu_effects.h"
 #include "layertrace/gpu/gpu_screen_tracer.h"
+#include "layertrace/render/gpu_effect_params.h"
 #endif
 #include "layertrace/util/timing.h"
 #include "layertrace/util/error.h"
@@ -635,10 +636,9 @@ class Renderer {
 };
 
 #if LAYERTRACE_HAS_GPU
-/// The effect on the GPU (EffectConfig::shadeOnDevice), with the Renderer's parameters.
-std::optional<EffectResult> renderOnGpu(const Frame& f, const Tracer& tracer, const EffectConfig& c) {
-  const auto* gpuTracer = dynamic_cast<const GpuScreenTracer*>(&tracer);
-  if (!gpuTracer || !GpuEffects::supports(int(f.lights.size()))) return std::nullopt;
+}  // namespace
+
+GpuEffectParams gpuEffectParams(const Frame& f, const EffectConfig& c) {
   GpuEffectParams p;
   switch (c.effect) {
     case Effect::Shade: p.kind = GpuEffectKind::Shade; break;
@@ -660,6 +660,16 @@ std::optional<EffectResult> renderOnGpu(const Frame& f, const Tracer& tracer, co
   p.seed = c.seed;
   p.countRays = c.countRays;
   p.mirrorBelowSurface = c.mirrorBelowSurface;
+  return p;
+}
+
+namespace {
+
+/// The effect on the GPU (EffectConfig::shadeOnDevice), with the Renderer's parameters.
+std::optional<EffectResult> renderOnGpu(const Frame& f, const Tracer& tracer, const EffectConfig& c) {
+  const auto* gpuTracer = dynamic_cast<const GpuScreenTracer*>(&tracer);
+  if (!gpuTracer || !GpuEffects::supports(int(f.lights.size()))) return std::nullopt;
+  const GpuEffectParams p = gpuEffectParams(f, c);
   const GpuEffects& effects = gpuTracer->effects(f.scene, f.lights);
   const GpuEffectOutput out = effects.run(*gpuTracer, p);
 

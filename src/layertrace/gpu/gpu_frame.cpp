@@ -1,0 +1,135 @@
+#include "layertrace/gpu/gpu_frame.h"
+
+#include <algorithm>
+#include <initializer_list>
+
+#include <epoxy/gl.h>
+#include <glm/gtc/type_ptr.hpp>
+
+#include "layertrace/gpu/shader_sources.h"
+#include "layertrace/util/error.h"
+
+namespace lt {
+
+namespace {
+
+/// status_ words: the fragments generated, the pyramid's per-level totals, the effect's sums.
+constexpr size_t kFragmentsWord = 0, kLevelsWord = 1, kSumsWord = kLevelsWord + GpuPyramid::kStatusWords, kStatusWords = kSumsWord + 32;
+
+enum Stage { kCapture, kLayers, kPyramid, kStages };
+
+}  // namespace
+
+GpuFrame::GpuFrame(GpuContext& gpu, const Scene& scene, std::span<const PointLight> lights, const GpuFrameConfig& config)
+    : gpu_(gpu),
+      scene_(scene),
+      config_(config),
+      capture_(gpu, scene),
+      tracer_(gpu, config.pyramid, config.march),
+      effects_(gpu, scene, lights) {
+  if (config.capture.keepLists) inputError("a resident GPU frame keeps no fragment lists (layers --verify reads them)");
+  gpu_.makeCurrent();
+  layersPass_ = &gpu_.computeProgram("frame_layers.comp", shader_source::frame_layers_comp);
+  trianglesPass_ = &gpu_.computeProgram("frame_triangles.comp", shader_source::frame_triangles_comp);
+  std::vector<glm::vec4> materials;
+  for (const Material& m : scene.materials) materials.emplace_back(m.mirror, m.shininess, m.transmission, m.ior);
+  if (materials.empty()) materials.emplace_back(0.0f);
+  materials_ = GpuBuffer(materials.size() * sizeof(glm::vec4), materials.data());
+  triangles_ = GpuBuffer((scene.triangles.size() + 1) * 32);
+  status_ = GpuBuffer(kStatusWords * sizeof(uint32_t));
+}
+
+GpuFrame::~GpuFrame() { gpu_.makeCurrent(); }
+
+size_t GpuFrame::memoryBytes() const {
+  size_t bytes = capture_.memoryBytes() + effects_.memoryBytes() + materials_.bytes() + level0_.bytes() + status_.bytes();
+  if (tracer_.pyramid()) bytes += tracer_.pyramid()->memoryBytes();
+  return bytes;  // (effects_ counts fragments_ and triangles_)
+}
+
+void GpuFrame::submit(const Camera& camera, const GpuEffectParams& effect, bool image, GpuFrameResult& out) {
+  const int W = camera.width(), H = camera.height(), k = config_.capture.layers.k;
+  const size_t pixels = size_t(W) * size_t(H), slots = pixels * size_t(k);
+  GpuDebugGroup frame("frame");
+  timeline_.begin(kCapture);
+  capture_.submit(camera, config_.capture);
+  timeline_.end(kCapture);
+
+  {
+    GpuDebugGroup group("layers");
+    timeline_.begin(kLayers);
+    if (level0_.bytes() != std::max<size_t>(slots * 8, 16)) {
+      level0_ = GpuBuffer(slots * 8);
+      fragments_ = GpuBuffer(slots * 16);
+    }
+    capture_.slots().bindStorage(0), capture_.counts().bindStorage(1), capture_.slotTriangle().bindStorage(2);
+    level0_.bindStorage(3), fragments_.bindStorage(4);
+    layersPass_->set("uPixels", int(pixels));
+    layersPass_->set("uK", k);
+    gpu_.dispatch(*layersPass_, pixels);
+    // The effect passes' per-triangle records for this view.
+    trianglesPass_->set("uTriangleCount", int(scene_.triangles.size()));
+    trianglesPass_->setMatrix("uView", glm::value_ptr(camera.view()));
+    capture_.bindScene(0, 1, 2);
+    materials_.bindStorage(3), triangles_.bindStorage(4);
+    gpu_.dispatch(*trianglesPass_, scene_.triangles.size() + 1);
+    timeline_.end(kLayers);
+  }
+
+  timeline_.begin(kPyramid);
+  tracer_.rebuild(camera, level0_, capture_.counts(), k);
+  timeline_.end(kPyramid);
+
+  effects_.setFrame(camera, fragments_, triangles_, k);
+  GpuEffectReadback readback{};
+  readback.image = image;
+  readback.tally = readback.histogram = readback.sums = false;
+  const GpuEffectOutput eo = effects_.run(tracer_, effect, readback);
+  if (image) {
+    out.image = eo.image;
+    out.traceMs = eo.traceMs, out.shadeMs = eo.shadeMs;
+  }
+
+  // The frame's counters into one block, read with one wait.
+  GpuDebugGroup group("counters");
+  glMemoryBarrier(GL_BUFFER_UPDATE_BARRIER_BIT | GL_SHADER_STORAGE_BARRIER_BIT);
+  glCopyNamedBufferSubData(capture_.counter().id(), status_.id(), 0, kFragmentsWord * 4, 4);
+  glCopyNamedBufferSubData(tracer_.pyramid()->status.id(), status_.id(), 0, kLevelsWord * 4, GpuPyramid::kStatusWords * 4);
+  glCopyNamedBufferSubData(effects_.sums().id(), status_.id(), 0, kSumsWord * 4, 32 * 4);
+}
+
+GpuFrameResult GpuFrame::render(const Camera& camera, const LayerConfig& layers, const GpuEffectParams& effect, bool image) {
+  LT_CHECK(layers.k == config_.capture.layers.k, layers.k, config_.capture.layers.k);
+  config_.capture.layers = layers;
+  gpu_.makeCurrent();
+  GpuFrameResult out;
+  for (out.attempts = 1;; ++out.attempts) {
+    submit(camera, effect, image, out);
+    uint32_t status[kStatusWords];
+    status_.read(status, sizeof status);
+    // The GPU times, read after the frame's one wait (they wait no more).
+    const std::vector<double> ms = timeline_.collect(kStages);
+    out.captureMs = ms[kCapture], out.layersMs = ms[kLayers], out.pyramidMs = ms[kPyramid];
+    if (!image) effects_.collectTimes(out.traceMs, out.shadeMs);
+    out.fragments = status[kFragmentsWord];
+    bool again = false;
+    if (config_.capture.method == GpuCaptureMethod::Lists && out.fragments > capture_.poolCapacity()) {
+      if (!config_.capture.growOnOverflow)
+        inputError("--pool ", config_.capture.poolCapacity, ": fragment pool overflow: ", out.fragments, " fragments generated, ",
+                   capture_.poolCapacity(), " stored, ", out.fragments - capture_.poolCapacity(), " lost (use --pool ", out.fragments,
+                   " or more, or 0 for automatic)");
+      capture_.growPool(std::max<uint64_t>(out.fragments, 2 * capture_.poolCapacity()));
+      again = true;
+    }
+    if (!tracer_.pyramid()->fits(status + kLevelsWord)) again = true;
+    if (again) {
+      LT_CHECK(out.attempts < 4, out.attempts, out.fragments);
+      continue;
+    }
+    out.levelIntervals.assign(status + kLevelsWord, status + kLevelsWord + tracer_.pyramid()->levels);
+    for (size_t i = 0; i < 16; ++i) out.sums[i] = uint64_t(status[kSumsWord + 2 * i]) | uint64_t(status[kSumsWord + 2 * i + 1]) << 32;
+    return out;
+  }
+}
+
+}  // namespace lt

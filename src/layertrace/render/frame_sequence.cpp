@@ -1,0 +1,176 @@
+#include "layertrace/render/frame_sequence.h"
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <limits>
+
+#include <glm/geometric.hpp>
+#include <glm/trigonometric.hpp>
+
+#include "layertrace/pipeline/gpu_tracers.h"
+#include "layertrace/util/error.h"
+#include "layertrace/util/timing.h"
+#if LAYERTRACE_HAS_GPU
+#include "layertrace/gpu/gpu_frame.h"
+#include "layertrace/hiz/hiz_pyramid.h"
+#include "layertrace/render/gpu_effect_params.h"
+#endif
+
+namespace lt {
+
+namespace {
+
+double msSince(std::chrono::steady_clock::time_point t0) {
+  return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+}
+
+/// Frame i's view: the orbit's camera at the options' size, with the frame's z-thickness.
+void viewFrame(const FrameOptions& options, const CameraDesc& start, int i, Frame& frame) {
+  setFrameView(options, orbitCamera(start, i), frame);
+}
+
+std::vector<FrameSample> runOnCpu(const FrameOptions& options, Frame& frame, const FrameSequenceConfig& c) {
+  std::vector<FrameSample> out;
+  const CameraDesc start = frame.camera.desc();
+  EffectConfig ec = c.effect;
+  ec.progress = false;
+  for (int i = 0; i < c.frames; ++i) {
+    FrameSample s;
+    s.frame = i;
+    const auto t0 = std::chrono::steady_clock::now();
+    viewFrame(options, start, i, frame);
+    rasterizeFrame(options, frame);
+    s.captureMs = frame.rasterMs + frame.sortMs;
+    const BuiltTracer b = buildTracer(c.tracer, frame, c.tracers);
+    s.pyramidMs = b.buildMs;
+    const EffectResult r = renderEffect(frame, *b.tracer, ec);
+    s.wallMs = msSince(t0);
+    s.traceMs = r.traceMs, s.shadeMs = r.shadeMs;
+    s.rays = r.rays, s.hits = r.hits, s.fragments = frame.lists.generated;
+    if (c.onImage) c.onImage(i, r.image);
+    out.push_back(s);
+  }
+  return out;
+}
+
+#if LAYERTRACE_HAS_GPU
+std::vector<FrameSample> runOnGpu(const FrameOptions& options, Frame& frame, const FrameSequenceConfig& c, GpuContext& gpu) {
+  const std::string& name = c.tracer;
+  if (name != "hssr" && name != "hiz" && name != "exhaustive")
+    inputError("--tracer ", name, ": the resident GPU frame traces with hssr, hiz or exhaustive (bench --experiment frame --device gpu)");
+  if (!GpuEffects::supports(int(frame.lights.size())))
+    inputError("--device gpu: ", frame.lights.size(), " lights, more than the GPU frame's ", GpuEffects::kMaxLights);
+  validateTracerOptions(c.tracers);
+  const TracerOptions& to = c.tracers;
+  GpuFrameConfig fc;
+  fc.capture.method = options.depthPeeling ? GpuCaptureMethod::Peel : GpuCaptureMethod::Lists;
+  fc.capture.poolCapacity = options.pool;
+  fc.capture.growOnOverflow = options.pool == 0;
+  fc.capture.frontFacesOnly = options.frontFacesOnly;
+  const bool hiz = name == "hiz";
+  fc.march = hiz ? hizConfig(to.pyramid.levels) : to.hssr;
+  fc.march.maxLevels = name == "exhaustive" ? 1 : to.pyramid.levels;
+  fc.pyramid = hiz ? PyramidConfig{to.pyramid.levels, std::numeric_limits<float>::infinity()} : to.pyramid;
+  if (name == "exhaustive") fc.pyramid.levels = 1;
+  EffectConfig ec = c.effect;
+  ec.progress = false;
+  const CameraDesc start = frame.camera.desc();
+  std::unique_ptr<GpuFrame> resident;
+  std::vector<FrameSample> out;
+  for (int i = 0; i < c.frames; ++i) {
+    FrameSample s;
+    s.frame = i;
+    const GpuActivity before = gpuActivity();
+    const auto t0 = std::chrono::steady_clock::now();
+    viewFrame(options, start, i, frame);
+    fc.capture.layers = layerConfig(options, frame);
+    // The first frame uploads the scene and links the programs: it is counted with them.
+    if (!resident) resident = std::make_unique<GpuFrame>(gpu, frame.scene, frame.lights, fc);
+    const GpuFrameResult r = resident->render(frame.camera, fc.capture.layers, gpuEffectParams(frame, ec), bool(c.onImage));
+    s.wallMs = msSince(t0);
+    const GpuActivity a = gpuActivity() - before;
+    s.gpuMs = r.gpuMs();
+    s.captureMs = r.captureMs + r.layersMs, s.pyramidMs = r.pyramidMs, s.traceMs = r.traceMs, s.shadeMs = r.shadeMs;
+    s.uploadBytes = a.uploadBytes, s.downloadBytes = a.downloadBytes, s.hostWaits = a.hostWaits, s.programLinks = a.programLinks;
+    s.bufferAllocations = a.bufferAllocations, s.dispatches = a.dispatches, s.draws = a.draws;
+    s.rays = r.sums[0], s.hits = r.sums[1], s.fragments = r.fragments, s.attempts = r.attempts;
+    if (c.onImage) {
+      Image img(frame.camera.width(), frame.camera.height());
+      for (int y = 0; y < img.height; ++y)
+        for (int x = 0; x < img.width; ++x) img.set(x, y, r.image[size_t(y) * size_t(img.width) + size_t(x)]);
+      c.onImage(i, img);
+    }
+    out.push_back(s);
+  }
+  return out;
+}
+#endif
+
+}  // namespace
+
+CameraDesc orbitCamera(const CameraDesc& desc, int i, float degrees) {
+  CameraDesc d = desc;
+  if (i == 0) return d;
+  const glm::vec3 up = glm::length(desc.up) > 0.0f ? glm::normalize(desc.up) : glm::vec3(0.0f, 1.0f, 0.0f);
+  const glm::vec3 offset = desc.eye - desc.target;
+  const glm::vec3 along = up * glm::dot(offset, up), across = offset - along;
+  const glm::vec3 side = glm::cross(up, across);
+  const float angle = glm::radians(degrees * float(i));
+  d.eye = desc.target + along + across * std::cos(angle) + side * std::sin(angle);
+  return d;
+}
+
+std::vector<FrameSample> runFrameSequence(const FrameOptions& options, Frame& frame, const FrameSequenceConfig& config, GpuContext* gpu) {
+  if (config.frames < 1) inputError("--frames ", config.frames, ": must be at least 1");
+  validateEffectConfig(config.effect);
+#if LAYERTRACE_HAS_GPU
+  if (gpu) return runOnGpu(options, frame, config, *gpu);
+#else
+  if (gpu) openGpu();
+#endif
+  return runOnCpu(options, frame, config);
+}
+
+nlohmann::json frameSampleJson(const FrameSample& s) {
+  return {{"frame", s.frame},
+          {"wall_ms", s.wallMs},
+          {"gpu_ms", s.gpuMs},
+          {"capture_ms", s.captureMs},
+          {"pyramid_ms", s.pyramidMs},
+          {"trace_ms", s.traceMs},
+          {"shade_ms", s.shadeMs},
+          {"upload_bytes", s.uploadBytes},
+          {"download_bytes", s.downloadBytes},
+          {"host_waits", s.hostWaits},
+          {"program_links", s.programLinks},
+          {"buffer_allocations", s.bufferAllocations},
+          {"dispatches", s.dispatches},
+          {"draws", s.draws},
+          {"rays", s.rays},
+          {"hits", s.hits},
+          {"fragments", s.fragments},
+          {"attempts", s.attempts}};
+}
+
+nlohmann::json frameSummary(const std::vector<FrameSample>& samples) {
+  nlohmann::json summary = nlohmann::json::object();
+  summary["frames"] = samples.size();
+  if (samples.empty()) return summary;
+  // The steady state: the frames after the first (which uploads, links and allocates).
+  const size_t first = samples.size() > 1 ? 1 : 0;
+  std::vector<nlohmann::json> rows;
+  for (size_t i = first; i < samples.size(); ++i) rows.push_back(frameSampleJson(samples[i]));
+  for (const auto& [key, value] : rows.front().items()) {
+    if (key == "frame") continue;
+    std::vector<double> v;
+    for (const nlohmann::json& r : rows) v.push_back(r[key].get<double>());
+    const double m = median(v);
+    if (value.is_number_integer() || value.is_number_unsigned()) summary[key] = uint64_t(std::llround(m));
+    else summary[key] = m;
+  }
+  summary["frames"] = samples.size();
+  return summary;
+}
+
+}  // namespace lt

@@ -1,0 +1,63 @@
+// Frames along a camera path, as a renderer draws them: `bench --experiment frame`. On the CPU
+// each frame captures, builds the tracer's structure and renders the effect; on the GPU the
+// whole frame stays on the device (gpu/gpu_frame.h) and each frame is counted: its wall and GPU
+// time, what crossed the bus, how often the host waited, what was linked, allocated and
+// dispatched. A renderer's steady state is the frames after the first.
+#pragma once
+
+#include <cstdint>
+#include <functional>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include <nlohmann/json.hpp>
+
+#include "layertrace/pipeline/frame.h"
+#include "layertrace/pipeline/tracer_registry.h"
+#include "layertrace/render/effects.h"
+#include "layertrace/util/image.h"
+
+namespace lt {
+
+class GpuContext;
+
+inline constexpr float kOrbitDegreesPerFrame = 3.0f;
+
+/// One frame's record (stats key gpu.frame, frame.json's entries).
+struct FrameSample {
+  int frame = 0;
+  double wallMs = 0.0;  ///< host wall time of the whole frame, its read-back included
+  double gpuMs = 0.0;   ///< the GPU's timer queries summed (0 on the CPU)
+  double captureMs = 0.0, pyramidMs = 0.0, traceMs = 0.0, shadeMs = 0.0;  ///< by stage (GPU: timer queries; CPU: wall)
+  uint64_t uploadBytes = 0, downloadBytes = 0, hostWaits = 0, programLinks = 0, bufferAllocations = 0, dispatches = 0, draws = 0;
+  uint64_t rays = 0, hits = 0, fragments = 0;
+  int attempts = 1;  ///< runs of the frame (GPU: 2 or more when a buffer grew)
+};
+
+/// The camera of frame `i` on the orbit of `desc` about its target: turned about the up axis
+/// through the target by `degrees` a frame, at the eye's height and distance (frame 0 is
+/// `desc`). Choice: 3° a frame (a turn in 120 frames, 4 s at 30 Hz), so that a short run stays
+/// near the chosen view, as a walk through a scene would, and still moves every frame.
+CameraDesc orbitCamera(const CameraDesc& desc, int i, float degrees = kOrbitDegreesPerFrame);
+
+struct FrameSequenceConfig {
+  std::string tracer = "hssr";  ///< --tracer (GPU: hssr, hiz or exhaustive)
+  TracerOptions tracers;
+  EffectConfig effect;
+  int frames = 30;              ///< --frames
+  /// Called with each frame's picture when set (--images); otherwise no picture is read back.
+  std::function<void(int, const Image&)> onImage;
+};
+
+/// Renders `config.frames` frames of the loaded `frame` (loadFrameScene) along the orbit of its
+/// camera, on the CPU (`gpu` null) or resident on the GPU. InputError for a tracer the GPU frame
+/// lacks or more lights than the GPU passes hold.
+std::vector<FrameSample> runFrameSequence(const FrameOptions& options, Frame& frame, const FrameSequenceConfig& config, GpuContext* gpu);
+
+/// The JSON object of one sample, and the summary: every key's median over the frames after the
+/// first (all frames when there is one), with "frames" the count.
+nlohmann::json frameSampleJson(const FrameSample& s);
+nlohmann::json frameSummary(const std::vector<FrameSample>& samples);
+
+}  // namespace lt

@@ -1,0 +1,226 @@
+// The resident GPU frame (gpu/gpu_frame.h) against the GPU path it replaces — capture on the
+// GPU, layers downloaded, tracer and effect passes built over them — bit for bit; and its
+// accounting: the frames after the first link, allocate and upload nothing beyond the
+// parameters, and wait for the GPU once.
+#include <cstdlib>
+#include <limits>
+#include <cstring>
+#include <memory>
+
+#include <gtest/gtest.h>
+
+#include "layertrace/pipeline/frame.h"
+#include "layertrace/pipeline/gpu_tracers.h"
+#include "layertrace/render/frame_sequence.h"
+#include "layertrace/util/error.h"
+#include "layertrace/hiz/hiz_pyramid.h"
+#include "test_util.h"
+
+#if LAYERTRACE_HAS_GPU
+#include "layertrace/gpu/gpu_capture.h"
+#include "layertrace/gpu/gpu_context.h"
+#include "layertrace/gpu/gpu_frame.h"
+#include "layertrace/render/gpu_effect_params.h"
+#include "layertrace/screen/interval_layers.h"
+#endif
+
+namespace lt {
+namespace {
+
+using test::defaultSceneOptions;
+
+TEST(FrameSequence, OrbitStartsAtTheCameraAndKeepsItsDistanceAndHeight) {
+  CameraDesc d;
+  d.eye = {3.0f, 2.0f, 4.0f};
+  d.target = {1.0f, 0.5f, -1.0f};
+  for (int i = 0; i < 8; ++i) {
+    const CameraDesc o = orbitCamera(d, i, 45.0f);
+    EXPECT_NEAR(glm::length(o.eye - o.target), glm::length(d.eye - d.target), 1e-4f);
+    EXPECT_NEAR(o.eye.y, d.eye.y, 1e-4f);
+    EXPECT_EQ(o.target, d.target);
+    if (i == 0) EXPECT_EQ(o.eye, d.eye);
+    else EXPECT_GT(glm::length(o.eye - d.eye), 0.1f);
+  }
+  // Half a turn: the eye opposite the start about the target's vertical.
+  const CameraDesc h = orbitCamera(d, 4, 45.0f);
+  EXPECT_NEAR(h.eye.x - d.target.x, -(d.eye.x - d.target.x), 1e-4f);
+  EXPECT_NEAR(h.eye.z - d.target.z, -(d.eye.z - d.target.z), 1e-4f);
+}
+
+TEST(FrameSequence, CpuFramesFollowTheOrbitAndCountTheirRays) {
+  FrameOptions fo = defaultSceneOptions(96, 64);
+  Frame frame;
+  loadFrameScene(fo, frame);
+  FrameSequenceConfig c;
+  c.frames = 3;
+  int images = 0;
+  c.onImage = [&](int, const Image& img) { images += img.width == 96 && img.height == 64; };
+  const std::vector<FrameSample> s = runFrameSequence(fo, frame, c, nullptr);
+  ASSERT_EQ(s.size(), 3u);
+  EXPECT_EQ(images, 3);
+  for (const FrameSample& f : s) EXPECT_GT(f.rays, 96u * 64u / 4);
+  EXPECT_NE(s[0].hits, s[1].hits);  // another view, other answers
+  const nlohmann::json summary = frameSummary(s);
+  EXPECT_EQ(summary["frames"], 3);
+  EXPECT_EQ(summary["rays"].get<uint64_t>(), (s[1].rays + s[2].rays) / 2);
+}
+
+#if LAYERTRACE_HAS_GPU
+
+class GpuFrameTest : public ::testing::Test {
+ protected:
+  static void SetUpTestSuite() {
+    if (std::getenv("LAYERTRACE_SANITIZED")) return;  // the driver is not instrumented (gpu_test.cpp)
+    gpu_ = openGpu();
+  }
+  static void TearDownTestSuite() { gpu_.reset(); }
+  void SetUp() override {
+    if (!gpu_) GTEST_SKIP() << "sanitized build: the GPU driver is not instrumented";
+  }
+  static std::shared_ptr<GpuContext> gpu_;
+};
+std::shared_ptr<GpuContext> GpuFrameTest::gpu_;
+
+struct Reference {
+  GpuEffectOutput out;
+  uint64_t fragments = 0;
+};
+
+/// The path the resident frame replaces: the GPU capture downloaded, the GPU tracer and the
+/// effect passes built over the downloaded layers.
+Reference downloadedPath(GpuContext& gpu, const FrameOptions& fo, Frame& frame, const GpuFrameConfig& fc, const GpuEffectParams& p) {
+  GpuCaptureResult cap;
+  captureOnGpu(gpu, frame.scene, frame.camera, fc.capture, cap);
+  const IntervalLayers level0 = makeIntervalLayers(cap.layers, cap.layers.k);
+  GpuScreenTracer tracer(gpu, frame.camera, cap.layers, level0, fc.pyramid, fc.march);
+  GpuEffects effects(gpu, frame.scene, frame.camera, cap.layers, frame.lights);
+  GpuEffectReadback all;
+  all.sums = true;
+  (void)fo;
+  return {effects.run(tracer, p, all), cap.generated};
+}
+
+GpuFrameConfig hssrConfig(const FrameOptions& fo, const Frame& frame) {
+  GpuFrameConfig fc;
+  fc.capture.layers = layerConfig(fo, frame);
+  return fc;
+}
+
+void expectSameFrame(const GpuFrameResult& got, const Reference& want, size_t pixels) {
+  EXPECT_EQ(got.fragments, want.fragments);
+  for (size_t i = 0; i < 16; ++i) EXPECT_EQ(got.sums[i], want.out.sums[i]) << "sum " << i;
+  ASSERT_EQ(got.image.size(), pixels);
+  ASSERT_EQ(want.out.image.size(), pixels);
+  size_t differ = 0;
+  for (size_t q = 0; q < pixels; ++q) differ += std::memcmp(&got.image[q], &want.out.image[q], sizeof(glm::vec3)) != 0;
+  EXPECT_EQ(differ, 0u);
+}
+
+TEST_F(GpuFrameTest, ResidentFramesEqualTheDownloadedPathBitForBit) {
+  const int W = 203, H = 117;  // partial tiles
+  FrameOptions fo = defaultSceneOptions(W, H);
+  Frame frame;
+  loadFrameScene(fo, frame);
+  const CameraDesc start = frame.camera.desc();
+  EffectConfig ec;
+  ec.bounces = 3;
+  GpuFrameConfig fc = hssrConfig(fo, frame);
+  GpuFrame resident(*gpu_, frame.scene, frame.lights, fc);
+  // Three views and the first again: the kept buffers carry nothing from one frame to the next.
+  for (int i : {0, 3, 5, 0}) {
+    SCOPED_TRACE(i);
+    setFrameView(fo, orbitCamera(start, i, 45.0f), frame);
+    const GpuEffectParams p = gpuEffectParams(frame, ec);
+    const GpuFrameResult got = resident.render(frame.camera, layerConfig(fo, frame), p, true);
+    const Reference want = downloadedPath(*gpu_, fo, frame, fc, p);
+    ASSERT_GT(want.out.sums[0], uint64_t(W * H / 4));
+    expectSameFrame(got, want, size_t(W) * size_t(H));
+  }
+}
+
+TEST_F(GpuFrameTest, EveryEffectAndTheHiZMarchAndRayReloadingEqualTheDownloadedPath) {
+  const int W = 96, H = 64;
+  FrameOptions fo = defaultSceneOptions(W, H);
+  Frame frame;
+  loadFrameScene(fo, frame);
+  setFrameView(fo, orbitCamera(frame.camera.desc(), 1), frame);
+  struct Case {
+    Effect effect;
+    bool hiz, reloading;
+  };
+  for (const Case c : {Case{Effect::AO, false, false}, Case{Effect::Shadow, false, true}, Case{Effect::Refraction, true, false},
+                       Case{Effect::Reflection, true, true}, Case{Effect::Shade, false, false}}) {
+    SCOPED_TRACE(std::string(effectName(c.effect)) + (c.hiz ? " hiz" : " hssr") + (c.reloading ? " reloading" : ""));
+    EffectConfig ec;
+    ec.effect = c.effect;
+    ec.bounces = 2;
+    GpuFrameConfig fc = hssrConfig(fo, frame);
+    if (c.hiz) {
+      fc.march = hizConfig(fc.pyramid.levels);
+      fc.pyramid.tau = std::numeric_limits<float>::infinity();
+    }
+    fc.march.rayReloading = c.reloading;
+    GpuFrame resident(*gpu_, frame.scene, frame.lights, fc);
+    const GpuEffectParams p = gpuEffectParams(frame, ec);
+    const GpuFrameResult got = resident.render(frame.camera, layerConfig(fo, frame), p, true);
+    expectSameFrame(got, downloadedPath(*gpu_, fo, frame, fc, p), size_t(W) * size_t(H));
+  }
+}
+
+TEST_F(GpuFrameTest, AnOverflowingPoolGrowsAndTheFrameRunsAgainWithTheSameAnswers) {
+  const int W = 96, H = 64;
+  FrameOptions fo = defaultSceneOptions(W, H);
+  Frame frame;
+  loadFrameScene(fo, frame);
+  EffectConfig ec;
+  GpuFrameConfig fc = hssrConfig(fo, frame);
+  GpuFrame plain(*gpu_, frame.scene, frame.lights, fc);
+  const GpuEffectParams p = gpuEffectParams(frame, ec);
+  const GpuFrameResult want = plain.render(frame.camera, layerConfig(fo, frame), p, true);
+  fc.capture.poolCapacity = 100;  // far fewer than the frame's fragments
+  GpuFrame small(*gpu_, frame.scene, frame.lights, fc);
+  const GpuFrameResult got = small.render(frame.camera, layerConfig(fo, frame), p, true);
+  EXPECT_GE(got.attempts, 2);
+  EXPECT_EQ(got.fragments, want.fragments);
+  EXPECT_GT(got.fragments, 100u);
+  EXPECT_EQ(got.sums, want.sums);
+  EXPECT_EQ(got.image.size(), want.image.size());
+  EXPECT_EQ(std::memcmp(got.image.data(), want.image.data(), want.image.size() * sizeof(glm::vec3)), 0);
+  // Without growing, the overflow is an input error with the exact counts.
+  fc.capture.growOnOverflow = false;
+  GpuFrame fixed(*gpu_, frame.scene, frame.lights, fc);
+  try {
+    fixed.render(frame.camera, layerConfig(fo, frame), p, false);
+    FAIL() << "no overflow error";
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find(std::to_string(want.fragments) + " fragments generated, 100 stored"), std::string::npos) << e.what();
+  }
+}
+
+TEST_F(GpuFrameTest, TheFramesAfterTheFirstLinkAllocateAndUploadNothingAndWaitOnce) {
+  FrameOptions fo = defaultSceneOptions(160, 90);
+  Frame frame;
+  loadFrameScene(fo, frame);
+  FrameSequenceConfig c;
+  c.frames = 4;
+  const std::vector<FrameSample> s = runFrameSequence(fo, frame, c, gpu_.get());
+  ASSERT_EQ(s.size(), 4u);
+  EXPECT_GT(s[0].bufferAllocations, 0u);  // the first frame uploads the scene and allocates
+  EXPECT_GT(s[0].uploadBytes, 64u * 1024u);
+  for (size_t i = 1; i < s.size(); ++i) {
+    SCOPED_TRACE(i);
+    EXPECT_EQ(s[i].programLinks, 0u);
+    EXPECT_EQ(s[i].bufferAllocations, 0u);
+    EXPECT_LE(s[i].uploadBytes, 64u * 1024u);
+    EXPECT_EQ(s[i].hostWaits, 1u);
+    EXPECT_EQ(s[i].downloadBytes, 196u);  // the counters' block: fragments, 16 level totals, 16 64-bit sums
+    EXPECT_EQ(s[i].draws, 1u);
+    EXPECT_EQ(s[i].attempts, 1);
+    EXPECT_GT(s[i].rays, 160u * 90u / 4);
+  }
+}
+
+#endif
+
+}  // namespace
+}  // namespace lt
