@@ -7,6 +7,7 @@
 #include <glm/gtc/type_ptr.hpp>
 
 #include "layertrace/gpu/shader_sources.h"
+#include "layertrace/hssr/hssr_method.h"
 #include "layertrace/util/error.h"
 
 namespace lt {
@@ -21,14 +22,17 @@ enum Stage { kCapture, kLayers, kPyramid, kStages };
 }  // namespace
 
 GpuFrame::GpuFrame(GpuContext& gpu, const Scene& scene, std::span<const PointLight> lights, const GpuFrameConfig& config)
-    : gpu_(gpu),
-      scene_(scene),
-      config_(config),
-      capture_(gpu, scene),
-      tracer_(gpu, config.pyramid, config.march),
-      effects_(gpu, scene, lights) {
+    : gpu_(gpu), scene_(scene), lights_(lights.begin(), lights.end()), config_(config) {
   if (config.capture.keepLists) inputError("a resident GPU frame keeps no fragment lists (layers --verify reads them)");
-  gpu_.makeCurrent();
+  validateHssrConfig(config.march);
+  LT_CHECK(lights.size() <= size_t(GpuEffects::kMaxLights), lights.size());
+}
+
+void GpuFrame::create() {
+  const Scene& scene = scene_;
+  capture_ = std::make_unique<GpuCapture>(gpu_, scene);
+  tracer_ = std::make_unique<GpuScreenTracer>(gpu_, config_.pyramid, config_.march);
+  effects_ = std::make_unique<GpuEffects>(gpu_, scene, lights_);
   layersPass_ = &gpu_.computeProgram("frame_layers.comp", shader_source::frame_layers_comp);
   trianglesPass_ = &gpu_.computeProgram("frame_triangles.comp", shader_source::frame_triangles_comp);
   std::vector<glm::vec4> materials;
@@ -39,20 +43,23 @@ GpuFrame::GpuFrame(GpuContext& gpu, const Scene& scene, std::span<const PointLig
   status_ = GpuBuffer(kStatusWords * sizeof(uint32_t));
 }
 
-GpuFrame::~GpuFrame() { gpu_.makeCurrent(); }
+GpuFrame::~GpuFrame() {
+  gpu_.makeCurrent();
+  effects_.reset(), tracer_.reset(), capture_.reset();  // before the buffers they read
+}
 
 size_t GpuFrame::memoryBytes() const {
-  size_t bytes = capture_.memoryBytes() + effects_.memoryBytes() + materials_.bytes() + level0_.bytes() + status_.bytes();
-  if (tracer_.pyramid()) bytes += tracer_.pyramid()->memoryBytes();
+  if (!capture_) return 0;
+  size_t bytes = capture_->memoryBytes() + effects_->memoryBytes() + materials_.bytes() + level0_.bytes() + status_.bytes();
+  if (tracer_->pyramid()) bytes += tracer_->pyramid()->memoryBytes();
   return bytes;  // (effects_ counts fragments_ and triangles_)
 }
 
 void GpuFrame::submit(const Camera& camera, const GpuEffectParams& effect, bool image, GpuFrameResult& out) {
   const int W = camera.width(), H = camera.height(), k = config_.capture.layers.k;
   const size_t pixels = size_t(W) * size_t(H), slots = pixels * size_t(k);
-  GpuDebugGroup frame("frame");
   timeline_.begin(kCapture);
-  capture_.submit(camera, config_.capture);
+  capture_->submit(camera, config_.capture);
   timeline_.end(kCapture);
 
   {
@@ -62,7 +69,7 @@ void GpuFrame::submit(const Camera& camera, const GpuEffectParams& effect, bool 
       level0_ = GpuBuffer(slots * 8);
       fragments_ = GpuBuffer(slots * 16);
     }
-    capture_.slots().bindStorage(0), capture_.counts().bindStorage(1), capture_.slotTriangle().bindStorage(2);
+    capture_->slots().bindStorage(0), capture_->counts().bindStorage(1), capture_->slotTriangle().bindStorage(2);
     level0_.bindStorage(3), fragments_.bindStorage(4);
     layersPass_->set("uPixels", int(pixels));
     layersPass_->set("uK", k);
@@ -70,21 +77,21 @@ void GpuFrame::submit(const Camera& camera, const GpuEffectParams& effect, bool 
     // The effect passes' per-triangle records for this view.
     trianglesPass_->set("uTriangleCount", int(scene_.triangles.size()));
     trianglesPass_->setMatrix("uView", glm::value_ptr(camera.view()));
-    capture_.bindScene(0, 1, 2);
+    capture_->bindScene(0, 1, 2);
     materials_.bindStorage(3), triangles_.bindStorage(4);
     gpu_.dispatch(*trianglesPass_, scene_.triangles.size() + 1);
     timeline_.end(kLayers);
   }
 
   timeline_.begin(kPyramid);
-  tracer_.rebuild(camera, level0_, capture_.counts(), k);
+  tracer_->rebuild(camera, level0_, capture_->counts(), k);
   timeline_.end(kPyramid);
 
-  effects_.setFrame(camera, fragments_, triangles_, k);
+  effects_->setFrame(camera, fragments_, triangles_, k);
   GpuEffectReadback readback{};
   readback.image = image;
   readback.tally = readback.histogram = readback.sums = false;
-  const GpuEffectOutput eo = effects_.run(tracer_, effect, readback);
+  const GpuEffectOutput eo = effects_->run(*tracer_, effect, readback);
   if (image) {
     out.image = eo.image;
     out.traceMs = eo.traceMs, out.shadeMs = eo.shadeMs;
@@ -93,15 +100,17 @@ void GpuFrame::submit(const Camera& camera, const GpuEffectParams& effect, bool 
   // The frame's counters into one block, read with one wait.
   GpuDebugGroup group("counters");
   glMemoryBarrier(GL_BUFFER_UPDATE_BARRIER_BIT | GL_SHADER_STORAGE_BARRIER_BIT);
-  glCopyNamedBufferSubData(capture_.counter().id(), status_.id(), 0, kFragmentsWord * 4, 4);
-  glCopyNamedBufferSubData(tracer_.pyramid()->status.id(), status_.id(), 0, kLevelsWord * 4, GpuPyramid::kStatusWords * 4);
-  glCopyNamedBufferSubData(effects_.sums().id(), status_.id(), 0, kSumsWord * 4, 32 * 4);
+  glCopyNamedBufferSubData(capture_->counter().id(), status_.id(), 0, kFragmentsWord * 4, 4);
+  glCopyNamedBufferSubData(tracer_->pyramid()->status.id(), status_.id(), 0, kLevelsWord * 4, GpuPyramid::kStatusWords * 4);
+  glCopyNamedBufferSubData(effects_->sums().id(), status_.id(), 0, kSumsWord * 4, 32 * 4);
 }
 
 GpuFrameResult GpuFrame::render(const Camera& camera, const LayerConfig& layers, const GpuEffectParams& effect, bool image) {
   LT_CHECK(layers.k == config_.capture.layers.k, layers.k, config_.capture.layers.k);
   config_.capture.layers = layers;
   gpu_.makeCurrent();
+  GpuDebugGroup frame("frame");
+  if (!capture_) create();
   GpuFrameResult out;
   for (out.attempts = 1;; ++out.attempts) {
     submit(camera, effect, image, out);
@@ -110,23 +119,23 @@ GpuFrameResult GpuFrame::render(const Camera& camera, const LayerConfig& layers,
     // The GPU times, read after the frame's one wait (they wait no more).
     const std::vector<double> ms = timeline_.collect(kStages);
     out.captureMs = ms[kCapture], out.layersMs = ms[kLayers], out.pyramidMs = ms[kPyramid];
-    if (!image) effects_.collectTimes(out.traceMs, out.shadeMs);
+    if (!image) effects_->collectTimes(out.traceMs, out.shadeMs);
     out.fragments = status[kFragmentsWord];
     bool again = false;
-    if (config_.capture.method == GpuCaptureMethod::Lists && out.fragments > capture_.poolCapacity()) {
+    if (config_.capture.method == GpuCaptureMethod::Lists && out.fragments > capture_->poolCapacity()) {
       if (!config_.capture.growOnOverflow)
         inputError("--pool ", config_.capture.poolCapacity, ": fragment pool overflow: ", out.fragments, " fragments generated, ",
-                   capture_.poolCapacity(), " stored, ", out.fragments - capture_.poolCapacity(), " lost (use --pool ", out.fragments,
+                   capture_->poolCapacity(), " stored, ", out.fragments - capture_->poolCapacity(), " lost (use --pool ", out.fragments,
                    " or more, or 0 for automatic)");
-      capture_.growPool(std::max<uint64_t>(out.fragments, 2 * capture_.poolCapacity()));
+      capture_->growPool(std::max<uint64_t>(out.fragments, 2 * capture_->poolCapacity()));
       again = true;
     }
-    if (!tracer_.pyramid()->fits(status + kLevelsWord)) again = true;
+    if (!tracer_->pyramid()->fits(status + kLevelsWord)) again = true;
     if (again) {
       LT_CHECK(out.attempts < 4, out.attempts, out.fragments);
       continue;
     }
-    out.levelIntervals.assign(status + kLevelsWord, status + kLevelsWord + tracer_.pyramid()->levels);
+    out.levelIntervals.assign(status + kLevelsWord, status + kLevelsWord + tracer_->pyramid()->levels);
     for (size_t i = 0; i < 16; ++i) out.sums[i] = uint64_t(status[kSumsWord + 2 * i]) | uint64_t(status[kSumsWord + 2 * i + 1]) << 32;
     return out;
   }

@@ -47,8 +47,10 @@ struct GpuFrameResult {
 
 class GpuFrame {
  public:
-  /// Uploads `scene` and makes the passes for `config` with `lights` (scene coordinates, at most
-  /// GpuEffects::kMaxLights). The scene and the context must outlive the object.
+  /// The frame of `scene` for `config` with `lights` (scene coordinates, at most
+  /// GpuEffects::kMaxLights). Nothing is created until the first render, which uploads the scene
+  /// and links the programs (so that the first frame is counted with them). The scene and the
+  /// context must outlive the object.
   GpuFrame(GpuContext& gpu, const Scene& scene, std::span<const PointLight> lights, const GpuFrameConfig& config);
   ~GpuFrame();
   GpuFrame(const GpuFrame&) = delete;
@@ -63,15 +65,18 @@ class GpuFrame {
   size_t memoryBytes() const;
 
  private:
+  /// The first frame's uploads and programs.
+  void create();
   /// Issues one attempt of the frame, up to the copy of its counters into status_.
   void submit(const Camera& camera, const GpuEffectParams& effect, bool image, GpuFrameResult& out);
 
   GpuContext& gpu_;
   const Scene& scene_;
+  std::vector<PointLight> lights_;
   GpuFrameConfig config_;
-  GpuCapture capture_;
-  GpuScreenTracer tracer_;
-  GpuEffects effects_;
+  std::unique_ptr<GpuCapture> capture_;
+  std::unique_ptr<GpuScreenTracer> tracer_;
+  std::unique_ptr<GpuEffects> effects_;
   GpuBuffer materials_;                 ///< per material: mirror, shininess, transmission, ior
   GpuBuffer level0_, fragments_, triangles_, status_;
   GpuTimeline timeline_;
