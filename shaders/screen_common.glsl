@@ -156,14 +156,26 @@ uint pixelBase(int x, int y) {
   return (uint(y) * uint(uWidth) + uint(x)) * uint(uK);
 }
 
+// The counters go with the answer, except in the timed variant (LT_NO_COUNTERS, compiled by
+// GpuScreenTracer for runs that read no counter): there they are written as zeros, so the
+// compiler drops their increments from the march.
 void writeHit(uint id, int x, int y, int layer) {
   hits[id].x = x;
   hits[id].y = y;
   hits[id].layer = layer;
+#ifdef LT_NO_COUNTERS
+  hits[id].iterations = 0u;
+  hits[id].intervals = 0u;
+  hits[id].pixels = 0u;
+  hits[id].giveUps = 0u;
+  hits[id].pad = 0u;
+  for (int l = 0; l < 8; ++l) hits[id].levelIterations[l] = 0u;
+#else
   hits[id].iterations = cIterations;
   hits[id].intervals = cIntervals;
   hits[id].pixels = cPixels;
   hits[id].giveUps = cGiveUps;
   hits[id].pad = 0u;
   for (int l = 0; l < 8; ++l) hits[id].levelIterations[l] = cLevel[l];
+#endif
 }

@@ -167,6 +167,31 @@ TEST_F(GpuFrameTest, EveryEffectAndTheHiZMarchAndRayReloadingEqualTheDownloadedP
   }
 }
 
+// The timed runs' counter-free marches (LT_NO_COUNTERS) answer as the counted ones.
+TEST_F(GpuFrameTest, TheCounterFreeMarchesGiveTheSameAnswers) {
+  const int W = 96, H = 64;
+  FrameOptions fo = defaultSceneOptions(W, H);
+  Frame frame;
+  loadFrameScene(fo, frame);
+  for (const bool hiz : {false, true}) {
+    SCOPED_TRACE(hiz ? "hiz" : "hssr");
+    GpuFrameConfig fc = hssrConfig(fo, frame);
+    if (hiz) fc.march = hizConfig(fc.pyramid.levels), fc.pyramid.tau = std::numeric_limits<float>::infinity();
+    GpuFrame resident(*gpu_, frame.scene, frame.lights, fc);
+    EffectConfig ec;
+    ec.bounces = 2;
+    const GpuFrameResult counted = resident.render(frame.camera, layerConfig(fo, frame), gpuEffectParams(frame, ec), true);
+    ec.countRays = false;
+    const GpuFrameResult timed = resident.render(frame.camera, layerConfig(fo, frame), gpuEffectParams(frame, ec), true);
+    EXPECT_GT(counted.sums[2], 0u);  // iterations
+    EXPECT_EQ(timed.sums[2], 0u);
+    EXPECT_EQ(timed.sums[0], counted.sums[0]);
+    EXPECT_EQ(timed.sums[1], counted.sums[1]);
+    ASSERT_EQ(timed.image.size(), counted.image.size());
+    EXPECT_EQ(std::memcmp(timed.image.data(), counted.image.data(), counted.image.size() * sizeof(glm::vec3)), 0);
+  }
+}
+
 TEST_F(GpuFrameTest, AnOverflowingPoolGrowsAndTheFrameRunsAgainWithTheSameAnswers) {
   const int W = 96, H = 64;
   FrameOptions fo = defaultSceneOptions(W, H);

@@ -255,7 +255,7 @@ GpuEffectOutput GpuEffects::run(const GpuScreenTracer& tracer, const GpuEffectPa
       GpuDebugGroup g("origin rule");
       for (int round = 0; round <= kOriginSkips; ++round) {
         timeline_.begin(kTrace);
-        tracer.marchResident(rays_, hits_, rayItems, round == 0 ? nullptr : &groups_);
+        tracer.marchResident(rays_, hits_, rayItems, round == 0 ? nullptr : &groups_, p.countRays);
         pending_.fill(0u);
         bindRays();
         hits_.bindStorage(1);

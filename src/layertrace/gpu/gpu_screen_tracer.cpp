@@ -31,6 +31,7 @@ static_assert(sizeof(RayRecord) == 32 && sizeof(HitRecord) == 64);
 static_assert(RayCounters::kLevels == 8, "the shaders count 8 levels");
 
 constexpr size_t kGroupSize = 64;  ///< local_size_x of the march shaders
+constexpr const char* kNoCounters = "#define LT_NO_COUNTERS 1\n";  ///< the timed variant (screen_common.glsl writeHit)
 
 }  // namespace
 
@@ -40,6 +41,7 @@ GpuScreenTracer::GpuScreenTracer(GpuContext& gpu, const Camera& camera, const La
   validateHssrConfig(config);
   gpu_.makeCurrent();
   program_ = &gpu_.computeProgram("hssr_march.comp", shader_source::hssr_march_comp);
+  timedProgram_ = &gpu_.computeProgram("hssr_march.comp", shader_source::hssr_march_comp, kNoCounters);
   upload(level0);
   pyramid_ = std::make_unique<GpuPyramid>();
   buildPyramidOnGpu(gpu, *level0_, *counts_, camera.width(), camera.height(), level0.k, camera, pyramid, *pyramid_);
@@ -53,6 +55,7 @@ GpuScreenTracer::GpuScreenTracer(GpuContext& gpu, const Camera& camera, const La
   validateSsrConfig(config);
   gpu_.makeCurrent();
   program_ = &gpu_.computeProgram("ssr_march.comp", shader_source::ssr_march_comp);
+  timedProgram_ = &gpu_.computeProgram("ssr_march.comp", shader_source::ssr_march_comp, kNoCounters);
   upload(makeIntervalLayers(layers, config.allLayers ? layers.k : 1));
   timer_ = std::make_unique<GpuTimer>();
 }
@@ -62,6 +65,7 @@ GpuScreenTracer::GpuScreenTracer(GpuContext& gpu, const PyramidConfig& pyramid, 
   validateHssrConfig(config);
   gpu_.makeCurrent();
   program_ = &gpu_.computeProgram("hssr_march.comp", shader_source::hssr_march_comp);
+  timedProgram_ = &gpu_.computeProgram("hssr_march.comp", shader_source::hssr_march_comp, kNoCounters);
   name_ = std::max(1, std::min(config.maxLevels, pyramid.levels)) == 1 ? "exhaustive" : config.name;
   persistent_ = config.rayReloading;
   pyramid_ = std::make_unique<GpuPyramid>();
@@ -152,7 +156,7 @@ void GpuScreenTracer::march(std::span<const Ray> rays, std::vector<GpuMarchHit>&
   });
 }
 
-void GpuScreenTracer::marchResident(const GpuBuffer& rays, const GpuBuffer& hits, size_t n, const GpuBuffer* groups) const {
+void GpuScreenTracer::marchResident(const GpuBuffer& rays, const GpuBuffer& hits, size_t n, const GpuBuffer* groups, bool counters) const {
   if (n == 0) return;
   GpuDebugGroup group(isSsr_ ? "ssr march" : "hssr march");
   rays.bindStorage(0);
@@ -161,19 +165,20 @@ void GpuScreenTracer::marchResident(const GpuBuffer& rays, const GpuBuffer& hits
   counts_->bindStorage(3);
   if (pyramid_) pyramid_->cells.bindStorage(4);
   const bool persistent = persistent_ && pyramid_;  // a march over a pyramid: hssr, hiz, exhaustive
-  setUniforms(*program_, n, persistent);
+  const GpuProgram& program = counters ? *program_ : *timedProgram_;
+  setUniforms(program, n, persistent);
   if (persistent) {
     if (!queue_.id()) queue_ = GpuBuffer(sizeof(uint32_t));
     queue_.fill(0u);
     queue_.bindStorage(5);
   }
   if (groups) {
-    gpu_.dispatchIndirect(*program_, *groups, persistent ? kPersistentArgs : 0);
+    gpu_.dispatchIndirect(program, *groups, persistent ? kPersistentArgs : 0);
   } else if (persistent) {
     // Enough groups to fill a large GPU several times over; each invocation then loops.
-    gpu_.dispatchGroups(*program_, uint32_t(std::min((n + kGroupSize - 1) / kGroupSize, size_t(kPersistentGroups))));
+    gpu_.dispatchGroups(program, uint32_t(std::min((n + kGroupSize - 1) / kGroupSize, size_t(kPersistentGroups))));
   } else {
-    gpu_.dispatch(*program_, n);
+    gpu_.dispatch(program, n);
   }
 }
 

@@ -68,7 +68,9 @@ class GpuScreenTracer final : public Tracer {
   /// timer: the GPU effects (gpu_effects.h) trace their waves through it. With `groups`, the
   /// work groups come from that buffer (indirect dispatch; kPersistentArgs: the offset of the
   /// persistent schedule's), so that the device decides whether a round runs at all.
-  void marchResident(const GpuBuffer& rays, const GpuBuffer& hits, size_t n, const GpuBuffer* groups = nullptr) const;
+  /// Without `counters` the march's counter-free variant runs (LT_NO_COUNTERS: the same
+  /// answers, every counter 0), as the timed runs read no counter.
+  void marchResident(const GpuBuffer& rays, const GpuBuffer& hits, size_t n, const GpuBuffer* groups = nullptr, bool counters = true) const;
   /// Persistent threads: work groups launched (16 per multiprocessor of a 132-SM GPU; choice:
   /// the queue balances the load, so more groups than the GPU holds at once only add idle
   /// launches).
@@ -103,6 +105,7 @@ class GpuScreenTracer final : public Tracer {
   const LayerArrays* layers_ = nullptr;  ///< the CPU's layers (fragmentHit); null for a resident tracer
   const char* name_;
   const GpuProgram* program_ = nullptr;
+  const GpuProgram* timedProgram_ = nullptr;  ///< the counter-free variant (LT_NO_COUNTERS)
   GpuBuffer ownLevel0_, ownCounts_;
   const GpuBuffer* level0_ = &ownLevel0_;
   const GpuBuffer* counts_ = &ownCounts_;
