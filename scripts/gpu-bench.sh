@@ -6,7 +6,10 @@
 #     ssr-layers, hiz, hssr and hssr with persistent threads, with plain Embree on the CPU over
 #     the same rays, iterations per ray and memory, at 1280×720, 1920×1080 and 3840×2160, k = 4,
 #     on the default scene and two fetched real scenes;
-#   - per-pixel lists against depth peeling for k = 1…8 at 1280×720 (Hofmann et al. 2017, Fig. 8).
+#   - per-pixel lists against depth peeling for k = 1…8 at 1280×720 (Hofmann et al. 2017, Fig. 8);
+#   - the resident frame (bench --experiment frame): GPU_BENCH_FRAMES (default 30) frames of HSSR
+#     reflections along an orbit at each size, wall against GPU milliseconds per frame, and what
+#     each frame moved over the bus and waited for.
 # Without an OpenGL 4.5 device it prints one line and exits with status 2.
 #   scripts/gpu-bench.sh [OUT_DIR]        (default: gpu-bench-out)
 # GPU_BENCH_SIZES="W1xH1 …" replaces the three sizes (the first one also sizes the peel runs),
@@ -37,6 +40,10 @@ for scene in default fzk-haus am-thornish; do
     "$bin" bench "$here/scenes/$scene.json" --experiment stages --device gpu --repeat 5 --layers 4 \
         --width "${size%x*}" --height "${size#*x}" --quiet -o "$dir" || { echo "gpu-bench: $scene $size failed" >&2; exit 1; }
     runs+=("$dir/stages.json")
+    dir="$out/$scene-frame-$size"
+    "$bin" bench "$here/scenes/$scene.json" --experiment frame --device gpu --frames "${GPU_BENCH_FRAMES:-30}" --layers 4 \
+        --width "${size%x*}" --height "${size#*x}" --quiet -o "$dir" || { echo "gpu-bench: $scene frame $size failed" >&2; exit 1; }
+    runs+=("$dir/frame.json")
   done
   dir="$out/$scene-peel"
   "$bin" bench "$here/scenes/$scene.json" --experiment peel --device gpu --repeat 5 --width "${first%x*}" --height "${first#*x}" --quiet -o "$dir" ||
@@ -54,7 +61,8 @@ done
   echo "# layertrace GPU benchmark"
   echo
   renderer=$(grep -o '"gpu_renderer": "[^"]*"' "${runs[0]}" | head -1 | cut -d'"' -f4)
-  echo "$("$bin" --version | head -1); GPU: $renderer; CPU: $(grep -m1 'model name' /proc/cpuinfo | cut -d: -f2- | sed 's/^ //'); $(date -u +%Y-%m-%d); $((SECONDS - start)) s"
+  driver=$(grep -o '"version": "[^"]*"' "${runs[0]}" | head -1 | cut -d'"' -f4)
+  echo "$("$bin" --version | head -1); GPU: $renderer; driver: $driver; CPU: $(grep -m1 'model name' /proc/cpuinfo | cut -d: -f2- | sed 's/^ //'); $(date -u +%Y-%m-%d); $((SECONDS - start)) s"
   for f in "${runs[@]}"; do
     echo
     echo "## $(basename "$(dirname "$f")")"
@@ -63,6 +71,12 @@ done
     head -1 "$csv" | sed 's/^/| /; s/,/ | /g; s/$/ |/'
     head -1 "$csv" | sed 's/[^,]*/---/g; s/^/| /; s/,/ | /g; s/$/ |/'
     tail -n +2 "$csv" | sed 's/^/| /; s/,/ | /g; s/$/ |/'
+    case "$f" in
+      */frame.json)
+        echo
+        echo "summary (median of the frames after the first): $(python3 -c 'import json,sys; print(json.dumps(json.load(open(sys.argv[1]))["summary"]))' "$f" 2>/dev/null || grep -o '"summary": {[^}]*}' "$f")"
+        ;;
+    esac
   done
 } > "$out/gpu-bench.md"
 echo "gpu-bench: wrote $out/gpu-bench.json and $out/gpu-bench.md in $((SECONDS - start)) s"

@@ -5,16 +5,18 @@
 set -uo pipefail
 bin=$1 src=$2 work=$3
 rm -rf "$work"
-export LAYERTRACE_BIN=$bin GPU_BENCH_SIZES=64x36
+export LAYERTRACE_BIN=$bin GPU_BENCH_SIZES=64x36 GPU_BENCH_FRAMES=3
 "$src/scripts/gpu-bench.sh" "$work/out" || { echo "FAIL: gpu-bench.sh exited $?"; exit 1; }
 md="$work/out/gpu-bench.md"
 rows=$(grep -c '^| gpu | hssr |' "$md")
 [ "$rows" -eq 6 ] || { echo "FAIL: $rows hssr rows (want 2 per scene, 3 scenes)"; exit 1; }
-peel=$(grep -c '^| [1-8] |' "$md")
+peel=$(awk '/^## /{inpeel = /-peel$/} inpeel && /^\| [1-8] \|/' "$md" | wc -l)
 [ "$peel" -eq 24 ] || { echo "FAIL: $peel peel rows (want k = 1..8 for 3 scenes)"; exit 1; }
 grep -q '"experiment": "peel"' "$work/out/gpu-bench.json" || { echo "FAIL: no peel run in the JSON"; exit 1; }
+frames=$(grep -c '^summary (median' "$md")
+[ "$frames" -eq 3 ] || { echo "FAIL: $frames frame summaries (want one per scene)"; exit 1; }
 err=$(__EGL_VENDOR_LIBRARY_FILENAMES=/nonexistent.json "$src/scripts/gpu-bench.sh" "$work/none" 2>&1 >/dev/null)
 status=$?
 [ $status -eq 2 ] || { echo "FAIL: without a device the status is $status"; exit 1; }
 [ "$(printf '%s\n' "$err" | wc -l)" -eq 1 ] || { echo "FAIL: without a device: $err"; exit 1; }
-echo "ok: $rows hssr rows, $peel peel rows; without a device: $err"
+echo "ok: $rows hssr rows, $peel peel rows, $frames frame runs; without a device: $err"

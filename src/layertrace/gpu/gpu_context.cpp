@@ -43,10 +43,17 @@ std::string glString(GLenum name) {
   return s ? s : "";
 }
 
-/// The display to open: the first hardware EGL device (NVIDIA's and Mesa's headless path),
-/// else Mesa's surfaceless platform (llvmpipe on a machine without a GPU).
-/// LAYERTRACE_GPU=software picks the software rasterizer even where a GPU is present.
-EGLDisplay openDisplay() {
+/// A display EGL offers, and what it is ("EGL device 0", "Mesa surfaceless").
+struct Candidate {
+  EGLDisplay display;
+  std::string name;
+};
+
+/// The displays to try, in order: every hardware EGL device (NVIDIA's and Mesa's headless path),
+/// then Mesa's surfaceless platform (llvmpipe on a machine without a GPU).
+/// LAYERTRACE_GPU=software keeps only the software rasterizer even where a GPU is present.
+std::vector<Candidate> candidateDisplays() {
+  std::vector<Candidate> out;
   const char* want = std::getenv("LAYERTRACE_GPU");
   const bool softwareOnly = want && std::string_view(want) == "software";
   if (!softwareOnly && epoxy_has_egl_extension(EGL_NO_DISPLAY, "EGL_EXT_device_enumeration") &&
@@ -57,13 +64,14 @@ EGLDisplay openDisplay() {
       for (EGLint i = 0; i < count; ++i) {
         const char* ext = eglQueryDeviceStringEXT(devices[i], EGL_EXTENSIONS);
         if (ext && std::string_view(ext).find("EGL_MESA_device_software") != std::string_view::npos) continue;
-        if (EGLDisplay d = eglGetPlatformDisplayEXT(EGL_PLATFORM_DEVICE_EXT, devices[i], nullptr); d != EGL_NO_DISPLAY) return d;
+        if (EGLDisplay d = eglGetPlatformDisplayEXT(EGL_PLATFORM_DEVICE_EXT, devices[i], nullptr); d != EGL_NO_DISPLAY)
+          out.push_back({d, cat("EGL device ", i)});
       }
   }
   if (epoxy_has_egl_extension(EGL_NO_DISPLAY, "EGL_MESA_platform_surfaceless"))
     if (EGLDisplay d = eglGetPlatformDisplayEXT(EGL_PLATFORM_SURFACELESS_MESA, EGL_DEFAULT_DISPLAY, nullptr); d != EGL_NO_DISPLAY)
-      return d;
-  return EGL_NO_DISPLAY;
+      out.push_back({d, "Mesa surfaceless"});
+  return out;
 }
 
 }  // namespace
@@ -91,42 +99,53 @@ GpuContext::GpuContext() {
   // libepoxy aborts the process when it cannot load libEGL: ask first.
   if (void* egl = dlopen("libEGL.so.1", RTLD_LAZY | RTLD_LOCAL)) dlclose(egl);
   else unavailable("libEGL.so.1 not found: apt-get install libegl1 libegl-mesa0 libgl1-mesa-dri");
-  EGLDisplay display = openDisplay();
-  if (display == EGL_NO_DISPLAY) unavailable("EGL offers no display: no driver for a headless context");
+  const std::vector<Candidate> candidates = candidateDisplays();
+  if (candidates.empty()) unavailable("EGL offers no display: no driver for a headless context");
+  // Each display in turn: the first that gives an OpenGL 4.5 core context is taken.
+  std::string why;
+  for (const Candidate& c : candidates) {
+    const std::string failure = open(c.display);
+    if (failure.empty()) {
+      platform_ = c.name;
+      return;
+    }
+    why += (why.empty() ? "" : "; ") + c.name + ": " + failure;
+  }
+  unavailable(why);
+}
+
+std::string GpuContext::open(void* candidate) {
+  auto display = static_cast<EGLDisplay>(candidate);
   EGLint major = 0, minor = 0;
-  if (!eglInitialize(display, &major, &minor)) unavailable(cat("eglInitialize failed, EGL error ", eglGetError()));
-  display_ = display;
-  auto fail = [&](const std::string& why) {
-    eglTerminate(display);
-    display_ = nullptr;
-    unavailable(why);
-  };
-  if (!eglBindAPI(EGL_OPENGL_API)) fail("the EGL driver has no desktop OpenGL");
-  if (!epoxy_has_egl_extension(display, "EGL_KHR_surfaceless_context")) fail("the EGL driver has no surfaceless contexts");
+  if (!eglInitialize(display, &major, &minor)) return cat("eglInitialize failed, EGL error ", eglGetError());
+  // (no eglTerminate on failure: EGL hands every context on the same device the same display)
+  if (!eglBindAPI(EGL_OPENGL_API)) return "the EGL driver has no desktop OpenGL";
+  if (!epoxy_has_egl_extension(display, "EGL_KHR_surfaceless_context")) return "the EGL driver has no surfaceless contexts";
   EGLConfig config = EGL_NO_CONFIG_KHR;
   if (!epoxy_has_egl_extension(display, "EGL_KHR_no_config_context")) {
     const EGLint want[] = {EGL_RENDERABLE_TYPE, EGL_OPENGL_BIT, EGL_NONE};
     EGLint n = 0;
-    if (!eglChooseConfig(display, want, &config, 1, &n) || n < 1) fail("no EGL configuration renders OpenGL");
+    if (!eglChooseConfig(display, want, &config, 1, &n) || n < 1) return "no EGL configuration renders OpenGL";
   }
   const EGLint attributes[] = {EGL_CONTEXT_MAJOR_VERSION, 4, EGL_CONTEXT_MINOR_VERSION, 5, EGL_CONTEXT_OPENGL_PROFILE_MASK,
                                EGL_CONTEXT_OPENGL_CORE_PROFILE_BIT, EGL_NONE};
   EGLContext context = eglCreateContext(display, config, EGL_NO_CONTEXT, attributes);
-  if (context == EGL_NO_CONTEXT) fail("the driver offers no OpenGL 4.5 core context");
-  context_ = context;
+  if (context == EGL_NO_CONTEXT) return "the driver offers no OpenGL 4.5 core context";
   if (!eglMakeCurrent(display, EGL_NO_SURFACE, EGL_NO_SURFACE, context)) {
     eglDestroyContext(display, context);
-    context_ = nullptr;
-    fail("eglMakeCurrent failed");
+    return "eglMakeCurrent failed";
   }
-  renderer_ = glString(GL_RENDERER);
-  version_ = glString(GL_VERSION);
+  const std::string version = glString(GL_VERSION);
   if (epoxy_gl_version() < 45) {
     eglMakeCurrent(display, EGL_NO_SURFACE, EGL_NO_SURFACE, EGL_NO_CONTEXT);
     eglDestroyContext(display, context);
-    context_ = nullptr;
-    fail("the context is OpenGL " + version_);
+    return "the context is OpenGL " + version;
   }
+  display_ = display;
+  context_ = context;
+  renderer_ = glString(GL_RENDERER);
+  version_ = version;
+  return {};
 }
 
 GpuContext::~GpuContext() {

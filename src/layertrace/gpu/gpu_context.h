@@ -74,9 +74,9 @@ class GpuDebugGroup {
 
 class GpuContext {
  public:
-  /// Opens the first OpenGL 4.5 device EGL offers: Mesa's surfaceless platform, else the first
-  /// enumerated EGL device (NVIDIA's headless path). Throws InputError naming `--device gpu`
-  /// and the reason when there is none.
+  /// Opens the first OpenGL 4.5 device EGL offers, trying in turn every hardware EGL device
+  /// (NVIDIA's headless path), then Mesa's surfaceless platform (llvmpipe). Throws InputError
+  /// naming `--device gpu` and each display's reason when none gives a context.
   GpuContext();
   ~GpuContext();
   GpuContext(const GpuContext&) = delete;
@@ -86,6 +86,8 @@ class GpuContext {
   const std::string& renderer() const { return renderer_; }
   /// "4.5 (Core Profile) Mesa 22.3.6".
   const std::string& version() const { return version_; }
+  /// The display taken: "EGL device 0", "Mesa surfaceless".
+  const std::string& platform() const { return platform_; }
   /// True for a CPU rasterizer (llvmpipe, softpipe, SwiftShader): its timings are CPU timings.
   bool software() const;
   /// Makes the context current on the calling thread (it is after construction).
@@ -118,8 +120,11 @@ class GpuContext {
   void* display_ = nullptr;
   void* context_ = nullptr;
   uint32_t link(std::string_view name, std::initializer_list<std::pair<uint32_t, std::string_view>> stages) const;
+  /// Initializes `display` and makes a 4.5 core context current on it; the reason it could not,
+  /// else empty.
+  std::string open(void* display);
 
-  std::string renderer_, version_;
+  std::string renderer_, version_, platform_;
   mutable std::map<std::string, GpuProgram, std::less<>> programs_;  ///< the program cache, by name and variant
 };
 
