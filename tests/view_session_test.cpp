@@ -138,6 +138,10 @@ TEST(ViewSession, GpuDeviceGivesTheCpuPictures) {
     RecordProperty(std::string(tracer) + "_largest_relative_difference", std::to_string(worst));
     EXPECT_LE(double(differ), software ? 0.0 : 1e-3 * double(a.traced.data.size()));
     EXPECT_EQ(gpu.frame().capturePipeline, "gpu-lists");
+    // The panel's accounting of the GPU frame: the capture's draw, the passes' dispatches.
+    EXPECT_GE(b.gpuFrame.value("draws", 0), 1);
+    EXPECT_GE(b.gpuFrame.value("dispatches", 0), 3);
+    EXPECT_TRUE(a.gpuFrame.is_null());
   }
 }
 

@@ -171,6 +171,12 @@ bool panel(ViewRequest& q, FlyCamera& cam, const std::vector<CameraDesc>& camera
                 shown->scale > 1 ? " (moving)" : "", shown->captureMs, shown->structureMs, shown->traceMs, shown->device.c_str(),
                 shown->shadeMs, shown->shading.c_str());
     ImGui::Text("picture %.0f ms, %.2f MRays/s", shown->totalMs, shown->traceMs > 0.0 ? double(shown->rays) / shown->traceMs / 1000.0 : 0.0);
+    if (shown->gpuFrame.is_object() && !shown->gpuFrame.empty()) {
+      const nlohmann::json& g = shown->gpuFrame;
+      ImGui::Text("GPU frame: %.1f MB up, %.1f MB down, %d waits, %d links, %d allocations, %d dispatches, %d draws",
+                  g.value("upload_bytes", 0.0) / 1e6, g.value("download_bytes", 0.0) / 1e6, g.value("host_waits", 0), g.value("program_links", 0),
+                  g.value("buffer_allocations", 0), g.value("dispatches", 0), g.value("draws", 0));
+    }
     if (shown->iterationsMean > 0.0) ImGui::Text("%.1f iterations/ray", shown->iterationsMean);
   }
   ImGui::Separator();

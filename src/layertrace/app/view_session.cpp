@@ -94,6 +94,7 @@ ViewResult ViewSession::render(const ViewRequest& q) {
     prepareCapture(q.tracer, q.tracers, fo);  // into memory reused frame to frame
     validateFrameOptions(fo);
     setFrameView(fo, q.camera, frame_);
+    const nlohmann::json activityBefore = gpu_ ? gpuActivityReading() : nlohmann::json();
     if (gpu_) {
       makeGpuCurrent(*gpu_);
       rasterizeFrameOnGpu(*gpu_, fo, "lists", frame_);
@@ -160,6 +161,10 @@ ViewResult ViewSession::render(const ViewRequest& q) {
         break;
     }
     out.traced = std::move(r.image);
+    if (gpu_) {
+      out.gpuFrame = gpuActivityReading();
+      for (auto& [key, value] : out.gpuFrame.items()) value = value.get<uint64_t>() - activityBefore.value(key, uint64_t(0));
+    }
   } catch (const InputError& e) {
     out = ViewResult{};
     out.scale = std::max(1, q.scale);

@@ -10,6 +10,8 @@
 #include <memory>
 #include <string>
 
+#include <nlohmann/json.hpp>
+
 #include "layertrace/app/commands.h"
 
 namespace lt {
@@ -49,6 +51,9 @@ struct ViewResult {
   std::string error;  ///< a refused option (the picture is then empty)
   std::string device = "cpu";  ///< where the tracer ran ("gpu": --device gpu and a tracer with a GPU version)
   std::string shading = "cpu";  ///< where rays were generated and shaded (EffectResult::onDevice)
+  /// --device gpu: what the frame asked of the GPU (the keys of gpu.frame: upload_bytes,
+  /// download_bytes, host_waits, program_links, buffer_allocations, dispatches, draws).
+  nlohmann::json gpuFrame;
 };
 
 /// Checks --frames and the screenshot paths (InputError naming the option).
