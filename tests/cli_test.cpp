@@ -875,12 +875,17 @@ TEST(CliGpu, RenderOnTheGpuGivesTheCpuImage) {
       ASSERT_NO_FATAL_FAILURE(expectRuns(common + " --device gpu -o " + (dir / "gpu.png")));
       const Image a = readImage(dir / "cpu.png", false), b = readImage(dir / "gpu.png", false);
       ASSERT_EQ(a.data.size(), b.data.size());
-      size_t offByOne = 0;
+      // The GPU run captures on the GPU: where its rasterizer takes the other of two surfaces that
+      // meet at a pixel centre (1 of the 96,000 pixel-layers at this size, which `layers --device
+      // gpu --verify` reports as gpu_vs_cpu), that pixel's rays differ. At most 1 value in 10,000
+      // may differ by more than one 8-bit step; every other value is the CPU's within one step.
+      size_t offByOne = 0, beyond = 0;
       for (size_t i = 0; i < a.data.size(); ++i) {
         const float d = std::abs(a.data[i] - b.data[i]) * 255.0f;
-        EXPECT_LT(d, 1.5f) << t << " " << effect << " value " << i;
+        beyond += d >= 1.5f;
         offByOne += d > 0.5f;
       }
+      EXPECT_LE(beyond, a.data.size() / 10000) << t << " " << effect;
       EXPECT_LE(offByOne, a.data.size() / 1000) << t << " " << effect;
       const auto j = readJson(dir / "gpu.json");
       EXPECT_EQ(j["device"], "gpu");

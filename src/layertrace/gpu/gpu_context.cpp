@@ -151,10 +151,11 @@ std::string GpuContext::open(void* candidate) {
 GpuContext::~GpuContext() {
   if (!display_) return;
   auto display = static_cast<EGLDisplay>(display_);
-  if (context_) {
-    makeCurrent();  // the cached programs go with their context current
-    programs_.clear();
-  }
+  // The cached programs are deleted with their context current; where it is current on another
+  // thread (the viewer's worker), they are left to the context's destruction, which frees them.
+  if (context_ && eglGetCurrentContext() != static_cast<EGLContext>(context_))
+    for (auto& entry : programs_) entry.second.forget();
+  programs_.clear();
   release();
   if (context_) eglDestroyContext(display, static_cast<EGLContext>(context_));
   // No eglTerminate: EGL hands every context on the same device the same display, and
@@ -271,6 +272,8 @@ void GpuContext::dispatchIndirect(const GpuProgram& program, const GpuBuffer& ar
   noteDispatch();
   glMemoryBarrier(GL_SHADER_STORAGE_BARRIER_BIT | GL_COMMAND_BARRIER_BIT);
 }
+
+void GpuProgram::forget() { id_ = 0; }
 
 GpuProgram::~GpuProgram() {
   if (id_) glDeleteProgram(id_);

@@ -31,6 +31,8 @@ class GpuProgram {
   GpuProgram& operator=(const GpuProgram&) = delete;
 
   uint32_t id() const { return id_; }
+  /// Drops the id without deleting the program (its context frees it when destroyed).
+  void forget();
   void set(const char* name, int v) const;
   void set(const char* name, uint32_t v) const;
   void set(const char* name, float v) const;
