@@ -5,6 +5,9 @@ ASAN   ?= build-asan
 TSAN   ?= build-tsan
 FUZZ_SECONDS ?= 60
 OUT    ?= out
+# The sanitizer builds' debug information: line tables only (-g1), which the sanitizers' reports
+# need for file and line, at a fraction of the full information's compile and link time.
+SANITIZER_DEBUG_INFO ?= -g1
 SCENE  ?= scenes/default.json
 
 .PHONY: deps deps-run build build-cli build-asan build-fuzz build-tsan run test check fuzz fetch bench gpu-bundle clean
@@ -30,7 +33,7 @@ build-cli: deps-run
 # the library shared (BUILD_SHARED_LIBS): make test installs it and builds the examples against
 # it, as the Release build (GCC) does with the static one.
 build-asan: deps
-	cmake -S . -B $(ASAN) -DCMAKE_CXX_COMPILER=clang++-16 -DCMAKE_BUILD_TYPE=Debug -DLAYERTRACE_SANITIZE=ON -DLAYERTRACE_FUZZ=ON \
+	cmake -S . -B $(ASAN) -DCMAKE_CXX_COMPILER=clang++-16 -DCMAKE_BUILD_TYPE=Debug -DCMAKE_CXX_FLAGS_DEBUG=$(SANITIZER_DEBUG_INFO) -DLAYERTRACE_SANITIZE=ON -DLAYERTRACE_FUZZ=ON \
 	    -DLAYERTRACE_COUNTERS=OFF -DLAYERTRACE_BENCH=OFF -DBUILD_SHARED_LIBS=ON -DLAYERTRACE_VIEWER=OFF >/dev/null
 	cmake --build $(ASAN) -j $(JOBS) --target layertrace_tests layertrace_library layertrace fuzz_targets
 
@@ -38,7 +41,7 @@ build-fuzz: build-asan
 
 # ThreadSanitizer build of the tests that run threads.
 build-tsan: deps
-	cmake -S . -B $(TSAN) -DCMAKE_BUILD_TYPE=Debug -DLAYERTRACE_TSAN=ON -DLAYERTRACE_COUNTERS=OFF -DLAYERTRACE_BENCH=OFF -DLAYERTRACE_VIEWER=OFF >/dev/null
+	cmake -S . -B $(TSAN) -DCMAKE_BUILD_TYPE=Debug -DCMAKE_CXX_FLAGS_DEBUG=$(SANITIZER_DEBUG_INFO) -DLAYERTRACE_TSAN=ON -DLAYERTRACE_COUNTERS=OFF -DLAYERTRACE_BENCH=OFF -DLAYERTRACE_VIEWER=OFF >/dev/null
 	cmake --build $(TSAN) -j $(JOBS) --target layertrace_tests
 
 # Every fuzz target for FUZZ_SECONDS seconds; fails on any crash, leak or timeout.
@@ -61,9 +64,15 @@ run: build-cli
 # The sanitizer build also compiles the per-ray counters out (LAYERTRACE_COUNTERS=OFF), so
 # both configurations of the tracers are built and tested.
 # Then the unit tests under ThreadSanitizer, the fuzz targets of our own parsers for 20 s each
-# (the assimp targets find assimp's bugs: `make fuzz`, README "Reliability"), and the vector
+# (the assimp targets find assimp's bugs: `make fuzz`, docs/testing.md "Fuzzing"), and the vector
 # loops and their test compiled for aarch64 (NEON) with the cross compiler.
-test: build build-asan build-tsan fetch
+# The scenes download while the three builds compile (the one is network-bound, the others
+# CPU-bound); the fetch's output is shown once the builds are done.
+test: deps
+	@mkdir -p $(BUILD)
+	@scripts/fetch-scenes.sh > $(BUILD)/fetch.log 2>&1 & fetch=$$!; \
+	  $(MAKE) --no-print-directory build build-asan build-tsan || { kill $$fetch 2>/dev/null; exit 1; }; \
+	  wait $$fetch; status=$$?; cat $(BUILD)/fetch.log; exit $$status
 	cd $(BUILD) && ctest --output-on-failure -j $(JOBS)
 	cd $(ASAN) && ASAN_OPTIONS=detect_leaks=1 UBSAN_OPTIONS=halt_on_error=1:print_stacktrace=1 \
 	    LAYERTRACE_SANITIZED=1 ctest --output-on-failure -j $(JOBS) -L 'unit|install'

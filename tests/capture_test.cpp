@@ -114,6 +114,7 @@ TEST(Capture, TileLocalEqualsListPipelineBitForBit) {
           ASSERT_GT(ref.generated, 10000u);
           ties += tiedSlots(ref.layers);
           for (int tileSize : {8, 32, 45}) {
+            if (test::sanitized() && tileSize == 32) continue;  // (8 and 45 cover full and partial tiles)
             rc.tileSize = tileSize;
             EXPECT_TRUE(sameBytes(tiled(s, cam, rc, lc), ref))
                 << "ortho " << (view.orthoHeight > 0) << " front-only " << front << " k " << k << " tile " << tileSize;
@@ -134,6 +135,7 @@ TEST(Capture, DepthPeelingEqualsTheListsBitForBit) {
     for (bool front : {false, true})
       for (int k : {1, 3, 8})
         for (float minSeparation : {0.0f, 0.5f}) {
+          if (test::sanitized() && k == 3) continue;
           const Camera cam(view, 203, 117);
           RasterConfig rc;
           rc.frontFacesOnly = front;

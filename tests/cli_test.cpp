@@ -11,6 +11,7 @@
 
 #include <nlohmann/json.hpp>
 
+#include "layertrace/util/simd_targets.h"
 #include "layertrace/pipeline/tracer_registry.h"
 #include "layertrace/util/image.h"
 #include "layertrace/pipeline/gpu_tracers.h"
@@ -43,6 +44,10 @@ TEST(CliLayers, WritesImagesAndStatsWithTheContractKeys) {
   const auto j = readJson(dir / "s.json");
   EXPECT_EQ(j["width"], 320);
   EXPECT_EQ(j["layers"], 3);
+  // The machine a time was measured on: the CPU, its threads and the vector target in use.
+  const std::string machine = j["machine"].get<std::string>();
+  EXPECT_NE(machine.find(" threads, "), std::string::npos) << machine;
+  EXPECT_NE(machine.find(activeSimdTarget().name), std::string::npos) << machine;
   for (const char* k : {"total", "depth_complexity_mean", "depth_complexity_max", "overflow"}) EXPECT_TRUE(j["fragments"].contains(k)) << k;
   EXPECT_GT(j["memory_bytes"]["lists"].get<double>(), 0.0);
   EXPECT_GT(j["memory_bytes"]["arrays"].get<double>(), 0.0);
@@ -846,9 +851,14 @@ TEST(CliConvention, TracersAndVersionDescribeTheBuild) {
   for (const char* effect : {"shade", "reflection", "refraction", "ao", "shadow", "warp"}) EXPECT_NE(out.find(effect), std::string::npos);
   ASSERT_EQ(test::runCli("--version", nullptr, &out), 0);
   EXPECT_EQ(out.rfind(std::string("layertrace ") + LAYERTRACE_VERSION_TEST + " (commit ", 0), 0u) << out;
+  // No arguments: the help on stdout, status 0; options without a subcommand: one line, status 2.
   std::string err;
-  EXPECT_EQ(test::runCli("", &err), 2);
-  EXPECT_NE(err.find("a subcommand is required"), std::string::npos) << err;
+  ASSERT_EQ(test::runCli("", &err, &out), 0);
+  EXPECT_NE(out.find("render"), std::string::npos) << out;
+  EXPECT_NE(out.find("Usage"), std::string::npos) << out;
+  EXPECT_EQ(test::runCli("--threads 2", &err), 2);
+  EXPECT_EQ(err.rfind("layertrace: ", 0), 0u) << err;
+  EXPECT_EQ(std::count(err.begin(), err.end(), '\n'), 1) << err;
 }
 
 // compare checks image-space rays against the exhaustive oracle unless told not to.

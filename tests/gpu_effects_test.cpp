@@ -28,19 +28,7 @@ namespace {
 
 #if LAYERTRACE_HAS_GPU
 
-class GpuEffect : public ::testing::Test {
- protected:
-  static void SetUpTestSuite() {
-    if (std::getenv("LAYERTRACE_SANITIZED")) return;  // the driver is not instrumented (gpu_test.cpp)
-    gpu_ = openGpu();
-  }
-  static void TearDownTestSuite() { gpu_.reset(); }
-  void SetUp() override {
-    if (!gpu_) GTEST_SKIP() << "sanitized build: the GPU driver is not instrumented";
-  }
-  static std::shared_ptr<GpuContext> gpu_;
-};
-std::shared_ptr<GpuContext> GpuEffect::gpu_;
+class GpuEffect : public test::GpuSuite {};
 
 struct ImageAgreement {
   size_t pixels = 0, differ = 0;

@@ -67,19 +67,7 @@ TEST(FrameSequence, CpuFramesFollowTheOrbitAndCountTheirRays) {
 
 #if LAYERTRACE_HAS_GPU
 
-class GpuFrameTest : public ::testing::Test {
- protected:
-  static void SetUpTestSuite() {
-    if (std::getenv("LAYERTRACE_SANITIZED")) return;  // the driver is not instrumented (gpu_test.cpp)
-    gpu_ = openGpu();
-  }
-  static void TearDownTestSuite() { gpu_.reset(); }
-  void SetUp() override {
-    if (!gpu_) GTEST_SKIP() << "sanitized build: the GPU driver is not instrumented";
-  }
-  static std::shared_ptr<GpuContext> gpu_;
-};
-std::shared_ptr<GpuContext> GpuFrameTest::gpu_;
+class GpuFrameTest : public test::GpuSuite {};
 
 struct Reference {
   GpuEffectOutput out;

@@ -31,26 +31,14 @@ namespace {
 
 #if LAYERTRACE_HAS_GPU
 
-class Gpu : public ::testing::Test {
+class Gpu : public test::GpuSuite {
  protected:
-  static void SetUpTestSuite() {
-    // Mesa's driver is not built with the sanitizers: its threads and allocations would be
-    // reported as ours. The sanitized suites test the CPU path.
-    if (std::getenv("LAYERTRACE_SANITIZED")) return;
-    gpu_ = openGpu();
-  }
-  static void TearDownTestSuite() { gpu_.reset(); }
-  void SetUp() override {
-    if (!gpu_) GTEST_SKIP() << "sanitized build: the GPU driver is not instrumented";
-  }
   /// Answers that may differ out of n: none on llvmpipe (IEEE arithmetic in the shaders' order,
   /// `precise` everywhere: the CPU's bits); on a GPU whose division and reciprocal are approximate
   /// (GLSL allows 2.5 ulp), a ray that passes a pixel corner or grazes an interval's end within
   /// that rounding may take the other side: at most 0.1 %.
   static size_t allowed(size_t n) { return gpu_->software() ? 0 : n / 1000; }
-  static std::shared_ptr<GpuContext> gpu_;
 };
-std::shared_ptr<GpuContext> Gpu::gpu_;
 
 struct Agreement {
   size_t rays = 0, hitsDiffer = 0, countersDiffer = 0, cpuHits = 0;

@@ -345,7 +345,7 @@ TEST(Grid, FlatSlabIsSubdividedPerAxisAndAgreesWithEmbree) {
   cd.target = {10.0f, 0.0f, 10.0f};
   for (const GridConfig& config : {initial, GridConfig{}}) {
     const IrregularGrid g(s, config);
-    const Agreement a = compareWithEmbree(s, cd, g, 320, 180, test::testSeed());
+    const Agreement a = compareWithEmbree(s, cd, g, test::sanitized() ? 160 : 320, test::sanitized() ? 90 : 180, test::testSeed());
     EXPECT_GE(a.fraction(), 0.99999) << a.agree << " of " << a.rays;
   }
 }

@@ -217,7 +217,7 @@ TEST(Hssr, LanesEqualMarchForFewerLayers) {
   o.scenePath = test::sourceDir() + "/scenes/default.json";
   o.width = 317, o.height = 179;
   const Frame f = buildFrame(o);
-  const std::vector<Ray> rays = test::sampleRays(f, 20000, test::testSeed() + 11);
+  const std::vector<Ray> rays = test::sampleRays(f, test::sanitizedCount(20000), test::testSeed() + 11);
   for (int k : {1, 2, 3})
     for (int levels : {1, 5}) {
       const IntervalPyramid p = buildIntervalPyramid(makeIntervalLayers(f.layers, k), f.camera, PyramidConfig{levels, 25.0f});

@@ -87,7 +87,7 @@ TEST(SsrLanes, EqualTheOneRayMarch) {
   o.scenePath = test::sourceDir() + "/scenes/default.json";
   o.width = 317, o.height = 179;
   const Frame f = buildFrame(o);
-  expectLanesEqualMarch(f, test::sampleRays(f, 20000, test::testSeed() + 23));
+  expectLanesEqualMarch(f, test::sampleRays(f, test::sanitizedCount(20000), test::testSeed() + 23));
 }
 
 class RealSceneSsrLanes : public ::testing::TestWithParam<std::pair<const char*, const char*>> {};

@@ -1,3 +1,4 @@
+#include "layertrace/pipeline/gpu_tracers.h"
 #include "test_util.h"
 
 #include <algorithm>
@@ -15,6 +16,19 @@
 #include <zlib.h>
 
 namespace lt::test {
+
+std::shared_ptr<GpuContext> GpuSuite::gpu_;
+
+void GpuSuite::SetUpTestSuite() {
+  if (std::getenv("LAYERTRACE_SANITIZED")) return;
+  gpu_ = openGpu();
+}
+
+void GpuSuite::TearDownTestSuite() { gpu_.reset(); }
+
+void GpuSuite::SetUp() {
+  if (!gpu_) GTEST_SKIP() << "sanitized build: the GPU driver is not instrumented";
+}
 namespace fs = std::filesystem;
 
 TempDir::TempDir() {

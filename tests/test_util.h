@@ -1,10 +1,12 @@
 // Helpers shared by the tests: small scenes built in code, temporary folders, the CLI runner.
 #pragma once
 
+#include <algorithm>
 #include <cstdlib>
 #include <filesystem>
 #include <random>
 #include <map>
+#include <memory>
 #include <optional>
 #include <string>
 #include <utility>
@@ -18,7 +20,30 @@
 #include "layertrace/scene/scene.h"
 #include "layertrace/util/simd_targets.h"
 
+namespace lt {
+class GpuContext;
+}
+
 namespace lt::test {
+
+/// Whether the tests run under a sanitizer (LAYERTRACE_SANITIZED, set by `make test` for the ASan
+/// and TSan suites, 5–15× slower). The heaviest tests then run a smaller workload of the same
+/// kind: the sanitizers look for memory and thread errors, which the first rays and tiles
+/// already exercise, not for rare rays, which the Release suite's full workloads look for.
+inline bool sanitized() { return std::getenv("LAYERTRACE_SANITIZED") != nullptr; }
+/// `n` in the Release suite, a quarter of it (at least 1) under the sanitizers.
+inline size_t sanitizedCount(size_t n) { return sanitized() ? std::max<size_t>(n / 4, 1) : n; }
+
+/// A suite on the GPU: one context (pipeline/gpu_tracers.h openGpu) for the whole suite. Skipped
+/// in the sanitized builds: Mesa's driver is not built with the sanitizers, and its threads and
+/// allocations would be reported as ours (the sanitized suites test the CPU path).
+class GpuSuite : public ::testing::Test {
+ protected:
+  static void SetUpTestSuite();
+  static void TearDownTestSuite();
+  void SetUp() override;
+  static std::shared_ptr<GpuContext> gpu_;
+};
 
 /// A fresh, empty folder under the system temp dir, removed at destruction.
 struct TempDir {

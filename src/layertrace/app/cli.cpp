@@ -77,11 +77,11 @@ void addFrameOptions(CLI::App* app, lt::RunOptions& run, RawFrameOptions& raw, c
   app->add_option("--eye", raw.eye, "camera position x,y,z (overrides --camera)");
   app->add_option("--target", raw.target, "camera target x,y,z");
   app->add_option("--up", raw.up, "camera up vector x,y,z");
-  app->add_option("--fov", raw.fov, "vertical field of view in degrees (default: the camera's)");
+  app->add_option("--fov", raw.fov, "vertical field of view in degrees (default: the camera's)")->type_name("FLOAT");
   app->add_option("--width", f.width, "image width in pixels")->capture_default_str();
   app->add_option("--height", f.height, "image height in pixels")->capture_default_str();
   app->add_option("--layers", f.layers, "layers k kept per pixel, 1..16")->capture_default_str();
-  app->add_option("--thickness", raw.thickness, "fixed fragment z-thickness in scene units (default: --thickness-px)");
+  app->add_option("--thickness", raw.thickness, "fixed fragment z-thickness in scene units (default: --thickness-px)")->type_name("FLOAT");
   app->add_option("--thickness-px", raw.thicknessPx,
                   lt::cat("fragment z-thickness in pixel footprints at the fragment's depth (default ", lt::kDefaultThicknessPx, ")"));
   app->add_option("--min-separation", f.minSeparation, "minimum depth separation of kept layers (0 = off)")->capture_default_str();
@@ -379,6 +379,10 @@ int runCli(int argc, const char* const* argv, CliMode mode) {
   }
   if (tracersCmd->parsed()) {
     std::cout << tracersText();
+    return 0;
+  }
+  if (app.get_subcommands().empty() && argc <= 1) {
+    std::cout << app.help();  // no arguments at all: what the tool does and how to ask it
     return 0;
   }
   if (app.get_subcommands().empty()) {

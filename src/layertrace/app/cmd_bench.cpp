@@ -63,13 +63,7 @@
 namespace lt {
 namespace fs = std::filesystem;
 
-std::string machine() {
-  std::ifstream in("/proc/cpuinfo");
-  std::string line;
-  while (std::getline(in, line))
-    if (line.rfind("model name", 0) == 0) return line.substr(line.find(':') + 2) + cat(", ", std::thread::hardware_concurrency(), " threads");
-  return cat(std::thread::hardware_concurrency(), " threads");
-}
+std::string machine() { return machineName(); }
 
 std::string today() {
   const std::time_t t = std::time(nullptr);

@@ -3,6 +3,7 @@
 #include <filesystem>
 #include <iostream>
 
+#include "layertrace/util/simd_targets.h"
 #include "layertrace/app/commands.h"
 #include "layertrace/util/error.h"
 #include "layertrace/util/image.h"
@@ -16,7 +17,7 @@ int runLdc(const LdcOptions& o) {
   Frame frame;
   loadFrameScene(o.run.frame, frame);
   const LayeredDepthCube ldc = buildLdc(frame.scene, o.tracers.ldc);
-  nlohmann::json stats = {{"scene", frame.scene.name}, {"triangles", frame.scene.triangleCount()}, {"threads", o.run.threads}};
+  nlohmann::json stats = {{"scene", frame.scene.name}, {"machine", machineName()}, {"triangles", frame.scene.triangleCount()}, {"threads", o.run.threads}};
   stats["ldc"] = ldcStats(ldc, nullptr);
 
   // Images: everything is computed before the first file is written. Image rows follow the

@@ -10,6 +10,7 @@
 
 #include "layertrace/scene/load.h"
 #include "layertrace/util/error.h"
+#include "layertrace/util/simd_targets.h"
 
 namespace lt {
 
@@ -251,6 +252,7 @@ nlohmann::json worldStats(const Scene& scene, glm::vec3 p) {
 nlohmann::json frameStats(const Frame& f) {
   nlohmann::json j;
   j["scene"] = f.scene.name;
+  j["machine"] = machineName();  // the CPU, its threads and vector target: what a time depends on
   j["width"] = f.camera.width();
   j["height"] = f.camera.height();
   j["layers"] = f.layers.k;

@@ -29,7 +29,7 @@
 namespace lt {
 
 /// The default z-thickness: this many pixel footprints at each fragment's own depth (chosen from
-/// the strict-class sweep in the README, "Choosing the z-thickness"). It follows the view, not
+/// the strict-class sweep in docs/results.md, "Choosing the z-thickness"). It follows the view, not
 /// the scene's bounding box: 0.5 % of the diagonal was 0.12 m in a house but 59 units in an
 /// OpenArena map whose skybox makes the bounds 8,000 units wide.
 inline constexpr float kDefaultThicknessPx = 6.0f;

@@ -8,6 +8,9 @@
 #include <hwy/highway.h>
 #include <hwy/targets.h>
 
+#include <fstream>
+#include <thread>
+
 HWY_BEFORE_NAMESPACE();
 namespace lt::HWY_NAMESPACE {
 size_t floatLanes() { return hwy::HWY_NAMESPACE::Lanes(hwy::HWY_NAMESPACE::ScalableTag<float>()); }
@@ -79,6 +82,15 @@ ScopedSimdTarget::ScopedSimdTarget(const SimdTarget& target) : previous_(gScoped
 ScopedSimdTarget::~ScopedSimdTarget() {
   gScoped = previous_;
   hwy::SetSupportedTargetsForTest(gScoped);
+}
+
+std::string machineName() {
+  std::string cpu;
+  std::ifstream in("/proc/cpuinfo");
+  for (std::string line; cpu.empty() && std::getline(in, line);)
+    if (line.rfind("model name", 0) == 0 && line.find(':') != std::string::npos) cpu = line.substr(line.find(':') + 2);
+  if (cpu.empty()) cpu = "unknown CPU";
+  return cpu + ", " + std::to_string(std::thread::hardware_concurrency()) + " threads, " + activeSimdTarget().name;
 }
 
 }  // namespace lt

@@ -22,6 +22,11 @@ std::vector<SimdTarget> simdTargets();
 /// while another thread runs lane loops (it switches the dispatch for a moment).
 size_t simdLaneCount(const SimdTarget& target);
 
+/// The machine a number was measured on, as every statistics file records it (key `machine`):
+/// the CPU model, its hardware threads and the vector target the lane loops run on
+/// ("AMD EPYC, 2 threads, avx512"), since a ratio to Embree moves with all three.
+std::string machineName();
+
 /// The target the lane loops run on now (the best one, or the one a ScopedSimdTarget chose).
 SimdTarget activeSimdTarget();
 
