@@ -943,6 +943,41 @@ TEST(CliGpu, LayersCapturedOnTheGpuAreVerifiedAgainstEmbreeAndTheCpu) {
   }
 }
 
+// bench --experiment frame: frames along an orbit, each counted, on both devices.
+TEST(CliGpu, BenchFrameCountsEveryFrameOnBothDevices) {
+  test::TempDir dir;
+  for (const std::string device : {"cpu", "gpu"}) {
+    if (device == "gpu" && !gpuBuilt()) continue;
+    SCOPED_TRACE(device);
+    const std::string out = dir / device;
+    ASSERT_NO_FATAL_FAILURE(expectRuns("bench " + kDefault + " --experiment frame --frames 3 --width 96 --height 64 --quiet --images --device " +
+                                       device + " -o " + out));
+    const auto j = readJson(out + "/frame.json");
+    ASSERT_EQ(j["frames"].size(), 3u);
+    for (const char* k : {"frames", "wall_ms", "gpu_ms", "upload_bytes", "download_bytes", "host_waits", "program_links", "buffer_allocations",
+                          "dispatches", "draws"})
+      EXPECT_TRUE(j["summary"].contains(k)) << k;
+    EXPECT_EQ(j["summary"]["frames"], 3);
+    for (const auto& f : j["frames"]) EXPECT_GT(f["rays"].get<double>(), 96.0 * 64.0 / 4.0);
+    if (device == "gpu") {
+      EXPECT_EQ(j["summary"]["program_links"], 0);
+      EXPECT_EQ(j["summary"]["buffer_allocations"], 0);
+      EXPECT_EQ(j["summary"]["host_waits"], 1);
+      EXPECT_GT(j["frames"][0]["program_links"].get<int>(), 0);
+    } else {
+      EXPECT_EQ(j["summary"]["gpu_ms"], 0.0);
+    }
+    for (const char* f : {"frame.csv", "frame_0000.png", "frame_0002.png"}) EXPECT_TRUE(fs::exists(out + "/" + f)) << f;
+  }
+  // The resident GPU frame's tracers, refused by name before anything is written.
+  if (gpuBuilt()) {
+    std::string err;
+    EXPECT_EQ(test::runCli("bench " + kDefault + " --experiment frame --device gpu --tracer ssr --quiet -o " + (dir / "bad"), &err), 2);
+    EXPECT_NE(err.find("--tracer ssr"), std::string::npos) << err;
+    EXPECT_FALSE(fs::exists(dir / "bad"));
+  }
+}
+
 TEST(CliGpu, BenchReportsEveryStageOnBothDevicesAndListsAgainstPeeling) {
   if (!gpuBuilt()) GTEST_SKIP() << "built without the GPU back end";
   test::TempDir dir;
