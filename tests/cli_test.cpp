@@ -943,6 +943,34 @@ TEST(CliGpu, LayersCapturedOnTheGpuAreVerifiedAgainstEmbreeAndTheCpu) {
   }
 }
 
+// A scene whose textures exceed the GPU's largest storage buffer (128 MiB on llvmpipe) renders
+// with --device gpu all the same: the CPU captures, one warning line says why.
+TEST(CliGpu, RenderCapturesOnTheCpuWhenTheTexturesExceedTheGpusBuffers) {
+  if (!gpuBuilt()) GTEST_SKIP() << "built without the GPU back end";
+  test::TempDir dir;
+  {
+    // An uncompressed 8192×4096 TGA: 128 MiB of texels before its mip levels.
+    const int W = 8192, H = 4096;
+    std::ofstream tga(dir / "big.tga", std::ios::binary);
+    const unsigned char header[18] = {0, 0, 2, 0, 0, 0, 0, 0, 0, 0, 0, 0, W & 255, W >> 8, H & 255, H >> 8, 24, 0};
+    tga.write(reinterpret_cast<const char*>(header), sizeof header);
+    const std::string row(size_t(W) * 3, char(160));
+    for (int y = 0; y < H; ++y) tga.write(row.data(), std::streamsize(row.size()));
+  }
+  std::ofstream(dir / "quad.mtl") << "newmtl big\nKd 1 1 1\nmap_Kd big.tga\n";
+  std::ofstream(dir / "quad.obj") << "mtllib quad.mtl\nv -1 -1 0\nv 1 -1 0\nv 1 1 0\nv -1 1 0\nvt 0 0\nvt 1 0\nvt 1 1\nvt 0 1\nusemtl big\n"
+                                     "f 1/1 2/2 3/3\nf 1/1 3/3 4/4\n";
+  std::string err;
+  ASSERT_EQ(test::runCli("render " + (dir / "quad.obj") + " --device gpu --width 64 --height 48 --effect shade --quiet -o " + (dir / "q.png"), &err), 0)
+      << err;
+  EXPECT_NE(err.find("largest storage buffer"), std::string::npos) << err;
+  EXPECT_NE(err.find("capturing on the CPU"), std::string::npos) << err;
+  const auto j = readJson(dir / "q.json");
+  EXPECT_EQ(j["device"], "gpu");
+  EXPECT_EQ(j["capture_pipeline"].get<std::string>().rfind("gpu-", 0), std::string::npos) << j["capture_pipeline"];
+  EXPECT_GT(j["fragments"]["total"].get<double>(), 64.0 * 48.0 / 4.0);
+}
+
 // bench --experiment frame: frames along an orbit, each counted, on both devices.
 TEST(CliGpu, BenchFrameCountsEveryFrameOnBothDevices) {
   test::TempDir dir;

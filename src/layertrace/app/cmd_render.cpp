@@ -12,6 +12,7 @@
 #include "layertrace/gpu/gpu_context.h"
 #include "layertrace/pipeline/gpu_tracers.h"
 #include "layertrace/util/error.h"
+#include "layertrace/util/warning.h"
 
 namespace lt {
 namespace fs = std::filesystem;
@@ -197,9 +198,16 @@ int runRender(const RenderOptions& o) {
   prepareCapture(o.tracer, o.tracers, fo);
   Frame frame;
   if (gpu) {
-    // The capture on the GPU too (its layers read back for the statistics and the checks).
+    // The capture on the GPU too (its layers read back for the statistics and the checks),
+    // unless the scene's textures exceed the GPU's storage buffers: then the CPU captures, says
+    // so on stderr, and capture_pipeline in the statistics names it.
     loadFrameScene(fo, frame);
-    rasterizeFrameOnGpu(*gpu, fo, fo.depthPeeling ? "peel" : "lists", frame);
+    if (const std::string why = gpuCaptureLimit(*gpu, frame); why.empty()) {
+      rasterizeFrameOnGpu(*gpu, fo, fo.depthPeeling ? "peel" : "lists", frame);
+    } else {
+      warning(why + "; capturing on the CPU");
+      rasterizeFrame(fo, frame);
+    }
   } else {
     frame = buildFrame(fo);
   }

@@ -92,6 +92,26 @@ struct GpuCapture::SceneBuffers {
   GpuBuffer positions, normals, indices, triMaterial, materialTable, surfaceWords, surfaceTexels;
 };
 
+namespace {
+
+/// Why the surface tables of `scene` do not fit `gpu`'s storage buffers, or empty.
+std::string surfaceLimit(const SurfaceTables& surface) {
+  GLint64 largestBlock = 0;
+  glGetInteger64v(GL_MAX_SHADER_STORAGE_BLOCK_SIZE, &largestBlock);
+  for (const size_t bytes : {surface.words.size() * 4, surface.texels.size() * 4})
+    if (int64_t(bytes) > largestBlock)
+      return cat("--device gpu: the scene's textures take ", bytes, " bytes, more than the GPU's largest storage buffer of ", largestBlock,
+                 " bytes (use --textures off)");
+  return {};
+}
+
+}  // namespace
+
+std::string GpuCapture::limit(GpuContext& gpu, const Scene& scene) {
+  gpu.makeCurrent();
+  return surfaceLimit(SurfaceTables(scene));
+}
+
 GpuCapture::GpuCapture(GpuContext& gpu, const Scene& scene) : gpu_(gpu), scene_(scene) {
   const size_t V = scene.positions.size(), T = scene.triangles.size();
   if (T > size_t(0x7FFFFFFF) / 3) inputError("scene ", scene.name, ": ", T, " triangles exceed one GPU draw");
@@ -99,12 +119,7 @@ GpuCapture::GpuCapture(GpuContext& gpu, const Scene& scene) : gpu_(gpu), scene_(
   GpuDebugGroup group("scene upload");
   sceneBuffers_ = std::make_unique<SceneBuffers>(scene);
   SceneBuffers& b = *sceneBuffers_;
-  GLint64 largestBlock = 0;
-  glGetInteger64v(GL_MAX_SHADER_STORAGE_BLOCK_SIZE, &largestBlock);
-  for (const size_t bytes : {b.surface.words.size() * 4, b.surface.texels.size() * 4})
-    if (int64_t(bytes) > largestBlock)
-      inputError("--device gpu: the scene's textures take ", bytes, " bytes, more than the GPU's largest storage buffer of ", largestBlock,
-                 " bytes (use --textures off)");
+  if (const std::string why = surfaceLimit(b.surface); !why.empty()) throw InputError(why);
   // The scene, as the CPU holds it (packed materials as the CPU rasterizer packs them).
   std::vector<uint32_t> materials;
   for (const Material& m : scene.materials) materials.push_back(packAlbedoSpec(m.albedo, m.specular));

@@ -11,6 +11,7 @@
 
 #include <cstdint>
 #include <memory>
+#include <string>
 #include <vector>
 
 #include "layertrace/gpu/gpu_context.h"
@@ -59,6 +60,9 @@ class GpuCapture {
  public:
   /// Uploads `scene`; InputError when its textures exceed the GPU's largest storage buffer.
   GpuCapture(GpuContext& gpu, const Scene& scene);
+  /// Why `scene` cannot be captured on `gpu` (its textures exceed the largest storage buffer),
+  /// or empty when it can.
+  static std::string limit(GpuContext& gpu, const Scene& scene);
   ~GpuCapture();
   GpuCapture(const GpuCapture&) = delete;
   GpuCapture& operator=(const GpuCapture&) = delete;

@@ -79,6 +79,8 @@ void rasterizeFrameOnGpu(GpuContext& gpu, const FrameOptions& o, const std::stri
   frame.geometryPasses = r.geometryPasses;
 }
 
+std::string gpuCaptureLimit(GpuContext& gpu, const Frame& frame) { return GpuCapture::limit(gpu, frame.scene); }
+
 BuiltTracer buildGpuTracer(const std::string& name, const Frame& frame, const TracerOptions& options, GpuContext& gpu) {
   if (!hasGpuTracer(name)) inputError("--device gpu: ", name, " has no GPU version (GPU tracers: ", gpuTracerNames(), ")");
   validateTracerOptions(options);
@@ -137,6 +139,7 @@ nlohmann::json gpuStats(const GpuContext&) { return {}; }
 void makeGpuCurrent(const GpuContext&) {}
 void releaseGpu(const GpuContext&) {}
 void rasterizeFrameOnGpu(GpuContext&, const FrameOptions&, const std::string&, Frame&) { openGpu(); }
+std::string gpuCaptureLimit(GpuContext&, const Frame&) { return {}; }
 BuiltTracer buildGpuTracer(const std::string&, const Frame&, const TracerOptions&, GpuContext&) {
   openGpu();
   return {};

@@ -42,6 +42,10 @@ nlohmann::json gpuActivityReading();
 /// gpu.frame for one frame between two readings: frames 1, wall_ms, gpu_ms and the differences.
 nlohmann::json gpuFrameStats(const nlohmann::json& before, const nlohmann::json& after, double wallMs, double gpuMs);
 
+/// Why the frame's scene cannot be captured on `gpu` (its textures exceed the GPU's largest
+/// storage buffer), or empty when it can.
+std::string gpuCaptureLimit(GpuContext& gpu, const Frame& frame);
+
 /// The tracers with a GPU version: ssr, ssr-layers, hiz, hssr.
 bool hasGpuTracer(const std::string& name);
 /// "ssr, ssr-layers, hiz, hssr", for messages.
