@@ -908,6 +908,13 @@ TEST(CliGpu, RenderOnTheGpuGivesTheCpuImage) {
         EXPECT_NEAR(j["rays"][key].get<double>(), c[key].get<double>(), 1e-3 * c[key].get<double>()) << t << " " << key;
       EXPECT_FALSE(j["gpu_renderer"].get<std::string>().empty());
       EXPECT_GT(j["timings_ms"]["gpu_trace"].get<double>(), 0.0);
+      if (t == "hssr") {
+        // The pyramid's intervals per level, as the GPU's build counted them (not read back).
+        const auto g = j["hssr"]["intervals_per_level"], h = readJson(dir / "cpu.json")["hssr"]["intervals_per_level"];
+        ASSERT_EQ(g.size(), h.size());
+        ASSERT_GT(g.size(), 1u);
+        for (size_t l = 0; l < g.size(); ++l) EXPECT_NEAR(g[l].get<double>(), h[l].get<double>(), 1e-3 * h[l].get<double>()) << "level " << l;
+      }
       EXPECT_EQ(readJson(dir / "cpu.json")["device"], "cpu");
     }
 }

@@ -274,14 +274,18 @@ int runRender(const RenderOptions& o) {
   }
   stats["preset"] = o.tracers.preset;
   stats["parameters"] = parameterStats(o.tracers);
-  if (built.pyramid && o.tracer == "hssr") {
-    const IntervalPyramid& p = *built.pyramid;
+  if ((built.pyramid || !built.levelIntervals.empty()) && o.tracer == "hssr") {
     stats["hssr"] = {{"tau", o.tracers.pyramid.tau}, {"levels", o.tracers.pyramid.levels}, {"n_up", o.tracers.hssr.nUp}};
     nlohmann::json perLevel = nlohmann::json::array();
-    uint64_t base = 0;
-    for (uint8_t n : p.base->count) base += n;
-    perLevel.push_back(base);
-    for (size_t l = 1; l < p.levels.size(); ++l) perLevel.push_back(p.levels[l].intervals.size());
+    if (built.pyramid) {
+      const IntervalPyramid& p = *built.pyramid;
+      uint64_t base = 0;
+      for (uint8_t n : p.base->count) base += n;
+      perLevel.push_back(base);
+      for (size_t l = 1; l < p.levels.size(); ++l) perLevel.push_back(p.levels[l].intervals.size());
+    } else {
+      for (uint64_t n : built.levelIntervals) perLevel.push_back(n);  // counted on the GPU
+    }
     stats["hssr"]["intervals_per_level"] = perLevel;
     // Where the traversal spends its steps (a proxy for time per level: one iteration = one
     // visited cell, and every cell costs about the same).

@@ -99,9 +99,12 @@ BuiltTracer buildGpuTracer(const std::string& name, const Frame& frame, const Tr
     std::shared_ptr<IntervalLayers> level0 = frame.level0();
     if (!level0) level0 = std::make_shared<IntervalLayers>(makeIntervalLayers(frame.layers, frame.layers.k));
     t = std::make_unique<GpuScreenTracer>(gpu, frame.camera, frame.layers, *level0, pc, hc);
-    // The GPU's levels, read back for the statistics (intervals per level).
-    b.pyramid = std::make_shared<IntervalPyramid>(downloadPyramid(*t->pyramid()));
-    b.pyramid->base = level0;
+    // The intervals per level for the statistics, as the build counted them (the levels stay on
+    // the device).
+    uint64_t base = 0;
+    for (uint8_t n : level0->count) base += n;
+    b.levelIntervals.push_back(base);
+    for (int L = 1; L < t->pyramid()->levels; ++L) b.levelIntervals.push_back(t->pyramid()->intervalCounts[size_t(L)]);
     b.buildMs = t->pyramid()->buildMs;
   }
   b.memoryBytes = t->memoryBytes();

@@ -112,6 +112,9 @@ struct BuiltTracer {
   std::vector<BuiltTracer> parts;            ///< hybrid: its screen and geometric tracers
   double buildMs = 0.0;                      ///< hierarchy / BVH construction
   size_t memoryBytes = 0;                    ///< the structure's bytes
+  /// hssr, hiz on the GPU: the intervals per pyramid level ([0]: level 0's) as the device counted
+  /// them (the pyramid itself stays there; `pyramid` is null).
+  std::vector<uint64_t> levelIntervals;
 };
 
 /// Builds the registry's tracer `name` for `frame`; InputError for an unknown name.
