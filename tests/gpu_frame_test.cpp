@@ -5,6 +5,7 @@
 #include <cstdlib>
 #include <limits>
 #include <cstring>
+#include <functional>
 #include <memory>
 
 #include <gtest/gtest.h>
@@ -47,15 +48,21 @@ TEST(FrameSequence, OrbitStartsAtTheCameraAndKeepsItsDistanceAndHeight) {
   EXPECT_NEAR(h.eye.z - d.target.z, -(d.eye.z - d.target.z), 1e-4f);
 }
 
-TEST(FrameSequence, CpuFramesFollowTheOrbitAndCountTheirRays) {
-  FrameOptions fo = defaultSceneOptions(96, 64);
+/// `frames` frames of the default scene's reflections at W × H on `gpu` (null: the CPU).
+std::vector<FrameSample> defaultSceneFrames(int W, int H, int frames, GpuContext* gpu, std::function<void(int, const Image&)> onImage = {}) {
+  const FrameOptions fo = defaultSceneOptions(W, H);
   Frame frame;
   loadFrameScene(fo, frame);
   FrameSequenceConfig c;
-  c.frames = 3;
+  c.frames = frames;
+  c.onImage = std::move(onImage);
+  return runFrameSequence(fo, frame, c, gpu);
+}
+
+TEST(FrameSequence, CpuFramesFollowTheOrbitAndCountTheirRays) {
   int images = 0;
-  c.onImage = [&](int, const Image& img) { images += img.width == 96 && img.height == 64; };
-  const std::vector<FrameSample> s = runFrameSequence(fo, frame, c, nullptr);
+  const std::vector<FrameSample> s =
+      defaultSceneFrames(96, 64, 3, nullptr, [&](int, const Image& img) { images += img.width == 96 && img.height == 64; });
   ASSERT_EQ(s.size(), 3u);
   EXPECT_EQ(images, 3);
   for (const FrameSample& f : s) EXPECT_GT(f.rays, 96u * 64u / 4);
@@ -211,12 +218,7 @@ TEST_F(GpuFrameTest, AnOverflowingPoolGrowsAndTheFrameRunsAgainWithTheSameAnswer
 }
 
 TEST_F(GpuFrameTest, TheFramesAfterTheFirstLinkAllocateAndUploadNothingAndWaitOnce) {
-  FrameOptions fo = defaultSceneOptions(160, 90);
-  Frame frame;
-  loadFrameScene(fo, frame);
-  FrameSequenceConfig c;
-  c.frames = 4;
-  const std::vector<FrameSample> s = runFrameSequence(fo, frame, c, gpu_.get());
+  const std::vector<FrameSample> s = defaultSceneFrames(160, 90, 4, gpu_.get());
   ASSERT_EQ(s.size(), 4u);
   EXPECT_GT(s[0].bufferAllocations, 0u);  // the first frame uploads the scene and allocates
   EXPECT_GT(s[0].uploadBytes, 64u * 1024u);

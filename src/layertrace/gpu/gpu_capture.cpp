@@ -320,12 +320,10 @@ void GpuCapture::download(const GpuCaptureConfig& config, uint64_t generated, Gp
     uint64_t total = 0;
     for (uint32_t c : fl.complexity) total += c;
     out.generated = out.stored = total;
-    out.memoryBytes = peelDepth_.bytes() + peelTriangle_.bytes();
   } else {
     out.generated = generated;
     out.stored = std::min<uint64_t>(generated, capacity_);
     out.poolCapacity = capacity_;
-    out.memoryBytes = nodes_.bytes() + nodeTriangle_.bytes() + heads_.bytes();
     if (config.keepLists) {
       fl.head.resize(pixels);
       heads_.read(fl.head.data(), pixels * 4);
@@ -353,7 +351,7 @@ void GpuCapture::download(const GpuCaptureConfig& config, uint64_t generated, Gp
   out.setupMs = setupMs();
   out.rasterMs = rasterMs();
   out.sortMs = sortMs();
-  out.memoryBytes += memoryBytes() - nodes_.bytes() - nodeTriangle_.bytes() - heads_.bytes() - peelDepth_.bytes() - peelTriangle_.bytes();
+  out.memoryBytes = memoryBytes();
 }
 
 void captureOnGpu(GpuContext& gpu, const Scene& scene, const Camera& camera, const GpuCaptureConfig& config, GpuCaptureResult& out) {

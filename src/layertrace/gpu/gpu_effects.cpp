@@ -210,14 +210,12 @@ GpuEffectOutput GpuEffects::run(const GpuScreenTracer& tracer, const GpuEffectPa
   resolve.set("uRaysPerPixel", R);
   if (p.kind == GpuEffectKind::Warp) {
     LT_CHECK(p.warp.camera.width() == W && p.warp.camera.height() == H, p.warp.camera.width(), W);
-    step.setMatrix("uView", &camera_.view()[0][0]);
+    step.setMatrix("uView", &camera_.view()[0][0]);  // (read by view synthesis only)
     step.setMatrix("uWarpViewInverse", &p.warp.camera.viewInverse()[0][0]);
     step.set("uWarpPixelScale", 1.0f / p.warp.camera.focal());
     step.set("uWarpOrtho", int(p.warp.camera.orthographic()));
     step.setVec3("uWarpOrigin", &p.warp.origin.x);
     step.set("uWarpMax", p.warp.maxDistance);
-  } else {
-    step.setMatrix("uView", &camera_.view()[0][0]);
   }
 
   enum Stage { kTrace = 0, kShade = 1 };
@@ -265,8 +263,7 @@ GpuEffectOutput GpuEffects::run(const GpuScreenTracer& tracer, const GpuEffectPa
         if (round == 0) gpu_.dispatch(resolve, rayItems);
         else gpu_.dispatchIndirect(resolve, groups_);
         if (round < kOriginSkips) {
-          pending_.bindStorage(6);
-          groups_.bindStorage(7);
+          groups_.bindStorage(7);  // (pending_ is bound at 6 from the resolve pass)
           rounds_->set("uGroups", rayGroups);
           rounds_->set("uPersistentGroups", std::min(rayGroups, GpuScreenTracer::kPersistentGroups));
           gpu_.dispatchGroups(*rounds_, 1);

@@ -154,8 +154,7 @@ nlohmann::json frameSampleJson(const FrameSample& s) {
 }
 
 nlohmann::json frameSummary(const std::vector<FrameSample>& samples) {
-  nlohmann::json summary = nlohmann::json::object();
-  summary["frames"] = samples.size();
+  nlohmann::json summary = {{"frames", samples.size()}};
   if (samples.empty()) return summary;
   // The steady state: the frames after the first (which uploads, links and allocates).
   const size_t first = samples.size() > 1 ? 1 : 0;
@@ -169,7 +168,6 @@ nlohmann::json frameSummary(const std::vector<FrameSample>& samples) {
     if (value.is_number_integer() || value.is_number_unsigned()) summary[key] = uint64_t(std::llround(m));
     else summary[key] = m;
   }
-  summary["frames"] = samples.size();
   return summary;
 }
 
