@@ -240,8 +240,19 @@ const GpuProgram& GpuContext::renderProgram(std::string_view name, std::string_v
 }
 
 bool GpuContext::hasExtension(std::string_view extension) const {
-  makeCurrent();
-  return epoxy_has_gl_extension(std::string(extension).c_str());
+  if (extensions_.empty()) {
+    // Read once, through entry points from EGL: epoxy's own check, and its first dispatch of
+    // these, also probe GLX, which an EGL-only tracer (apitrace's egltrace) lacks.
+    makeCurrent();
+    const auto getStringi = reinterpret_cast<PFNGLGETSTRINGIPROC>(eglGetProcAddress("glGetStringi"));
+    const auto getIntegerv = reinterpret_cast<PFNGLGETINTEGERVPROC>(eglGetProcAddress("glGetIntegerv"));
+    GLint count = 0;
+    if (getIntegerv) getIntegerv(GL_NUM_EXTENSIONS, &count);
+    for (GLint i = 0; getStringi && i < count; ++i)
+      if (const auto* name = reinterpret_cast<const char*>(getStringi(GL_EXTENSIONS, GLuint(i)))) extensions_.emplace_back(name);
+    std::sort(extensions_.begin(), extensions_.end());
+  }
+  return std::binary_search(extensions_.begin(), extensions_.end(), extension, std::less<>());
 }
 
 void GpuContext::dispatch(const GpuProgram& program, size_t n) const {

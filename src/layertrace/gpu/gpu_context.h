@@ -127,6 +127,7 @@ class GpuContext {
   std::string open(void* display);
 
   std::string renderer_, version_, platform_;
+  mutable std::vector<std::string> extensions_;  ///< sorted, read on the first hasExtension
   mutable std::map<std::string, GpuProgram, std::less<>> programs_;  ///< the program cache, by name and variant
 };
 

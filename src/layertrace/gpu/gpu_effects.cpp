@@ -265,7 +265,7 @@ GpuEffectOutput GpuEffects::run(const GpuScreenTracer& tracer, const GpuEffectPa
         if (round < kOriginSkips) {
           groups_.bindStorage(7);  // (pending_ is bound at 6 from the resolve pass)
           rounds_->set("uGroups", rayGroups);
-          rounds_->set("uPersistentGroups", std::min(rayGroups, GpuScreenTracer::kPersistentGroups));
+          rounds_->set("uPersistentGroups", GpuScreenTracer::persistentGroups(size_t(rayItems)));
           gpu_.dispatchGroups(*rounds_, 1);
         }
         timeline_.end(kTrace);

@@ -1,6 +1,7 @@
 #include "layertrace/gpu/gpu_screen_tracer.h"
 
 #include <algorithm>
+#include <string>
 
 #include <epoxy/gl.h>
 
@@ -33,6 +34,24 @@ static_assert(RayCounters::kLevels == 8, "the shaders count 8 levels");
 constexpr size_t kGroupSize = 64;  ///< local_size_x of the march shaders
 constexpr const char* kNoCounters = "#define LT_NO_COUNTERS 1\n";  ///< the timed variant (screen_common.glsl writeHit)
 
+/// The define of hssr_march.comp's in-warp reloading (§5.3) for the subgroup extension `gpu`
+/// has, or empty. Choice: ARB_shader_ballot first (with group_vote and the 64-bit integers its
+/// ballots need), as it is the variant tested on llvmpipe; KHR_shader_subgroup where it is the
+/// only one, if compute shaders have its ballot and vote features.
+std::string_view subgroupDefine(const GpuContext& gpu) {
+  if (gpu.hasExtension("GL_ARB_shader_ballot") && gpu.hasExtension("GL_ARB_shader_group_vote") && gpu.hasExtension("GL_ARB_gpu_shader_int64"))
+    return "#define LT_SUBGROUP_ARB 1\n";
+  if (gpu.hasExtension("GL_KHR_shader_subgroup")) {
+    gpu.makeCurrent();
+    GLint stages = 0, features = 0;
+    glGetIntegerv(GL_SUBGROUP_SUPPORTED_STAGES_KHR, &stages);
+    glGetIntegerv(GL_SUBGROUP_SUPPORTED_FEATURES_KHR, &features);
+    const GLint needed = GL_SUBGROUP_FEATURE_BASIC_BIT_KHR | GL_SUBGROUP_FEATURE_VOTE_BIT_KHR | GL_SUBGROUP_FEATURE_BALLOT_BIT_KHR;
+    if ((stages & GL_COMPUTE_SHADER_BIT) && (features & needed) == needed) return "#define LT_SUBGROUP_KHR 1\n";
+  }
+  return {};
+}
+
 }  // namespace
 
 GpuScreenTracer::GpuScreenTracer(GpuContext& gpu, const Camera& camera, const LayerArrays& layers, const IntervalLayers& level0,
@@ -42,6 +61,7 @@ GpuScreenTracer::GpuScreenTracer(GpuContext& gpu, const Camera& camera, const La
   gpu_.makeCurrent();
   program_ = &gpu_.computeProgram("hssr_march.comp", shader_source::hssr_march_comp);
   timedProgram_ = &gpu_.computeProgram("hssr_march.comp", shader_source::hssr_march_comp, kNoCounters);
+  subgroupDefine_ = subgroupDefine(gpu_);
   upload(level0);
   pyramid_ = std::make_unique<GpuPyramid>();
   buildPyramidOnGpu(gpu, *level0_, *counts_, camera.width(), camera.height(), level0.k, camera, pyramid, *pyramid_);
@@ -66,6 +86,7 @@ GpuScreenTracer::GpuScreenTracer(GpuContext& gpu, const PyramidConfig& pyramid, 
   gpu_.makeCurrent();
   program_ = &gpu_.computeProgram("hssr_march.comp", shader_source::hssr_march_comp);
   timedProgram_ = &gpu_.computeProgram("hssr_march.comp", shader_source::hssr_march_comp, kNoCounters);
+  subgroupDefine_ = subgroupDefine(gpu_);
   name_ = std::max(1, std::min(config.maxLevels, pyramid.levels)) == 1 ? "exhaustive" : config.name;
   persistent_ = config.rayReloading;
   pyramid_ = std::make_unique<GpuPyramid>();
@@ -114,6 +135,32 @@ void GpuScreenTracer::setUniforms(const GpuProgram& p, size_t n, bool persistent
   p.set("uLevelHeight", pyramid_->height.data(), GpuPyramid::kMaxLevels);
   p.set("uLevelOffset", pyramid_->cellBase.data(), GpuPyramid::kMaxLevels);
   p.set("uPersistent", persistent);
+}
+
+uint32_t GpuScreenTracer::persistentGroups(size_t n) {
+  constexpr size_t kRaysPerInvocation = 8;
+  const size_t groups = (n + kGroupSize - 1) / kGroupSize;
+  return uint32_t(std::min(groups, std::max(size_t(kPersistentGroups), (groups + kRaysPerInvocation - 1) / kRaysPerInvocation)));
+}
+
+const char* GpuScreenTracer::subgroupExtension(const GpuContext& gpu) {
+  const std::string_view d = subgroupDefine(gpu);
+  return d.empty() ? "none" : d.find("ARB") != std::string_view::npos ? "GL_ARB_shader_ballot" : "GL_KHR_shader_subgroup";
+}
+
+bool GpuScreenTracer::setSubgroupReloading(bool on) {
+  subgroupOff_ = !on;
+  return subgroupReloading() == on;
+}
+
+const GpuProgram& GpuScreenTracer::marchProgram(bool counters, bool subgroup) const {
+  if (!subgroup) return counters ? *program_ : *timedProgram_;
+  const GpuProgram*& p = reloadPrograms_[counters ? 1 : 0];
+  if (!p) {
+    const std::string defines = std::string(counters ? "" : kNoCounters) + std::string(subgroupDefine_);
+    p = &gpu_.computeProgram("hssr_march.comp", shader_source::hssr_march_comp, defines);
+  }
+  return *p;
 }
 
 size_t GpuScreenTracer::memoryBytes() const {
@@ -165,7 +212,7 @@ void GpuScreenTracer::marchResident(const GpuBuffer& rays, const GpuBuffer& hits
   counts_->bindStorage(3);
   if (pyramid_) pyramid_->cells.bindStorage(4);
   const bool persistent = persistent_ && pyramid_;  // a march over a pyramid: hssr, hiz, exhaustive
-  const GpuProgram& program = counters ? *program_ : *timedProgram_;
+  const GpuProgram& program = marchProgram(counters, persistent && subgroupReloading());
   setUniforms(program, n, persistent);
   if (persistent) {
     if (!queue_.id()) queue_ = GpuBuffer(sizeof(uint32_t));
@@ -176,7 +223,7 @@ void GpuScreenTracer::marchResident(const GpuBuffer& rays, const GpuBuffer& hits
     gpu_.dispatchIndirect(program, *groups, persistent ? kPersistentArgs : 0);
   } else if (persistent) {
     // Enough groups to fill a large GPU several times over; each invocation then loops.
-    gpu_.dispatchGroups(program, uint32_t(std::min((n + kGroupSize - 1) / kGroupSize, size_t(kPersistentGroups))));
+    gpu_.dispatchGroups(program, persistentGroups(n));
   } else {
     gpu_.dispatch(program, n);
   }

@@ -11,6 +11,7 @@
 #include <cstdint>
 #include <memory>
 #include <span>
+#include <string_view>
 #include <vector>
 
 #include "layertrace/gpu/gpu_context.h"
@@ -58,8 +59,20 @@ class GpuScreenTracer final : public Tracer {
   void traceBatch(std::span<const Ray> rays, std::span<TraceHit> hits, std::span<RayCounters> counters) const override;
   /// HSSR's march with persistent threads pulling rays from a queue (Hofmann et al. 2017, §5.3,
   /// ray reloading): the same answers, another schedule. No effect on SSR.
+  /// Where the driver has subgroup operations (GL_ARB_shader_ballot with group_vote, or
+  /// GL_KHR_shader_subgroup), as published: each subgroup steps its lanes' rays a cell at a time,
+  /// a lane whose ray has answered takes the next ray at once, and the subgroup leaves when the
+  /// queue is empty (warp early termination, in-warp reloading). Elsewhere the work groups fetch
+  /// batches of 64 rays behind a barrier.
   void setPersistentThreads(bool on) { persistent_ = on; }
   bool persistentThreads() const { return persistent_; }
+  /// Whether ray reloading uses the subgroup schedule (true by default where the driver has the
+  /// operations); false selects the work-group batches. Returns whether the request holds.
+  bool setSubgroupReloading(bool on);
+  bool subgroupReloading() const { return !subgroupDefine_.empty() && !subgroupOff_; }
+  /// The extension the subgroup schedule uses on `gpu` ("GL_ARB_shader_ballot" or
+  /// "GL_KHR_shader_subgroup"), or "none".
+  static const char* subgroupExtension(const GpuContext& gpu);
   /// The fragments the rays hit, with their counters.
   void march(std::span<const Ray> rays, std::vector<GpuMarchHit>& out) const;
 
@@ -75,6 +88,12 @@ class GpuScreenTracer final : public Tracer {
   /// the queue balances the load, so more groups than the GPU holds at once only add idle
   /// launches).
   static constexpr uint32_t kPersistentGroups = 2112;
+  /// The persistent march's work groups for `n` rays: kPersistentGroups, more where an
+  /// invocation would otherwise take over 8 rays on average, and never more than one per 64
+  /// rays. Choice: the bound keeps one invocation's loop iterations within what a driver may
+  /// allow a shader run (llvmpipe ends every loop of a run after 65,535 iterations in all), and
+  /// the queue still balances the load across the groups.
+  static uint32_t persistentGroups(size_t n);
   /// Indirect arguments: three uints for the plain march at offset 0, three for the persistent
   /// march at this offset.
   static constexpr size_t kPersistentArgs = 12;
@@ -99,6 +118,9 @@ class GpuScreenTracer final : public Tracer {
   void upload(const IntervalLayers& level0);
   /// Every uniform of the march, before each dispatch (the program is the context's, shared).
   void setUniforms(const GpuProgram& program, size_t n, bool persistent) const;
+  /// The march's program: with or without counters, plain or with subgroup reloading (linked
+  /// on first use).
+  const GpuProgram& marchProgram(bool counters, bool subgroup) const;
 
   GpuContext& gpu_;
   Camera camera_;
@@ -106,6 +128,9 @@ class GpuScreenTracer final : public Tracer {
   const char* name_;
   const GpuProgram* program_ = nullptr;
   const GpuProgram* timedProgram_ = nullptr;  ///< the counter-free variant (LT_NO_COUNTERS)
+  mutable const GpuProgram* reloadPrograms_[2] = {};  ///< subgroup reloading: without, with counters
+  std::string_view subgroupDefine_;  ///< LT_SUBGROUP_ARB or _KHR, empty without the operations
+  bool subgroupOff_ = false;
   GpuBuffer ownLevel0_, ownCounts_;
   const GpuBuffer* level0_ = &ownLevel0_;
   const GpuBuffer* counts_ = &ownCounts_;

@@ -18,7 +18,7 @@ std::span<const Param<HssrConfig>> hssrParams() {
   static const Param<HssrConfig> params[] = {
       {"--hssr-n-up", "--n-up", "cells without overlap before ascending a level", &HssrConfig::nUp},
       {"--hssr-parent-ascent", "", "also ascend on entering another parent cell (off: the paper's pure n_up rule)", &HssrConfig::parentAscent, "false"},
-      {"--hssr-ray-reloading", "", "GPU: persistent threads pull rays from a queue (paper §5.3; no effect on the CPU)", &HssrConfig::rayReloading, "true"},
+      {"--hssr-ray-reloading", "", "GPU: persistent threads pull rays from a queue, a subgroup's lanes reloading one by one where the driver has subgroup operations (paper §5.3; no effect on the CPU)", &HssrConfig::rayReloading, "true"},
   };
   return params;
 }

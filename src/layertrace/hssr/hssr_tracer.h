@@ -19,9 +19,10 @@ struct HssrConfig {
   const char* name = "hssr";  ///< "hssr", or "hiz" over a min/max pyramid (hiz_pyramid.h)
   /// Also ascend on entering another parent cell (AscentRule); false is the paper's pure n_up rule.
   bool parentAscent = true;
-  /// The GPU march only: persistent work groups pull batches of rays from a queue (Hofmann et
-  /// al. 2017, §5.3, ray reloading; early termination is the GPU's own, a finished invocation
-  /// takes the next ray). The same answers, another schedule; the CPU march ignores it.
+  /// The GPU march only: persistent threads pull rays from a queue (Hofmann et al. 2017, §5.3):
+  /// where the driver has subgroup operations, with warp early termination and in-warp
+  /// reloading as published, else in work-group batches (gpu/gpu_screen_tracer.h). The same
+  /// answers, another schedule; the CPU march ignores it.
   bool rayReloading = false;
 };
 

@@ -53,7 +53,11 @@ bool gpuBuilt() { return true; }
 std::shared_ptr<GpuContext> openGpu() { return std::make_shared<GpuContext>(); }
 
 nlohmann::json gpuStats(const GpuContext& gpu) {
-  return {{"renderer", gpu.renderer()}, {"version", gpu.version()}, {"software", gpu.software()}, {"platform", gpu.platform()}};
+  return {{"renderer", gpu.renderer()},
+          {"version", gpu.version()},
+          {"software", gpu.software()},
+          {"platform", gpu.platform()},
+          {"subgroups", GpuScreenTracer::subgroupExtension(gpu)}};
 }
 
 void rasterizeFrameOnGpu(GpuContext& gpu, const FrameOptions& o, const std::string& capture, Frame& frame) {
