@@ -21,6 +21,8 @@ if [ "${1:-}" != "--run" ]; then
   packages+=(g++-aarch64-linux-gnu)
   # The viewer (`layertrace view`) and its test under a virtual X server with Mesa's software GL.
   packages+=(libglfw3-dev libimgui-dev xvfb xauth)
+  # The Python package (docs/python.md) and its tests, sweeps on Dask distributed included.
+  packages+=(python3-dev pybind11-dev python3-numpy python3-pandas python3-pytest python3-distributed)
 fi
 # No npm: the default scene's small bunny is committed as an OBJ (scenes/default/bunny.obj).
 

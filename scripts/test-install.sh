@@ -26,6 +26,14 @@ mkdir -p "$tmp/out"
 for f in trace_gbuffer.png custom_scene_hssr.png custom_scene_embree.png; do
   [ -s "$tmp/out/$f" ] || { echo "example output $f missing" >&2; exit 1; }
 done
+# The Python package, where the build has it: importable from the prefix's Debian location alone,
+# and its examples run against it.
+if [ -d "$tmp/prefix/lib/python3/dist-packages/layertrace" ]; then
+  (cd "$tmp" && PYTHONPATH="$tmp/prefix/lib/python3/dist-packages" /usr/bin/python3 "$src/examples/python/render_and_compare.py" \
+     "$src/scenes/default.json" "$tmp/out/py" >/dev/null)
+  [ -s "$tmp/out/py/classes.png" ] || { echo "python example output classes.png missing" >&2; exit 1; }
+  echo "test-install: Python package imported from lib/python3/dist-packages and its example run"
+fi
 libdir=$(dirname "$(find "$tmp/prefix" -name 'liblayertrace.*' | head -1)")
 if [ -f "$libdir/liblayertrace.a" ]; then
   export PKG_CONFIG_PATH="$libdir/pkgconfig"

@@ -238,7 +238,11 @@ ViewRunner viewRunner = nullptr;
 
 void setViewRunner(ViewRunner runner) { viewRunner = runner; }
 
-int runCli(int argc, const char* const* argv, CliMode mode) {
+namespace {
+
+/// runCli's work; with `parsed`, render and compare stop after their checks and hand their
+/// options over, and bad input is thrown rather than printed.
+int runCliImpl(int argc, const char* const* argv, CliMode mode, CliCommand* parsed) {
   CLI::App app{"layertrace: image-space ray tracing of secondary effects through multi-layer fragment buffers"};
   app.require_subcommand(0, 1);
   app.set_help_all_flag("--help-all", "help for every subcommand");
@@ -357,21 +361,27 @@ int runCli(int argc, const char* const* argv, CliMode mode) {
     known = known || (argc > 1 && sub->get_name() == argv[1]);
   }
   if (argc > 1 && argv[1][0] != '-' && !known) {
-    std::cerr << "layertrace: unknown subcommand \"" << argv[1] << "\" (use one of: " << names << ")\n";
+    const std::string msg = lt::cat("unknown subcommand \"", argv[1], "\" (use one of: ", names, ")");
+    if (parsed) throw lt::InputError(msg);
+    std::cerr << "layertrace: " << msg << "\n";
     return 2;
   }
   try {
     app.parse(argc, argv);
   } catch (const CLI::CallForHelp& e) {
+    if (parsed) throw lt::InputError("--help: not a command to run");
     return app.exit(e);
   } catch (const CLI::CallForAllHelp& e) {
+    if (parsed) throw lt::InputError("--help-all: not a command to run");
     return app.exit(e);
   } catch (const CLI::ParseError& e) {
     std::string msg = e.what();
     std::replace(msg.begin(), msg.end(), '\n', ' ');
+    if (parsed) throw lt::InputError(msg);
     std::cerr << "layertrace: " << msg << "\n";
     return 2;
   }
+  if (parsed && !renderCmd->parsed() && !compareCmd->parsed()) throw lt::InputError("only render and compare can be parsed to options");
 
   if (showVersion) {
     std::cout << versionText(viewRunner != nullptr);
@@ -481,6 +491,12 @@ int runCli(int argc, const char* const* argv, CliMode mode) {
       prepare(compare.run, compareRaw);
       finishEffectOptions(compare.effect, compareEffect, compareRaw);
       compare.tracers = splitList(compareTracers);
+      if (parsed) {
+        lt::validateEffectConfig(compare.effect);
+        parsed->name = "compare";
+        parsed->compare = compare;
+        return 0;
+      }
       return done(lt::runCompare(compare));
     }
     if (viewCmd->parsed()) {
@@ -495,22 +511,42 @@ int runCli(int argc, const char* const* argv, CliMode mode) {
     if (renderCmd->parsed()) {
       prepare(render.run, renderRaw);
       finishEffectOptions(render.effect, effectName, renderRaw);
+      if (parsed) {
+        lt::validateEffectConfig(render.effect);
+        parsed->name = "render";
+        parsed->render = render;
+        return 0;
+      }
       return done(lt::runRender(render));
     }
   } catch (const lt::InputError& e) {
+    if (parsed) throw;
     std::cerr << "layertrace: " << e.what() << "\n";
     return 2;
   } catch (const lt::InternalError& e) {
+    if (parsed) throw;
     std::cerr << "layertrace: internal error: " << e.what() << "\n";
     return 1;
   } catch (const std::bad_alloc&) {
+    if (parsed) throw;
     std::cerr << "layertrace: out of memory\n";
     return 1;
   } catch (const std::exception& e) {
+    if (parsed) throw;
     std::cerr << "layertrace: internal error: " << e.what() << "\n";
     return 1;
   }
   return 1;
+}
+
+}  // namespace
+
+int runCli(int argc, const char* const* argv, CliMode mode) { return runCliImpl(argc, argv, mode, nullptr); }
+
+CliCommand parseCli(int argc, const char* const* argv) {
+  CliCommand command;
+  runCliImpl(argc, argv, CliMode::Run, &command);
+  return command;
 }
 
 }  // namespace lt

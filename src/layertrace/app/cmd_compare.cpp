@@ -84,8 +84,7 @@ Image sideBySide(const std::vector<const Image*>& images) {
 
 }  // namespace
 
-int runCompare(const CompareOptions& o) {
-  const std::string outDir = o.run.output;
+CompareOutput compareFrame(const CompareOptions& o) {
   if (o.tracers.empty()) inputError("--tracers: empty list");
   for (const std::string& t : o.tracers)
     if (!isKnownTracer(t)) inputError("--tracers ", t, ": unknown (use ", tracerNames(), ")");
@@ -240,34 +239,46 @@ int runCompare(const CompareOptions& o) {
           << t["trace_ms"].get<double>() << std::setw(11) << std::setprecision(1) << t["iterations_mean"].get<double>() << "\n";
   }
 
+  CompareOutput out;
+  out.table = table.str();
+  out.title = cat("layertrace compare: ", frame.scene.name, " — ", effectName(ec.effect));
+  std::ostringstream summary;
+  summary << "compare: " << frame.scene.name << " " << frame.camera.width() << "x" << frame.camera.height() << " " << effectName(ec.effect)
+          << ", reference embree (" << ref.rays << " rays, " << ref.traceMs << " ms; 16-wide packets " << packet.traceMs << " ms)\n";
+  if (ref.rays == 0)
+    summary << "  no rays: no covered pixel of this view casts " << effectName(ec.effect)
+            << " rays (nothing in view, or no surface with the material the effect needs)\n";
+  if (gpu) {
+    summary << "  the same rays on " << gpu->renderer() << (gpu->software() ? " (a CPU rasterizer: its times are CPU times)" : "") << ":";
+    for (const std::string& name : o.tracers)
+      if (const nlohmann::json& t = stats["compare"][name]; t.contains("gpu_agreement"))
+        summary << " " << name << " " << std::fixed << std::setprecision(2) << 100.0 * t["gpu_agreement"].get<double>() << " % agree, "
+                << std::setprecision(2) << t["gpu_trace_ms"].get<double>() << " ms;";
+    summary << "\n";
+  }
+  out.summary = summary.str();
+  out.stats = std::move(stats);
+  out.images = std::move(images);
+  return out;
+}
+
+int runCompare(const CompareOptions& o) {
+  const std::string outDir = o.run.output;
+  const CompareOutput c = compareFrame(o);
   ensureDirectory(outDir, "-o");
-  for (const auto& [name, image] : images) writeImage((fs::path(outDir) / name).string(), image);
-  writeStats(o.run.statsPath, stats.dump(2));
+  for (const auto& [name, image] : c.images) writeImage((fs::path(outDir) / name).string(), image);
+  writeStats(o.run.statsPath, c.stats.dump(2));
   if (!o.report.empty()) {
     ReportPage page;
-    page.title = cat("layertrace compare: ", frame.scene.name, " — ", effectName(ec.effect));
-    page.table = table.str();
-    page.json = stats;
-    for (const auto& [name, image] : images) page.images.push_back({name, &image});
+    page.title = c.title;
+    page.table = c.table;
+    page.json = c.stats;
+    for (const auto& [name, image] : c.images) page.images.push_back({name, &image});
     writeReport(o.report, page);
   }
-  if (!o.run.quiet) {
-    std::cout << "compare: " << frame.scene.name << " " << frame.camera.width() << "x" << frame.camera.height() << " "
-              << effectName(ec.effect) << ", reference embree (" << ref.rays << " rays, " << ref.traceMs << " ms; 16-wide packets "
-              << packet.traceMs << " ms)\n";
-    if (ref.rays == 0)
-      std::cout << "  no rays: no covered pixel of this view casts " << effectName(ec.effect)
-                << " rays (nothing in view, or no surface with the material the effect needs)\n";
-    if (gpu) {
-      std::cout << "  the same rays on " << gpu->renderer() << (gpu->software() ? " (a CPU rasterizer: its times are CPU times)" : "") << ":";
-      for (const std::string& name : o.tracers)
-        if (const nlohmann::json& t = stats["compare"][name]; t.contains("gpu_agreement"))
-          std::cout << " " << name << " " << std::fixed << std::setprecision(2) << 100.0 * t["gpu_agreement"].get<double>() << " % agree, "
-                    << std::setprecision(2) << t["gpu_trace_ms"].get<double>() << " ms;";
-      std::cout << "\n";
-    }
-    std::cout << table.str() << "  wrote " << images.size() << " images to " << outDir << " and the statistics to " << o.run.statsPath << "\n";
-  }
+  if (!o.run.quiet)
+    std::cout << c.summary << c.table << "  wrote " << c.images.size() << " images to " << outDir << " and the statistics to " << o.run.statsPath
+              << "\n";
   return 0;
 }
 

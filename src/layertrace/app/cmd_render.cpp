@@ -4,6 +4,7 @@
 #include <optional>
 #include <filesystem>
 #include <iostream>
+#include <sstream>
 
 #include "layertrace/app/commands.h"
 #include "layertrace/eval/image_metrics.h"
@@ -174,11 +175,7 @@ void validateRepeat(int repeat) {
   if (repeat < 1 || repeat > 100) inputError("--repeat ", repeat, ": must be between 1 and 100");
 }
 
-int runRender(const RenderOptions& o) {
-  const std::string out = o.run.output;
-  std::string ext = fs::path(out).extension().string();
-  std::transform(ext.begin(), ext.end(), ext.begin(), [](unsigned char c) { return char(std::tolower(c)); });
-  if (ext != ".png" && ext != ".exr") inputError("-o ", out, ": render writes .png or .exr");
+RenderOutput renderFrame(const RenderOptions& o) {
   if (!isKnownTracer(o.tracer)) inputError("--tracer ", o.tracer, ": unknown (use ", tracerNames(), ")");
   const bool screen = isScreenTracer(o.tracer);
   if (o.checkExhaustive && !screen) inputError("--check-exhaustive: needs an image-space tracer, not ", o.tracer);
@@ -319,25 +316,33 @@ int runRender(const RenderOptions& o) {
                      {"holes_disoccluded", h.disoccluded},
                      {"disocclusion_fraction", h.coveredInside ? double(h.disoccluded) / double(h.coveredInside) : 0.0}};
   }
-  if (!o.run.pixelStats.empty()) writePixelStats(o.run.pixelStats, r);
+  std::ostringstream summary;
+  summary << "render: " << frame.scene.name << " " << frame.camera.width() << "x" << frame.camera.height() << " " << built.tracer->name() << " "
+          << effectName(ec.effect) << ": " << r.rays << " rays, " << r.hits << " hits, " << stats["rays"]["iterations_mean"].get<double>()
+          << " iterations/ray; raster " << frame.rasterMs << " ms, sort " << frame.sortMs << " ms, hierarchy " << built.buildMs
+          << " ms, trace " << r.traceMs << " ms, shade " << timed.shadeMs << " ms";
+  if (gpu) summary << "; on " << gpu->renderer() << ": GPU trace " << gpuMs << " ms";
+  if (exhaustive) summary << "; exhaustive mismatches " << exhaustive->mismatches();
+  if (o.checkOracle) summary << "; oracle mismatches " << oracleCheck.mismatches() << " (ambiguous " << oracleCheck.ambiguous() << ")";
+  if (direct)
+    summary << "; warp holes " << stats["warp"]["holes"].get<uint64_t>() << " of " << stats["warp"]["covered_pixels"].get<uint64_t>()
+            << " covered pixels, PSNR " << stats["warp"]["psnr_db"].get<double>() << " dB against the direct view";
+  return {std::move(r), std::move(direct), std::move(stats), summary.str()};
+}
+
+int runRender(const RenderOptions& o) {
+  const std::string out = o.run.output;
+  std::string ext = fs::path(out).extension().string();
+  std::transform(ext.begin(), ext.end(), ext.begin(), [](unsigned char c) { return char(std::tolower(c)); });
+  if (ext != ".png" && ext != ".exr") inputError("-o ", out, ": render writes .png or .exr");
+  const RenderOutput rendered = renderFrame(o);
+  if (!o.run.pixelStats.empty()) writePixelStats(o.run.pixelStats, rendered.result);
   if (fs::path(out).has_parent_path()) ensureDirectory(fs::path(out).parent_path().string(), "-o");
-  writeImage(out, r.image);
-  if (direct) writeImage((fs::path(out).parent_path() / (fs::path(out).stem().string() + "_direct" + ext)).string(), *direct);
-  writeStats(o.run.statsPath, stats.dump(2));
-  if (!o.run.quiet) {
-    std::cout << "render: " << frame.scene.name << " " << frame.camera.width() << "x" << frame.camera.height() << " "
-              << built.tracer->name() << " " << effectName(ec.effect) << ": " << r.rays << " rays, " << r.hits << " hits, "
-              << stats["rays"]["iterations_mean"].get<double>() << " iterations/ray; raster " << frame.rasterMs
-              << " ms, sort " << frame.sortMs << " ms, hierarchy " << built.buildMs << " ms, trace " << r.traceMs << " ms, shade "
-              << timed.shadeMs << " ms";
-    if (gpu) std::cout << "; on " << gpu->renderer() << ": GPU trace " << gpuMs << " ms";
-    if (exhaustive) std::cout << "; exhaustive mismatches " << exhaustive->mismatches();
-    if (o.checkOracle) std::cout << "; oracle mismatches " << oracleCheck.mismatches() << " (ambiguous " << oracleCheck.ambiguous() << ")";
-    if (direct)
-      std::cout << "; warp holes " << stats["warp"]["holes"].get<uint64_t>() << " of " << stats["warp"]["covered_pixels"].get<uint64_t>()
-                << " covered pixels, PSNR " << stats["warp"]["psnr_db"].get<double>() << " dB against the direct view";
-    std::cout << "\n  wrote " << out << "\n";
-  }
+  writeImage(out, rendered.result.image);
+  if (rendered.direct)
+    writeImage((fs::path(out).parent_path() / (fs::path(out).stem().string() + "_direct" + ext)).string(), *rendered.direct);
+  writeStats(o.run.statsPath, rendered.stats.dump(2));
+  if (!o.run.quiet) std::cout << rendered.summary << "\n  wrote " << out << "\n";
   return 0;
 }
 

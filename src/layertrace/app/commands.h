@@ -6,6 +6,7 @@
 
 #include <filesystem>
 #include <functional>
+#include <optional>
 #include <string>
 
 #include <nlohmann/json.hpp>
@@ -84,6 +85,16 @@ struct RenderOptions {
   int repeat = 3;                ///< --repeat: timed passes after the counted one; the trace time is their median
 };
 
+/// What `render` computes, before it writes anything.
+struct RenderOutput {
+  EffectResult result;         ///< the image and the per-pixel counters
+  std::optional<Image> direct;  ///< view synthesis: the second camera's own rendering
+  nlohmann::json stats;        ///< the statistics file's contents
+  std::string summary;         ///< the console line
+};
+/// The work of `render` without its files: the checks, the frame, the tracer, the effect and
+/// the statistics.
+RenderOutput renderFrame(const RenderOptions& options);
 /// `layertrace render`: one effect traced with one tracer → image, stats, per-pixel counters.
 int runRender(const RenderOptions& options);
 
@@ -192,6 +203,14 @@ struct WarpHoles {
 WarpHoles countWarpHoles(const WarpReference& ref, const std::vector<uint8_t>& holes);
 WarpReference warpReference(const Frame& frame, const FrameOptions& options, const EffectConfig& warp);
 
+/// What `compare` computes, before it writes anything.
+struct CompareOutput {
+  nlohmann::json stats;  ///< compare.json
+  std::vector<std::pair<std::string, Image>> images;  ///< file name → image
+  std::string title, table, summary;  ///< the report's title, the console table and the lines above it
+};
+/// The work of `compare` without its files.
+CompareOutput compareFrame(const CompareOptions& options);
 /// `layertrace compare`: the same rays through several tracers and Embree → accuracy and cost.
 int runCompare(const CompareOptions& options);
 
