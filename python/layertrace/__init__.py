@@ -77,6 +77,14 @@ class Camera:
         object.__setattr__(self, "name", name)
         object.__setattr__(self, "default", bool(default))
 
+    def frame(self):
+        """The camera's unit axes in the scene's coordinates: (forward, right, up)."""
+        eye, target = np.array(self.eye), np.array(self.target)
+        forward = (target - eye) / np.linalg.norm(target - eye)
+        right = np.cross(forward, np.array(self.up))
+        right /= np.linalg.norm(right)
+        return forward, right, np.cross(right, forward)
+
     def _args(self) -> list:
         if self.default:
             return []
@@ -157,6 +165,32 @@ class Layers:
     normal = property(lambda self: _readonly(self._native.normal))
     triangle = property(lambda self: _readonly(self._native.triangle))
     count = property(lambda self: _readonly(self._native.count))
+
+    def pixel_rays(self):
+        """One ray from the eye through the centre of every pixel, row by row: (origins,
+        directions), each (H·W, 3) in the scene's coordinates, the directions of unit length."""
+        forward, right, up = self.camera.frame()
+        h = np.tan(np.radians(self.camera.fov) / 2.0)
+        ys, xs = np.mgrid[0:self.height, 0:self.width]
+        x = ((xs + 0.5) / self.width * 2.0 - 1.0) * h * self.width / self.height
+        y = (1.0 - (ys + 0.5) / self.height * 2.0) * h
+        d = (forward + x[..., None] * right + y[..., None] * up).reshape(-1, 3)
+        d /= np.linalg.norm(d, axis=1, keepdims=True)
+        return np.repeat(np.array(self.camera.eye)[None, :], len(d), axis=0), d
+
+    def positions(self, layer: int = 0) -> np.ndarray:
+        """The points of one layer's fragments in the scene's coordinates, (H, W, 3); NaN where
+        a pixel has no fragment in that layer."""
+        origins, d = self.pixel_rays()
+        forward, _, _ = self.camera.frame()
+        depth = self.depth[..., layer].reshape(-1)  # along the view direction
+        return (origins + d * (depth / (d @ forward))[:, None]).reshape(self.height, self.width, 3)
+
+    def world_normals(self, layer: int = 0) -> np.ndarray:
+        """One layer's normals in the scene's coordinates, (H, W, 3); NaN where empty."""
+        forward, right, up = self.camera.frame()
+        n = self.normal[..., layer, :]
+        return n[..., :1] * right + n[..., 1:2] * up - n[..., 2:] * forward
 
     def pyramid(self, **params) -> list:
         """The interval pyramid over these layers (Hofmann et al. 2017, §4.3) for the

@@ -81,22 +81,6 @@ def test_render_returns_the_image_and_the_statistics_of_the_cli(tmp_path):
     assert stats["hssr"]["intervals_per_level"] == cli["hssr"]["intervals_per_level"]
 
 
-def camera_rays(layers):
-    """One ray from the eye through the centre of every pixel, in the scene's coordinates."""
-    c = layers.camera
-    eye, target, up = np.array(c.eye), np.array(c.target), np.array(c.up)
-    f = (target - eye) / np.linalg.norm(target - eye)
-    r = np.cross(f, up)
-    r /= np.linalg.norm(r)
-    u = np.cross(r, f)
-    h = math.tan(math.radians(c.fov) / 2.0)
-    ys, xs = np.mgrid[0:layers.height, 0:layers.width]
-    px = ((xs + 0.5) / layers.width * 2.0 - 1.0) * h * layers.width / layers.height
-    py = (1.0 - (ys + 0.5) / layers.height * 2.0) * h
-    d = (f + px[..., None] * r + py[..., None] * u).reshape(-1, 3)
-    return np.repeat(eye[None, :], len(d), axis=0), d
-
-
 def test_capture_layers_are_sorted_intervals_with_their_triangles():
     layers = lt.capture(DEFAULT_SCENE, None, 96, 64, k=4)
     assert layers.depth.shape == (64, 96, 4) and layers.normal.shape == (64, 96, 4, 3) and layers.count.shape == (64, 96)
@@ -115,31 +99,26 @@ def test_capture_layers_are_sorted_intervals_with_their_triangles():
 
 def test_trace_answers_camera_rays_with_the_front_layer_and_matches_the_exhaustive_march():
     layers = lt.capture(DEFAULT_SCENE, None, 96, 64)
-    o, d = camera_rays(layers)
+    o, d = layers.pixel_rays()
     front = layers.triangle[..., 0].reshape(-1)
+    covered = front >= 0
     for tracer in ("hssr", "ssr-layers", "hiz"):
         a = lt.trace(layers, o, d, tracer=tracer, from_surface=False)
-        covered = front >= 0
         assert (a["triangle"][covered] == front[covered]).all(), tracer
         assert (a["layer"][covered] == 0).all(), tracer
+    # The fragments' points lie on the camera rays at their depth.
+    p = layers.positions(0).reshape(-1, 3)[covered]
+    forward, _, _ = layers.camera.frame()
+    assert np.allclose((p - o[covered]) @ forward, layers.depth[..., 0].reshape(-1)[covered], rtol=1e-5)
     # Reflection rays off every front fragment: HSSR answers each as the exhaustive march
-    # (one level) does, hit for hit, and Embree's closest hits agree with most of them.
-    n = layers.normal[..., 0, :].reshape(-1, 3)
-    c = layers.camera
-    eye, target, up = np.array(c.eye), np.array(c.target), np.array(c.up)
-    f = (target - eye) / np.linalg.norm(target - eye)
-    r = np.cross(f, up)
-    r /= np.linalg.norm(r)
-    u = np.cross(r, f)
-    n_world = n[:, 0:1] * r + n[:, 1:2] * u - n[:, 2:3] * f  # camera space (x right, y up, -z forward) to world
-    dn = d / np.linalg.norm(d, axis=1)[:, None]
-    t = layers.depth[..., 0].reshape(-1) / (dn @ f)  # depth is along the view direction
-    keep = front >= 0
-    p = o[keep] + dn[keep] * t[keep, None]
-    refl = dn[keep] - 2.0 * (dn[keep] * n_world[keep]).sum(1)[:, None] * n_world[keep]
+    # (one level) does, hit for hit, in fewer steps.
+    n = layers.world_normals(0).reshape(-1, 3)[covered]
+    dn = d[covered]
+    refl = dn - 2.0 * (dn * n).sum(1)[:, None] * n
     hssr = lt.trace(layers, p, refl, tracer="hssr")
     one = lt.trace(layers, p, refl, tracer="hssr", hssr_levels=1)
     assert (hssr["hit"] == one["hit"]).all() and (hssr["triangle"] == one["triangle"]).all()
+    assert (hssr["pixel"] == one["pixel"]).all() and (hssr["layer"] == one["layer"]).all()
     assert hssr["iterations"].mean() < 0.6 * one["iterations"].mean(), "the hierarchy skips cells"
     assert hssr["hit"].mean() > 0.5
     # Embree, the geometric truth, on the same rays: a sanity bound on the screen-space answers
