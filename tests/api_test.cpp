@@ -7,6 +7,7 @@
 #include <glm/geometric.hpp>
 
 #include "layertrace/api/layertrace.h"
+#include "layertrace/app/commands.h"
 #include "layertrace/eval/classify.h"
 #include "layertrace/pipeline/tracer_registry.h"
 #include "test_util.h"
@@ -275,6 +276,79 @@ TEST(Api, DepthBufferOfAPlaneIsHitWhereItIs) {
   EXPECT_EQ(h.x, 20);
   EXPECT_EQ(h.y, 10);
   EXPECT_NEAR(-h.point.z, 5.0f, 0.05f);
+}
+
+// A scene file loads as the CLI loads it: its cameras, the CLI's default view with its clip
+// planes, and a render of any effect with parameters and a preset that is the CLI's render.
+TEST(Api, LoadedScenesRenderAsTheCli) {
+  const TriangleScene scene = TriangleScene::load(test::sourceDir() + "/scenes/default.json");
+  EXPECT_EQ(scene.cameraNames(), (std::vector<std::string>{"main", "low"}));
+  const Frame f = buildFrame(test::defaultSceneOptions(96, 64));
+  const View view = scene.view("", 96, 64);
+  EXPECT_EQ(view.eye, f.camera.desc().eye);
+  EXPECT_EQ(view.target, f.camera.desc().target);
+  EXPECT_EQ(view.fovY, f.camera.desc().fovY);
+  EXPECT_EQ(view.near, f.camera.near());
+  EXPECT_EQ(view.far, f.camera.far());
+  EXPECT_EQ(scene.triangleCount(), f.scene.triangleCount());
+  for (const char* effect : {"ao", "reflection", "warp"}) {
+    SCOPED_TRACE(effect);
+    RenderRequest r;
+    r.view = view;
+    r.effect = effect;
+    r.aoSamples = 2;
+    r.params = TracerParams("paper").set("hssr-tau", "12");
+    const glm::vec3 second = view.eye + glm::vec3(0.3f, 0.1f, 0.0f);
+    if (std::string(effect) == "warp") r.warpEye = second;
+    const RgbImage api = render(scene, r);
+    RenderOptions o;
+    o.run.frame = test::defaultSceneOptions(96, 64);
+    o.tracer = "hssr";
+    o.effect.effect = parseEffect(effect);
+    o.effect.aoSamples = 2;
+    o.effect.countRays = false;
+    if (std::string(effect) == "warp") o.effect.warpEye = glm::dvec3(second);
+    o.tracers = presetOptions("paper");
+    o.tracers.preset = "paper";
+    o.tracers.pyramid.tau = 12.0f;
+    o.repeat = 1;
+    o.run.quiet = true;
+    const RenderOutput cli = renderFrame(o);
+    ASSERT_EQ(api.rgb.size(), cli.result.image.data.size());
+    size_t differ = 0;
+    for (size_t i = 0; i < api.rgb.size(); ++i) differ += api.rgb[i] != cli.result.image.data[i];
+    EXPECT_EQ(differ, 0u);
+  }
+  expectInvalid("camera \"nope\"", [&] { (void)scene.view("nope", 96, 64); });
+  expectInvalid("missing.obj: file not found", [] { (void)TriangleScene::load("missing.obj"); });
+}
+
+// Parameters by name reach the tracers, with the CLI's checks and messages.
+TEST(Api, TracerParametersByName) {
+  for (const TracerParam& p : tracerParams()) EXPECT_EQ(TracerParams().get(p.flag + 2), paramValue(p, TracerOptions{})) << p.flag;
+  EXPECT_NE(TracerParams("paper").get("hssr-levels"), TracerParams().get("hssr-levels"));  // the paper's level count
+  EXPECT_EQ(TracerParams().set("hssr-tau", "25").get("hssr-tau"), "25");
+  EXPECT_EQ(TracerParams::names().size(), tracerParams().size());
+  expectInvalid("--hssr-tau many: not a number", [] { TracerParams().set("hssr-tau", "many"); });
+  expectInvalid("parameter \"hssr-nope\": unknown", [] { TracerParams().set("hssr-nope", "1"); });
+  expectInvalid("--preset fast: unknown (use tuned or paper)", [] { TracerParams p("fast"); });
+  const Frame f = defaultFrame();
+  const View view = viewOf(f.camera);
+  const TriangleScene scene(f.scene.positions, f.scene.triangles);
+  const ScreenLayers layers = captureLayers(scene, view, 4);
+  const std::vector<Ray> rays = test::sampleRays(f, 4000, test::testSeed() + 71);
+  std::vector<TraceHit> a(rays.size()), b(rays.size()), c(rays.size()), d(rays.size());
+  ScreenTracer(layers, "hssr").trace(rays, a);
+  ScreenTracer(layers, "hssr", TracerParams().set("hssr-levels", "1")).trace(rays, b);  // the exhaustive march
+  ScreenTracer(layers, "ssr").trace(rays, c);
+  ScreenTracer(layers, "ssr", TracerParams().set("ssr-stride", "8")).trace(rays, d);
+  size_t hssrDiffer = 0, ssrDiffer = 0;
+  for (size_t i = 0; i < rays.size(); ++i) {
+    hssrDiffer += a[i].hit != b[i].hit || a[i].x != b[i].x || a[i].y != b[i].y || a[i].layer != b[i].layer;
+    ssrDiffer += c[i].hit != d[i].hit || c[i].x != d[i].x || c[i].y != d[i].y;
+  }
+  EXPECT_EQ(hssrDiffer, 0u);
+  EXPECT_GT(ssrDiffer, rays.size() / 100) << "a stride of 8 skips pixels";
 }
 
 }  // namespace

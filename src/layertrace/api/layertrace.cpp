@@ -10,6 +10,7 @@
 #include <glm/geometric.hpp>
 
 #include "layertrace/eval/classify.h"
+#include "layertrace/pipeline/frame.h"
 #include "layertrace/pipeline/tracer_registry.h"
 #include "layertrace/render/effects.h"
 #include "layertrace/util/error.h"
@@ -48,6 +49,23 @@ auto guarded(F&& f) -> decltype(f()) {
 }
 
 [[noreturn]] void invalid(const std::string& message) { throw std::invalid_argument(message); }
+
+/// The registry parameter named `name` (its flag without the dashes).
+const TracerParam& paramNamed(const std::string& name) {
+  for (const TracerParam& p : tracerParams())
+    if (name == p.flag + 2 || (*p.alias && name == p.alias + 2)) return p;
+  invalid(cat("parameter \"", name, "\": unknown (layertrace tracers lists every parameter)"));
+}
+
+/// The library's options for `params`: the preset, then every value set, as the CLI applies them.
+TracerOptions tracerOptions(const TracerParams& params) {
+  return guarded([&] {
+    TracerOptions o = presetOptions(params.preset());
+    o.preset = params.preset();
+    for (const auto& [name, value] : params.values()) setParamValue(paramNamed(name), o, value);
+    return o;
+  });
+}
 
 Camera cameraOf(const View& v) {
   if (v.width < 1 || v.height < 1 || v.width > 32768 || v.height > 32768)
@@ -236,10 +254,51 @@ ScreenLayers ScreenLayers::fromFragments(const View& view, std::span<const uint3
 
 // ---- ScreenTracer ----------------------------------------------------------------------------
 
-ScreenTracer::ScreenTracer(const ScreenLayers& layers, const std::string& name) : impl_(std::make_unique<Impl>()) {
+// ---- TracerParams ----------------------------------------------------------------------------
+
+TracerParams::TracerParams(const std::string& preset) : preset_(preset) {
+  guarded([&] { (void)presetOptions(preset); });  // the CLI's message for an unknown preset
+}
+
+TracerParams& TracerParams::set(const std::string& name, const std::string& value) {
+  const TracerParam& p = paramNamed(name);
+  guarded([&] {
+    TracerOptions scratch;
+    setParamValue(p, scratch, value);  // checks the value as the CLI does
+    validateTracerOptions(scratch);
+  });
+  const std::string canonical = p.flag + 2;
+  for (auto& [n, v] : values_)
+    if (n == canonical) {
+      v = value;
+      return *this;
+    }
+  values_.emplace_back(canonical, value);
+  return *this;
+}
+
+std::string TracerParams::get(const std::string& name) const {
+  const TracerParam& p = paramNamed(name);
+  for (const auto& [n, v] : values_)
+    if (n == p.flag + 2) return v;
+  return guarded([&] { return paramValue(p, presetOptions(preset_)); });
+}
+
+std::vector<std::string> TracerParams::names() {
+  std::vector<std::string> out;
+  for (const TracerParam& p : tracerParams()) out.emplace_back(p.flag + 2);
+  return out;
+}
+
+ScreenTracer::ScreenTracer(const ScreenLayers& layers, const std::string& name, const TracerParams& params)
+    : impl_(std::make_unique<Impl>()) {
   if (!isScreenTracer(name)) invalid(cat("tracer \"", name, "\": not a screen tracer (use hssr, hiz, ssr, ssr-layers or quadtree)"));
   impl_->layers = &layers.impl();
-  impl_->built = guarded([&] { return buildTracer(name, layers.impl().frame, TracerOptions{}); });
+  const TracerOptions options = tracerOptions(params);
+  impl_->built = guarded([&] {
+    validateTracerOptions(options);
+    return buildTracer(name, layers.impl().frame, options);
+  });
 }
 ScreenTracer::ScreenTracer(ScreenTracer&&) noexcept = default;
 ScreenTracer::~ScreenTracer() = default;
@@ -281,12 +340,52 @@ TriangleScene::TriangleScene(TriangleScene&&) noexcept = default;
 TriangleScene::~TriangleScene() = default;
 size_t TriangleScene::triangleCount() const { return impl_->scene.triangleCount(); }
 
-MeshTracer::MeshTracer(const TriangleScene& scene, const View& view, const std::string& name)
+TriangleScene::TriangleScene(std::unique_ptr<Impl> impl) : impl_(std::move(impl)) {}
+
+TriangleScene TriangleScene::load(const std::string& path) {
+  auto impl = std::make_unique<Impl>();
+  FrameOptions o;
+  o.scenePath = path;
+  Frame frame;
+  guarded([&] { loadFrameScene(o, frame); });  // the CLI's loading: textures on, lightmaps off
+  impl->scene = std::move(frame.scene);
+  return TriangleScene(std::move(impl));
+}
+
+std::vector<std::string> TriangleScene::cameraNames() const {
+  std::vector<std::string> names;
+  for (const CameraDesc& c : impl_->scene.cameras) names.push_back(c.name);
+  return names;
+}
+
+View TriangleScene::view(const std::string& camera, int width, int height) const {
+  const Scene& s = impl_->scene;
+  CameraDesc desc;
+  if (camera.empty()) {
+    desc = s.cameras.empty() ? autoCamera(s) : s.cameras.front();
+  } else {
+    const auto it = std::find_if(s.cameras.begin(), s.cameras.end(), [&](const CameraDesc& c) { return c.name == camera; });
+    if (it == s.cameras.end()) invalid(cat("camera \"", camera, "\": not in the scene (", cameraNames().size(), " cameras)"));
+    desc = *it;
+  }
+  desc = guarded([&] { return withClipPlanes(desc, s); });  // the CLI's near and far planes
+  View v;
+  v.width = width, v.height = height;
+  v.eye = desc.eye, v.target = desc.target, v.up = desc.up, v.fovY = desc.fovY;
+  v.near = desc.near, v.far = desc.far;
+  (void)cameraOf(v);  // the size and the pose checked as every View is
+  return v;
+}
+
+glm::dvec3 TriangleScene::origin() const { return impl_->scene.origin; }
+
+MeshTracer::MeshTracer(const TriangleScene& scene, const View& view, const std::string& name, const TracerParams& params)
     : impl_(std::make_unique<Impl>()) {
   if (name != "embree" && name != "grid") invalid(cat("tracer \"", name, "\": not a geometric tracer (use embree or grid)"));
   impl_->frame.scene = scene.impl().scene;
   impl_->frame.camera = cameraOf(view);
-  impl_->built = guarded([&] { return name == "embree" ? buildReference(impl_->frame) : buildTracer(name, impl_->frame, TracerOptions{}); });
+  const TracerOptions options = tracerOptions(params);
+  impl_->built = guarded([&] { return name == "embree" ? buildReference(impl_->frame) : buildTracer(name, impl_->frame, options); });
 }
 MeshTracer::MeshTracer(MeshTracer&&) noexcept = default;
 MeshTracer::~MeshTracer() = default;
@@ -324,8 +423,9 @@ Frame capturedFrame(const TriangleScene& scene, const View& view, int k, float t
   Frame frame;
   frame.camera = cameraOf(view);
   frame.thicknessPerDepth = thicknessPerDepth(frame.camera, thicknessPx);
-  frame.lights.push_back(defaultLight(frame.camera));
   frame.scene = scene.impl().scene;
+  frame.lights = frame.scene.lights;  // the scene's, else one above the eye (as the CLI)
+  if (frame.lights.empty()) frame.lights.push_back(defaultLight(frame.camera));
   FrameOptions fo;
   fo.layers = k;
   guarded([&] { rasterizeFrame(fo, frame); });
@@ -353,14 +453,20 @@ void RgbImage::savePng(const std::string& path) const {
 RgbImage render(const TriangleScene& scene, const RenderRequest& r) {
   if (!isKnownTracer(r.tracer)) invalid(cat("tracer \"", r.tracer, "\": unknown (use ", tracerNames(), ")"));
   if (r.layers < 1 || r.layers > 16) invalid(cat("layers ", r.layers, ": must be between 1 and 16"));
+  const TracerOptions options = tracerOptions(r.params);
   return guarded([&] {
+    validateTracerOptions(options);
     EffectConfig ec;
     ec.effect = parseEffect(r.effect);
     ec.bounces = r.bounces;
-    if (ec.effect == Effect::Warp) invalid("effect \"warp\": needs a second view (use the CLI)");
+    ec.aoSamples = r.aoSamples;
+    ec.maxDistance = r.maxDistance;
+    ec.seed = r.seed;
+    if (r.warpEye) ec.warpEye = scene.impl().scene.toWorld(*r.warpEye);
+    if (r.warpTarget) ec.warpTarget = scene.impl().scene.toWorld(*r.warpTarget);
     validateEffectConfig(ec);
     const Frame frame = capturedFrame(scene, r.view, r.layers, kDefaultThicknessPx);
-    const BuiltTracer built = buildTracer(r.tracer, frame, TracerOptions{});
+    const BuiltTracer built = buildTracer(r.tracer, frame, options);
     ec.countRays = false;  // no counters asked for: the counter-free tracer, and its vector marches
     const EffectResult result = renderEffect(frame, *built.tracer, ec);
     RgbImage out;

@@ -23,11 +23,14 @@
 
 #include <cstdint>
 #include <memory>
+#include <optional>
 #include <span>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include <glm/vec3.hpp>
+#include <glm/ext/vector_double3.hpp>
 
 #include "layertrace/api/export.h"
 #include "layertrace/trace/tracer.h"
@@ -93,13 +96,35 @@ class LAYERTRACE_API ScreenLayers {
 /// Which space rays (and the hits returned for them) are in.
 enum class RaySpace : uint8_t { Camera, World };
 
+/// Method parameters by their registry names, the CLI's flags without the dashes ("hssr-tau",
+/// "ssr-stride", "quadtree-plane-error"; `layertrace tracers` lists every one with its default),
+/// over a preset: "tuned" (the defaults) or "paper" (every method as published). A value set
+/// here wins over the preset's, as a flag beside --preset does. set() checks the name and the
+/// value at once (std::invalid_argument with the CLI's message).
+class LAYERTRACE_API TracerParams {
+ public:
+  explicit TracerParams(const std::string& preset = "tuned");
+  TracerParams& set(const std::string& name, const std::string& value);
+  /// The value in effect, as the CLI prints it ("4", "true").
+  std::string get(const std::string& name) const;
+  const std::string& preset() const { return preset_; }
+  /// The values set, by canonical name, in the order first set.
+  const std::vector<std::pair<std::string, std::string>>& values() const { return values_; }
+  /// Every parameter's name, in `layertrace tracers`' order.
+  static std::vector<std::string> names();
+
+ private:
+  std::string preset_;
+  std::vector<std::pair<std::string, std::string>> values_;
+};
+
 /// A screen-space tracer over ScreenLayers (which must outlive it): "hssr" (Hofmann et al. 2017's
 /// hierarchical tracer, exact against its oracle), "hiz", "ssr", "ssr-layers" or "quadtree".
 /// It builds the structure it needs (e.g. the interval pyramid) once; std::invalid_argument for
 /// another name. Its trace calls may run concurrently from several threads.
 class LAYERTRACE_API ScreenTracer {
  public:
-  explicit ScreenTracer(const ScreenLayers& layers, const std::string& name = "hssr");
+  explicit ScreenTracer(const ScreenLayers& layers, const std::string& name = "hssr", const TracerParams& params = TracerParams());
   ScreenTracer(ScreenTracer&&) noexcept;
   ~ScreenTracer();
 
@@ -135,10 +160,26 @@ class LAYERTRACE_API TriangleScene {
   ~TriangleScene();
   size_t triangleCount() const;
 
+  /// A scene file as the CLI reads it: any model assimp reads (OBJ, glTF, PLY, Collada, IFC,
+  /// FBX, …), a Quake 3 .pk3 or a JSON scene with its materials, textures, lights and cameras.
+  /// std::invalid_argument naming the file for one that cannot be read.
+  static TriangleScene load(const std::string& path);
+  /// The scene's named cameras (a JSON scene's, then the model's), in file order.
+  std::vector<std::string> cameraNames() const;
+  /// A camera's view at width × height, with the near and far planes the CLI derives from the
+  /// scene; `camera` empty: the CLI's default view (the first camera, else one framing the
+  /// whole scene).
+  View view(const std::string& camera, int width, int height) const;
+  /// Where the scene's coordinates start in the file's: a scene far from the origin is moved
+  /// next to it on loading (its vertices keep their float precision), and every View and Ray of
+  /// this API is in the moved coordinates; zero for most scenes.
+  glm::dvec3 origin() const;
+
   struct Impl;  ///< layertrace's own use
   const Impl& impl() const { return *impl_; }
 
  private:
+  explicit TriangleScene(std::unique_ptr<Impl> impl);
   std::unique_ptr<Impl> impl_;
 };
 
@@ -149,7 +190,7 @@ class LAYERTRACE_API TriangleScene {
 /// occluded validate their arguments as ScreenTracer's do.
 class LAYERTRACE_API MeshTracer {
  public:
-  MeshTracer(const TriangleScene& scene, const View& view, const std::string& name = "embree");
+  MeshTracer(const TriangleScene& scene, const View& view, const std::string& name = "embree", const TracerParams& params = TracerParams());
   MeshTracer(MeshTracer&&) noexcept;
   ~MeshTracer();
   void trace(std::span<const Ray> rays, std::span<TraceHit> hits, RaySpace space = RaySpace::Camera) const;
@@ -192,9 +233,17 @@ struct LAYERTRACE_API RgbImage {
 struct RenderRequest {
   View view;
   std::string tracer = "hssr";
-  std::string effect = "reflection";  ///< shade, reflection, refraction, ao, shadow
+  std::string effect = "reflection";  ///< shade, reflection, refraction, ao, shadow, warp
   int bounces = 1;
   int layers = 4;
+  TracerParams params;  ///< the tracer's parameters and preset
+  int aoSamples = 8;         ///< AO rays per pixel
+  float maxDistance = 0.0f;  ///< ray length (0: the scene's diagonal)
+  /// warp (view synthesis): the second view's eye (required) and target (default: the first
+  /// view's), in the scene's coordinates; the image is the second view's, traced through the
+  /// first view's layers.
+  std::optional<glm::vec3> warpEye, warpTarget;
+  uint64_t seed = 1;  ///< the random sequence of AO and refraction, as the CLI's --seed
 };
 LAYERTRACE_API RgbImage render(const TriangleScene& scene, const RenderRequest& request);
 
