@@ -837,6 +837,15 @@ TEST(CliConvention, OlderFlagSpellingsSetTheSameParameters) {
   ASSERT_EQ(test::runCli("render --help", nullptr, &out), 0);
   EXPECT_NE(out.find("--hssr-tau"), std::string::npos);
   EXPECT_EQ(out.find("--tau "), std::string::npos);
+  // A switch shows its default and its off spelling in words, not CLI11's "{false}".
+  EXPECT_EQ(out.find("{false}"), std::string::npos);
+  EXPECT_NE(out.find("(default on; --no-hssr-parent-ascent turns it off)"), std::string::npos);
+  // Every --repeat of the measuring commands reads the same.
+  std::string help;
+  for (const char* cmd : {"bench", "reproduce", "geobench"}) {
+    ASSERT_EQ(test::runCli(std::string(cmd) + " --help", nullptr, &help), 0);
+    EXPECT_NE(help.find("timed runs of each measured time; the median is reported"), std::string::npos) << cmd;
+  }
 }
 
 // `layertrace tracers` lists every tracer of the registry with its parameters and defaults, and
@@ -849,6 +858,16 @@ TEST(CliConvention, TracersAndVersionDescribeTheBuild) {
   for (const TracerParam& p : tracerParams())
     EXPECT_NE(out.find(std::string(p.flag) + " " + paramValue(p, defaults) + " "), std::string::npos) << p.flag;
   for (const char* effect : {"shade", "reflection", "refraction", "ao", "shadow", "warp"}) EXPECT_NE(out.find(effect), std::string::npos);
+  // Each tracer lists exactly the parameters it reads: Hi-Z the level count alone.
+  for (const TracerEntry& e : tracerRegistry()) {
+    const size_t at = out.find(std::string("\n  ") + e.info.name + ": ");
+    const std::string section = out.substr(at, out.find("\n\n", at + 1) - at);
+    for (const TracerParam& p : tracerParams())
+      EXPECT_EQ(section.find(std::string("    ") + p.flag + " ") != std::string::npos, e.reads(p)) << e.info.name << " " << p.flag;
+  }
+  const TracerEntry* hiz = findTracer("hiz");
+  ASSERT_NE(hiz, nullptr);
+  EXPECT_EQ(std::count_if(tracerParams().begin(), tracerParams().end(), [&](const TracerParam& p) { return hiz->reads(p); }), 1);
   ASSERT_EQ(test::runCli("--version", nullptr, &out), 0);
   EXPECT_EQ(out.rfind(std::string("layertrace ") + LAYERTRACE_VERSION_TEST + " (commit ", 0), 0u) << out;
   // No arguments: the help on stdout, status 0; options without a subcommand: one line, status 2.

@@ -103,6 +103,16 @@ void addFrameOptions(CLI::App* app, lt::RunOptions& run, RawFrameOptions& raw, c
   app->add_flag("--quiet", run.quiet, "no progress or summary output");
 }
 
+/// An on/off switch: `flag` turns it on, `--no-` and the rest of its name off. The help names
+/// the default and the off spelling, which is not listed apart (CLI11 would show a negated
+/// name's value, "{false}", beside it). `hidden`: an older spelling, not in the help.
+void addSwitch(CLI::App* app, const std::string& flag, bool& field, const std::string& help, bool hidden = false) {
+  const std::string off = "--no-" + flag.substr(2);
+  CLI::Option* on = app->add_flag(flag, field, help + (field ? lt::cat(" (default on; ", off, " turns it off)") : " (default off)"));
+  app->add_flag_callback(off, [&field] { field = false; })->group("");
+  if (hidden) on->group("");
+}
+
 /// A registry parameter's flag, bound to its field in `options`; its older spelling, if any, is a
 /// hidden alias bound to the same field.
 void addParam(CLI::App* app, const lt::TracerParam& p, lt::TracerOptions& options) {
@@ -110,9 +120,8 @@ void addParam(CLI::App* app, const lt::TracerParam& p, lt::TracerOptions& option
   std::visit(
       [&](auto* field) {
         if constexpr (std::is_same_v<decltype(field), bool*>) {
-          const auto names = [](const std::string& flag) { return flag + ",!--no-" + flag.substr(2); };
-          app->add_flag(names(p.flag), *field, help + (*field ? " (default on)" : " (default off)"));
-          if (*p.alias) app->add_flag(names(p.alias), *field)->group("");
+          addSwitch(app, p.flag, *field, help);
+          if (*p.alias) addSwitch(app, p.alias, *field, help, true);
         } else {
           app->add_option(p.flag, *field, help)->capture_default_str();
           if (*p.alias) app->add_option(p.alias, *field)->group("");
@@ -137,7 +146,8 @@ void finishPreset(const CLI::App* cmd, lt::TracerOptions& t) {
   lt::applyPreset(t.preset, t, [cmd](const lt::TracerParam& p) {
     for (const char* flag : {p.flag, p.alias})
       if (*flag)
-        if (const CLI::Option* o = cmd->get_option_no_throw(flag); o && o->count() > 0) return true;
+        for (const std::string& name : {std::string(flag), "--no-" + std::string(flag + 2)})  // a switch's off spelling too
+          if (const CLI::Option* o = cmd->get_option_no_throw(name); o && o->count() > 0) return true;
     return false;
   });
 }
@@ -286,8 +296,8 @@ int runCliImpl(int argc, const char* const* argv, CliMode mode, CliCommand* pars
   compareCmd->add_option("--report", compare.report, "also write an HTML report (one self-contained page) to this folder (default: the output folder)")
       ->expected(0, 1);
   compareCmd->add_option("--repeat", compare.repeat, "timed passes of the trace without counters, after the counted pass (the warm-up); the trace time is their median")->capture_default_str();
-  compareCmd->add_flag("--check-exhaustive,!--no-check-exhaustive", compare.checkExhaustive,
-                       "check every image-space ray against the exhaustive oracle (exhaustive_mismatch; default on)");
+  addSwitch(compareCmd, "--check-exhaustive", compare.checkExhaustive,
+            "check every image-space ray against the exhaustive oracle (exhaustive_mismatch)");
   compareCmd->add_flag("--check-oracle", compare.checkOracle,
                        "also check every image-space ray against the independent oracle (slow; oracle_mismatch)");
 
@@ -302,7 +312,7 @@ int runCliImpl(int argc, const char* const* argv, CliMode mode, CliCommand* pars
   benchCmd->add_option("--tracer", bench.tracer, "frame: the tracer (on --device gpu: hssr, hiz or exhaustive)")->capture_default_str();
   benchCmd->add_option("--frames", bench.frames, "frame: frames along the orbit (the summary is the median of those after the first)")->capture_default_str();
   benchCmd->add_flag("--images", bench.images, "frame: also read back and write each frame's picture (frame_NNNN.png)");
-  benchCmd->add_option("--repeat", bench.repeat, "runs per measurement (the median is reported)")->capture_default_str();
+  benchCmd->add_option("--repeat", bench.repeat, "timed runs of each measured time; the median is reported")->capture_default_str();
   addTracerOptions(benchCmd, bench.options);
   benchCmd->add_option("--report", bench.report, "also write an HTML report to this folder (default: the output folder)")->expected(0, 1);
 
@@ -317,7 +327,7 @@ int runCliImpl(int argc, const char* const* argv, CliMode mode, CliCommand* pars
   reproduceCmd->add_flag("--quick", reproduce.quick, "the default scene at 640x360, one timed run (under a minute); exit 1 if a claim's outcome differs from the documented one");
   reproduceCmd->add_option("--width", reproduceWidth, "image width (default 1280, --quick 640)");
   reproduceCmd->add_option("--height", reproduceHeight, "image height (default 720, --quick 360)");
-  reproduceCmd->add_option("--repeat", reproduce.repeat, "timed runs per time (the median is reported)")->capture_default_str();
+  reproduceCmd->add_option("--repeat", reproduce.repeat, "timed runs of each measured time; the median is reported")->capture_default_str();
   reproduceCmd->add_option("--threads", reproduce.run.threads, "worker threads (0 = all cores)")->capture_default_str();
   reproduceCmd->add_option("--seed", reproduce.run.seed, "random seed")->capture_default_str()->check(CLI::NonNegativeNumber);
   reproduceCmd->add_flag("--quiet", reproduce.run.quiet, "no progress or summary output");
@@ -331,7 +341,7 @@ int runCliImpl(int argc, const char* const* argv, CliMode mode, CliCommand* pars
   CLI::App* geobenchCmd = app.add_subcommand("geobench", "geometric tracers (grid vs embree): build, memory, MRays/s, agreement");
   addFrameOptions(geobenchCmd, geobench.run, geobenchRaw, "output folder (default out/geobench; statistics in geobench.json)");
   addTracerOptions(geobenchCmd, geobench.tracers, {"grid"});
-  geobenchCmd->add_option("--repeat", geobench.repeat, "runs per timing (the median is reported)")->capture_default_str();
+  geobenchCmd->add_option("--repeat", geobench.repeat, "timed runs of each measured time; the median is reported")->capture_default_str();
   geobenchCmd->add_flag("--sweep", geobench.sweep, "also sweep lambda1 x lambda2: build time vs traversal time");
 
   lt::LdcOptions ldc;

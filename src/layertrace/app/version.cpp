@@ -53,7 +53,7 @@ std::string tracersText() {
     if (*e.info.paper) s << "    paper: " << e.info.paper << "\n";
     for (const char* group : e.groups)
       for (const TracerParam& p : tracerParams())
-        if (std::string_view(p.group) == group) {
+        if (std::string_view(p.group) == group && e.reads(p)) {
           s << "    " << p.flag << " " << paramValue(p, defaults) << "  " << p.help;
           if (*p.alias) s << " (also " << p.alias << ")";
           s << "\n";

@@ -24,8 +24,7 @@ double msSince(std::chrono::steady_clock::time_point t0) {
 std::string structureKey(const TracerEntry& entry, const TracerOptions& o) {
   std::string key = entry.info.name;
   for (const TracerParam& p : tracerParams())
-    for (const char* group : entry.groups)
-      if (std::string_view(p.group) == group) key += ' ' + paramValue(p, o);
+    if (entry.reads(p)) key += ' ' + paramValue(p, o);
   return key;
 }
 

@@ -1,5 +1,6 @@
 #include "layertrace/pipeline/tracer_registry.h"
 
+#include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <limits>
@@ -253,7 +254,7 @@ std::span<const TracerEntry> tracerRegistry() {
   static const TracerEntry entries[] = {
       {kSsrMethod, {"ssr"}, [](const Frame& f, const TracerOptions& o) { return buildSsr(f, o, false); }},
       {kSsrLayersMethod, {"ssr"}, [](const Frame& f, const TracerOptions& o) { return buildSsr(f, o, true); }},
-      {kHizMethod, {"hssr"}, buildHiz},
+      {kHizMethod, {"hssr"}, buildHiz, nullptr, {"--hssr-levels"}},
       {kHssrMethod, {"hssr"}, buildHssr, [](const TracerOptions& o, FrameOptions& f) { f.pyramid = o.pyramid; }},
       {kQuadtreeMethod, {"quadtree"}, buildQuadtreeTracer},
       {kLdcMethod, {"ldc"}, buildLdcTracer},
@@ -277,6 +278,11 @@ const std::string& tracerNames() {
     return s;
   }();
   return names;
+}
+
+bool TracerEntry::reads(const TracerParam& param) const {
+  if (std::none_of(groups.begin(), groups.end(), [&](const char* g) { return std::string_view(g) == param.group; })) return false;
+  return only.empty() || std::any_of(only.begin(), only.end(), [&](const char* f) { return std::string_view(f) == param.flag; });
 }
 
 void prepareCapture(std::string_view name, const TracerOptions& options, FrameOptions& frame) {

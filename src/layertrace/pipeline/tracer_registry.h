@@ -88,6 +88,11 @@ struct TracerEntry {
   /// What the capture builds for this tracer while it rasterizes (HSSR: its interval pyramid,
   /// tile by tile, Frame::pyramid), asked for in the frame's options; null for none.
   void (*prepareCapture)(const TracerOptions& options, FrameOptions& frame) = nullptr;
+  /// Where it reads only some parameters of its groups: their flags (Hi-Z reads the HSSR
+  /// group's level count alone); empty: every parameter of its groups.
+  std::vector<const char*> only = {};
+  /// Whether it reads `param` (what `layertrace tracers` lists under it).
+  bool reads(const TracerParam& param) const;
 };
 /// Asks the capture for what the tracer `name` can have built with it (TracerEntry::prepareCapture).
 void prepareCapture(std::string_view name, const TracerOptions& options, FrameOptions& frame);
