@@ -3,7 +3,8 @@
 #   1. no development history in the product (those words belong in git log and CHANGELOG.md);
 #   2. no citation of files a clone does not have;
 #   3. every relative link in README.md and docs/ points to a file that exists;
-#   4. docs/cli.md lists exactly the flags the binary's --help gives (scripts/cli-reference.sh).
+#   4. docs/cli.md lists exactly the flags the binary's --help gives (scripts/cli-reference.sh);
+#   5. the binary's version is CHANGELOG.md's newest release.
 # Usage: tests/docs_test.sh BIN SOURCE_DIR
 set -uo pipefail
 bin=$1
@@ -39,4 +40,7 @@ actual=$(awk -v m="$marker" 'index($0, m) == 1 { on = 1 } on { print }' docs/cli
 if [ "$expected" != "$actual" ]; then
   fail "docs/cli.md differs from the binary's --help (run scripts/cli-reference.sh BIN --update):"$'\n'"$(diff <(echo "$actual") <(echo "$expected") | head -40)"
 fi
+version=$("$bin" --version | sed -n '1s/^layertrace \([0-9.]*\) .*/\1/p')
+released=$(sed -n 's/^## \[\([0-9][0-9.]*\)\] .*/\1/p' CHANGELOG.md | head -1)
+[ "$version" = "$released" ] || fail "the binary says version $version, CHANGELOG.md's newest release is $released (bump project(VERSION) in CMakeLists.txt with the CHANGELOG)"
 exit $status
