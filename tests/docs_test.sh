@@ -42,5 +42,7 @@ if [ "$expected" != "$actual" ]; then
 fi
 version=$("$bin" --version | sed -n '1s/^layertrace \([0-9.]*\) .*/\1/p')
 released=$(sed -n 's/^## \[\([0-9][0-9.]*\)\] .*/\1/p' CHANGELOG.md | head -1)
+readme=$(sed -n 's/.*Version \([0-9][0-9.]*[0-9]\).*/\1/p' README.md | head -1)
+[ "$version" = "$readme" ] || fail "the binary says version $version, README.md's Licence section says $readme"
 [ "$version" = "$released" ] || fail "the binary says version $version, CHANGELOG.md's newest release is $released (bump project(VERSION) in CMakeLists.txt with the CHANGELOG)"
 exit $status
