@@ -12,7 +12,7 @@ int main() {
   lt::ScreenTracer(layers, "hssr").trace(rays, hits);
 
   const lt::TriangleScene scene(g.positions, g.triangles);
-  lt::MeshTracer(scene, g.view, "embree").trace(rays, truth);
+  lt::MeshTracer(scene, g.view, "embree-robust").trace(rays, truth);  // the ground truth
   const std::vector<uint8_t> classes = lt::classifyHits(layers, rays, hits, truth);
   size_t count[8] = {};
   for (uint8_t c : classes) ++count[c];

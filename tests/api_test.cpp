@@ -134,9 +134,21 @@ TEST(Api, WorldSpaceRaysAndClassificationAgreeWithTheCameraPath) {
   // The geometric side from the same triangles, and the strict classes.
   const TriangleScene scene(f.scene.positions, f.scene.triangles);
   EXPECT_EQ(scene.triangleCount(), f.scene.triangleCount());
-  const MeshTracer embree(scene, view);
+  const MeshTracer embree(scene, view, "embree-robust");  // the ground truth, as compare's
   std::vector<TraceHit> truth(rays.size());
   embree.trace(rays, truth);
+  // One name, one meaning: "embree" is the CLI's plain Embree, "embree-robust" the reference.
+  std::vector<TraceHit> plain(rays.size());
+  MeshTracer(scene, view, "embree").trace(rays, plain);
+  const BuiltTracer cliEmbree = buildTracer("embree", f, TracerOptions{}), cliRobust = buildTracer("embree-robust", f, TracerOptions{});
+  for (size_t i = 0; i < rays.size(); i += 37) {
+    RayCounters c;
+    const TraceHit a = cliEmbree.tracer->trace(rays[i], c), b = cliRobust.tracer->trace(rays[i], c);
+    ASSERT_EQ(plain[i].hit, a.hit) << i;
+    ASSERT_EQ(truth[i].hit, b.hit) << i;
+    EXPECT_TRUE(!a.hit || plain[i].triangle == a.triangle) << i;
+    EXPECT_TRUE(!b.hit || truth[i].triangle == b.triangle) << i;
+  }
   const std::vector<uint8_t> classes = classifyHits(layers, rays, cam, truth);
   size_t correct = 0;
   for (size_t i = 0; i < rays.size(); ++i) {

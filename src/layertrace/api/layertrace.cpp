@@ -381,11 +381,12 @@ glm::dvec3 TriangleScene::origin() const { return impl_->scene.origin; }
 
 MeshTracer::MeshTracer(const TriangleScene& scene, const View& view, const std::string& name, const TracerParams& params)
     : impl_(std::make_unique<Impl>()) {
-  if (name != "embree" && name != "grid") invalid(cat("tracer \"", name, "\": not a geometric tracer (use embree or grid)"));
+  if (name != "embree" && name != "embree-robust" && name != "grid")
+    invalid(cat("tracer \"", name, "\": not a geometric tracer (use embree, embree-robust or grid)"));
   impl_->frame.scene = scene.impl().scene;
   impl_->frame.camera = cameraOf(view);
   const TracerOptions options = tracerOptions(params);
-  impl_->built = guarded([&] { return name == "embree" ? buildReference(impl_->frame) : buildTracer(name, impl_->frame, options); });
+  impl_->built = guarded([&] { return buildTracer(name, impl_->frame, options); });
 }
 MeshTracer::MeshTracer(MeshTracer&&) noexcept = default;
 MeshTracer::~MeshTracer() = default;

@@ -184,8 +184,10 @@ class LAYERTRACE_API TriangleScene {
 };
 
 /// A geometric tracer over a TriangleScene (which must outlive it), for rays in `view`'s camera
-/// space (or world space): "embree" (Embree 3, robust mode: layertrace's ground truth) or "grid"
-/// (the irregular grid of Pérard-Gayot et al. 2017); std::invalid_argument for another name or an
+/// space (or world space): "embree" (Embree 3 with its default flags, the speed baseline, as the
+/// CLI's --tracer embree), "embree-robust" (Embree 3 in robust mode: layertrace's ground truth,
+/// what `compare` grades against) or "grid" (the irregular grid of Pérard-Gayot et al. 2017);
+/// std::invalid_argument for another name or an
 /// invalid view. Hits carry the triangle index, the exact point and normal, and layer -1; trace and
 /// occluded validate their arguments as ScreenTracer's do.
 class LAYERTRACE_API MeshTracer {
@@ -228,7 +230,7 @@ struct LAYERTRACE_API RgbImage {
 };
 
 /// One effect of a TriangleScene, as `layertrace render` makes it: capture k layers, trace with
-/// `tracer` (any CLI tracer name: hssr, hiz, ssr, ssr-layers, quadtree, ldc, hybrid, embree, grid),
+/// `tracer` (any CLI tracer name: hssr, hiz, ssr, ssr-layers, quadtree, ldc, hybrid, embree, embree-robust, grid),
 /// shade with one point light above the eye.
 struct RenderRequest {
   View view;

@@ -276,7 +276,7 @@ int runCliImpl(int argc, const char* const* argv, CliMode mode, CliCommand* pars
   CLI::App* renderCmd = app.add_subcommand("render", "image of one effect traced with one tracer");
   addFrameOptions(renderCmd, render.run, renderRaw, "output image, .png or .exr (default out/render.png; statistics beside it in render.json)");
   addDeviceOption(renderCmd, render.run);
-  renderCmd->add_option("--tracer", render.tracer, "ssr | ssr-layers | hiz | hssr | quadtree | ldc | hybrid | embree | grid")->capture_default_str();
+  renderCmd->add_option("--tracer", render.tracer, "ssr | ssr-layers | hiz | hssr | quadtree | ldc | hybrid | embree | embree-robust | grid")->capture_default_str();
   addEffectOptions(renderCmd, render.effect, effectName, renderRaw);
   addTracerOptions(renderCmd, render.tracers);
   renderCmd->add_option("--repeat", render.repeat, "timed passes of the trace without counters, after the counted pass (the warm-up); the trace time is their median")->capture_default_str();
@@ -290,7 +290,7 @@ int runCliImpl(int argc, const char* const* argv, CliMode mode, CliCommand* pars
   CLI::App* compareCmd = app.add_subcommand("compare", "same rays through several tracers + Embree: accuracy and cost table");
   addFrameOptions(compareCmd, compare.run, compareRaw, "output folder (default out/compare; statistics in compare.json)");
   addDeviceOption(compareCmd, compare.run);
-  compareCmd->add_option("--tracers", compareTracers, "comma list of ssr, ssr-layers, hiz, hssr, quadtree, ldc, hybrid, embree, grid")->capture_default_str();
+  compareCmd->add_option("--tracers", compareTracers, "comma list of ssr, ssr-layers, hiz, hssr, quadtree, ldc, hybrid, embree, embree-robust, grid")->capture_default_str();
   addEffectOptions(compareCmd, compare.effect, compareEffect, compareRaw);
   addTracerOptions(compareCmd, compare.options);
   compareCmd->add_option("--report", compare.report, "also write an HTML report (one self-contained page) to this folder (default: the output folder)")
@@ -355,7 +355,7 @@ int runCliImpl(int argc, const char* const* argv, CliMode mode, CliCommand* pars
   std::string viewEffect = "reflection";
   CLI::App* viewCmd = app.add_subcommand("view", "interactive viewer: fly through the scene, switch tracers and overlays live");
   addFrameOptions(viewCmd, view.render.run, viewRaw, "scripted mode: write the last traced image (without the UI) to this PNG");
-  viewCmd->add_option("--tracer", view.render.tracer, "ssr | ssr-layers | hiz | hssr | quadtree | ldc | hybrid | embree | grid")->capture_default_str();
+  viewCmd->add_option("--tracer", view.render.tracer, "ssr | ssr-layers | hiz | hssr | quadtree | ldc | hybrid | embree | embree-robust | grid")->capture_default_str();
   addDeviceOption(viewCmd, view.render.run);
   addEffectOptions(viewCmd, view.render.effect, viewEffect, viewRaw);
   addTracerOptions(viewCmd, view.render.tracers);

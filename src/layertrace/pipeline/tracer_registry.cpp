@@ -260,6 +260,7 @@ std::span<const TracerEntry> tracerRegistry() {
       {kLdcMethod, {"ldc"}, buildLdcTracer},
       {kHybridMethod, {"hybrid", "hssr", "quadtree", "ldc", "grid"}, buildHybrid},
       {kEmbreeMethod, {}, [](const Frame& f, const TracerOptions&) { return buildEmbreeTracer(f, EmbreeScene::Mode::Fast); }},
+      {kEmbreeRobustMethod, {}, [](const Frame& f, const TracerOptions&) { return buildReference(f); }},
       {kGridMethod, {"grid"}, buildGrid},
   };
   return entries;

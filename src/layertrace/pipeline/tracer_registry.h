@@ -96,7 +96,7 @@ struct TracerEntry {
 };
 /// Asks the capture for what the tracer `name` can have built with it (TracerEntry::prepareCapture).
 void prepareCapture(std::string_view name, const TracerOptions& options, FrameOptions& frame);
-/// Every tracer: ssr, ssr-layers, hiz, hssr, quadtree, ldc, hybrid, embree, grid.
+/// Every tracer: ssr, ssr-layers, hiz, hssr, quadtree, ldc, hybrid, embree, embree-robust, grid.
 std::span<const TracerEntry> tracerRegistry();
 /// The entry named `name`, or null.
 const TracerEntry* findTracer(std::string_view name);
