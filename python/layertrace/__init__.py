@@ -239,7 +239,8 @@ def render(scene, camera: Optional[Camera], width: int, height: int, tracer: str
            device: str = "cpu", threads: int = 0, **params):
     """``layertrace render``: one effect traced with one tracer. Returns ``(image, stats)``: an
     (H, W, 3) float32 linear image and the statistics ``render`` writes, as a dict."""
-    args = _frame_args("render", _scene(scene), camera, width, height, dict(params, tracer=tracer, effect=effect, device=device))
+    args = _frame_args("render", _scene(scene), camera, width, height,
+                       dict(params, tracer=tracer, effect=effect, device=device, threads=int(threads) or None))
     image, stats = _native.render(args, int(threads))
     return image, json.loads(stats)
 
@@ -260,7 +261,8 @@ def compare(scene, camera: Optional[Camera], width: int, height: int, tracers: S
 
     if isinstance(tracers, str):
         tracers = [tracers]
-    args = _frame_args("compare", _scene(scene), camera, width, height, dict(params, tracers=list(tracers), effect=effect, device=device))
+    args = _frame_args("compare", _scene(scene), camera, width, height,
+                       dict(params, tracers=list(tracers), effect=effect, device=device, threads=int(threads) or None))
     text, pictures = _native.compare(args, int(threads))
     whole = json.loads(text)
     if stats is not None:

@@ -40,12 +40,12 @@ def assert_same_entry(row: dict, cli: dict, where: str) -> None:
 def test_compare_equals_the_cli(tmp_path, which, request):
     scene_path = DEFAULT_SCENE if which == "default" else request.getfixturevalue("fetched_scene")
     tracers = ["ssr", "hssr", "embree"]
-    cli = cli_compare(tmp_path, scene_path, 96, 64, tracers, "--repeat", "1", "--hssr-tau", "12")
+    cli = cli_compare(tmp_path, scene_path, 96, 64, tracers, "--repeat", "1", "--hssr-tau", "12", "--threads", "1")
     scene = lt.load_scene(scene_path)
     whole = {}
-    table = lt.compare(scene, scene.default_camera(), 96, 64, tracers=tracers, repeat=1, hssr_tau=12, stats=whole)
+    table = lt.compare(scene, scene.default_camera(), 96, 64, tracers=tracers, repeat=1, hssr_tau=12, threads=1, stats=whole)
     assert list(table["tracer"]) == tracers
-    assert whole["parameters"] == cli["parameters"]
+    assert whole["parameters"] == cli["parameters"] and whole["threads"] == cli["threads"] == 1
     for _, row in table.iterrows():
         assert_same_entry(row.to_dict(), cli["compare"][row["tracer"]], f"{which} {row['tracer']}")
         assert row["embree_trace_ms"] == whole["reference"]["trace_ms"]
