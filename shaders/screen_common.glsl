@@ -135,6 +135,7 @@ Segment makeSegment(GpuRay ray) {
 
 // screen/interval_layers.h firstMet over the `n` intervals of level 0 from `base`.
 int firstMet(uint base, int n, float zmin, float zmax, bool increasing) {
+  zmax = min(zmax, uintBitsToFloat(0x7f7fffffu));  // the largest finite float, as the CPU's
   int best = -1;
   float bestEntry = 0.0;
   for (int i = 0; i < n; ++i) {

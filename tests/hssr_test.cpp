@@ -3,6 +3,7 @@
 // level count and n_up. Rays: mirror reflections from random covered pixels, and random directions.
 #include <atomic>
 #include <bit>
+#include <cmath>
 #include <cstdlib>
 #include <cstdio>
 #include <random>
@@ -293,6 +294,46 @@ TEST(Hssr, LanesEqualMarchOnAxisParallelSegments) {
                             << first << " of " << segs.size();
       EXPECT_EQ(cellsDiffer, 0u) << "cells tested: levels " << levels << " n_up " << nUp.nUp << " parent ascent " << nUp.newParent;
     }
+  }
+}
+
+/// Rays as long as the API's default (1e30): their far depth 1/k can round to +∞ (k − k₀
+/// cancels to 0), and the level-0 test must still stop at the empty slots' {+∞, +∞} sentinel.
+/// The march over k slots (scalar and lanes) answers as the reference march over each pixel's
+/// count, on every level count.
+TEST(Hssr, VeryLongRaysStopAtTheEmptySlots) {
+  FrameOptions o;
+  o.scenePath = test::sourceDir() + "/scenes/default.json";
+  o.width = 160, o.height = 90;
+  const Frame f = buildFrame(o);
+  const int W = f.camera.width(), H = f.camera.height();
+  std::vector<Ray> rays = test::sampleRays(f, test::sanitizedCount(20000), test::testSeed() + 17);
+  std::vector<ScreenSegment> segs;
+  size_t infinite = 0;
+  for (Ray& r : rays) {
+    r.maxDistance = 1e30f;
+    const ScreenSegment seg = makeScreenSegment(f.camera, r);
+    if (!seg.valid) continue;
+    infinite += std::isinf(1.0f / (seg.k0 + (seg.k1 - seg.k0)));
+    segs.push_back(seg);
+  }
+  ASSERT_GT(infinite, 10u) << "no segment reaches an infinite depth: the case is not exercised";
+  for (int levels : {1, 5}) {
+    const IntervalPyramid p = buildIntervalPyramid(f.layers, f.camera, PyramidConfig{levels, 25.0f});
+    std::vector<MarchHit> lanes(segs.size());
+    std::vector<uint32_t> laneCells(segs.size());
+    hssrMarchBatch(p, levels, AscentRule(2), segs, W, H, lanes, laneCells);
+    size_t differ = 0, lanesDiffer = 0, hits = 0;
+    for (size_t i = 0; i < segs.size(); ++i) {
+      MarchCellCount c, cr;
+      const MarchHit a = hssrMarch(p, levels, AscentRule(2), segs[i], W, H, c), b = hssrMarchReference(p, levels, 2, segs[i], W, H, cr);
+      hits += b.hit();
+      differ += a.x != b.x || a.y != b.y || a.interval != b.interval;
+      lanesDiffer += a.x != lanes[i].x || a.y != lanes[i].y || a.interval != lanes[i].interval;
+    }
+    EXPECT_GT(hits, segs.size() / 10);
+    EXPECT_EQ(differ, 0u) << "levels " << levels;
+    EXPECT_EQ(lanesDiffer, 0u) << "levels " << levels;
   }
 }
 

@@ -120,6 +120,11 @@ def test_trace_answers_camera_rays_with_the_front_layer_and_matches_the_exhausti
     assert (hssr["hit"] == one["hit"]).all() and (hssr["triangle"] == one["triangle"]).all()
     assert (hssr["pixel"] == one["pixel"]).all() and (hssr["layer"] == one["layer"]).all()
     assert hssr["iterations"].mean() < 0.6 * one["iterations"].mean(), "the hierarchy skips cells"
+    # Rays of any length: a far depth that rounds to infinity still stops at the empty slots.
+    far = lt.trace(layers, p, refl, tracer="hssr", max_distance=1e30)
+    far_one = lt.trace(layers, p, refl, tracer="hssr", hssr_levels=1, max_distance=1e30)
+    assert (far["hit"] == far_one["hit"]).all() and (far["triangle"] == far_one["triangle"]).all()
+    assert (far_one["triangle"][far_one["hit"]] >= 0).all(), "no answer from an empty slot"
     assert hssr["hit"].mean() > 0.5
     # Embree, the geometric truth, on the same rays: a sanity bound on the screen-space answers
     # (0.77 of the rays both answer hit the same triangle here; the rest are what the layers

@@ -8,6 +8,8 @@
 #define LAYERTRACE_SCREEN_INTERVAL_LANES_INL_H_
 #endif
 
+#include <limits>
+
 #include "layertrace/util/lanes-inl.h"
 
 HWY_BEFORE_NAMESPACE();
@@ -21,6 +23,7 @@ namespace lt::HWY_NAMESPACE::lanes {
 /// the later interval.
 inline VI firstMetLanes(const VF field[8], int k, VF zmin, VF zmax, M scan, M increasing) {
   const VI none = splat(int32_t(-1)), zero = splat(int32_t(0));
+  zmax = vmin(zmax, splat(std::numeric_limits<float>::max()));  // firstMet's finite far depth
   VI found = none;
   VF bestEntry = splat(0.0f);
   for (int i = 0; i < k; ++i) {

@@ -7,7 +7,9 @@
 // the same data.
 #pragma once
 
+#include <algorithm>
 #include <cstdint>
+#include <limits>
 #include <vector>
 
 #include "layertrace/raster/layer_arrays.h"
@@ -35,8 +37,12 @@ struct IntervalLayers {
 /// layer); when depth shrinks it enters at zmax, and meets first the interval with the largest
 /// entry depth min(back, zmax) (ties: the back-most layer). The independent oracle
 /// (eval/image_oracle.h) states the same rule in 3D.
+/// zmax is taken as at most the largest finite float: a very long ray's far depth can round to
+/// +∞ (1/k with k − k₀ cancelling to 0), and must still stop at the empty slots' {+∞, +∞}
+/// sentinel, as a scan over the pixel's count alone does.
 template <class C>
 int firstMet(const Interval* f, int n, float zmin, float zmax, bool increasing, C& counters) {
+  zmax = std::min(zmax, std::numeric_limits<float>::max());
   int best = -1;
   float bestEntry = 0.0f;
   for (int i = 0; i < n; ++i) {
