@@ -46,6 +46,14 @@ std::optional<tbb::global_control> threadLimit(int threads) {
   return std::optional<tbb::global_control>(std::in_place, tbb::global_control::max_allowed_parallelism, size_t(threads));
 }
 
+/// Runs `work` without the GIL under the thread limit of `threads` (C++ work that may take long).
+template <class F>
+auto withoutGil(int threads, F&& work) {
+  py::gil_scoped_release free;
+  const auto limit = threadLimit(threads);
+  return work();
+}
+
 /// A numpy array over `owner`'s memory: no copy, and the array keeps `owner` alive.
 template <class T, class Owner>
 py::array_t<T> view(std::shared_ptr<Owner> owner, const T* data, std::vector<py::ssize_t> shape) {
@@ -100,7 +108,6 @@ class Layers {
   Layers(const std::vector<std::string>& args, const std::string& device, int threads) {
     const CliCommand c = parse(args);
     lt::FrameOptions fo = c.render.run.frame;
-    options_ = c.render.tracers;
     py::gil_scoped_release free;
     const auto limit = threadLimit(threads);
     frame_ = std::make_shared<lt::Frame>();
@@ -119,18 +126,17 @@ class Layers {
     arrays_->depth.resize(slots);
     arrays_->back.resize(slots);
     arrays_->normal.resize(slots * 3);
+    arrays_->triangle.resize(slots);
     lt::parallelFor(size_t(0), slots, [&](size_t i) {
       const lt::FragmentNode& n = L.slots[i];
       const bool stored = int(i % size_t(L.k)) < int(L.count[i / size_t(L.k)]);
+      arrays_->triangle[i] = stored ? int64_t(L.triangle[i]) : -1;
       const float nan = std::nanf("");
       arrays_->depth[i] = stored ? n.depth : nan;
       arrays_->back[i] = stored ? n.back() : nan;
       const glm::vec3 v = stored ? lt::decodeOctahedral(n.normal) : glm::vec3(nan);
       arrays_->normal[3 * i] = v.x, arrays_->normal[3 * i + 1] = v.y, arrays_->normal[3 * i + 2] = v.z;
     });
-    arrays_->triangle.assign(L.triangle.begin(), L.triangle.end());
-    for (size_t i = 0; i < slots; ++i)
-      if (int(i % size_t(L.k)) >= int(L.count[i / size_t(L.k)])) arrays_->triangle[i] = -1;
   }
 
   int width() const { return frame_->layers.width; }
@@ -250,29 +256,18 @@ class Layers {
   };
   std::shared_ptr<lt::Frame> frame_;
   std::shared_ptr<Arrays> arrays_;
-  lt::TracerOptions options_;
 };
 
 py::tuple render(const std::vector<std::string>& args, int threads) {
   const CliCommand c = parse(args);
-  lt::RenderOutput out;
-  {
-    py::gil_scoped_release free;
-    const auto limit = threadLimit(threads);
-    out = lt::renderFrame(c.render);
-  }
+  lt::RenderOutput out = withoutGil(threads, [&] { return lt::renderFrame(c.render); });
   return py::make_tuple(imageArray(std::move(out.result.image)), out.stats.dump());
 }
 
 /// compare.json, and compare's images by name without ".png" ("hssr", "hssr_classes", …).
 py::tuple compare(const std::vector<std::string>& args, int threads) {
   const CliCommand c = parse(args);
-  lt::CompareOutput out;
-  {
-    py::gil_scoped_release free;
-    const auto limit = threadLimit(threads);
-    out = lt::compareFrame(c.compare);
-  }
+  lt::CompareOutput out = withoutGil(threads, [&] { return lt::compareFrame(c.compare); });
   py::dict images;
   for (auto& [name, image] : out.images) images[py::str(name.substr(0, name.size() - 4))] = imageArray(std::move(image));
   return py::make_tuple(out.stats.dump(), images);

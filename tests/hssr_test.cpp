@@ -302,10 +302,7 @@ TEST(Hssr, LanesEqualMarchOnAxisParallelSegments) {
 /// The march over k slots (scalar and lanes) answers as the reference march over each pixel's
 /// count, on every level count.
 TEST(Hssr, VeryLongRaysStopAtTheEmptySlots) {
-  FrameOptions o;
-  o.scenePath = test::sourceDir() + "/scenes/default.json";
-  o.width = 160, o.height = 90;
-  const Frame f = buildFrame(o);
+  const Frame f = buildFrame(test::defaultSceneOptions(160, 90));
   const int W = f.camera.width(), H = f.camera.height();
   std::vector<Ray> rays = test::sampleRays(f, test::sanitizedCount(20000), test::testSeed() + 17);
   std::vector<ScreenSegment> segs;
