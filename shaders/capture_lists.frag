@@ -1,16 +1,17 @@
 #version 450
 // Hofmann et al. 2017, §4.1: every fragment of every triangle (no depth test, no culling unless
 // asked) appended to its pixel's list — one atomic counter hands out pool nodes, an atomic
-// exchange on the pixel's head links them. The node is the CPU's 16 bytes (fragment.h): depth,
-// octahedral normal, albedo and specular, next. A full pool keeps counting, so the exact number
-// of fragments is known and the capture runs again with a pool that fits.
+// exchange on the pixel's head links them. The node is thin: what the sort needs, its depth and
+// next pointer (8 bytes) and its triangle (4 bytes, a separate array); the sort evaluates the
+// normal and material of the k fragments it keeps. Only the alpha test is evaluated here, since
+// it decides whether the fragment exists. A full pool keeps counting, so the exact number of
+// fragments is known and the capture runs again with a pool that fits.
 
 #include "capture_common.glsl"
 #include "capture_surface.glsl"
 
 layout(std430, binding = 0) readonly buffer Setups { TriangleSetup setups[]; };
-layout(std430, binding = 1) readonly buffer CamNormals { vec4 camNormals[]; };
-layout(std430, binding = 2) writeonly buffer Nodes { uvec4 nodes[]; };
+layout(std430, binding = 2) writeonly buffer Nodes { uvec2 nodes[]; };
 layout(std430, binding = 3) buffer Heads { uint heads[]; };
 layout(std430, binding = 4) writeonly buffer NodeTriangle { uint nodeTriangle[]; };
 layout(std430, binding = 5) buffer Complexity { uint complexity[]; };
@@ -26,13 +27,12 @@ void main() {
   pixelRay(px, py, origin, dir);
   const float depth = fragmentDepth(ts, origin, dir);
   uint albedoSpec;
-  if (!fragmentSurface(ts, t, origin, dir, depth, true, albedoSpec)) return;  // cut away by the alpha test: no fragment
+  if (!fragmentSurface(ts, t, origin, dir, depth, false, albedoSpec)) return;  // cut away by the alpha test: no fragment
   const uint pixel = uint(py) * uint(uWidth) + uint(px);
   atomicAdd(complexity[pixel], 1u);
   const uint node = atomicAdd(generated, 1u);
   if (node >= uCapacity) return;  // pool exhausted: counted, not stored
-  const uint normal = fragmentNormal(ts, camNormals[ts.info.x].xyz, camNormals[ts.info.y].xyz, camNormals[ts.info.z].xyz, origin, dir, depth);
   nodeTriangle[node] = t;
   const uint next = atomicExchange(heads[pixel], node);
-  nodes[node] = uvec4(floatBitsToUint(depth), normal, albedoSpec, next);
+  nodes[node] = uvec2(floatBitsToUint(depth), next);
 }

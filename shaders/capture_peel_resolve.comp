@@ -14,6 +14,7 @@ layout(std430, binding = 2) readonly buffer PeelTriangle { uint peelTriangle[]; 
 layout(std430, binding = 3) writeonly buffer Slots { uvec4 slots[]; };
 layout(std430, binding = 4) writeonly buffer Counts { uint counts[]; };
 layout(std430, binding = 5) writeonly buffer SlotTriangle { uint slotTriangle[]; };
+#include "capture_attributes.glsl"
 uniform int uK;
 uniform float uThickness, uThicknessPerDepth;
 
@@ -34,11 +35,9 @@ void main() {
     }
     const TriangleSetup ts = setups[tri - 1u];
     const float depth = fragmentDepth(ts, origin, dir);
-    const uint normal = fragmentNormal(ts, camNormals[ts.info.x].xyz, camNormals[ts.info.y].xyz, camNormals[ts.info.z].xyz, origin, dir, depth);
     precise float thickness = uThickness + uThicknessPerDepth * depth;
-    uint albedoSpec;
-    fragmentSurface(ts, tri - 1u, origin, dir, depth, true, albedoSpec);  // a winner passed the alpha test
-    slots[slot] = uvec4(floatBitsToUint(depth), normal, albedoSpec, floatBitsToUint(thickness));
+    const uvec2 attributes = fragmentAttributes(ts, tri - 1u, px, py, depth);  // a winner passed the alpha test
+    slots[slot] = uvec4(floatBitsToUint(depth), attributes, floatBitsToUint(thickness));
     slotTriangle[slot] = tri - 1u;
     ++n;
   }

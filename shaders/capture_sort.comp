@@ -5,15 +5,24 @@
 // CPU keeps equal depths in list order, which is the reverse of triangle order there (its tiles
 // emit triangles in ascending order and each new node goes to the list's head); the GPU's lists
 // are in atomic order, so the same rule is stated as an order: depth ascending, then triangle
-// descending.
+// descending. The pool's nodes are thin (depth, next; capture_lists.frag): the normal and
+// material of the k fragments kept are evaluated here, as the list capture's fragment shader
+// evaluated them for every fragment before, with the same arithmetic.
 layout(local_size_x = 64) in;
 uniform int uFirst;  // the first invocation of this dispatch (GpuContext::dispatch)
-layout(std430, binding = 0) readonly buffer Nodes { uvec4 nodes[]; };
+
+#include "capture_common.glsl"
+#include "capture_surface.glsl"
+
+layout(std430, binding = 0) readonly buffer Nodes { uvec2 nodes[]; };
 layout(std430, binding = 1) readonly buffer Heads { uint heads[]; };
 layout(std430, binding = 2) readonly buffer NodeTriangle { uint nodeTriangle[]; };
 layout(std430, binding = 3) writeonly buffer Slots { uvec4 slots[]; };
 layout(std430, binding = 4) writeonly buffer Counts { uint counts[]; };
 layout(std430, binding = 5) writeonly buffer SlotTriangle { uint slotTriangle[]; };
+layout(std430, binding = 6) readonly buffer Setups { TriangleSetup setups[]; };
+layout(std430, binding = 7) readonly buffer CamNormals { vec4 camNormals[]; };
+#include "capture_attributes.glsl"
 uniform int uPixels, uK;
 uniform float uThickness, uThicknessPerDepth, uMinSeparation;
 uniform bool uAdaptive;
@@ -39,7 +48,7 @@ void main() {
     // Insertion into k cells; fragments beyond the k-th are shifted out.
     float keptDepth[16];
     uint keptTri[16];
-    for (uint i = heads[p]; i != kNull; i = nodes[i].w) {
+    for (uint i = heads[p]; i != kNull; i = nodes[i].y) {
       const float d = uintBitsToFloat(nodes[i].x);
       const uint t = nodeTriangle[i];
       if (n == uK && !before(d, t, keptDepth[uK - 1], keptTri[uK - 1])) continue;
@@ -66,7 +75,7 @@ void main() {
       uint best = kNull;
       float bd = 0.0;
       uint bt = 0u;
-      for (uint i = heads[p]; i != kNull; i = nodes[i].w) {
+      for (uint i = heads[p]; i != kNull; i = nodes[i].y) {
         const float d = uintBitsToFloat(nodes[i].x);
         const uint t = nodeTriangle[i];
         if (have && !before(lastD, lastT, d, t)) continue;
@@ -105,11 +114,12 @@ void main() {
   const uint base = p * uint(uK);
   for (int j = 0; j < uK; ++j) {
     if (j < n) {
-      const uvec4 f = nodes[keptNode[j]];
-      const float d = uintBitsToFloat(f.x);
+      const uint depthBits = nodes[keptNode[j]].x, t = nodeTriangle[keptNode[j]];
+      const float d = uintBitsToFloat(depthBits);
       precise float thickness = keptBack[j] - d;
-      slots[base + uint(j)] = uvec4(f.xyz, floatBitsToUint(uAdaptive ? thickness : thicknessAt(d)));
-      slotTriangle[base + uint(j)] = nodeTriangle[keptNode[j]];
+      const uvec2 attributes = fragmentAttributes(setups[t], t, int(p % uint(uWidth)), int(p / uint(uWidth)), d);
+      slots[base + uint(j)] = uvec4(depthBits, attributes, floatBitsToUint(uAdaptive ? thickness : thicknessAt(d)));
+      slotTriangle[base + uint(j)] = t;
     } else {
       slots[base + uint(j)] = uvec4(0u);
       slotTriangle[base + uint(j)] = kNull;

@@ -3,6 +3,8 @@
 // tracers are the reference (they are tested against the exhaustive march and both oracles).
 // These run under any OpenGL 4.5 driver; CI has Mesa's llvmpipe.
 #include <algorithm>
+#include <array>
+#include <bit>
 #include <cstdlib>
 #include <cstring>
 #include <limits>
@@ -227,6 +229,51 @@ TEST_F(Gpu, CutOutGrateEqualsTheCpuCapture) {
   loadFrameScene(o, cut);
   rasterizeFrameOnGpu(*gpu_, o, "lists", cut);
   EXPECT_GT(solid.lists.generated, cut.lists.generated + uint64_t(o.width * o.height / 20));
+}
+
+/// Every fragment of pixel `p`'s list: (depth bits, triangle, normal, albedo and specular),
+/// sorted (the GPU links a pixel's fragments in atomic order).
+std::vector<std::array<uint32_t, 4>> listOf(const FragmentLists& l, size_t p) {
+  std::vector<std::array<uint32_t, 4>> out;
+  for (uint32_t i = l.head[p]; i != kNullIndex; i = l.nodes[i].next)
+    out.push_back({std::bit_cast<uint32_t>(l.nodes[i].depth), l.triangle[i], l.nodes[i].normal, l.nodes[i].albedoSpec});
+  std::sort(out.begin(), out.end());
+  return out;
+}
+
+// The pool holds thin nodes (depth, next, triangle); the lists that `layers --verify` reads are
+// expanded to whole nodes by a pass of their own. They hold every fragment with the CPU's
+// normal and textured colour (bits on llvmpipe; elsewhere the same fragments).
+TEST_F(Gpu, ListsForVerificationHoldEveryFragmentAsTheCpu) {
+  test::TempDir dir;
+  FrameOptions o;
+  o.scenePath = test::writeGrateObj(dir);
+  o.eye = glm::dvec3(0.35, 0.45, 1.5), o.target = glm::dvec3(0.0, 0.2, -3.0), o.fov = 55.0f;
+  o.width = 96, o.height = 72, o.layers = 2;
+  o.captureLists = true;
+  const Frame cpu = buildFrame(o);
+  Frame onGpu;
+  loadFrameScene(o, onGpu);
+  rasterizeFrameOnGpu(*gpu_, o, "lists", onGpu);
+  ASSERT_EQ(onGpu.lists.head.size(), cpu.lists.head.size());
+  ASSERT_EQ(onGpu.lists.nodes.size(), cpu.lists.nodes.size());
+  size_t differ = 0, fragments = 0, textured = 0;
+  for (size_t p = 0; p < cpu.lists.head.size(); ++p) {
+    const auto a = listOf(onGpu.lists, p), b = listOf(cpu.lists, p);
+    fragments += b.size();
+    for (const auto& f : b) textured += f[3] != b.front()[3];
+    if (a.size() != b.size()) {
+      ++differ;
+      continue;
+    }
+    for (size_t i = 0; i < a.size(); ++i) {
+      const bool same = gpu_->software() ? a[i] == b[i] : a[i][1] == b[i][1];
+      differ += !same;
+    }
+  }
+  EXPECT_EQ(differ, 0u);
+  EXPECT_GT(fragments, size_t(o.width * o.height));
+  EXPECT_GT(textured, 0u) << "the view shows textured fragments of more than one colour";
 }
 
 TEST_F(Gpu, CaptureKeepsTheSortRulesOfTheCpu) {

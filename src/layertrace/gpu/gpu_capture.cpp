@@ -149,8 +149,8 @@ size_t GpuCapture::memoryBytes() const {
   size_t bytes = 0;
   const SceneBuffers& b = *sceneBuffers_;
   for (const GpuBuffer* g : {&b.positions, &b.normals, &b.indices, &b.triMaterial, &b.materialTable, &b.surfaceWords, &b.surfaceTexels, &camPos_,
-                             &camNormals_, &setups_, &complexity_, &slots_, &counts_, &slotTriangle_, &nodes_, &nodeTriangle_, &heads_, &peelDepth_,
-                             &peelTriangle_})
+                             &camNormals_, &setups_, &complexity_, &slots_, &counts_, &slotTriangle_, &nodes_, &nodeTriangle_, &fullNodes_, &heads_,
+                             &peelDepth_, &peelTriangle_})
     bytes += g->bytes();
   return bytes;
 }
@@ -240,9 +240,10 @@ void GpuCapture::submit(const Camera& camera, const GpuCaptureConfig& config) {
     const GpuProgram& sort = gpu_.computeProgram("capture_sort.comp", shader_source::capture_sort_comp);
     if (capacity_ == 0) capacity_ = config.poolCapacity ? config.poolCapacity : std::max<uint64_t>(uint64_t(pixels) * 8, 1u << 20);
     if (capacity_ > kMaxPoolFragments) inputError("fragment pool capacity ", capacity_, " exceeds the 32-bit index limit of ", kMaxPoolFragments);
-    if (nodes_.bytes() < capacity_ * 16) {
-      checkAllocation(cat("the GPU's fragment pool (", capacity_, " fragments)"), capacity_ * 20);
-      nodes_ = GpuBuffer(capacity_ * 16);
+    // Thin nodes: depth and next (8 bytes), the triangle beside them (4 bytes).
+    if (nodes_.bytes() < capacity_ * 8) {
+      checkAllocation(cat("the GPU's fragment pool (", capacity_, " fragments)"), capacity_ * 12);
+      nodes_ = GpuBuffer(capacity_ * 8);
       nodeTriangle_ = GpuBuffer(capacity_ * 4);
     }
     setCamera(lists, camera);
@@ -251,7 +252,7 @@ void GpuCapture::submit(const Camera& camera, const GpuCaptureConfig& config) {
     heads_.fill(none);
     complexity_.fill(zero);
     counter_.fill(zero);
-    setups_.bindStorage(0), camNormals_.bindStorage(1), nodes_.bindStorage(2), heads_.bindStorage(3), nodeTriangle_.bindStorage(4);
+    setups_.bindStorage(0), nodes_.bindStorage(2), heads_.bindStorage(3), nodeTriangle_.bindStorage(4);
     complexity_.bindStorage(5), counter_.bindStorage(6), camPos_.bindStorage(7);
     lists.set("uCapacity", uint32_t(capacity_));
     rasterTimer_.begin();
@@ -259,7 +260,9 @@ void GpuCapture::submit(const Camera& camera, const GpuCaptureConfig& config) {
     rasterTimer_.end();
     // The sort reads only the nodes the pool stored (a full pool links no more).
     nodes_.bindStorage(0), heads_.bindStorage(1), nodeTriangle_.bindStorage(2), slots_.bindStorage(3), counts_.bindStorage(4),
-        slotTriangle_.bindStorage(5);
+        slotTriangle_.bindStorage(5), setups_.bindStorage(6), camNormals_.bindStorage(7);
+    setCamera(sort, camera);
+    bindSurface(sort);
     sort.set("uPixels", int(pixels));
     sort.set("uK", k);
     sort.set("uThickness", lc.thickness);
@@ -271,6 +274,19 @@ void GpuCapture::submit(const Camera& camera, const GpuCaptureConfig& config) {
     gpu_.dispatch(sort, pixels);
     sortTimer_.end();
     geometryPasses_ = 1;
+    if (config.keepLists) {
+      // Every stored fragment in the CPU's 16-byte node, for the download (verification only).
+      const GpuProgram& expand = gpu_.computeProgram("capture_expand.comp", shader_source::capture_expand_comp);
+      if (fullNodes_.bytes() < capacity_ * 16) {
+        checkAllocation(cat("the fragment lists for verification (", capacity_, " fragments)"), capacity_ * 16);
+        fullNodes_ = GpuBuffer(capacity_ * 16);
+      }
+      nodes_.bindStorage(0), heads_.bindStorage(1), nodeTriangle_.bindStorage(2), fullNodes_.bindStorage(3), setups_.bindStorage(6),
+          camNormals_.bindStorage(7);
+      setCamera(expand, camera);
+      bindSurface(expand);
+      gpu_.dispatch(expand, pixels);
+    }
   } else {
     // Depth peeling: per layer, its depth, then its triangle, from the whole scene each time.
     const GpuProgram& peelPass = gpu_.renderProgram("capture.vert + capture_peel.frag", shader_source::capture_vert, shader_source::capture_peel_frag);
@@ -330,7 +346,7 @@ void GpuCapture::download(const GpuCaptureConfig& config, uint64_t generated, Gp
       fl.nodes.resize(out.stored);
       fl.triangle.resize(out.stored);
       if (out.stored > 0) {
-        nodes_.read(fl.nodes.data(), out.stored * sizeof(FragmentNode));
+        fullNodes_.read(fl.nodes.data(), out.stored * sizeof(FragmentNode));
         nodeTriangle_.read(fl.triangle.data(), out.stored * 4);
       }
     }

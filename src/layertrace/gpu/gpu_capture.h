@@ -2,9 +2,10 @@
 // pipeline, every fragment kept, sorted to the k-layer arrays — the same 16-byte nodes, layout
 // and precision as the CPU capture (raster/), which the result is compared with. Two captures:
 //   lists  every fragment linked into per-pixel lists in one geometry pass (an atomic counter
-//          over a pool, an atomic exchange on the pixel's head), then a compute pass sorts
-//          each pixel to its k front-most fragments with the minimum separation or the
-//          adaptive thickness of §4.2;
+//          over a pool, an atomic exchange on the pixel's head; a thin 12-byte node: depth,
+//          next and triangle), then a compute pass sorts each pixel to its k front-most
+//          fragments with the minimum separation or the adaptive thickness of §4.2 and
+//          evaluates the normal and material of those it keeps;
 //   peel   depth peeling, the baseline of Fig. 8: the nearest remaining layer per geometry
 //          pass pair, k times (no pool, no lists).
 #pragma once
@@ -102,7 +103,8 @@ class GpuCapture {
   std::unique_ptr<SceneBuffers> sceneBuffers_;
   GpuBuffer camPos_, camNormals_, setups_;
   GpuBuffer complexity_, slots_, counts_, slotTriangle_;
-  GpuBuffer nodes_, nodeTriangle_, heads_, counter_;
+  GpuBuffer nodes_, nodeTriangle_, heads_, counter_;  ///< the pool's thin nodes (depth, next), their triangles
+  GpuBuffer fullNodes_;                               ///< the pool as 16-byte nodes (keepLists only)
   GpuBuffer peelDepth_, peelTriangle_;
   uint64_t capacity_ = 0;
   size_t pixels_ = 0;
