@@ -938,6 +938,60 @@ TEST(CliGpu, RenderOnTheGpuGivesTheCpuImage) {
     }
 }
 
+// render --device gpu is one resident frame: capture, sort, pyramid, march and effect on the
+// device, one host wait, nothing read back but the picture and the frame's counters. Every
+// statistic of the rays and of the capture is reduced on the device and equals the CPU's (to the
+// bit on llvmpipe). A per-ray check (--check-oracle) needs the layers on the host: not resident.
+TEST(CliGpu, RenderIsOneResidentFrameWithTheCpusStatistics) {
+  if (!gpuBuilt()) GTEST_SKIP() << "built without the GPU back end";
+  test::TempDir dir;
+  const int W = 160, H = 96;
+  for (const std::string t : {"hssr", "hiz"})
+    for (const std::string effect : {"reflection --bounces 3", "ao --ao-samples 2", "refraction"}) {
+      const std::string common = "render " + kDefault + " --width 160 --height 96 --quiet --tracer " + t + " --effect " + effect;
+      ASSERT_NO_FATAL_FAILURE(expectRuns(common + " -o " + (dir / "cpu.png")));
+      ASSERT_NO_FATAL_FAILURE(expectRuns(common + " --device gpu -o " + (dir / "gpu.png")));
+      const auto g = readJson(dir / "gpu.json"), c = readJson(dir / "cpu.json");
+      const std::string what = t + " " + effect;
+      EXPECT_EQ(g["gpu"]["resident"], true) << what;
+      EXPECT_EQ(g["capture_pipeline"], "gpu-lists") << what;
+      const auto& frame = g["gpu"]["frame"];
+      EXPECT_EQ(frame["host_waits"], 1) << what;
+      EXPECT_EQ(frame["draws"], 1) << what;
+      // The picture (two RGBA floats a pixel as the effect passes keep it) and the counter block.
+      EXPECT_LE(frame["download_bytes"].get<double>(), double(W * H * 32 + 1024)) << what;
+      const bool exact = g["gpu"]["software"].get<bool>();
+      const auto same = [&](const nlohmann::json& a, const nlohmann::json& b, const std::string& key) {
+        if (exact || !a.is_number()) EXPECT_EQ(a, b) << what << ": " << key;
+        else EXPECT_NEAR(a.get<double>(), b.get<double>(), 1e-3 * std::abs(b.get<double>()) + 1.0) << what << ": " << key;
+      };
+      for (const char* key : {"count", "hits", "iterations_mean", "iterations_p99", "visited_pixels_mean", "give_ups", "bent",
+                              "intervals_per_visited_pixel"})
+        same(g["rays"][key], c["rays"][key], std::string("rays.") + key);
+      for (const char* key : {"total", "stored", "depth_complexity_mean", "depth_complexity_max", "overflow"})
+        same(g["fragments"][key], c["fragments"][key], std::string("fragments.") + key);
+      same(g["memory_bytes"]["arrays"], c["memory_bytes"]["arrays"], "memory_bytes.arrays");
+      if (t == "hssr") {
+        same(g["hssr"]["intervals_per_level"], c["hssr"]["intervals_per_level"], "hssr.intervals_per_level");
+        same(g["hssr"]["iterations_per_ray_by_level"], c["hssr"]["iterations_per_ray_by_level"], "hssr.iterations_per_ray_by_level");
+      }
+    }
+  // A fixed pool that the view overflows: detected on the device, reported with the exact count.
+  ASSERT_NO_FATAL_FAILURE(expectRuns("render " + kDefault + " --width 160 --height 96 --quiet --effect shade -o " + (dir / "all.png")));
+  const uint64_t total = readJson(dir / "all.json")["fragments"]["total"].get<uint64_t>();
+  std::string err;
+  EXPECT_EQ(test::runCli("render " + kDefault + " --width 160 --height 96 --quiet --effect shade --device gpu --pool 1000 -o " + (dir / "p.png"), &err), 2);
+  EXPECT_NE(err.find(std::to_string(total) + " fragments generated"), std::string::npos) << err;
+  EXPECT_FALSE(fs::exists(dir / "p.png"));
+  // A pool that grows: the same answers, the frame run again.
+  ASSERT_NO_FATAL_FAILURE(expectRuns("render " + kDefault + " --width 160 --height 96 --quiet --effect shade --device gpu -o " + (dir / "g.png")));
+  EXPECT_EQ(readJson(dir / "g.json")["fragments"]["total"], total);
+  // Checked ray by ray on the host: the layers are read back, the frame is not resident.
+  ASSERT_NO_FATAL_FAILURE(
+      expectRuns("render " + kDefault + " --width 96 --height 64 --quiet --device gpu --check-oracle -o " + (dir / "o.png")));
+  EXPECT_EQ(readJson(dir / "o.json")["gpu"]["resident"], false);
+}
+
 TEST(CliGpu, CompareReportsTheAgreementOfTheSameRaysOnBothDevices) {
   if (!gpuBuilt()) GTEST_SKIP() << "built without the GPU back end";
   test::TempDir dir;

@@ -47,3 +47,19 @@ if [ "$draws" -lt 1 ]; then
   exit 1
 fi
 echo "gpu_trace_test: render --device gpu captured with $draws draw call(s)"
+# Its frame is resident: the trace's one "frame" group agrees with render's own gpu.frame, waits
+# once and reads back no more than the picture (96 × 64 pixels, two RGBA floats each) and the
+# counters.
+python3 "$SRC/tools/gl_frame_counts.py" render.trace >render_counts.json
+python3 - r.json render_counts.json <<'PY'
+import json, sys
+stats = json.load(open(sys.argv[1]))
+own, traced = stats["gpu"]["frame"], json.load(open(sys.argv[2]))
+keys = ("program_links", "buffer_allocations", "upload_bytes", "download_bytes", "host_waits", "dispatches", "draws")
+assert stats["gpu"]["resident"] is True, "render --device gpu did not run as a resident frame"
+assert len(traced) == 1, f"{len(traced)} frame groups in render's trace"
+for k in keys:
+    assert own[k] == traced[0][k], f"render: {k} is {own[k]} in its statistics but {traced[0][k]} in the trace"
+assert own["host_waits"] == 1 and own["download_bytes"] <= 96 * 64 * 32 + 1024, own
+print("gpu_trace_test: render's frame agrees with the trace:", json.dumps({k: own[k] for k in keys}))
+PY

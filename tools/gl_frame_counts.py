@@ -4,7 +4,7 @@
 Usage: gl_frame_counts.py TRACE      (a trace from `apitrace trace --api egl -o TRACE PROGRAM ...`)
 
 Prints a JSON list with one object per KHR_debug group named "frame" (layertrace's resident GPU
-frame pushes one per frame), each counting the calls from that group's push to the next one:
+frame pushes one per frame), each counting the calls from that group's push to its pop:
 program_links, buffer_allocations, upload_bytes, download_bytes, host_waits, dispatches, draws.
 A host wait is a blocking call (a buffer or texture read-back, glFinish, glClientWaitSync, a query
 result read) after new GPU work (a draw or a dispatch) was submitted: the host stalls there once;
@@ -31,15 +31,22 @@ def argument(args, name):
 
 def main():
     dump = subprocess.run(["apitrace", "dump", "--color=never", sys.argv[1]], capture_output=True, text=True, check=True).stdout
-    frames, current, submitted = [], None, False
+    frames, current, submitted, depth = [], None, False, 0
     for line in dump.splitlines():
         m = CALL.match(line)
         if not m:
             continue
         f, args = m.group(1), m.group(2)
-        if f == "glPushDebugGroup" and 'message = "frame"' in args:
+        if f == "glPushDebugGroup" and current is None and 'message = "frame"' in args:
             current = dict.fromkeys(KEYS, 0)
             frames.append(current)
+        elif f == "glPushDebugGroup" and current is not None:
+            depth += 1
+        elif f == "glPopDebugGroup" and current is not None:
+            if depth == 0:
+                current = None  # the frame's group ends; blocking calls still clear `submitted`
+            else:
+                depth -= 1
         blocking = f in READS or (f.startswith("glGetQueryObject") and "GL_QUERY_RESULT," in args.replace(" ", "")) or \
             (f.startswith(("glMapBuffer", "glMapNamedBuffer")) and "READ" in args)
         if blocking and submitted:

@@ -12,6 +12,7 @@
 #include "layertrace/eval/oracle_observer.h"
 #include "layertrace/gpu/gpu_context.h"
 #include "layertrace/pipeline/gpu_tracers.h"
+#include "layertrace/render/frame_sequence.h"
 #include "layertrace/util/error.h"
 #include "layertrace/util/warning.h"
 
@@ -193,54 +194,85 @@ RenderOutput renderFrame(const RenderOptions& o) {
   const nlohmann::json activityBefore = gpu ? gpuActivityReading() : nlohmann::json();
   FrameOptions fo = o.run.frame;
   prepareCapture(o.tracer, o.tracers, fo);
-  Frame frame;
-  if (gpu) {
-    // The capture on the GPU too (its layers read back for the statistics and the checks),
-    // unless the scene's textures exceed the GPU's storage buffers: then the CPU captures, says
-    // so on stderr, and capture_pipeline in the statistics names it.
-    loadFrameScene(fo, frame);
-    if (const std::string why = gpuCaptureLimit(*gpu, frame); why.empty()) {
-      rasterizeFrameOnGpu(*gpu, fo, fo.depthPeeling ? "peel" : "lists", frame);
-    } else {
-      warning(why + "; capturing on the CPU");
-      rasterizeFrame(fo, frame);
-    }
-  } else {
-    frame = buildFrame(fo);
-  }
-  const BuiltTracer built = gpu ? buildGpuTracer(o.tracer, frame, o.tracers, *gpu) : buildTracer(o.tracer, frame, o.tracers);
-  BuiltTracer oracle;
-  std::optional<MismatchObserver> exhaustive;
-  if (o.checkExhaustive) oracle = buildOracle(frame), exhaustive.emplace(*oracle.tracer);
-  const ImageSpaceOracle independent(frame.camera, frame.layers);
-  OracleObserver oracleCheck(independent);
-  ObserverList observers;
-  if (exhaustive) observers.add(&*exhaustive);
-  if (o.checkOracle) observers.add(&oracleCheck);
   EffectConfig ec = o.effect;
   ec.seed = o.run.seed;
   ec.progress = !o.run.quiet;
   ec.wholeWaves = gpu != nullptr;  // one dispatch per wave
   ec.shadeOnDevice = gpu != nullptr;  // rays generated and shaded on the GPU where the effect allows
-  EffectResult r = renderEffect(frame, *built.tracer, ec, observers.empty() ? nullptr : &observers);
-  // the counted pass's dispatches: the marches alone, or with the origin rule's passes where
-  // the effect ran on the device
-  const double gpuMs = !gpu ? 0.0 : r.onDevice ? r.traceMs : gpuTraceMs(*built.tracer);
-  const double countedMs = r.traceMs;
-  // The first frame's accounting: capture, structure and the counted effect (uploads, links and
-  // allocations included: a resident frame's steady state is bench --experiment frame's).
-  const nlohmann::json frameAccount =
-      gpu ? gpuFrameStats(activityBefore, gpuActivityReading(),
-                          std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count(),
-                          frame.rasterMs + frame.sortMs + built.buildMs + r.traceMs + (r.onDevice ? r.shadeMs : 0.0))
-          : nlohmann::json();
-  const nlohmann::json hybrid = built.known ? hybridStats(built, o.tracers) : nlohmann::json();  // of the counted pass alone
-  const TraceTiming timed = measureTrace(frame, *built.tracer, ec, o.repeat);  // as compare and bench measure it
+  Frame frame;
+  BuiltTracer built;
+  EffectResult r;
+  TraceTiming timed;
+  double gpuMs = 0.0, countedMs = 0.0;
+  nlohmann::json frameAccount, hybrid;
+  std::optional<MismatchObserver> exhaustive;
+  std::optional<ImageSpaceOracle> independent;
+  std::optional<OracleObserver> oracleCheck;
+  const auto msSinceStart = [&] { return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count(); };
+  if (gpu) loadFrameScene(fo, frame);
+  // The whole frame on the device where nothing needs the layers on the host: capture, sort,
+  // pyramid, march and effect resident, the picture and the frame's counters read back.
+  const bool resident = gpu && rendersResident(o.tracer, frame, ec) && !o.checkExhaustive && !o.checkOracle && o.run.pixelStats.empty() &&
+                        gpuCaptureLimit(*gpu, frame).empty();
+  if (resident) {
+    ResidentRender rr = renderResident(fo, frame, o.tracer, o.tracers, ec, o.repeat, *gpu);
+    frame.layers.width = frame.camera.width(), frame.layers.height = frame.camera.height(), frame.layers.k = fo.layers;
+    frame.lists.width = frame.camera.width(), frame.lists.height = frame.camera.height();
+    frame.lists.generated = rr.fragments;
+    frame.lists.stored = fo.depthPeeling ? rr.fragments : std::min(rr.fragments, rr.poolCapacity);
+    frame.deviceCapture = Frame::DeviceCapture{rr.maxComplexity};
+    frame.rasterMs = rr.rasterMs, frame.sortMs = rr.sortMs;
+    frame.raster = RasterStats{frame.rasterMs, rr.overflowLost, rr.attempts, frame.scene.triangleCount()};
+    frame.capturePipeline = fo.depthPeeling ? "gpu-peel" : "gpu-lists";
+    frame.geometryPasses = fo.depthPeeling ? 2 * fo.layers : 1;
+    built.buildMs = rr.layersMs + rr.pyramidMs;
+    built.memoryBytes = rr.hierarchyBytes;
+    built.levelIntervals = rr.levelIntervals;
+    frame.gpuMemoryBytes = rr.captureBytes;
+    r = std::move(rr.effect);
+    gpuMs = countedMs = r.traceMs;
+    frameAccount = std::move(rr.frameAccount);
+    timed = {rr.timedTraceMs, rr.timedShadeMs};
+  } else {
+    if (gpu) {
+      // The capture on the GPU too (its layers read back for the statistics and the checks),
+      // unless the scene's textures exceed the GPU's storage buffers: then the CPU captures, says
+      // so on stderr, and capture_pipeline in the statistics names it.
+      if (const std::string why = gpuCaptureLimit(*gpu, frame); why.empty()) {
+        rasterizeFrameOnGpu(*gpu, fo, fo.depthPeeling ? "peel" : "lists", frame);
+      } else {
+        warning(why + "; capturing on the CPU");
+        rasterizeFrame(fo, frame);
+      }
+    } else {
+      frame = buildFrame(fo);
+    }
+    built = gpu ? buildGpuTracer(o.tracer, frame, o.tracers, *gpu) : buildTracer(o.tracer, frame, o.tracers);
+    BuiltTracer oracle;
+    if (o.checkExhaustive) oracle = buildOracle(frame), exhaustive.emplace(*oracle.tracer);
+    independent.emplace(frame.camera, frame.layers);
+    oracleCheck.emplace(*independent);
+    ObserverList observers;
+    if (exhaustive) observers.add(&*exhaustive);
+    if (o.checkOracle) observers.add(&*oracleCheck);
+    r = renderEffect(frame, *built.tracer, ec, observers.empty() ? nullptr : &observers);
+    // the counted pass's dispatches: the marches alone, or with the origin rule's passes where
+    // the effect ran on the device
+    gpuMs = !gpu ? 0.0 : r.onDevice ? r.traceMs : gpuTraceMs(*built.tracer);
+    countedMs = r.traceMs;
+    // The first frame's accounting: capture, structure and the counted effect (uploads, links and
+    // allocations included: a resident frame's steady state is bench --experiment frame's).
+    if (gpu)
+      frameAccount = gpuFrameStats(activityBefore, gpuActivityReading(), msSinceStart(),
+                                   frame.rasterMs + frame.sortMs + built.buildMs + r.traceMs + (r.onDevice ? r.shadeMs : 0.0));
+    if (built.known) hybrid = hybridStats(built, o.tracers);  // of the counted pass alone
+    timed = measureTrace(frame, *built.tracer, ec, o.repeat);  // as compare and bench measure it
+  }
   r.traceMs = timed.traceMs;
-  const double totalMs = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+  const double totalMs = msSinceStart();
 
   nlohmann::json stats = frameStats(frame);
-  stats["tracer"] = built.tracer->name();
+  stats["tracer"] = built.tracer ? std::string(built.tracer->name()) : o.tracer;
   stats["effect"] = effectName(ec.effect);
   stats["threads"] = o.run.threads;
   stats["bounces"] = ec.bounces;
@@ -258,6 +290,9 @@ RenderOutput renderFrame(const RenderOptions& o) {
     stats["timings_ms"]["gpu_trace"] = gpuMs;
     stats["gpu"] = gpuStats(*gpu);
     stats["gpu"]["shading"] = r.onDevice ? "gpu" : "cpu";
+    // true: capture, pyramid, march and effect stayed on the device as one frame, and only the
+    // picture and the frame's counters were read back (gpu.frame counts it)
+    stats["gpu"]["resident"] = resident;
     stats["gpu"]["frame"] = frameAccount;
     if (r.onDevice) stats["memory_bytes"]["gpu_effect"] = r.deviceBytes;  // the effect's buffers on the GPU
     stats["gpu_renderer"] = gpu->renderer();
@@ -266,8 +301,8 @@ RenderOutput renderFrame(const RenderOptions& o) {
   stats["rays"] = rayStats(r, screen);
   if (exhaustive) stats["rays"]["exhaustive_mismatch"] = exhaustive->mismatches();
   if (o.checkOracle) {
-    stats["rays"]["oracle_mismatch"] = oracleCheck.mismatches();
-    stats["rays"]["oracle_ambiguous"] = oracleCheck.ambiguous();
+    stats["rays"]["oracle_mismatch"] = oracleCheck->mismatches();
+    stats["rays"]["oracle_ambiguous"] = oracleCheck->ambiguous();
   }
   stats["preset"] = o.tracers.preset;
   stats["parameters"] = parameterStats(o.tracers);
@@ -317,13 +352,13 @@ RenderOutput renderFrame(const RenderOptions& o) {
                      {"disocclusion_fraction", h.coveredInside ? double(h.disoccluded) / double(h.coveredInside) : 0.0}};
   }
   std::ostringstream summary;
-  summary << "render: " << frame.scene.name << " " << frame.camera.width() << "x" << frame.camera.height() << " " << built.tracer->name() << " "
+  summary << "render: " << frame.scene.name << " " << frame.camera.width() << "x" << frame.camera.height() << " " << stats["tracer"].get<std::string>() << " "
           << effectName(ec.effect) << ": " << r.rays << " rays, " << r.hits << " hits, " << stats["rays"]["iterations_mean"].get<double>()
           << " iterations/ray; raster " << frame.rasterMs << " ms, sort " << frame.sortMs << " ms, hierarchy " << built.buildMs
           << " ms, trace " << r.traceMs << " ms, shade " << timed.shadeMs << " ms";
   if (gpu) summary << "; on " << gpu->renderer() << ": GPU trace " << gpuMs << " ms";
   if (exhaustive) summary << "; exhaustive mismatches " << exhaustive->mismatches();
-  if (o.checkOracle) summary << "; oracle mismatches " << oracleCheck.mismatches() << " (ambiguous " << oracleCheck.ambiguous() << ")";
+  if (o.checkOracle) summary << "; oracle mismatches " << oracleCheck->mismatches() << " (ambiguous " << oracleCheck->ambiguous() << ")";
   if (direct)
     summary << "; warp holes " << stats["warp"]["holes"].get<uint64_t>() << " of " << stats["warp"]["covered_pixels"].get<uint64_t>()
             << " covered pixels, PSNR " << stats["warp"]["psnr_db"].get<double>() << " dB against the direct view";

@@ -54,6 +54,7 @@ GpuEffects::GpuEffects(GpuContext& gpu, const Scene& scene, std::span<const Poin
   resolve_ = &gpu_.computeProgram("effect_resolve.comp", shader_source::effect_resolve_comp);
   rounds_ = &gpu_.computeProgram("effect_rounds.comp", shader_source::effect_rounds_comp);
   sum_ = &gpu_.computeProgram("effect_sums.comp", shader_source::effect_sums_comp);
+  percentile_ = &gpu_.computeProgram("effect_percentile.comp", shader_source::effect_percentile_comp);
   for (const PointLight& l : lights) lightPosition_.push_back(l.position), lightIntensity_.push_back(l.intensity);
 }
 
@@ -162,7 +163,7 @@ void GpuEffects::resize(size_t pixelSlots, size_t chunkSlots, size_t raySlots) c
   fit(tally_, (kPixelTallyFirst + 16 * pixelSlots) * sizeof(uint32_t));
   fit(pending_, sizeof(uint32_t));
   fit(groups_, 8 * sizeof(uint32_t));
-  fit(sums_, 32 * sizeof(uint32_t));
+  fit(sums_, kSumsWords * sizeof(uint32_t));
 }
 
 void GpuEffects::collectTimes(double& traceMs, double& shadeMs) const {
@@ -282,6 +283,7 @@ GpuEffectOutput GpuEffects::run(const GpuScreenTracer& tracer, const GpuEffectPa
     sums_.bindStorage(6);
     sum_->set("uItems", int(pixelSlots));
     gpu_.dispatch(*sum_, pixelSlots);
+    if (p.countRays) gpu_.dispatchGroups(*percentile_, 1);  // after the sums (dispatch ends with a barrier)
   }
 
   GpuEffectOutput out;
@@ -297,9 +299,10 @@ GpuEffectOutput GpuEffects::run(const GpuScreenTracer& tracer, const GpuEffectPa
     tally_.read(out.histogram.data(), kHistogramBins * sizeof(uint32_t), kHistogramFirst * sizeof(uint32_t));
   }
   if (readback.sums) {
-    uint32_t words[32];
+    uint32_t words[kSumsWords];
     sums_.read(words, sizeof words);
     for (size_t i = 0; i < 16; ++i) out.sums[i] = uint64_t(words[2 * i]) | uint64_t(words[2 * i + 1]) << 32;
+    out.iterationsP99 = p.countRays ? words[kPercentileWord] : 0;
   }
   collectTimes(out.traceMs, out.shadeMs);
   if (readback.image) out.image.resize(size_t(W) * size_t(H)), out.traced.resize(size_t(W) * size_t(H));

@@ -76,6 +76,9 @@ struct GpuEffectReadback {
 /// The 16 sums of GpuPixelTally's fields over the frame (rays, hits, iterations, intervals,
 /// pixels, give-ups, bent, holes, iterations per level 0…7), 64 bits each.
 using GpuTallySums = std::array<uint64_t, 16>;
+/// GpuEffects::sums(): the 16 sums as (low, high) 32-bit words, then the 99th percentile of the
+/// iterations per ray (with countRays), then a word unused.
+inline constexpr size_t kPercentileWord = 32, kSumsWords = 34;
 
 struct GpuEffectOutput {
   int width = 0, height = 0;
@@ -83,6 +86,7 @@ struct GpuEffectOutput {
   std::vector<GpuPixelTally> tally;      ///< row-major, width × height
   std::vector<uint32_t> histogram;       ///< rays per iteration count, the last bin holds ≥ 65536 (countRays)
   GpuTallySums sums{};                   ///< GpuEffectReadback::sums
+  uint64_t iterationsP99 = 0;            ///< GpuEffectReadback::sums with countRays, computed on the device
   double traceMs = 0.0;  ///< GPU time of the marches and the origin rule (timer queries)
   double shadeMs = 0.0;  ///< GPU time of ray generation and shading (timer queries)
 };
@@ -116,7 +120,8 @@ class GpuEffects {
   /// GPU milliseconds of the runs since the last collection: trace (marches and the origin
   /// rule), shade (ray generation and shading).
   void collectTimes(double& traceMs, double& shadeMs) const;
-  /// The device's sums of the last run (GpuTallySums as 16 × (low, high) 32-bit words).
+  /// The device's sums of the last run (kSumsWords words: GpuTallySums as 16 × (low, high)
+  /// 32-bit words, then the percentile).
   const GpuBuffer& sums() const { return sums_; }
 
   /// Bytes held on the GPU for the frame (the per-run buffers included once run).
@@ -137,6 +142,7 @@ class GpuEffects {
   const GpuProgram* resolve_ = nullptr;
   const GpuProgram* rounds_ = nullptr;
   const GpuProgram* sum_ = nullptr;
+  const GpuProgram* percentile_ = nullptr;
   GpuBuffer ownFragments_, ownTriangles_;
   const GpuBuffer* fragments_ = &ownFragments_;
   const GpuBuffer* triangles_ = &ownTriangles_;

@@ -14,8 +14,11 @@ namespace lt {
 
 namespace {
 
-/// status_ words: the fragments generated, the pyramid's per-level totals, the effect's sums.
-constexpr size_t kFragmentsWord = 0, kLevelsWord = 1, kSumsWord = kLevelsWord + GpuPyramid::kStatusWords, kStatusWords = kSumsWord + 32;
+/// status_ words: the fragments generated, the depth complexity's maximum, the fragments kept
+/// in the layers, the pyramid's
+/// per-level totals, the effect's sums and percentile (gpu_effects.h kSumsWords).
+constexpr size_t kFragmentsWord = 0, kComplexityWord = 1, kKeptWord = 2, kLevelsWord = 3, kSumsWord = kLevelsWord + GpuPyramid::kStatusWords,
+                 kStatusWords = kSumsWord + kSumsWords;
 
 enum Stage { kCapture, kLayers, kPyramid, kStages };
 
@@ -41,6 +44,7 @@ void GpuFrame::create() {
   materials_ = GpuBuffer(materials.size() * sizeof(glm::vec4), materials.data());
   triangles_ = GpuBuffer((scene.triangles.size() + 1) * 32);
   status_ = GpuBuffer(kStatusWords * sizeof(uint32_t));
+  reduced_ = GpuBuffer(2 * sizeof(uint32_t));
 }
 
 GpuFrame::~GpuFrame() {
@@ -50,7 +54,7 @@ GpuFrame::~GpuFrame() {
 
 size_t GpuFrame::memoryBytes() const {
   if (!capture_) return 0;
-  size_t bytes = capture_->memoryBytes() + effects_->memoryBytes() + materials_.bytes() + level0_.bytes() + status_.bytes();
+  size_t bytes = capture_->memoryBytes() + effects_->memoryBytes() + materials_.bytes() + level0_.bytes() + status_.bytes() + reduced_.bytes();
   if (tracer_->pyramid()) bytes += tracer_->pyramid()->memoryBytes();
   return bytes;  // (effects_ counts fragments_ and triangles_)
 }
@@ -69,8 +73,9 @@ void GpuFrame::submit(const Camera& camera, const GpuEffectParams& effect, bool 
       level0_ = GpuBuffer(slots * 8);
       fragments_ = GpuBuffer(slots * 16);
     }
+    reduced_.fill(0u);
     capture_->slots().bindStorage(0), capture_->counts().bindStorage(1), capture_->slotTriangle().bindStorage(2);
-    level0_.bindStorage(3), fragments_.bindStorage(4);
+    level0_.bindStorage(3), fragments_.bindStorage(4), capture_->complexity().bindStorage(5), reduced_.bindStorage(6);
     layersPass_->set("uPixels", int(pixels));
     layersPass_->set("uK", k);
     gpu_.dispatch(*layersPass_, pixels);
@@ -101,8 +106,10 @@ void GpuFrame::submit(const Camera& camera, const GpuEffectParams& effect, bool 
   GpuDebugGroup group("counters");
   glMemoryBarrier(GL_BUFFER_UPDATE_BARRIER_BIT | GL_SHADER_STORAGE_BARRIER_BIT);
   glCopyNamedBufferSubData(capture_->counter().id(), status_.id(), 0, kFragmentsWord * 4, 4);
+  static_assert(kKeptWord == kComplexityWord + 1);
+  glCopyNamedBufferSubData(reduced_.id(), status_.id(), 0, kComplexityWord * 4, 8);
   glCopyNamedBufferSubData(tracer_->pyramid()->status.id(), status_.id(), 0, kLevelsWord * 4, GpuPyramid::kStatusWords * 4);
-  glCopyNamedBufferSubData(effects_->sums().id(), status_.id(), 0, kSumsWord * 4, 32 * 4);
+  glCopyNamedBufferSubData(effects_->sums().id(), status_.id(), 0, kSumsWord * 4, kSumsWords * 4);
 }
 
 GpuFrameResult GpuFrame::render(const Camera& camera, const LayerConfig& layers, const GpuEffectParams& effect, bool image) {
@@ -119,6 +126,7 @@ GpuFrameResult GpuFrame::render(const Camera& camera, const LayerConfig& layers,
     // The GPU times, read after the frame's one wait (they wait no more).
     const std::vector<double> ms = timeline_.collect(kStages);
     out.captureMs = ms[kCapture], out.layersMs = ms[kLayers], out.pyramidMs = ms[kPyramid];
+    out.rasterMs = capture_->setupMs() + capture_->rasterMs(), out.sortMs = capture_->sortMs();
     if (!image) effects_->collectTimes(out.traceMs, out.shadeMs);
     out.fragments = status[kFragmentsWord];
     bool again = false;
@@ -127,6 +135,7 @@ GpuFrameResult GpuFrame::render(const Camera& camera, const LayerConfig& layers,
         inputError("--pool ", config_.capture.poolCapacity, ": fragment pool overflow: ", out.fragments, " fragments generated, ",
                    capture_->poolCapacity(), " stored, ", out.fragments - capture_->poolCapacity(), " lost (use --pool ", out.fragments,
                    " or more, or 0 for automatic)");
+      if (out.attempts == 1) out.overflowLost = out.fragments - capture_->poolCapacity();
       capture_->growPool(std::max<uint64_t>(out.fragments, 2 * capture_->poolCapacity()));
       again = true;
     }
@@ -137,8 +146,31 @@ GpuFrameResult GpuFrame::render(const Camera& camera, const LayerConfig& layers,
     }
     out.levelIntervals.assign(status + kLevelsWord, status + kLevelsWord + tracer_->pyramid()->levels);
     for (size_t i = 0; i < 16; ++i) out.sums[i] = uint64_t(status[kSumsWord + 2 * i]) | uint64_t(status[kSumsWord + 2 * i + 1]) << 32;
+    out.iterationsP99 = effect.countRays ? status[kSumsWord + kPercentileWord] : 0;
+    out.maxComplexity = status[kComplexityWord];
+    out.levelIntervals[0] = status[kKeptWord];
+    out.poolCapacity = capture_->poolCapacity();
     return out;
   }
+}
+
+void GpuFrame::retrace(const GpuEffectParams& effect, double& traceMs, double& shadeMs) {
+  LT_CHECK(capture_ != nullptr);
+  gpu_.makeCurrent();
+  GpuDebugGroup frame("effect again");
+  GpuEffectReadback readback{};
+  readback.image = readback.tally = readback.histogram = false;
+  readback.sums = true;  // the one wait, after which the timer queries are read
+  const GpuEffectOutput eo = effects_->run(*tracer_, effect, readback);
+  traceMs = eo.traceMs, shadeMs = eo.shadeMs;
+}
+
+size_t GpuFrame::captureBytes() const { return capture_ ? capture_->memoryBytes() : 0; }
+size_t GpuFrame::effectBytes() const { return effects_ ? effects_->memoryBytes() : 0; }
+
+size_t GpuFrame::hierarchyBytes() const {
+  if (!capture_) return 0;
+  return level0_.bytes() + capture_->counts().bytes() + (tracer_->pyramid() ? tracer_->pyramid()->memoryBytes() : 0);
 }
 
 }  // namespace lt

@@ -278,11 +278,20 @@ nlohmann::json frameStats(const Frame& f) {
   // "reference": lists in a pool (--pool), then sorted (Hofmann et al. 2017, §4.1–4.2);
   // "peel": depth peeling, k geometry passes; "gpu-lists", "gpu-peel": the same on the GPU.
   j["capture_pipeline"] = f.capturePipeline;
-  j["memory_bytes"]["lists"] = f.lists.memoryBytes();
-  j["memory_bytes"]["arrays"] = f.layers.memoryBytes();
+  const size_t pixelCount = size_t(f.camera.width()) * size_t(f.camera.height());
   uint64_t maxDc = 0;
-  for (uint32_t c : f.lists.complexity) maxDc = std::max<uint64_t>(maxDc, c);
-  const double pixels = double(f.lists.complexity.size());
+  if (f.deviceCapture) {
+    // Where the layers live on the device: the same sizes as read back (the complexity per
+    // pixel, the k-layer arrays).
+    j["memory_bytes"]["lists"] = pixelCount * sizeof(uint32_t);
+    j["memory_bytes"]["arrays"] = pixelCount * (size_t(f.layers.k) * (sizeof(FragmentNode) + sizeof(uint32_t)) + 1);
+    maxDc = f.deviceCapture->maxComplexity;
+  } else {
+    j["memory_bytes"]["lists"] = f.lists.memoryBytes();
+    j["memory_bytes"]["arrays"] = f.layers.memoryBytes();
+    for (uint32_t c : f.lists.complexity) maxDc = std::max<uint64_t>(maxDc, c);
+  }
+  const double pixels = f.deviceCapture ? double(pixelCount) : double(f.lists.complexity.size());
   j["fragments"]["total"] = f.lists.generated;
   j["fragments"]["stored"] = f.lists.stored;
   j["fragments"]["depth_complexity_mean"] = pixels > 0 ? double(f.lists.generated) / pixels : 0.0;

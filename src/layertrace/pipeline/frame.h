@@ -103,6 +103,13 @@ struct Frame {
   size_t gpuMemoryBytes = 0;    ///< a GPU capture's memory (its pool, lists, arrays and the scene)
   int geometryPasses = 1;       ///< times the capture rasterized the scene (depth peeling: k on the CPU, 2k on the GPU)
   uint64_t fragmentsRasterized = 0;  ///< fragments of all geometry passes (depth peeling)
+  /// A capture that stayed on the GPU (render's resident frame): its lists and layers were
+  /// never read back (`lists` holds only the counts, `layers` only the size and k), and the
+  /// statistics read what the device reduced instead.
+  struct DeviceCapture {
+    uint32_t maxComplexity = 0;  ///< the largest number of fragments in one pixel
+  };
+  std::optional<DeviceCapture> deviceCapture;
   /// The capture's pyramid when it was built with `config` over the current level 0, else null.
   std::shared_ptr<IntervalPyramid> pyramidFor(const PyramidConfig& config) const {
     const std::shared_ptr<IntervalLayers> l0 = level0();

@@ -30,6 +30,13 @@ void viewFrame(const FrameOptions& options, const CameraDesc& start, int i, Fram
   setFrameView(options, orbitCamera(start, i), frame);
 }
 
+Image imageOf(const Camera& camera, const std::vector<glm::vec3>& rows) {
+  Image img(camera.width(), camera.height());
+  for (int y = 0; y < img.height; ++y)
+    for (int x = 0; x < img.width; ++x) img.set(x, y, rows[size_t(y) * size_t(img.width) + size_t(x)]);
+  return img;
+}
+
 std::vector<FrameSample> runOnCpu(const FrameOptions& options, Frame& frame, const FrameSequenceConfig& c) {
   std::vector<FrameSample> out;
   const CameraDesc start = frame.camera.desc();
@@ -55,14 +62,8 @@ std::vector<FrameSample> runOnCpu(const FrameOptions& options, Frame& frame, con
 }
 
 #if LAYERTRACE_HAS_GPU
-std::vector<FrameSample> runOnGpu(const FrameOptions& options, Frame& frame, const FrameSequenceConfig& c, GpuContext& gpu) {
-  const std::string& name = c.tracer;
-  if (name != "hssr" && name != "hiz" && name != "exhaustive")
-    inputError("--tracer ", name, ": the resident GPU frame traces with hssr, hiz or exhaustive (bench --experiment frame --device gpu)");
-  if (!GpuEffects::supports(int(frame.lights.size())))
-    inputError("--device gpu: ", frame.lights.size(), " lights, more than the GPU frame's ", GpuEffects::kMaxLights);
-  validateTracerOptions(c.tracers);
-  const TracerOptions& to = c.tracers;
+/// The resident frame's configuration for the tracer `name` (hssr, hiz or exhaustive).
+GpuFrameConfig residentConfig(const FrameOptions& options, const std::string& name, const TracerOptions& to) {
   GpuFrameConfig fc;
   fc.capture.method = options.depthPeeling ? GpuCaptureMethod::Peel : GpuCaptureMethod::Lists;
   fc.capture.poolCapacity = options.pool;
@@ -73,6 +74,17 @@ std::vector<FrameSample> runOnGpu(const FrameOptions& options, Frame& frame, con
   fc.march.maxLevels = name == "exhaustive" ? 1 : to.pyramid.levels;
   fc.pyramid = hiz ? PyramidConfig{to.pyramid.levels, std::numeric_limits<float>::infinity()} : to.pyramid;
   if (name == "exhaustive") fc.pyramid.levels = 1;
+  return fc;
+}
+
+std::vector<FrameSample> runOnGpu(const FrameOptions& options, Frame& frame, const FrameSequenceConfig& c, GpuContext& gpu) {
+  const std::string& name = c.tracer;
+  if (!isResidentTracer(name))
+    inputError("--tracer ", name, ": the resident GPU frame traces with hssr, hiz or exhaustive (bench --experiment frame --device gpu)");
+  if (!GpuEffects::supports(int(frame.lights.size())))
+    inputError("--device gpu: ", frame.lights.size(), " lights, more than the GPU frame's ", GpuEffects::kMaxLights);
+  validateTracerOptions(c.tracers);
+  GpuFrameConfig fc = residentConfig(options, name, c.tracers);
   EffectConfig ec = c.effect;
   ec.progress = false;
   const CameraDesc start = frame.camera.desc();
@@ -95,12 +107,7 @@ std::vector<FrameSample> runOnGpu(const FrameOptions& options, Frame& frame, con
     s.uploadBytes = a.uploadBytes, s.downloadBytes = a.downloadBytes, s.hostWaits = a.hostWaits, s.programLinks = a.programLinks;
     s.bufferAllocations = a.bufferAllocations, s.dispatches = a.dispatches, s.draws = a.draws;
     s.rays = r.sums[0], s.hits = r.sums[1], s.fragments = r.fragments, s.attempts = r.attempts;
-    if (c.onImage) {
-      Image img(frame.camera.width(), frame.camera.height());
-      for (int y = 0; y < img.height; ++y)
-        for (int x = 0; x < img.width; ++x) img.set(x, y, r.image[size_t(y) * size_t(img.width) + size_t(x)]);
-      c.onImage(i, img);
-    }
+    if (c.onImage) c.onImage(i, imageOf(frame.camera, r.image));
     out.push_back(s);
   }
   return out;
@@ -108,6 +115,63 @@ std::vector<FrameSample> runOnGpu(const FrameOptions& options, Frame& frame, con
 #endif
 
 }  // namespace
+
+bool isResidentTracer(const std::string& name) { return name == "hssr" || name == "hiz" || name == "exhaustive"; }
+
+bool rendersResident(const std::string& tracer, const Frame& frame, const EffectConfig& effect) {
+#if LAYERTRACE_HAS_GPU
+  return isResidentTracer(tracer) && GpuEffects::supports(int(frame.lights.size())) && effect.effect != Effect::Warp;
+#else
+  (void)tracer, (void)frame, (void)effect;
+  return false;
+#endif
+}
+
+ResidentRender renderResident(const FrameOptions& options, Frame& frame, const std::string& tracer, const TracerOptions& tracers,
+                              const EffectConfig& effect, int repeat, GpuContext& gpu) {
+  LT_CHECK(rendersResident(tracer, frame, effect), tracer);
+  if (repeat < 1) inputError("--repeat ", repeat, ": must be at least 1");
+  ResidentRender out;
+#if LAYERTRACE_HAS_GPU
+  validateTracerOptions(tracers);
+  GpuFrameConfig fc = residentConfig(options, tracer, tracers);
+  fc.capture.layers = layerConfig(options, frame);
+  const nlohmann::json before = gpuActivityReading();
+  const auto t0 = std::chrono::steady_clock::now();
+  GpuFrame resident(gpu, frame.scene, frame.lights, fc);
+  const GpuEffectParams params = gpuEffectParams(frame, effect);
+  const GpuFrameResult r = resident.render(frame.camera, fc.capture.layers, params, true);
+  out.frameAccount = gpuFrameStats(before, gpuActivityReading(), msSince(t0), r.gpuMs());
+  EffectResult& e = out.effect;
+  e.image = imageOf(frame.camera, r.image);
+  e.rays = r.sums[0], e.hits = r.sums[1], e.iterationSum = r.sums[2], e.intervalSum = r.sums[3], e.pixelSum = r.sums[4];
+  e.giveUps = r.sums[5], e.bentRays = r.sums[6];
+  for (int l = 0; l < RayCounters::kLevels; ++l) e.levelIterations[l] = r.sums[8 + size_t(l)];
+  e.iterationsP99 = r.iterationsP99;
+  e.onDevice = true;
+  e.traceMs = r.traceMs, e.shadeMs = r.shadeMs;
+  e.deviceBytes = resident.effectBytes();
+  out.captureBytes = resident.captureBytes();
+  out.fragments = r.fragments, out.poolCapacity = r.poolCapacity, out.overflowLost = r.overflowLost, out.maxComplexity = r.maxComplexity;
+  out.levelIntervals.assign(r.levelIntervals.begin(), r.levelIntervals.end());
+  out.rasterMs = r.rasterMs, out.sortMs = r.sortMs, out.layersMs = r.layersMs, out.pyramidMs = r.pyramidMs;
+  out.hierarchyBytes = resident.hierarchyBytes();
+  out.attempts = r.attempts;
+  // The timed repeats: the effect again over the same layers, without counters (as measureTrace).
+  GpuEffectParams timed = params;
+  timed.countRays = false;
+  std::vector<double> trace, shade;
+  for (int i = 0; i < repeat; ++i) {
+    double t = 0.0, sh = 0.0;
+    resident.retrace(timed, t, sh);
+    trace.push_back(t), shade.push_back(sh);
+  }
+  out.timedTraceMs = median(std::move(trace)), out.timedShadeMs = median(std::move(shade));
+#else
+  (void)options, (void)frame, (void)tracers, (void)gpu;
+#endif
+  return out;
+}
 
 CameraDesc orbitCamera(const CameraDesc& desc, int i, float degrees) {
   CameraDesc d = desc;

@@ -50,6 +50,34 @@ struct FrameSequenceConfig {
   std::function<void(int, const Image&)> onImage;
 };
 
+/// Whether the resident GPU frame (gpu/gpu_frame.h) traces with `name`: hssr, hiz, exhaustive.
+bool isResidentTracer(const std::string& name);
+
+/// What one resident frame gives `render --device gpu`: the picture and the effect's counters
+/// (reduced on the device), the capture's counts, the pyramid's intervals per level, the GPU
+/// times. Nothing per pixel but the picture crosses the bus.
+struct ResidentRender {
+  EffectResult effect;  ///< image, counters, iterationsP99, the counted frame's GPU times, onDevice
+  uint64_t fragments = 0, poolCapacity = 0, overflowLost = 0;
+  uint32_t maxComplexity = 0;
+  std::vector<uint64_t> levelIntervals;  ///< per pyramid level, level 0 included
+  double rasterMs = 0.0, sortMs = 0.0, layersMs = 0.0, pyramidMs = 0.0;  ///< GPU timer queries
+  size_t hierarchyBytes = 0;  ///< level 0, the counts and the pyramid on the GPU
+  size_t captureBytes = 0;    ///< the scene, the pool, the lists and the arrays on the GPU
+  int attempts = 1;           ///< runs of the frame (2 or more: a buffer grew)
+  double timedTraceMs = 0.0, timedShadeMs = 0.0;  ///< medians of the --repeat runs without counters
+  nlohmann::json frameAccount;  ///< the counted frame's gpu.frame (the scene's upload and the links included)
+};
+
+/// Whether `render --device gpu` can run `tracer` with `effect` as one resident frame: a resident
+/// tracer, lights the GPU passes hold, and an effect that needs nothing per pixel on the host
+/// (view synthesis counts its holes per pixel).
+bool rendersResident(const std::string& tracer, const Frame& frame, const EffectConfig& effect);
+/// Renders the loaded `frame` (loadFrameScene) as one resident GPU frame, then runs the effect
+/// `repeat` times more without counters for the timings.
+ResidentRender renderResident(const FrameOptions& options, Frame& frame, const std::string& tracer, const TracerOptions& tracers,
+                              const EffectConfig& effect, int repeat, GpuContext& gpu);
+
 /// Renders `config.frames` frames of the loaded `frame` (loadFrameScene) along the orbit of its
 /// camera, on the CPU (`gpu` null) or resident on the GPU. InputError for a tracer the GPU frame
 /// lacks or more lights than the GPU passes hold.
