@@ -228,7 +228,9 @@ TEST_F(GpuFrameTest, TheFramesAfterTheFirstLinkAllocateAndUploadNothingAndWaitOn
     EXPECT_EQ(s[i].bufferAllocations, 0u);
     EXPECT_LE(s[i].uploadBytes, 64u * 1024u);
     EXPECT_EQ(s[i].hostWaits, 1u);
-    EXPECT_EQ(s[i].downloadBytes, 196u);  // the counters' block: fragments, 16 level totals, 16 64-bit sums
+    // the counters' block: fragments, complexity maximum, kept fragments, 16 level totals, 16 64-bit
+    // sums, the percentile and a spare word
+    EXPECT_EQ(s[i].downloadBytes, 212u);
     EXPECT_EQ(s[i].draws, 1u);
     EXPECT_EQ(s[i].attempts, 1);
     EXPECT_GT(s[i].rays, 160u * 90u / 4);

@@ -201,15 +201,21 @@ TEST_F(Gpu, CaptureEqualsTheCpuCapture) {
   EXPECT_GE(compareCaptures(*gpu_, o, "peel").matchFraction(), 0.9999);
 }
 
+/// A view through the textured, cut-out grate of test::writeGrateObj (written into `dir`).
+FrameOptions grateView(const test::TempDir& dir, int width, int height, int layers) {
+  FrameOptions o;
+  o.scenePath = test::writeGrateObj(dir);
+  o.eye = glm::dvec3(0.35, 0.45, 1.5), o.target = glm::dvec3(0.0, 0.2, -3.0), o.fov = 55.0f;
+  o.width = width, o.height = height, o.layers = layers;
+  return o;
+}
+
 // Textures and alpha cut-outs: the GPU captures discard exactly the CPU's fragments (the same
 // texel decides, from the same barycentrics) and sample the same colours, to the last bit on
 // llvmpipe and within one unit of it elsewhere (the GPU's log2 and square root round their way).
 TEST_F(Gpu, CutOutGrateEqualsTheCpuCapture) {
   test::TempDir dir;
-  FrameOptions o;
-  o.scenePath = test::writeGrateObj(dir);
-  o.eye = glm::dvec3(0.35, 0.45, 1.5), o.target = glm::dvec3(0.0, 0.2, -3.0), o.fov = 55.0f;
-  o.width = 160, o.height = 120, o.layers = 3;
+  const FrameOptions o = grateView(dir, 160, 120, 3);
   for (const char* method : {"lists", "peel"}) {
     uint64_t gpuFragments = 0;
     const LayerAgreement a = compareCaptures(*gpu_, o, method, &gpuFragments);
@@ -246,10 +252,7 @@ std::vector<std::array<uint32_t, 4>> listOf(const FragmentLists& l, size_t p) {
 // normal and textured colour (bits on llvmpipe; elsewhere the same fragments).
 TEST_F(Gpu, ListsForVerificationHoldEveryFragmentAsTheCpu) {
   test::TempDir dir;
-  FrameOptions o;
-  o.scenePath = test::writeGrateObj(dir);
-  o.eye = glm::dvec3(0.35, 0.45, 1.5), o.target = glm::dvec3(0.0, 0.2, -3.0), o.fov = 55.0f;
-  o.width = 96, o.height = 72, o.layers = 2;
+  FrameOptions o = grateView(dir, 96, 72, 2);
   o.captureLists = true;
   const Frame cpu = buildFrame(o);
   Frame onGpu;
