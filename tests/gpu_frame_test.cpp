@@ -126,7 +126,7 @@ TEST_F(GpuFrameTest, ResidentFramesEqualTheDownloadedPathBitForBit) {
     SCOPED_TRACE(i);
     setFrameView(fo, orbitCamera(start, i, 45.0f), frame);
     const GpuEffectParams p = gpuEffectParams(frame, ec);
-    const GpuFrameResult got = resident.render(frame.camera, layerConfig(fo, frame), p, true);
+    const GpuFrameResult got = resident.render(frame.camera, layerConfig(fo, frame), p, GpuPicture::Linear);
     const Reference want = downloadedPath(*gpu_, fo, frame, fc, p);
     ASSERT_GT(want.out.sums[0], uint64_t(W * H / 4));
     expectSameFrame(got, want, size_t(W) * size_t(H));
@@ -157,7 +157,7 @@ TEST_F(GpuFrameTest, EveryEffectAndTheHiZMarchAndRayReloadingEqualTheDownloadedP
     fc.march.rayReloading = c.reloading;
     GpuFrame resident(*gpu_, frame.scene, frame.lights, fc);
     const GpuEffectParams p = gpuEffectParams(frame, ec);
-    const GpuFrameResult got = resident.render(frame.camera, layerConfig(fo, frame), p, true);
+    const GpuFrameResult got = resident.render(frame.camera, layerConfig(fo, frame), p, GpuPicture::Linear);
     expectSameFrame(got, downloadedPath(*gpu_, fo, frame, fc, p), size_t(W) * size_t(H));
   }
 }
@@ -175,9 +175,9 @@ TEST_F(GpuFrameTest, TheCounterFreeMarchesGiveTheSameAnswers) {
     GpuFrame resident(*gpu_, frame.scene, frame.lights, fc);
     EffectConfig ec;
     ec.bounces = 2;
-    const GpuFrameResult counted = resident.render(frame.camera, layerConfig(fo, frame), gpuEffectParams(frame, ec), true);
+    const GpuFrameResult counted = resident.render(frame.camera, layerConfig(fo, frame), gpuEffectParams(frame, ec), GpuPicture::Linear);
     ec.countRays = false;
-    const GpuFrameResult timed = resident.render(frame.camera, layerConfig(fo, frame), gpuEffectParams(frame, ec), true);
+    const GpuFrameResult timed = resident.render(frame.camera, layerConfig(fo, frame), gpuEffectParams(frame, ec), GpuPicture::Linear);
     EXPECT_GT(counted.sums[2], 0u);  // iterations
     EXPECT_EQ(timed.sums[2], 0u);
     EXPECT_EQ(timed.sums[0], counted.sums[0]);
@@ -185,6 +185,42 @@ TEST_F(GpuFrameTest, TheCounterFreeMarchesGiveTheSameAnswers) {
     ASSERT_EQ(timed.image.size(), counted.image.size());
     EXPECT_EQ(std::memcmp(timed.image.data(), counted.image.data(), counted.image.size() * sizeof(glm::vec3)), 0);
   }
+}
+
+// The picture packed on the device: RGBA32F is the linear picture to the bit, and RGBA8 holds
+// the PNG writer's sRGB codes of it to the bit (encode8), at a size with partial tiles.
+TEST_F(GpuFrameTest, PackedPicturesAreTheLinearPictureEncodedAsTheCpuEncodesIt) {
+  const int W = 101, H = 59;
+  FrameOptions fo = defaultSceneOptions(W, H);
+  Frame frame;
+  loadFrameScene(fo, frame);
+  EffectConfig ec;
+  ec.bounces = 2;
+  GpuFrame resident(*gpu_, frame.scene, frame.lights, hssrConfig(fo, frame));
+  const GpuEffectParams p = gpuEffectParams(frame, ec);
+  const GpuFrameResult linear = resident.render(frame.camera, layerConfig(fo, frame), p, GpuPicture::Linear);
+  const GpuFrameResult srgb = resident.render(frame.camera, layerConfig(fo, frame), p, GpuPicture::Srgb8);
+  const GpuFrameResult f32 = resident.render(frame.camera, layerConfig(fo, frame), p, GpuPicture::Float32);
+  ASSERT_EQ(linear.image.size(), size_t(W * H));
+  ASSERT_EQ(srgb.srgb8.size(), size_t(W * H));
+  ASSERT_EQ(f32.float32.size(), size_t(W * H));
+  EXPECT_TRUE(srgb.image.empty());
+  Image img(W, H);
+  for (int y = 0; y < H; ++y)
+    for (int x = 0; x < W; ++x) img.set(x, y, linear.image[size_t(y) * W + size_t(x)]);
+  std::vector<uint8_t> want;
+  encode8(img, true, 3, want);
+  size_t differ = 0, notFloat = 0, distinct = 0;
+  for (size_t i = 0; i < size_t(W * H); ++i) {
+    for (size_t c = 0; c < 3; ++c) differ += uint8_t(srgb.srgb8[i] >> (8 * c)) != want[3 * i + c];
+    differ += (srgb.srgb8[i] >> 24) != 255u;
+    notFloat += std::memcmp(&f32.float32[i], &linear.image[i], sizeof(glm::vec3)) != 0;
+    distinct += i > 0 && want[3 * i] != want[3 * i - 3];
+  }
+  EXPECT_EQ(differ, 0u);
+  EXPECT_EQ(notFloat, 0u);
+  EXPECT_GT(distinct, size_t(W * H / 20)) << "a picture with detail";
+  EXPECT_EQ(srgb.sums, linear.sums);  // the same frame
 }
 
 TEST_F(GpuFrameTest, AnOverflowingPoolGrowsAndTheFrameRunsAgainWithTheSameAnswers) {
@@ -196,10 +232,10 @@ TEST_F(GpuFrameTest, AnOverflowingPoolGrowsAndTheFrameRunsAgainWithTheSameAnswer
   GpuFrameConfig fc = hssrConfig(fo, frame);
   GpuFrame plain(*gpu_, frame.scene, frame.lights, fc);
   const GpuEffectParams p = gpuEffectParams(frame, ec);
-  const GpuFrameResult want = plain.render(frame.camera, layerConfig(fo, frame), p, true);
+  const GpuFrameResult want = plain.render(frame.camera, layerConfig(fo, frame), p, GpuPicture::Linear);
   fc.capture.poolCapacity = 100;  // far fewer than the frame's fragments
   GpuFrame small(*gpu_, frame.scene, frame.lights, fc);
-  const GpuFrameResult got = small.render(frame.camera, layerConfig(fo, frame), p, true);
+  const GpuFrameResult got = small.render(frame.camera, layerConfig(fo, frame), p, GpuPicture::Linear);
   EXPECT_GE(got.attempts, 2);
   EXPECT_EQ(got.fragments, want.fragments);
   EXPECT_GT(got.fragments, 100u);
@@ -210,7 +246,7 @@ TEST_F(GpuFrameTest, AnOverflowingPoolGrowsAndTheFrameRunsAgainWithTheSameAnswer
   fc.capture.growOnOverflow = false;
   GpuFrame fixed(*gpu_, frame.scene, frame.lights, fc);
   try {
-    fixed.render(frame.camera, layerConfig(fo, frame), p, false);
+    fixed.render(frame.camera, layerConfig(fo, frame), p, GpuPicture::None);
     FAIL() << "no overflow error";
   } catch (const InputError& e) {
     EXPECT_NE(std::string(e.what()).find(std::to_string(want.fragments) + " fragments generated, 100 stored"), std::string::npos) << e.what();

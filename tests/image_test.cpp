@@ -1,5 +1,10 @@
 // Image files: write-then-read round trips, atomic writes, bad paths.
+#include <algorithm>
+#include <array>
+#include <cmath>
 #include <filesystem>
+#include <limits>
+#include <vector>
 
 #include "layertrace/util/error.h"
 #include "layertrace/util/image.h"
@@ -49,6 +54,24 @@ TEST(Image, BadPathsAndExtensionsLeaveNothingBehind) {
   EXPECT_THROW(writeImage(dir / "missing/dir/a.png", im), InputError);
   EXPECT_THROW(writeImage(dir / "missing/dir/a.exr", im), InputError);
   EXPECT_TRUE(std::filesystem::is_empty(dir.path));
+}
+
+// The thresholds the GPU encodes with give encode8's sRGB code of every value: at and around
+// each threshold, over [0, 1] densely, and for values outside it (negative, above 1, infinite,
+// NaN).
+TEST(Image, Srgb8ThresholdsGiveTheCodesOfEncode8) {
+  const std::array<float, 255> t = srgb8Thresholds();
+  // the rule shaders/frame_picture.comp applies: the number of thresholds at or below the value
+  const auto code = [&](float v) { return uint8_t(std::count_if(t.begin(), t.end(), [v](float x) { return x <= v; })); };
+  std::vector<float> values = {-1.0f, -0.0f, 0.0f, 1.0f, 1.5f, 1e30f, std::numeric_limits<float>::infinity(),
+                               -std::numeric_limits<float>::infinity(), std::numeric_limits<float>::denorm_min()};
+  for (float v : t) values.insert(values.end(), {v, std::nextafter(v, 0.0f), std::nextafter(v, 2.0f)});
+  for (int i = 0; i <= 1 << 16; ++i) values.push_back(float(i) / float(1 << 16));
+  size_t differ = 0;
+  for (float v : values) differ += code(v) != encodeChannel8(v, true);
+  EXPECT_EQ(differ, 0u);
+  EXPECT_TRUE(std::is_sorted(t.begin(), t.end()));
+  EXPECT_EQ(code(std::numeric_limits<float>::quiet_NaN()), 0);  // no threshold is at or below NaN
 }
 
 }  // namespace

@@ -200,6 +200,7 @@ RenderOutput renderFrame(const RenderOptions& o) {
   ec.wholeWaves = gpu != nullptr;  // one dispatch per wave
   ec.shadeOnDevice = gpu != nullptr;  // rays generated and shaded on the GPU where the effect allows
   Frame frame;
+  std::vector<uint8_t> png8;
   BuiltTracer built;
   EffectResult r;
   TraceTiming timed;
@@ -215,7 +216,8 @@ RenderOutput renderFrame(const RenderOptions& o) {
   const bool resident = gpu && rendersResident(o.tracer, frame, ec) && !o.checkExhaustive && !o.checkOracle && o.run.pixelStats.empty() &&
                         gpuCaptureLimit(*gpu, frame).empty();
   if (resident) {
-    ResidentRender rr = renderResident(fo, frame, o.tracer, o.tracers, ec, o.repeat, *gpu);
+    ResidentRender rr = renderResident(fo, frame, o.tracer, o.tracers, ec, o.repeat, o.png8, *gpu);
+    png8 = std::move(rr.srgb8);
     frame.layers.width = frame.camera.width(), frame.layers.height = frame.camera.height(), frame.layers.k = fo.layers;
     frame.lists.width = frame.camera.width(), frame.lists.height = frame.camera.height();
     frame.lists.generated = rr.fragments;
@@ -362,7 +364,7 @@ RenderOutput renderFrame(const RenderOptions& o) {
   if (direct)
     summary << "; warp holes " << stats["warp"]["holes"].get<uint64_t>() << " of " << stats["warp"]["covered_pixels"].get<uint64_t>()
             << " covered pixels, PSNR " << stats["warp"]["psnr_db"].get<double>() << " dB against the direct view";
-  return {std::move(r), std::move(direct), std::move(stats), summary.str()};
+  return {std::move(r), std::move(png8), std::move(direct), std::move(stats), summary.str()};
 }
 
 int runRender(const RenderOptions& o) {
@@ -370,10 +372,13 @@ int runRender(const RenderOptions& o) {
   std::string ext = fs::path(out).extension().string();
   std::transform(ext.begin(), ext.end(), ext.begin(), [](unsigned char c) { return char(std::tolower(c)); });
   if (ext != ".png" && ext != ".exr") inputError("-o ", out, ": render writes .png or .exr");
-  const RenderOutput rendered = renderFrame(o);
+  RenderOptions options = o;
+  options.png8 = ext == ".png";
+  const RenderOutput rendered = renderFrame(options);
   if (!o.run.pixelStats.empty()) writePixelStats(o.run.pixelStats, rendered.result);
   if (fs::path(out).has_parent_path()) ensureDirectory(fs::path(out).parent_path().string(), "-o");
-  writeImage(out, rendered.result.image);
+  if (!rendered.png8.empty()) writePngBytes(out, rendered.stats["width"].get<int>(), rendered.stats["height"].get<int>(), 3, rendered.png8.data());
+  else writeImage(out, rendered.result.image);
   if (rendered.direct)
     writeImage((fs::path(out).parent_path() / (fs::path(out).stem().string() + "_direct" + ext)).string(), *rendered.direct);
   writeStats(o.run.statsPath, rendered.stats.dump(2));

@@ -83,11 +83,15 @@ struct RenderOptions {
   bool checkExhaustive = false;  ///< trace every ray with the exhaustive oracle too
   bool checkOracle = false;      ///< trace every ray with the independent image-space oracle too
   int repeat = 3;                ///< --repeat: timed passes after the counted one; the trace time is their median
+  /// The picture is for a PNG: a resident GPU frame reads it back as 8-bit sRGB codes
+  /// (RenderOutput::png8) instead of floats. Set by runRender.
+  bool png8 = false;
 };
 
 /// What `render` computes, before it writes anything.
 struct RenderOutput {
-  EffectResult result;         ///< the image and the per-pixel counters
+  EffectResult result;         ///< the image (unless png8 holds it) and the per-pixel counters
+  std::vector<uint8_t> png8;   ///< RenderOptions::png8 on a resident GPU frame: the PNG's RGB bytes, row 0 first
   std::optional<Image> direct;  ///< view synthesis: the second camera's own rendering
   nlohmann::json stats;        ///< the statistics file's contents
   std::string summary;         ///< the console line

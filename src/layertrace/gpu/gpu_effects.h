@@ -123,6 +123,9 @@ class GpuEffects {
   /// The device's sums of the last run (kSumsWords words: GpuTallySums as 16 × (low, high)
   /// 32-bit words, then the percentile).
   const GpuBuffer& sums() const { return sums_; }
+  /// The last run's output per pixel slot (8×8 tiles, effect_common.glsl slotPixel): the
+  /// picture and the traced colour, two RGBA floats.
+  const GpuBuffer& picture() const { return out_; }
 
   /// Bytes held on the GPU for the frame (the per-run buffers included once run).
   size_t memoryBytes() const;

@@ -1,6 +1,7 @@
 #include "layertrace/gpu/gpu_frame.h"
 
 #include <algorithm>
+#include <array>
 #include <initializer_list>
 
 #include <epoxy/gl.h>
@@ -9,6 +10,7 @@
 #include "layertrace/gpu/shader_sources.h"
 #include "layertrace/hssr/hssr_method.h"
 #include "layertrace/util/error.h"
+#include "layertrace/util/image.h"
 
 namespace lt {
 
@@ -38,6 +40,7 @@ void GpuFrame::create() {
   effects_ = std::make_unique<GpuEffects>(gpu_, scene, lights_);
   layersPass_ = &gpu_.computeProgram("frame_layers.comp", shader_source::frame_layers_comp);
   trianglesPass_ = &gpu_.computeProgram("frame_triangles.comp", shader_source::frame_triangles_comp);
+  picturePass_ = &gpu_.computeProgram("frame_picture.comp", shader_source::frame_picture_comp);
   std::vector<glm::vec4> materials;
   for (const Material& m : scene.materials) materials.emplace_back(m.mirror, m.shininess, m.transmission, m.ior);
   if (materials.empty()) materials.emplace_back(0.0f);
@@ -54,12 +57,13 @@ GpuFrame::~GpuFrame() {
 
 size_t GpuFrame::memoryBytes() const {
   if (!capture_) return 0;
-  size_t bytes = capture_->memoryBytes() + effects_->memoryBytes() + materials_.bytes() + level0_.bytes() + status_.bytes() + reduced_.bytes();
+  size_t bytes = capture_->memoryBytes() + effects_->memoryBytes() + materials_.bytes() + level0_.bytes() + status_.bytes() + reduced_.bytes() +
+                 picture_.bytes();
   if (tracer_->pyramid()) bytes += tracer_->pyramid()->memoryBytes();
   return bytes;  // (effects_ counts fragments_ and triangles_)
 }
 
-void GpuFrame::submit(const Camera& camera, const GpuEffectParams& effect, bool image, GpuFrameResult& out) {
+void GpuFrame::submit(const Camera& camera, const GpuEffectParams& effect, GpuPicture picture, GpuFrameResult& out) {
   const int W = camera.width(), H = camera.height(), k = config_.capture.layers.k;
   const size_t pixels = size_t(W) * size_t(H), slots = pixels * size_t(k);
   timeline_.begin(kCapture);
@@ -94,12 +98,28 @@ void GpuFrame::submit(const Camera& camera, const GpuEffectParams& effect, bool 
 
   effects_->setFrame(camera, fragments_, triangles_, k);
   GpuEffectReadback readback{};
-  readback.image = image;
+  readback.image = picture == GpuPicture::Linear;
   readback.tally = readback.histogram = readback.sums = false;
   const GpuEffectOutput eo = effects_->run(*tracer_, effect, readback);
-  if (image) {
+  if (readback.image) {
     out.image = eo.image;
     out.traceMs = eo.traceMs, out.shadeMs = eo.shadeMs;
+  }
+  if (picture == GpuPicture::Srgb8 || picture == GpuPicture::Float32) {
+    // Packed in rows on the device; read with the counters, after the frame's one wait.
+    GpuDebugGroup group("picture");
+    const bool srgb = picture == GpuPicture::Srgb8;
+    const size_t bytes = pixels * (srgb ? 4 : 16);
+    if (picture_.bytes() < bytes) picture_ = GpuBuffer(bytes);
+    effects_->picture().bindStorage(0), picture_.bindStorage(srgb ? 1 : 2);
+    picturePass_->set("uWidth", W);
+    picturePass_->set("uHeight", H);
+    picturePass_->set("uFormat", srgb ? 0 : 1);
+    if (srgb) {
+      static const std::array<float, 255> thresholds = srgb8Thresholds();
+      glProgramUniform1fv(picturePass_->id(), glGetUniformLocation(picturePass_->id(), "uThresholds"), 255, thresholds.data());
+    }
+    gpu_.dispatch(*picturePass_, pixels);
   }
 
   // The frame's counters into one block, read with one wait.
@@ -112,7 +132,7 @@ void GpuFrame::submit(const Camera& camera, const GpuEffectParams& effect, bool 
   glCopyNamedBufferSubData(effects_->sums().id(), status_.id(), 0, kSumsWord * 4, kSumsWords * 4);
 }
 
-GpuFrameResult GpuFrame::render(const Camera& camera, const LayerConfig& layers, const GpuEffectParams& effect, bool image) {
+GpuFrameResult GpuFrame::render(const Camera& camera, const LayerConfig& layers, const GpuEffectParams& effect, GpuPicture picture) {
   LT_CHECK(layers.k == config_.capture.layers.k, layers.k, config_.capture.layers.k);
   config_.capture.layers = layers;
   gpu_.makeCurrent();
@@ -120,14 +140,14 @@ GpuFrameResult GpuFrame::render(const Camera& camera, const LayerConfig& layers,
   if (!capture_) create();
   GpuFrameResult out;
   for (out.attempts = 1;; ++out.attempts) {
-    submit(camera, effect, image, out);
+    submit(camera, effect, picture, out);
     uint32_t status[kStatusWords];
     status_.read(status, sizeof status);
     // The GPU times, read after the frame's one wait (they wait no more).
     const std::vector<double> ms = timeline_.collect(kStages);
     out.captureMs = ms[kCapture], out.layersMs = ms[kLayers], out.pyramidMs = ms[kPyramid];
     out.rasterMs = capture_->setupMs() + capture_->rasterMs(), out.sortMs = capture_->sortMs();
-    if (!image) effects_->collectTimes(out.traceMs, out.shadeMs);
+    if (picture != GpuPicture::Linear) effects_->collectTimes(out.traceMs, out.shadeMs);
     out.fragments = status[kFragmentsWord];
     bool again = false;
     if (config_.capture.method == GpuCaptureMethod::Lists && out.fragments > capture_->poolCapacity()) {
@@ -144,6 +164,9 @@ GpuFrameResult GpuFrame::render(const Camera& camera, const LayerConfig& layers,
       LT_CHECK(out.attempts < 4, out.attempts, out.fragments);
       continue;
     }
+    const size_t pixels = size_t(camera.width()) * size_t(camera.height());
+    if (picture == GpuPicture::Srgb8) out.srgb8.resize(pixels), picture_.read(out.srgb8.data(), pixels * 4);
+    if (picture == GpuPicture::Float32) out.float32.resize(pixels), picture_.read(out.float32.data(), pixels * 16);
     out.levelIntervals.assign(status + kLevelsWord, status + kLevelsWord + tracer_->pyramid()->levels);
     for (size_t i = 0; i < 16; ++i) out.sums[i] = uint64_t(status[kSumsWord + 2 * i]) | uint64_t(status[kSumsWord + 2 * i + 1]) << 32;
     out.iterationsP99 = effect.countRays ? status[kSumsWord + kPercentileWord] : 0;

@@ -99,7 +99,7 @@ std::vector<FrameSample> runOnGpu(const FrameOptions& options, Frame& frame, con
     fc.capture.layers = layerConfig(options, frame);
     // The first frame uploads the scene and links the programs: it is counted with them.
     if (!resident) resident = std::make_unique<GpuFrame>(gpu, frame.scene, frame.lights, fc);
-    const GpuFrameResult r = resident->render(frame.camera, fc.capture.layers, gpuEffectParams(frame, ec), bool(c.onImage));
+    const GpuFrameResult r = resident->render(frame.camera, fc.capture.layers, gpuEffectParams(frame, ec), c.onImage ? GpuPicture::Linear : GpuPicture::None);
     s.wallMs = msSince(t0);
     const GpuActivity a = gpuActivity() - before;
     s.gpuMs = r.gpuMs();
@@ -128,7 +128,7 @@ bool rendersResident(const std::string& tracer, const Frame& frame, const Effect
 }
 
 ResidentRender renderResident(const FrameOptions& options, Frame& frame, const std::string& tracer, const TracerOptions& tracers,
-                              const EffectConfig& effect, int repeat, GpuContext& gpu) {
+                              const EffectConfig& effect, int repeat, bool srgb8, GpuContext& gpu) {
   LT_CHECK(rendersResident(tracer, frame, effect), tracer);
   if (repeat < 1) inputError("--repeat ", repeat, ": must be at least 1");
   ResidentRender out;
@@ -140,10 +140,17 @@ ResidentRender renderResident(const FrameOptions& options, Frame& frame, const s
   const auto t0 = std::chrono::steady_clock::now();
   GpuFrame resident(gpu, frame.scene, frame.lights, fc);
   const GpuEffectParams params = gpuEffectParams(frame, effect);
-  const GpuFrameResult r = resident.render(frame.camera, fc.capture.layers, params, true);
+  const GpuFrameResult r = resident.render(frame.camera, fc.capture.layers, params, srgb8 ? GpuPicture::Srgb8 : GpuPicture::Float32);
   out.frameAccount = gpuFrameStats(before, gpuActivityReading(), msSince(t0), r.gpuMs());
   EffectResult& e = out.effect;
-  e.image = imageOf(frame.camera, r.image);
+  if (srgb8) {
+    out.srgb8.resize(r.srgb8.size() * 3);
+    for (size_t i = 0; i < r.srgb8.size(); ++i)
+      for (size_t c = 0; c < 3; ++c) out.srgb8[3 * i + c] = uint8_t(r.srgb8[i] >> (8 * c));
+  } else {
+    e.image = Image(frame.camera.width(), frame.camera.height());
+    for (size_t i = 0; i < r.float32.size(); ++i) e.image.set(int(i % size_t(e.image.width)), int(i / size_t(e.image.width)), glm::vec3(r.float32[i]));
+  }
   e.rays = r.sums[0], e.hits = r.sums[1], e.iterationSum = r.sums[2], e.intervalSum = r.sums[3], e.pixelSum = r.sums[4];
   e.giveUps = r.sums[5], e.bentRays = r.sums[6];
   for (int l = 0; l < RayCounters::kLevels; ++l) e.levelIterations[l] = r.sums[8 + size_t(l)];
@@ -168,7 +175,7 @@ ResidentRender renderResident(const FrameOptions& options, Frame& frame, const s
   }
   out.timedTraceMs = median(std::move(trace)), out.timedShadeMs = median(std::move(shade));
 #else
-  (void)options, (void)frame, (void)tracers, (void)gpu;
+  (void)options, (void)frame, (void)tracers, (void)srgb8, (void)gpu;
 #endif
   return out;
 }

@@ -57,7 +57,8 @@ bool isResidentTracer(const std::string& name);
 /// (reduced on the device), the capture's counts, the pyramid's intervals per level, the GPU
 /// times. Nothing per pixel but the picture crosses the bus.
 struct ResidentRender {
-  EffectResult effect;  ///< image, counters, iterationsP99, the counted frame's GPU times, onDevice
+  EffectResult effect;  ///< image (unless srgb8), counters, iterationsP99, the counted frame's GPU times, onDevice
+  std::vector<uint8_t> srgb8;  ///< with `srgb8` asked for: the picture as encode8's RGB bytes, row 0 first
   uint64_t fragments = 0, poolCapacity = 0, overflowLost = 0;
   uint32_t maxComplexity = 0;
   std::vector<uint64_t> levelIntervals;  ///< per pyramid level, level 0 included
@@ -74,9 +75,10 @@ struct ResidentRender {
 /// (view synthesis counts its holes per pixel).
 bool rendersResident(const std::string& tracer, const Frame& frame, const EffectConfig& effect);
 /// Renders the loaded `frame` (loadFrameScene) as one resident GPU frame, then runs the effect
-/// `repeat` times more without counters for the timings.
+/// `repeat` times more without counters for the timings. The picture comes back as 32-bit floats,
+/// or with `srgb8` as the 8-bit sRGB codes a PNG holds (encoded on the device, to the bit).
 ResidentRender renderResident(const FrameOptions& options, Frame& frame, const std::string& tracer, const TracerOptions& tracers,
-                              const EffectConfig& effect, int repeat, GpuContext& gpu);
+                              const EffectConfig& effect, int repeat, bool srgb8, GpuContext& gpu);
 
 /// Renders `config.frames` frames of the loaded `frame` (loadFrameScene) along the orbit of its
 /// camera, on the CPU (`gpu` null) or resident on the GPU. InputError for a tracer the GPU frame

@@ -1,9 +1,10 @@
 #include "layertrace/util/image.h"
 
 #include <algorithm>
-#include <cstring>
+#include <array>
 #include <bit>
 #include <cmath>
+#include <cstring>
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
@@ -50,16 +51,35 @@ float srgbToLinear(float v) {
 
 }  // namespace
 
+uint8_t encodeChannel8(float v, bool srgb) {
+  v = srgb ? linearToSrgb(v) : std::clamp(v, 0.0f, 1.0f);
+  return static_cast<unsigned char>(std::lround(v * 255.0f));
+}
+
 void encode8(const Image& image, bool srgb, int outChannels, std::vector<uint8_t>& bytes) {
   bytes.resize(size_t(image.width) * size_t(image.height) * size_t(outChannels));
   for (int y = 0; y < image.height; ++y)
     for (int x = 0; x < image.width; ++x)
-      for (int c = 0; c < outChannels; ++c) {
-        float v = image.at(x, y)[std::min(c, image.channels - 1)];
-        v = srgb ? linearToSrgb(v) : std::clamp(v, 0.0f, 1.0f);
+      for (int c = 0; c < outChannels; ++c)
         bytes[(size_t(y) * size_t(image.width) + size_t(x)) * size_t(outChannels) + size_t(c)] =
-            static_cast<unsigned char>(std::lround(v * 255.0f));
-      }
+            encodeChannel8(image.at(x, y)[std::min(c, image.channels - 1)], srgb);
+}
+
+std::array<float, 255> srgb8Thresholds() {
+  // For each code c ≥ 1, the smallest float in [0, 1] that encodes to c or more: a binary search
+  // over the bit patterns of the non-negative floats, which are ordered as the floats are.
+  std::array<float, 255> t{};
+  const uint32_t one = std::bit_cast<uint32_t>(1.0f);
+  for (int c = 1; c <= 255; ++c) {
+    uint32_t lo = 0, hi = one;  // encodeChannel8(1) = 255 ≥ c
+    while (lo < hi) {
+      const uint32_t mid = lo + (hi - lo) / 2;
+      if (encodeChannel8(std::bit_cast<float>(mid), true) >= c) hi = mid;
+      else lo = mid + 1;
+    }
+    t[size_t(c - 1)] = std::bit_cast<float>(lo);
+  }
+  return t;
 }
 
 void stageOrRename(const std::string& tmp, const std::string& path);

@@ -2,6 +2,7 @@
 // through a temporary file and a rename, so no partial file is ever left behind.
 #pragma once
 
+#include <array>
 #include <cstddef>
 #include <cstdint>
 #include <optional>
@@ -44,6 +45,12 @@ void writeImage(const std::string& path, const Image& image, bool srgb = true);
 /// The 8-bit encoding writeImage uses for PNG (sRGB when `srgb`, else clamped), `outChannels`
 /// (1 or 3) per pixel, row 0 first — also what the viewer shows.
 void encode8(const Image& image, bool srgb, int outChannels, std::vector<uint8_t>& bytes);
+/// encode8's code of one channel value.
+uint8_t encodeChannel8(float v, bool srgb);
+/// The sRGB encoding of encode8 as 255 thresholds: a value's code is the number of thresholds at
+/// or below it (for every float; NaN has code 0). The GPU encodes with them (its pow is not
+/// libm's), to the CPU's codes bit for bit.
+std::array<float, 255> srgb8Thresholds();
 /// Writes 8-bit pixels (row 0 at the top) as a PNG, atomically.
 void writePngBytes(const std::string& path, int width, int height, int channels, const uint8_t* bytes);
 /// Reads `.png` (decoded back to linear when `srgb`) or `.exr`. Used by round-trip tests.
