@@ -2,6 +2,7 @@
 // pipeline Frame's k-layer arrays, tracers are built by name as the CLI builds them, and every
 // internal error is translated at this boundary into the standard exceptions the header promises.
 #include "layertrace/api/layertrace.h"
+#include "layertrace/api/api_detail.h"
 
 #include <cmath>
 #include <limits>
@@ -18,6 +19,8 @@
 
 namespace lt {
 
+using namespace api_detail;
+
 struct ScreenLayers::Impl {
   View view;
   Frame frame;  ///< camera and k-layer arrays (no scene: screen tracers read only these)
@@ -26,38 +29,19 @@ struct ScreenTracer::Impl {
   const ScreenLayers::Impl* layers;
   BuiltTracer built;
 };
-struct TriangleScene::Impl {
-  Scene scene;
-};
 struct MeshTracer::Impl {
   Frame frame;  ///< the scene (a copy) and the view's camera
   BuiltTracer built;
 };
 
-namespace {
+namespace api_detail {
 
-/// Runs `f`, translating layertrace's errors into the exceptions of the public header.
-template <class F>
-auto guarded(F&& f) -> decltype(f()) {
-  try {
-    return f();
-  } catch (const InputError& e) {
-    throw std::invalid_argument(e.what());
-  } catch (const InternalError& e) {
-    throw std::runtime_error(std::string("layertrace internal error: ") + e.what());
-  }
-}
-
-[[noreturn]] void invalid(const std::string& message) { throw std::invalid_argument(message); }
-
-/// The registry parameter named `name` (its flag without the dashes).
 const TracerParam& paramNamed(const std::string& name) {
   for (const TracerParam& p : tracerParams())
     if (name == p.flag + 2 || (*p.alias && name == p.alias + 2)) return p;
   invalid(cat("parameter \"", name, "\": unknown (layertrace tracers lists every parameter)"));
 }
 
-/// The library's options for `params`: the preset, then every value set, as the CLI applies them.
 TracerOptions tracerOptions(const TracerParams& params) {
   return guarded([&] {
     TracerOptions o = presetOptions(params.preset());
@@ -81,14 +65,18 @@ Camera cameraOf(const View& v) {
   return guarded([&] { return Camera(d, v.width, v.height); });
 }
 
-void expectSize(const char* what, size_t size, size_t expected, bool optional) {
-  if ((optional && size == 0) || size == expected) return;
-  invalid(cat(what, ": ", size, " elements, expected ", expected, optional ? " (or none)" : ""));
-}
-
 float thicknessPerDepth(const Camera& camera, float thicknessPx) {
   if (!(thicknessPx > 0.0f) || !std::isfinite(thicknessPx)) invalid(cat("thicknessPx ", thicknessPx, ": must be positive"));
   return thicknessPx / camera.focal();
+}
+
+}  // namespace api_detail
+
+namespace {
+
+void expectSize(const char* what, size_t size, size_t expected, bool optional) {
+  if ((optional && size == 0) || size == expected) return;
+  invalid(cat(what, ": ", size, " elements, expected ", expected, optional ? " (or none)" : ""));
 }
 
 glm::vec3 normalOr(std::span<const glm::vec3> normals, size_t i, const char* what) {

@@ -205,9 +205,13 @@ void GpuCapture::submit(const Camera& camera, const GpuCaptureConfig& config) {
   const auto draw = [&](const GpuProgram& program) {
     glBindFramebuffer(GL_FRAMEBUFFER, fbo_);
     glViewport(0, 0, W, H);
+    // Every fragment of every triangle, whatever state a caller's context left (layertrace/gpu.h).
     glDisable(GL_DEPTH_TEST);
     glDisable(GL_CULL_FACE);
     glDisable(GL_STENCIL_TEST);
+    glDisable(GL_SCISSOR_TEST);
+    glDisable(GL_RASTERIZER_DISCARD);
+    glPolygonMode(GL_FRONT_AND_BACK, GL_FILL);
     glUseProgram(program.id());
     glBindVertexArray(vao_);
     glDrawElements(GL_TRIANGLES, GLsizei(3 * T), GL_UNSIGNED_INT, nullptr);

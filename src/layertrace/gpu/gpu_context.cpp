@@ -74,6 +74,18 @@ std::vector<Candidate> candidateDisplays() {
   return out;
 }
 
+/// Whether an OpenGL context is current on this thread, made by EGL or by GLX (GLFW's default
+/// under X11). GLX is asked only where the process has loaded it: layertrace links neither.
+bool contextCurrent() {
+  using GetCurrent = void* (*)();
+  if (auto glx = reinterpret_cast<GetCurrent>(dlsym(RTLD_DEFAULT, "glXGetCurrentContext")); glx && glx()) return true;
+  if (void* egl = dlopen("libEGL.so.1", RTLD_LAZY | RTLD_LOCAL | RTLD_NOLOAD)) {
+    dlclose(egl);
+    return eglGetCurrentContext() != EGL_NO_CONTEXT;
+  }
+  return false;
+}
+
 }  // namespace
 
 GpuActivity GpuActivity::operator-(const GpuActivity& b) const {
@@ -114,6 +126,17 @@ GpuContext::GpuContext() {
   unavailable(why);
 }
 
+GpuContext::GpuContext(AdoptCurrent) : adopted_(true) {
+  // epoxy resolves functions for whichever context is current (GLX or EGL): without one, no
+  // GL call may be made at all.
+  if (!contextCurrent())
+    inputError("no OpenGL context is current on this thread (make yours current before creating layertrace's GPU objects)");
+  version_ = glString(GL_VERSION);
+  if (epoxy_gl_version() < 45) inputError("the current OpenGL context is ", version_.empty() ? "unknown" : version_, ": layertrace needs OpenGL 4.5");
+  renderer_ = glString(GL_RENDERER);
+  platform_ = "the caller's context";
+}
+
 std::string GpuContext::open(void* candidate) {
   auto display = static_cast<EGLDisplay>(candidate);
   EGLint major = 0, minor = 0;
@@ -149,6 +172,7 @@ std::string GpuContext::open(void* candidate) {
 }
 
 GpuContext::~GpuContext() {
+  if (adopted_) return;  // the caller's context, current: the cached programs are deleted in it
   if (!display_) return;
   auto display = static_cast<EGLDisplay>(display_);
   // The cached programs are deleted with their context current; where it is current on another
@@ -170,12 +194,13 @@ bool GpuContext::software() const {
 }
 
 void GpuContext::makeCurrent() const {
-  if (eglGetCurrentContext() == static_cast<EGLContext>(context_)) return;
+  if (adopted_ || eglGetCurrentContext() == static_cast<EGLContext>(context_)) return;
   if (!eglMakeCurrent(static_cast<EGLDisplay>(display_), EGL_NO_SURFACE, EGL_NO_SURFACE, static_cast<EGLContext>(context_)))
     throw InternalError("eglMakeCurrent failed (is the GPU context current on another thread?)");
 }
 
 void GpuContext::release() const {
+  if (adopted_) return;
   if (eglGetCurrentContext() == static_cast<EGLContext>(context_))
     eglMakeCurrent(static_cast<EGLDisplay>(display_), EGL_NO_SURFACE, EGL_NO_SURFACE, EGL_NO_CONTEXT);
 }
@@ -324,19 +349,65 @@ GpuBuffer::GpuBuffer(size_t bytes, const void* data) : bytes_(std::max<size_t>(b
   if (data && bytes > 0) write(data, bytes);
 }
 
-GpuBuffer::~GpuBuffer() {
-  if (id_) glDeleteBuffers(1, &id_);
+GpuBuffer GpuBuffer::borrowed(uint32_t id, size_t bytes) {
+  GpuBuffer b;
+  b.id_ = id, b.bytes_ = bytes, b.owned_ = false;
+  return b;
 }
 
-GpuBuffer::GpuBuffer(GpuBuffer&& other) noexcept : id_(std::exchange(other.id_, 0)), bytes_(std::exchange(other.bytes_, 0)) {}
+GpuBuffer::~GpuBuffer() {
+  if (id_ && owned_) glDeleteBuffers(1, &id_);
+}
+
+GpuBuffer::GpuBuffer(GpuBuffer&& other) noexcept
+    : id_(std::exchange(other.id_, 0)), bytes_(std::exchange(other.bytes_, 0)), owned_(std::exchange(other.owned_, true)) {}
 
 GpuBuffer& GpuBuffer::operator=(GpuBuffer&& other) noexcept {
   if (this != &other) {
-    if (id_) glDeleteBuffers(1, &id_);
+    if (id_ && owned_) glDeleteBuffers(1, &id_);
     id_ = std::exchange(other.id_, 0);
     bytes_ = std::exchange(other.bytes_, 0);
+    owned_ = std::exchange(other.owned_, true);
   }
   return *this;
+}
+
+GpuStateGuard::GpuStateGuard() {
+  glGetIntegerv(GL_CURRENT_PROGRAM, &program_);
+  glGetIntegerv(GL_VERTEX_ARRAY_BINDING, &vertexArray_);
+  glGetIntegerv(GL_DRAW_FRAMEBUFFER_BINDING, &drawFramebuffer_);
+  glGetIntegerv(GL_READ_FRAMEBUFFER_BINDING, &readFramebuffer_);
+  glGetIntegerv(GL_VIEWPORT, viewport_);
+  glGetIntegerv(GL_POLYGON_MODE, polygonMode_);
+  for (size_t i = 0; i < kCapabilities.size(); ++i) enabled_[i] = glIsEnabled(kCapabilities[i]);
+  glGetIntegerv(GL_SHADER_STORAGE_BUFFER_BINDING, &storage_);
+  for (GLuint i = 0; i < kStorageBindings; ++i) {
+    glGetIntegeri_v(GL_SHADER_STORAGE_BUFFER_BINDING, i, &storageIndexed_[i].buffer);
+    glGetInteger64i_v(GL_SHADER_STORAGE_BUFFER_START, i, &storageIndexed_[i].offset);
+    glGetInteger64i_v(GL_SHADER_STORAGE_BUFFER_SIZE, i, &storageIndexed_[i].size);
+  }
+  glGetIntegerv(GL_DISPATCH_INDIRECT_BUFFER_BINDING, &dispatchIndirect_);
+  glGetIntegerv(GL_PIXEL_UNPACK_BUFFER_BINDING, &pixelUnpack_);
+  for (size_t i = 0; i < kUnpack.size(); ++i) glGetIntegerv(kUnpack[i], &unpack_[i]);
+}
+
+GpuStateGuard::~GpuStateGuard() {
+  glUseProgram(GLuint(program_));
+  glBindVertexArray(GLuint(vertexArray_));
+  glBindFramebuffer(GL_DRAW_FRAMEBUFFER, GLuint(drawFramebuffer_));
+  glBindFramebuffer(GL_READ_FRAMEBUFFER, GLuint(readFramebuffer_));
+  glViewport(viewport_[0], viewport_[1], viewport_[2], viewport_[3]);
+  glPolygonMode(GL_FRONT_AND_BACK, GLenum(polygonMode_[0]));
+  for (size_t i = 0; i < kCapabilities.size(); ++i) (enabled_[i] ? glEnable : glDisable)(kCapabilities[i]);
+  for (GLuint i = 0; i < kStorageBindings; ++i) {
+    const Binding& b = storageIndexed_[i];
+    if (b.buffer != 0 && b.size > 0) glBindBufferRange(GL_SHADER_STORAGE_BUFFER, i, GLuint(b.buffer), GLintptr(b.offset), GLsizeiptr(b.size));
+    else glBindBufferBase(GL_SHADER_STORAGE_BUFFER, i, GLuint(b.buffer));
+  }
+  glBindBuffer(GL_SHADER_STORAGE_BUFFER, GLuint(storage_));
+  glBindBuffer(GL_DISPATCH_INDIRECT_BUFFER, GLuint(dispatchIndirect_));
+  glBindBuffer(GL_PIXEL_UNPACK_BUFFER, GLuint(pixelUnpack_));
+  for (size_t i = 0; i < kUnpack.size(); ++i) glPixelStorei(kUnpack[i], unpack_[i]);
 }
 
 void GpuBuffer::bindStorage(uint32_t index) const { glBindBufferBase(GL_SHADER_STORAGE_BUFFER, index, id_); }

@@ -5,6 +5,7 @@
 // current: GPU work is issued from one thread.
 #pragma once
 
+#include <array>
 #include <cstddef>
 #include <cstdint>
 #include <string>
@@ -80,6 +81,13 @@ class GpuContext {
   /// (NVIDIA's headless path), then Mesa's surfaceless platform (llvmpipe). Throws InputError
   /// naming `--device gpu` and each display's reason when none gives a context.
   GpuContext();
+  /// Adopts the OpenGL context current on the calling thread (a renderer's own: GLFW's, Qt's,
+  /// an EGL context of the caller), which must be 4.5 or newer; layertrace then creates no
+  /// context and never changes which one is current (makeCurrent and release do nothing). The
+  /// caller keeps it current on this thread while the object and everything made with it live.
+  /// InputError naming the version when it is older or none is current.
+  struct AdoptCurrent {};
+  explicit GpuContext(AdoptCurrent);
   ~GpuContext();
   GpuContext(const GpuContext&) = delete;
   GpuContext& operator=(const GpuContext&) = delete;
@@ -88,7 +96,7 @@ class GpuContext {
   const std::string& renderer() const { return renderer_; }
   /// "4.5 (Core Profile) Mesa 22.3.6".
   const std::string& version() const { return version_; }
-  /// The display taken: "EGL device 0", "Mesa surfaceless".
+  /// The display taken: "EGL device 0", "Mesa surfaceless", or "the caller's context".
   const std::string& platform() const { return platform_; }
   /// True for a CPU rasterizer (llvmpipe, softpipe, SwiftShader): its timings are CPU timings.
   bool software() const;
@@ -121,6 +129,7 @@ class GpuContext {
  private:
   void* display_ = nullptr;
   void* context_ = nullptr;
+  bool adopted_ = false;  ///< the caller's context (AdoptCurrent): not ours to make current or destroy
   uint32_t link(std::string_view name, std::initializer_list<std::pair<uint32_t, std::string_view>> stages) const;
   /// Initializes `display` and makes a 4.5 core context current on it; the reason it could not,
   /// else empty.
@@ -143,6 +152,9 @@ class GpuBuffer {
   GpuBuffer(const GpuBuffer&) = delete;
   GpuBuffer& operator=(const GpuBuffer&) = delete;
 
+  /// A caller's buffer `id` of `bytes` bytes, used but not owned: never deleted here.
+  static GpuBuffer borrowed(uint32_t id, size_t bytes);
+
   size_t bytes() const { return bytes_; }
   uint32_t id() const { return id_; }
   /// Binds it to shader storage binding point `index`.
@@ -156,6 +168,39 @@ class GpuBuffer {
  private:
   uint32_t id_ = 0;
   size_t bytes_ = 0;
+  bool owned_ = true;
+};
+
+/// The OpenGL state layertrace's passes change, saved at construction and restored at
+/// destruction, for a caller's context (layertrace/gpu.h): the program, the vertex array, the
+/// draw and read framebuffers, the viewport, the polygon mode, the depth, cull, stencil, scissor
+/// and rasterizer-discard switches, the shader storage bindings 0–15 (indexed and generic), the
+/// dispatch-indirect and pixel-unpack buffers, and the unpack pixel-store settings.
+class GpuStateGuard {
+ public:
+  GpuStateGuard();
+  ~GpuStateGuard();
+  GpuStateGuard(const GpuStateGuard&) = delete;
+  GpuStateGuard& operator=(const GpuStateGuard&) = delete;
+
+  static constexpr uint32_t kStorageBindings = 16;
+
+ private:
+  struct Binding {
+    int buffer = 0;
+    int64_t offset = 0, size = 0;
+  };
+  static constexpr std::array<uint32_t, 5> kCapabilities = {0x0B71 /*GL_DEPTH_TEST*/, 0x0B44 /*GL_CULL_FACE*/, 0x0B90 /*GL_STENCIL_TEST*/,
+                                                            0x0C11 /*GL_SCISSOR_TEST*/, 0x8C89 /*GL_RASTERIZER_DISCARD*/};
+  static constexpr std::array<uint32_t, 6> kUnpack = {0x0CF5 /*GL_UNPACK_ALIGNMENT*/, 0x0CF2 /*GL_UNPACK_ROW_LENGTH*/,
+                                                      0x0CF3 /*GL_UNPACK_SKIP_ROWS*/,  0x0CF4 /*GL_UNPACK_SKIP_PIXELS*/,
+                                                      0x806E /*GL_UNPACK_IMAGE_HEIGHT*/, 0x806D /*GL_UNPACK_SKIP_IMAGES*/};
+  int program_ = 0, vertexArray_ = 0, drawFramebuffer_ = 0, readFramebuffer_ = 0;
+  int viewport_[4] = {}, polygonMode_[2] = {};
+  std::array<bool, kCapabilities.size()> enabled_{};
+  int storage_ = 0, dispatchIndirect_ = 0, pixelUnpack_ = 0;
+  std::array<Binding, kStorageBindings> storageIndexed_{};
+  std::array<int, kUnpack.size()> unpack_{};
 };
 
 /// GPU time from begin() to end(): two GL_TIMESTAMP queries, taken when the GPU reaches them.

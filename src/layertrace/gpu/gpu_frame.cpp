@@ -132,7 +132,8 @@ void GpuFrame::submit(const Camera& camera, const GpuEffectParams& effect, GpuPi
   glCopyNamedBufferSubData(effects_->sums().id(), status_.id(), 0, kSumsWord * 4, kSumsWords * 4);
 }
 
-GpuFrameResult GpuFrame::render(const Camera& camera, const LayerConfig& layers, const GpuEffectParams& effect, GpuPicture picture) {
+GpuFrameResult GpuFrame::render(const Camera& camera, const LayerConfig& layers, const GpuEffectParams& effect, GpuPicture picture,
+                                bool readPicture) {
   LT_CHECK(layers.k == config_.capture.layers.k, layers.k, config_.capture.layers.k);
   config_.capture.layers = layers;
   gpu_.makeCurrent();
@@ -165,8 +166,8 @@ GpuFrameResult GpuFrame::render(const Camera& camera, const LayerConfig& layers,
       continue;
     }
     const size_t pixels = size_t(camera.width()) * size_t(camera.height());
-    if (picture == GpuPicture::Srgb8) out.srgb8.resize(pixels), picture_.read(out.srgb8.data(), pixels * 4);
-    if (picture == GpuPicture::Float32) out.float32.resize(pixels), picture_.read(out.float32.data(), pixels * 16);
+    if (readPicture && picture == GpuPicture::Srgb8) out.srgb8.resize(pixels), picture_.read(out.srgb8.data(), pixels * 4);
+    if (readPicture && picture == GpuPicture::Float32) out.float32.resize(pixels), picture_.read(out.float32.data(), pixels * 16);
     out.levelIntervals.assign(status + kLevelsWord, status + kLevelsWord + tracer_->pyramid()->levels);
     for (size_t i = 0; i < 16; ++i) out.sums[i] = uint64_t(status[kSumsWord + 2 * i]) | uint64_t(status[kSumsWord + 2 * i + 1]) << 32;
     out.iterationsP99 = effect.countRays ? status[kSumsWord + kPercentileWord] : 0;
@@ -186,6 +187,13 @@ void GpuFrame::retrace(const GpuEffectParams& effect, double& traceMs, double& s
   readback.sums = true;  // the one wait, after which the timer queries are read
   const GpuEffectOutput eo = effects_->run(*tracer_, effect, readback);
   traceMs = eo.traceMs, shadeMs = eo.shadeMs;
+}
+
+void GpuFrame::trace(const GpuBuffer& rays, const GpuBuffer& hits, size_t n) const {
+  LT_CHECK(capture_ != nullptr);
+  gpu_.makeCurrent();
+  GpuDebugGroup group("trace");
+  tracer_->marchResident(rays, hits, n, nullptr, true);
 }
 
 size_t GpuFrame::captureBytes() const { return capture_ ? capture_->memoryBytes() : 0; }

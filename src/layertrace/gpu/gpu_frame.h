@@ -74,7 +74,14 @@ class GpuFrame {
   /// Renders the frame seen by `camera` with the layer rules `layers` (k as at construction; the
   /// z-thickness may follow the view) and the effect's parameters `effect`, and reads back the
   /// picture as `picture` asks.
-  GpuFrameResult render(const Camera& camera, const LayerConfig& layers, const GpuEffectParams& effect, GpuPicture picture);
+  GpuFrameResult render(const Camera& camera, const LayerConfig& layers, const GpuEffectParams& effect, GpuPicture picture,
+                        bool readPicture = true);
+  /// The last frame's packed picture (Srgb8: a uint a pixel; Float32: a vec4 a pixel; rows from
+  /// the top), left on the device by render with readPicture false.
+  const GpuBuffer& picture() const { return picture_; }
+  /// Marches `n` camera-space rays of `rays` (shaders/ray_io.glsl GpuRay) through the last
+  /// frame's layers and pyramid into `hits` (GpuHit), on the device (a caller's buffers).
+  void trace(const GpuBuffer& rays, const GpuBuffer& hits, size_t n) const;
 
   /// Runs the last frame's effect again with `effect` over the same layers and pyramid (a timed
   /// repeat: no capture, nothing read but the sums) and gives its GPU milliseconds.

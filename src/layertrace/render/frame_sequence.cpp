@@ -127,6 +127,23 @@ bool rendersResident(const std::string& tracer, const Frame& frame, const Effect
 #endif
 }
 
+std::unique_ptr<GpuFrame> makeResidentFrame(GpuContext& gpu, const FrameOptions& options, const Frame& frame, const std::string& tracer,
+                                            const TracerOptions& tracers) {
+#if LAYERTRACE_HAS_GPU
+  if (!isResidentTracer(tracer)) inputError("tracer \"", tracer, "\": the resident GPU frame traces with hssr, hiz or exhaustive");
+  if (!GpuEffects::supports(int(frame.lights.size())))
+    inputError("--device gpu: ", frame.lights.size(), " lights, more than the GPU frame's ", GpuEffects::kMaxLights);
+  validateTracerOptions(tracers);
+  GpuFrameConfig fc = residentConfig(options, tracer, tracers);
+  fc.capture.layers = layerConfig(options, frame);
+  return std::make_unique<GpuFrame>(gpu, frame.scene, frame.lights, fc);
+#else
+  (void)gpu, (void)options, (void)frame, (void)tracer, (void)tracers;
+  openGpu();
+  return nullptr;
+#endif
+}
+
 ResidentRender renderResident(const FrameOptions& options, Frame& frame, const std::string& tracer, const TracerOptions& tracers,
                               const EffectConfig& effect, int repeat, bool srgb8, GpuContext& gpu) {
   LT_CHECK(rendersResident(tracer, frame, effect), tracer);

@@ -70,6 +70,13 @@ struct ResidentRender {
   nlohmann::json frameAccount;  ///< the counted frame's gpu.frame (the scene's upload and the links included)
 };
 
+class GpuFrame;
+/// The resident frame (gpu/gpu_frame.h) of the loaded `frame`'s scene and lights for `tracer`
+/// (hssr, hiz or exhaustive; InputError for another, or for more lights than the GPU passes
+/// hold) with `tracers`' parameters and `options`' capture. `frame` must outlive it.
+std::unique_ptr<GpuFrame> makeResidentFrame(GpuContext& gpu, const FrameOptions& options, const Frame& frame, const std::string& tracer,
+                                            const TracerOptions& tracers);
+
 /// Whether `render --device gpu` can run `tracer` with `effect` as one resident frame: a resident
 /// tracer, lights the GPU passes hold, and an effect that needs nothing per pixel on the host
 /// (view synthesis counts its holes per pixel).

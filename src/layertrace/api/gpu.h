@@ -1,0 +1,118 @@
+// layertrace on the GPU inside your renderer: the GPU back end's resident frame (capture, sort
+// to k layers, interval pyramid, march, effect; Hofmann et al. 2017, §4–5) run in YOUR OpenGL
+// 4.5 context, its picture written into your texture and its tracer answering rays from your
+// buffers. layertrace creates no context and needs no EGL here.
+//
+//   #include <layertrace/gpu.h>        CMake: find_package(layertrace) → layertrace::layertrace
+//                                      pkg-config: layertrace (its private libs hold -lepoxy)
+//
+// Threading and state: every call runs on the thread where your context is current, and that
+// context stays current (and alive) while these objects live. Every call saves the OpenGL state
+// it changes and restores it before it returns, also when it throws (docs/library.md, "On the
+// GPU", lists it): your program, vertex array, framebuffers, viewport, polygon mode, depth,
+// cull, stencil, scissor and rasterizer-discard switches, shader storage bindings 0–15, the
+// dispatch-indirect and pixel-unpack buffers and the unpack pixel-store settings. It creates
+// its own buffers, programs, a vertex array, a framebuffer and queries, which it deletes with
+// the objects.
+//
+// Errors: std::invalid_argument with one line naming the argument and the value (a texture too
+// small or of a format it cannot write, a buffer too small, an unknown tracer or parameter);
+// std::runtime_error when no context is current, the context is older than 4.5, or layertrace
+// was built without its GPU back end.
+#pragma once
+
+#include <cstddef>
+#include <cstdint>
+#include <memory>
+#include <string>
+
+#include "layertrace/api/export.h"
+#include "layertrace/api/layertrace.h"
+
+namespace lt {
+
+/// The OpenGL context current on the calling thread, adopted (OpenGL 4.5 or newer).
+class LAYERTRACE_API GpuDevice {
+ public:
+  GpuDevice();
+  ~GpuDevice();
+  GpuDevice(const GpuDevice&) = delete;
+  GpuDevice& operator=(const GpuDevice&) = delete;
+  /// GL_RENDERER: "NVIDIA GeForce …", "llvmpipe (LLVM 15.0.6, 256 bits)".
+  std::string renderer() const;
+  /// True for a CPU rasterizer (llvmpipe): its times are CPU times.
+  bool software() const;
+
+  struct Impl;  ///< layertrace's own use
+  Impl& impl() const { return *impl_; }
+
+ private:
+  std::unique_ptr<Impl> impl_;
+};
+
+/// One effect per frame, as `layertrace render --device gpu` makes it.
+struct GpuEffectRequest {
+  std::string effect = "reflection";  ///< shade, reflection, refraction, ao, shadow
+  int bounces = 1;                    ///< reflection and refraction bounces, 1–16
+  int aoSamples = 8;                  ///< AO rays per pixel
+  float maxDistance = 0.0f;           ///< ray length (0: the scene's diagonal)
+  uint64_t seed = 1;                  ///< AO's and refraction's random sequence (the CLI's --seed)
+};
+
+/// What one frame did: counted on the device, read with the frame's one wait.
+struct GpuFrameInfo {
+  uint64_t fragments = 0;  ///< fragments the capture generated (every one, exactly)
+  uint64_t rays = 0, hits = 0;
+  double iterationsMean = 0.0;  ///< cells visited per ray
+  double gpuMs = 0.0;           ///< GPU time of the frame's passes (timer queries)
+  int attempts = 1;             ///< 2 or more: a buffer overflowed, grew, and the frame ran again
+};
+
+/// The rays `trace` reads and the answers it writes, std430 in your buffers (32 and 64 bytes).
+/// Rays are in the camera space of the last rendered view (layertrace.h's conventions).
+struct GpuRayRecord {
+  float origin[3];
+  float maxDistance;
+  float dir[3];          ///< unit length
+  float startsOnSurface; ///< 1 when the origin lies on a stored surface (a reflection's), else 0
+};
+struct GpuHitRecord {
+  int32_t x, y;    ///< the hit fragment's pixel
+  int32_t layer;   ///< its layer, 0 = front; -1: no hit
+  uint32_t iterations, intervals, pixels, giveUps, unused;  ///< the march's counters
+  uint32_t levelIterations[8];                               ///< cells visited per pyramid level
+};
+static_assert(sizeof(GpuRayRecord) == 32 && sizeof(GpuHitRecord) == 64);
+
+/// A scene's frames on the GPU: the scene (copied) is uploaded on the first render, programs are
+/// linked once, buffers allocated once per size and kept. `tracer` is hssr, hiz or exhaustive
+/// (the one-level march), `params` any registry parameter and preset (TracerParams), `layers`
+/// the k of the capture (1–16) and `thicknessPx` the fragments' z-thickness in pixel footprints.
+/// The lights are the scene's, else one above the first rendered view's eye, as the CLI's.
+class LAYERTRACE_API GpuRenderer {
+ public:
+  GpuRenderer(GpuDevice& device, const TriangleScene& scene, const std::string& tracer = "hssr", const TracerParams& params = TracerParams(),
+              int layers = 4, float thicknessPx = 6.0f);
+  ~GpuRenderer();
+  GpuRenderer(const GpuRenderer&) = delete;
+  GpuRenderer& operator=(const GpuRenderer&) = delete;
+
+  /// Renders `effect` seen from `view` and writes the picture into level 0 of your 2D texture
+  /// `texture` (at least view.width × view.height texels), row 0 = the picture's TOP row: for
+  /// GL_RGBA8 or GL_SRGB8_ALPHA8 the 8-bit sRGB codes a PNG of `layertrace render` holds (to
+  /// the bit), for GL_RGBA16F or GL_RGBA32F the linear values. Nothing is read back but the
+  /// frame's counters (one wait).
+  GpuFrameInfo render(const View& view, const GpuEffectRequest& effect, uint32_t texture);
+
+  /// Traces `count` rays from your buffer `rays` (GpuRayRecord each) through the last rendered
+  /// frame's layers with this renderer's tracer, writing a GpuHitRecord per ray into your buffer
+  /// `hits`, on the device (nothing read back). The answers are the CPU tracer's, ray for ray.
+  void trace(uint32_t rays, uint32_t hits, size_t count) const;
+
+  struct Impl;  ///< layertrace's own use
+
+ private:
+  std::unique_ptr<Impl> impl_;
+};
+
+}  // namespace lt
