@@ -5,6 +5,7 @@
 #if LAYERTRACE_HAS_GPU
 
 #include <array>
+#include <cstddef>
 #include <cstring>
 #include <random>
 #include <stdexcept>
@@ -103,6 +104,39 @@ CallerState setCallerState(GLuint& vao, GLuint& buffer) {
   return CallerState::read();
 }
 
+/// Expects the top-left W × H texels of the RGBA8 `target` (`rowTexels` a row) to be the CLI's
+/// PNG of `render SCENE --device gpu --tracer hssr --effect reflection --bounces 2` at W × H, byte
+/// for byte, and lit.
+void expectCliPicture(const std::string& scenePath, GLuint target, int W, int H, int rowTexels) {
+  GLint height = 0;
+  glGetTextureLevelParameteriv(target, 0, GL_TEXTURE_HEIGHT, &height);
+  std::vector<uint8_t> texels(size_t(rowTexels) * size_t(height) * 4);
+  glBindBuffer(GL_PIXEL_PACK_BUFFER, 0);
+  glPixelStorei(GL_PACK_ALIGNMENT, 4);
+  glGetTextureImage(target, 0, GL_RGBA, GL_UNSIGNED_BYTE, GLsizei(texels.size()), texels.data());
+  test::TempDir dir;
+  ASSERT_EQ(test::runCli("render " + scenePath + " --device gpu --tracer hssr --effect reflection --bounces 2 --quiet --width " +
+                         std::to_string(W) + " --height " + std::to_string(H) + " -o " + (dir / "cli.png")),
+            0);
+  int w = 0, h = 0, n = 0;
+  unsigned char* cli = stbi_load((dir / "cli.png").c_str(), &w, &h, &n, 3);
+  ASSERT_NE(cli, nullptr);
+  ASSERT_EQ(w, W);
+  ASSERT_EQ(h, H);
+  size_t differ = 0, lit = 0;
+  for (int y = 0; y < H; ++y)
+    for (int x = 0; x < W; ++x)
+      for (int c = 0; c < 3; ++c) {
+        const uint8_t mine = texels[(size_t(y) * size_t(rowTexels) + size_t(x)) * 4 + size_t(c)];
+        const uint8_t theirs = cli[(size_t(y) * W + size_t(x)) * 3 + size_t(c)];
+        differ += mine != theirs;
+        lit += theirs > 8;
+      }
+  stbi_image_free(cli);
+  EXPECT_EQ(differ, 0u);
+  EXPECT_GT(lit, size_t(W * H));
+}
+
 TEST_F(GpuApi, RendersIntoTheCallersTextureTheCliPictureAndLeavesItsState) {
   const int W = 120, H = 72;
   const std::string scenePath = test::sourceDir() + "/scenes/default.json";
@@ -122,30 +156,7 @@ TEST_F(GpuApi, RendersIntoTheCallersTextureTheCliPictureAndLeavesItsState) {
   EXPECT_GT(info.fragments, uint64_t(W * H));
 
   // The picture, row 0 the top row, against the CLI's PNG of the same view.
-  std::vector<uint8_t> texels(size_t(W + 8) * (H + 4) * 4);
-  glBindBuffer(GL_PIXEL_PACK_BUFFER, 0);
-  glPixelStorei(GL_PACK_ALIGNMENT, 4);
-  glGetTextureImage(target, 0, GL_RGBA, GL_UNSIGNED_BYTE, GLsizei(texels.size()), texels.data());
-  test::TempDir dir;
-  ASSERT_EQ(test::runCli("render " + scenePath + " --device gpu --tracer hssr --effect reflection --bounces 2 --quiet --width " +
-                         std::to_string(W) + " --height " + std::to_string(H) + " -o " + (dir / "cli.png")),
-            0);
-  int w = 0, h = 0, n = 0;
-  unsigned char* cli = stbi_load((dir / "cli.png").c_str(), &w, &h, &n, 3);
-  ASSERT_NE(cli, nullptr);
-  ASSERT_EQ(w, W);
-  ASSERT_EQ(h, H);
-  size_t differ = 0, lit = 0;
-  for (int y = 0; y < H; ++y)
-    for (int x = 0; x < W; ++x)
-      for (int c = 0; c < 3; ++c) {
-        const uint8_t mine = texels[(size_t(y) * (W + 8) + size_t(x)) * 4 + size_t(c)], theirs = cli[(size_t(y) * W + size_t(x)) * 3 + size_t(c)];
-        differ += mine != theirs;
-        lit += theirs > 8;
-      }
-  stbi_image_free(cli);
-  EXPECT_EQ(differ, 0u);
-  EXPECT_GT(lit, size_t(W * H));
+  expectCliPicture(scenePath, target, W, H, W + 8);
 
   // An error leaves the state too: a texture smaller than the view, named with its size.
   const GLuint small = texture(GL_RGBA8, W / 2, H);
@@ -162,6 +173,104 @@ TEST_F(GpuApi, RendersIntoTheCallersTextureTheCliPictureAndLeavesItsState) {
   glDeleteTextures(3, textures);
   glDeleteBuffers(1, &buffer);
   glDeleteVertexArrays(1, &vao);
+}
+
+// A renderer's own geometry pass: its vertex buffers (the scene's triangles, three vertices
+// each), its vertex array, its vertex shader with a uniform of its own, two draw calls. The
+// capture, the effect and the picture are then the CLI's, byte for byte; a capacity smaller than
+// the scene grows, and the frame runs again.
+TEST_F(GpuApi, YourDrawCallsGiveTheCliPicture) {
+  const int W = 120, H = 72;
+  const std::string scenePath = test::sourceDir() + "/scenes/default.json";
+  const TriangleScene scene = TriangleScene::load(scenePath);
+  const View view = scene.view("", W, H);
+  struct Vertex {
+    glm::vec3 position, normal;
+    uint32_t material;
+  };
+  std::vector<Vertex> vertices;
+  for (size_t t = 0; t < scene.triangleCount(); ++t)
+    for (int i = 0; i < 3; ++i) {
+      const uint32_t v = scene.triangles()[t][i];
+      vertices.push_back({scene.positions()[v], scene.normals()[v], scene.materialOfTriangle()[t]});
+    }
+  GLuint buffer = 0, vao = 0;
+  glCreateBuffers(1, &buffer);
+  glNamedBufferStorage(buffer, GLsizeiptr(vertices.size() * sizeof(Vertex)), vertices.data(), 0);
+  glCreateVertexArrays(1, &vao);
+  glVertexArrayVertexBuffer(vao, 0, buffer, 0, sizeof(Vertex));
+  glVertexArrayAttribFormat(vao, 0, 3, GL_FLOAT, GL_FALSE, offsetof(Vertex, position));
+  glVertexArrayAttribFormat(vao, 1, 3, GL_FLOAT, GL_FALSE, offsetof(Vertex, normal));
+  glVertexArrayAttribIFormat(vao, 2, 1, GL_UNSIGNED_INT, offsetof(Vertex, material));
+  for (GLuint a = 0; a < 3; ++a) glEnableVertexArrayAttrib(vao, a), glVertexArrayAttribBinding(vao, a, 0);
+
+  GpuDevice device;
+  GpuGeometry geometry;
+  geometry.vertexShader = R"(#version 450
+layout(location = 0) in vec3 position;
+layout(location = 1) in vec3 normal;
+layout(location = 2) in uint material;
+uniform float uScale;
+out vec3 ltPosition;
+out vec3 ltNormal;
+flat out uint ltMaterial;
+void main() {
+  ltPosition = position * uScale;
+  ltNormal = normal;
+  ltMaterial = material;
+  gl_Position = vec4(position, 1.0);
+})";
+  geometry.maxTriangles = scene.triangleCount() / 3;
+  GpuRenderer renderer(device, scene, geometry);
+  const GLuint target = texture(GL_RGBA8, W, H);
+  GLuint callerVao = 0, callerBuffer = 0;
+  const CallerState before = setCallerState(callerVao, callerBuffer);
+  GpuEffectRequest effect;
+  effect.bounces = 2;
+  int calls = 0;
+  const GpuDrawCalls draw = [&](uint32_t program) {
+    ++calls;
+    glProgramUniform1f(program, glGetUniformLocation(program, "uScale"), 1.0f);
+    glBindVertexArray(vao);
+    const GLsizei half = GLsizei(scene.triangleCount() / 2);
+    glDrawArrays(GL_TRIANGLES, 0, 3 * half);
+    glDrawArrays(GL_TRIANGLES, 3 * half, GLsizei(3 * scene.triangleCount()) - 3 * half);
+  };
+  const GpuFrameInfo grown = renderer.render(view, effect, target, draw);
+  EXPECT_TRUE(CallerState::read() == before);
+  EXPECT_EQ(grown.triangles, scene.triangleCount());
+  EXPECT_GE(grown.attempts, 2);
+  EXPECT_GE(calls, 2);
+  expectCliPicture(scenePath, target, W, H, W);
+
+  // The next frame fits: one attempt, the same counts.
+  calls = 0;
+  const GpuFrameInfo steady = renderer.render(view, effect, target, draw);
+  EXPECT_EQ(steady.attempts, 1);
+  EXPECT_EQ(calls, 1);
+  EXPECT_EQ(steady.fragments, grown.fragments);
+  EXPECT_EQ(steady.hits, grown.hits);
+  EXPECT_TRUE(CallerState::read() == before);
+
+  // Errors, in one line, with the state as it was: a renderer of geometry without draw calls, a
+  // vertex shader without the outputs, one that does not compile.
+  EXPECT_THROW(renderer.render(view, effect, target), std::invalid_argument);
+  GpuGeometry bad = geometry;
+  bad.vertexShader = "#version 450\nout vec3 ltPosition;\nvoid main() { ltPosition = vec3(0.0); }\n";
+  EXPECT_THROW(GpuRenderer(device, scene, bad), std::invalid_argument);
+  bad.vertexShader = "#version 450\nvoid main() { gl_Position = undeclared; }\n";
+  try {
+    GpuRenderer failing(device, scene, bad);
+    ADD_FAILURE() << "a vertex shader that does not compile was accepted";
+  } catch (const std::invalid_argument& e) {
+    EXPECT_EQ(std::string(e.what()).find('\n'), std::string::npos) << e.what();
+    EXPECT_NE(std::string(e.what()).find("does not compile"), std::string::npos) << e.what();
+  }
+  EXPECT_TRUE(CallerState::read() == before);
+  glDeleteTextures(1, &target);
+  const GLuint buffers[] = {buffer, callerBuffer}, arrays[] = {vao, callerVao};
+  glDeleteBuffers(2, buffers);
+  glDeleteVertexArrays(2, arrays);
 }
 
 // Rays from the caller's buffer, answered into the caller's buffer on the device: the CPU

@@ -4,6 +4,7 @@
 // runs under a GpuStateGuard, so the caller's state is as it was when the call returns or throws.
 #include "layertrace/api/gpu.h"
 
+#include <array>
 #include <cmath>
 #include <memory>
 #include <stdexcept>
@@ -18,6 +19,7 @@
 
 #include "layertrace/gpu/gpu_context.h"
 #include "layertrace/gpu/gpu_frame.h"
+#include "layertrace/gpu/shader_sources.h"
 #include "layertrace/render/gpu_effect_params.h"
 #endif
 
@@ -34,6 +36,12 @@ struct GpuDevice::Impl {
 struct GpuRenderer::Impl {
   Impl(GpuContext& context, const std::string& name, TracerOptions params, float px)
       : gpu(context), tracer(name), tracers(std::move(params)), thicknessPx(px) {}
+  ~Impl() {
+    resident.reset();
+    if (feedback) glDeleteTransformFeedbacks(1, &feedback);
+    if (primitives) glDeleteQueries(1, &primitives);
+    if (framebuffer) glDeleteFramebuffers(1, &framebuffer);
+  }
   GpuContext& gpu;
   FrameOptions options;
   std::string tracer;
@@ -42,6 +50,19 @@ struct GpuRenderer::Impl {
   Frame frame;  ///< the scene (a copy), the lights, the last view's camera and z-thickness
   std::unique_ptr<GpuFrame> resident;  ///< made on the first render (its lights follow that view)
   bool rendered = false;
+
+  // The caller's geometry (GpuGeometry): the frame captures `drawn`, a scene of `capacity`
+  // triangles (three vertices each, in draw order) whose positions, normals and materials the
+  // caller's draw calls write through transform feedback at the start of each frame.
+  bool callerGeometry = false;
+  const GpuProgram* program = nullptr;  ///< the caller's vertex shader, linked for transform feedback
+  Scene drawn;
+  GpuBuffer vertexMaterial;  ///< ltMaterial per vertex
+  GLuint feedback = 0, primitives = 0, framebuffer = 0;
+  const GpuDrawCalls* draw = nullptr;  ///< the callback of the render in progress
+
+  void resize(size_t triangles);
+  void captureGeometry(const GpuCapture& capture) const;
 };
 
 namespace {
@@ -67,7 +88,57 @@ size_t bufferBytes(uint32_t id, const char* what) {
   return size_t(bytes);
 }
 
+/// The outputs of a caller's vertex shader that the capture reads (GpuGeometry).
+constexpr std::array<const char*, 3> kGeometryOutputs = {"ltPosition", "ltNormal", "ltMaterial"};
+
 }  // namespace
+
+void GpuRenderer::Impl::resize(size_t triangles) {
+  const size_t vertices = 3 * triangles;
+  drawn.positions.assign(vertices, glm::vec3(0.0f));
+  drawn.normals.assign(vertices, glm::vec3(0.0f));
+  drawn.triangles.resize(triangles);
+  for (size_t t = 0; t < triangles; ++t) drawn.triangles[t] = glm::uvec3(3 * t, 3 * t + 1, 3 * t + 2);
+  drawn.triMaterial.assign(triangles, 0);
+  vertexMaterial = GpuBuffer(vertices * sizeof(uint32_t));
+  resident.reset();  // its buffers follow the capacity: made again by the next render
+}
+
+void GpuRenderer::Impl::captureGeometry(const GpuCapture& capture) const {
+  // Triangles beyond those drawn keep zero vertices: degenerate, they make no fragment.
+  capture.positions().fill(0u);
+  glTransformFeedbackBufferBase(feedback, 0, capture.positions().id());
+  glTransformFeedbackBufferBase(feedback, 1, capture.normals().id());
+  glTransformFeedbackBufferBase(feedback, 2, vertexMaterial.id());
+  glBindTransformFeedback(GL_TRANSFORM_FEEDBACK, feedback);
+  // A complete framebuffer (the caller's may be none, or incomplete): draws into an incomplete
+  // one are refused even with the rasterizer off.
+  glBindFramebuffer(GL_DRAW_FRAMEBUFFER, framebuffer);
+  glEnable(GL_RASTERIZER_DISCARD);
+  glUseProgram(program->id());
+  // Every triangle drawn is counted, also those beyond the capacity (not written): the exact
+  // number the next attempt needs.
+  glBeginQuery(GL_PRIMITIVES_GENERATED, primitives);
+  glBeginTransformFeedback(GL_TRIANGLES);
+  const auto end = [&] {
+    glEndTransformFeedback();
+    glEndQuery(GL_PRIMITIVES_GENERATED);
+    glDisable(GL_RASTERIZER_DISCARD);
+    glBindTransformFeedback(GL_TRANSFORM_FEEDBACK, 0);
+  };
+  try {
+    (*draw)(program->id());
+  } catch (...) {
+    end();
+    throw;
+  }
+  end();
+  const GpuProgram& materials = gpu.computeProgram("geometry_materials.comp", shader_source::geometry_materials_comp);
+  vertexMaterial.bindStorage(0), capture.triMaterial().bindStorage(1);
+  materials.set("uTriangleCount", int(drawn.triangles.size()));
+  materials.set("uMaterialCount", int(std::max<size_t>(drawn.materials.size(), 1)));
+  gpu.dispatch(materials, drawn.triangles.size());
+}
 
 GpuDevice::GpuDevice() : impl_(std::make_unique<Impl>()) {
   try {
@@ -91,10 +162,44 @@ GpuRenderer::GpuRenderer(GpuDevice& device, const TriangleScene& scene, const st
   impl_->frame.scene = scene.impl().scene;
 }
 
+GpuRenderer::GpuRenderer(GpuDevice& device, const TriangleScene& materials, const GpuGeometry& geometry, const std::string& tracer,
+                         const TracerParams& params, int layers, float thicknessPx)
+    : GpuRenderer(device, materials, tracer, params, layers, thicknessPx) {
+  Impl& m = *impl_;
+  if (geometry.maxTriangles == 0 || geometry.maxTriangles > size_t(0x7FFFFFFF) / 3)
+    invalid(cat("maxTriangles ", geometry.maxTriangles, ": must be between 1 and ", size_t(0x7FFFFFFF) / 3));
+  const GpuStateGuard state;
+  guarded([&] { m.program = &m.gpu.feedbackProgram(geometry.vertexShader, kGeometryOutputs); });
+  for (const char* output : kGeometryOutputs)
+    if (glGetProgramResourceIndex(m.program->id(), GL_TRANSFORM_FEEDBACK_VARYING, output) == GL_INVALID_INDEX)
+      invalid(cat("vertexShader: writes no ", output, " (GpuGeometry lists the outputs the capture reads)"));
+  m.callerGeometry = true;
+  // The scene the frame captures: the materials (their textures off: no texture coordinates
+  // come with the caller's vertices), lights and environment of `materials`, the geometry the
+  // draw calls write.
+  m.drawn = m.frame.scene;
+  m.drawn.texcoords.clear(), m.drawn.lightmapCoords.clear(), m.drawn.triUvScaleLog2.clear(), m.drawn.textures.clear();
+  for (Material& material : m.drawn.materials) material.baseTexture = material.specularTexture = material.lightmap = -1;
+  if (m.drawn.materials.empty()) m.drawn.materials.emplace_back();
+  glCreateTransformFeedbacks(1, &m.feedback);
+  glCreateQueries(GL_PRIMITIVES_GENERATED, 1, &m.primitives);
+  glCreateFramebuffers(1, &m.framebuffer);
+  glNamedFramebufferParameteri(m.framebuffer, GL_FRAMEBUFFER_DEFAULT_WIDTH, 1);
+  glNamedFramebufferParameteri(m.framebuffer, GL_FRAMEBUFFER_DEFAULT_HEIGHT, 1);
+  m.resize(geometry.maxTriangles);
+}
+
 GpuRenderer::~GpuRenderer() = default;
 
 GpuFrameInfo GpuRenderer::render(const View& view, const GpuEffectRequest& request, uint32_t texture) {
+  if (impl_->callerGeometry) invalid("render: this renderer draws your geometry (GpuGeometry): pass your draw calls");
+  return render(view, request, texture, GpuDrawCalls());
+}
+
+GpuFrameInfo GpuRenderer::render(const View& view, const GpuEffectRequest& request, uint32_t texture, const GpuDrawCalls& draw) {
   Impl& m = *impl_;
+  if (draw && !m.callerGeometry) invalid("render: this renderer draws its TriangleScene; it takes no draw calls");
+  if (m.callerGeometry && !draw) invalid("render: no draw calls given (an empty GpuDrawCalls)");
   Frame& frame = m.frame;
   const Camera camera = cameraOf(view);
   EffectConfig ec;
@@ -124,12 +229,32 @@ GpuFrameInfo GpuRenderer::render(const View& view, const GpuEffectRequest& reque
   return guarded([&] {
     frame.camera = camera;
     frame.thicknessPerDepth = thicknessPerDepth(camera, m.thicknessPx);
-    if (!m.resident) {
-      frame.lights = frame.scene.lights;  // the scene's, else one above this first view's eye
-      if (frame.lights.empty()) frame.lights.push_back(defaultLight(camera));
-      m.resident = makeResidentFrame(m.gpu, m.options, frame, m.tracer, m.tracers);
+    const auto makeFrame = [&] {
+      if (frame.lights.empty()) {
+        frame.lights = frame.scene.lights;  // the scene's, else one above this first view's eye
+        if (frame.lights.empty()) frame.lights.push_back(defaultLight(camera));
+      }
+      m.resident = makeResidentFrame(m.gpu, m.options, frame, m.tracer, m.tracers, m.callerGeometry ? &m.drawn : nullptr);
+      if (m.callerGeometry) m.resident->setGeometryPass([&m](const GpuCapture& capture) { m.captureGeometry(capture); });
+    };
+    m.draw = &draw;
+    if (!m.resident) makeFrame();
+    GpuFrameResult r = m.resident->render(camera, layerConfig(m.options, frame), gpuEffectParams(frame, ec), picture, false);
+    uint64_t triangles = 0;
+    if (m.callerGeometry) {
+      // The count, complete with the frame the one wait finished. More triangles than the
+      // capacity: a capacity that holds them all, and the frame again.
+      glGetQueryObjectui64v(m.primitives, GL_QUERY_RESULT, &triangles);
+      if (triangles > m.drawn.triangles.size()) {
+        const size_t need = std::max<size_t>(triangles, 2 * m.drawn.triangles.size());
+        if (triangles > size_t(0x7FFFFFFF) / 3) inputError("draw calls: ", triangles, " triangles exceed one GPU capture's ", size_t(0x7FFFFFFF) / 3);
+        m.resize(need);
+        makeFrame();
+        r = m.resident->render(camera, layerConfig(m.options, frame), gpuEffectParams(frame, ec), picture, false);
+        r.attempts += 1;
+      }
     }
-    const GpuFrameResult r = m.resident->render(camera, layerConfig(m.options, frame), gpuEffectParams(frame, ec), picture, false);
+    m.draw = nullptr;
     m.rendered = true;
     // The picture, packed in rows on the device, into the texture from a pixel-unpack buffer.
     glBindBuffer(GL_PIXEL_UNPACK_BUFFER, m.resident->picture().id());
@@ -144,7 +269,7 @@ GpuFrameInfo GpuRenderer::render(const View& view, const GpuEffectRequest& reque
     GpuFrameInfo info;
     info.fragments = r.fragments, info.rays = r.sums[0], info.hits = r.sums[1];
     info.iterationsMean = r.sums[0] ? double(r.sums[2]) / double(r.sums[0]) : 0.0;
-    info.gpuMs = r.gpuMs(), info.attempts = r.attempts;
+    info.gpuMs = r.gpuMs(), info.attempts = r.attempts, info.triangles = triangles;
     return info;
   });
 }
@@ -174,7 +299,11 @@ GpuRenderer::GpuRenderer(GpuDevice&, const TriangleScene&, const std::string&, c
   throw std::runtime_error("layertrace was built without its GPU back end (LAYERTRACE_GPU)");
 }
 GpuRenderer::~GpuRenderer() = default;
+GpuRenderer::GpuRenderer(GpuDevice&, const TriangleScene&, const GpuGeometry&, const std::string&, const TracerParams&, int, float) {
+  throw std::runtime_error("layertrace was built without its GPU back end (LAYERTRACE_GPU)");
+}
 GpuFrameInfo GpuRenderer::render(const View&, const GpuEffectRequest&, uint32_t) { return {}; }
+GpuFrameInfo GpuRenderer::render(const View&, const GpuEffectRequest&, uint32_t, const GpuDrawCalls&) { return {}; }
 void GpuRenderer::trace(uint32_t, uint32_t, size_t) const {}
 
 #endif

@@ -23,6 +23,7 @@
 
 #include <cstddef>
 #include <cstdint>
+#include <functional>
 #include <memory>
 #include <string>
 
@@ -66,7 +67,31 @@ struct GpuFrameInfo {
   double iterationsMean = 0.0;  ///< cells visited per ray
   double gpuMs = 0.0;           ///< GPU time of the frame's passes (timer queries)
   int attempts = 1;             ///< 2 or more: a buffer overflowed, grew, and the frame ran again
+  uint64_t triangles = 0;       ///< triangles your draw calls gave (GpuGeometry), exactly
 };
+
+/// The geometry YOUR draw calls give the capture, each frame (GpuRenderer's second constructor).
+/// layertrace links your vertex shader alone (GLSL, with its #version line, 4.50 core or older)
+/// and captures three of its outputs by transform feedback, per vertex, in draw order:
+///
+///   out vec3 ltPosition;       // the vertex in the scene's coordinates (those of your View)
+///   out vec3 ltNormal;         // its shading normal there (not necessarily unit length)
+///   flat out uint ltMaterial;  // its triangle's material: an index into the TriangleScene's
+///                              // materials (a triangle takes its first vertex's; beyond the
+///                              // last: the last)
+///
+/// gl_Position and every other output are ignored; no fragment is drawn (the rasterizer is
+/// off). Inside the GpuDrawCalls callback, issue your draw calls (GL_TRIANGLES, strips or fans,
+/// indexed, instanced or indirect) with your vertex arrays and buffers, and set the uniforms of
+/// the program it is given, which is bound. Textures are not mapped on this geometry: its
+/// materials' albedo and specular are their constant values.
+struct GpuGeometry {
+  std::string vertexShader;
+  size_t maxTriangles = 1 << 16;  ///< the first capacity; a frame that draws more grows it and draws again
+};
+/// Your draw calls, issued into the capture with `program` (your vertex shader) bound. Called at
+/// least once per frame, again when a buffer of the frame overflowed and it runs again.
+using GpuDrawCalls = std::function<void(uint32_t program)>;
 
 /// The rays `trace` reads and the answers it writes, std430 in your buffers (32 and 64 bytes).
 /// Rays are in the camera space of the last rendered view (layertrace.h's conventions).
@@ -93,6 +118,13 @@ class LAYERTRACE_API GpuRenderer {
  public:
   GpuRenderer(GpuDevice& device, const TriangleScene& scene, const std::string& tracer = "hssr", const TracerParams& params = TracerParams(),
               int layers = 4, float thicknessPx = 6.0f);
+  /// Frames of the geometry your draw calls give (render with GpuDrawCalls). `materials` gives
+  /// the materials that ltMaterial indexes, the lights (as above) and the extent that sets the
+  /// rays' default length; its triangles are not drawn (a TriangleScene of your scene's, or one
+  /// made of its bounding box's corners and its materials). std::invalid_argument when the
+  /// vertex shader does not compile or link, or lacks an output, with the driver's log.
+  GpuRenderer(GpuDevice& device, const TriangleScene& materials, const GpuGeometry& geometry, const std::string& tracer = "hssr",
+              const TracerParams& params = TracerParams(), int layers = 4, float thicknessPx = 6.0f);
   ~GpuRenderer();
   GpuRenderer(const GpuRenderer&) = delete;
   GpuRenderer& operator=(const GpuRenderer&) = delete;
@@ -103,6 +135,8 @@ class LAYERTRACE_API GpuRenderer {
   /// the bit), for GL_RGBA16F or GL_RGBA32F the linear values. Nothing is read back but the
   /// frame's counters (one wait).
   GpuFrameInfo render(const View& view, const GpuEffectRequest& effect, uint32_t texture);
+  /// The same for a renderer of your geometry: `draw` issues your draw calls into the capture.
+  GpuFrameInfo render(const View& view, const GpuEffectRequest& effect, uint32_t texture, const GpuDrawCalls& draw);
 
   /// Traces `count` rays from your buffer `rays` (GpuRayRecord each) through the last rendered
   /// frame's layers with this renderer's tracer, writing a GpuHitRecord per ray into your buffer

@@ -327,6 +327,11 @@ TriangleScene::TriangleScene(std::span<const glm::vec3> positions, std::span<con
 TriangleScene::TriangleScene(TriangleScene&&) noexcept = default;
 TriangleScene::~TriangleScene() = default;
 size_t TriangleScene::triangleCount() const { return impl_->scene.triangleCount(); }
+std::span<const glm::vec3> TriangleScene::positions() const { return impl_->scene.positions; }
+std::span<const glm::vec3> TriangleScene::normals() const { return impl_->scene.normals; }
+std::span<const glm::uvec3> TriangleScene::triangles() const { return impl_->scene.triangles; }
+std::span<const uint32_t> TriangleScene::materialOfTriangle() const { return impl_->scene.triMaterial; }
+size_t TriangleScene::materialCount() const { return impl_->scene.materials.size(); }
 
 TriangleScene::TriangleScene(std::unique_ptr<Impl> impl) : impl_(std::move(impl)) {}
 

@@ -159,6 +159,13 @@ class LAYERTRACE_API TriangleScene {
   TriangleScene(TriangleScene&&) noexcept;
   ~TriangleScene();
   size_t triangleCount() const;
+  /// The scene's vertices (moved as origin() says), their shading normals, its triangles' vertex
+  /// indices and material indices: what a renderer draws (layertrace/gpu.h GpuGeometry).
+  std::span<const glm::vec3> positions() const;
+  std::span<const glm::vec3> normals() const;
+  std::span<const glm::uvec3> triangles() const;
+  std::span<const uint32_t> materialOfTriangle() const;
+  size_t materialCount() const;
 
   /// A scene file as the CLI reads it: any model assimp reads (OBJ, glTF, PLY, Collada, IFC,
   /// FBX, …), a Quake 3 .pk3 or a JSON scene with its materials, textures, lights and cameras.

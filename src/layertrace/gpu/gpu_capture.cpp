@@ -139,6 +139,10 @@ GpuCapture::GpuCapture(GpuContext& gpu, const Scene& scene) : gpu_(gpu), scene_(
   glCreateFramebuffers(1, &fbo_);
 }
 
+const GpuBuffer& GpuCapture::positions() const { return sceneBuffers_->positions; }
+const GpuBuffer& GpuCapture::normals() const { return sceneBuffers_->normals; }
+const GpuBuffer& GpuCapture::triMaterial() const { return sceneBuffers_->triMaterial; }
+
 GpuCapture::~GpuCapture() {
   gpu_.makeCurrent();  // the buffers go with the context current
   glDeleteFramebuffers(1, &fbo_);

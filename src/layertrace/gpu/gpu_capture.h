@@ -86,6 +86,12 @@ class GpuCapture {
   /// Binds the scene's world-space positions (3 floats a vertex), its triangles' vertex indices
   /// (3 uints a triangle) and their materials (a uint a triangle) to these storage bindings.
   void bindScene(uint32_t positions, uint32_t indices, uint32_t triMaterial) const;
+  /// The scene's world-space vertex positions and normals (3 floats a vertex) and its
+  /// triangles' materials (a uint a triangle), as uploaded: a frame whose geometry comes from a
+  /// caller's draw calls writes them on the device (GpuFrame::setGeometryPass).
+  const GpuBuffer& positions() const;
+  const GpuBuffer& normals() const;
+  const GpuBuffer& triMaterial() const;
   /// The pool's fragments (lists).
   uint64_t poolCapacity() const { return capacity_; }
   int geometryPasses() const { return geometryPasses_; }

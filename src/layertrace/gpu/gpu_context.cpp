@@ -18,6 +18,21 @@ namespace lt {
 
 namespace {
 
+/// A driver's log on one line: its lines joined by "; ", without the terminating NUL.
+std::string oneLine(const std::string& log) {
+  std::string out;
+  for (char c : log) {
+    if (c == '\0') break;
+    if (c == '\n' || c == '\r') {
+      if (!out.empty() && out.back() != ' ') out += "; ";
+    } else {
+      out += c;
+    }
+  }
+  while (!out.empty() && (out.back() == ' ' || out.back() == ';')) out.pop_back();
+  return out;
+}
+
 /// The process's GPU activity (gpuActivity); `submitted`: GPU work was issued since the last
 /// blocking call, so the next one stalls.
 struct Activity {
@@ -205,7 +220,12 @@ void GpuContext::release() const {
     eglMakeCurrent(static_cast<EGLDisplay>(display_), EGL_NO_SURFACE, EGL_NO_SURFACE, EGL_NO_CONTEXT);
 }
 
-uint32_t GpuContext::link(std::string_view name, std::initializer_list<std::pair<uint32_t, std::string_view>> stages) const {
+uint32_t GpuContext::link(std::string_view name, std::initializer_list<std::pair<uint32_t, std::string_view>> stages,
+                          std::span<const char* const> varyings, bool callerSource) const {
+  const auto fail = [&](const std::string& what) -> uint32_t {
+    if (callerSource) throw InputError(what);
+    throw InternalError(what);
+  };
   auto log = [](GLuint object, bool program) {
     GLint n = 0;
     program ? glGetProgramiv(object, GL_INFO_LOG_LENGTH, &n) : glGetShaderiv(object, GL_INFO_LOG_LENGTH, &n);
@@ -228,10 +248,11 @@ uint32_t GpuContext::link(std::string_view name, std::initializer_list<std::pair
       const std::string why = log(shader, false);
       for (GLuint s : shaders) glDeleteShader(s);
       glDeleteProgram(program);
-      throw InternalError(cat("shader ", name, " does not compile on ", renderer_, ": ", why));
+      return fail(cat("shader ", name, " does not compile on ", renderer_, ": ", oneLine(why)));
     }
     glAttachShader(program, shader);
   }
+  if (!varyings.empty()) glTransformFeedbackVaryings(program, GLsizei(varyings.size()), varyings.data(), GL_SEPARATE_ATTRIBS);
   glLinkProgram(program);
   activity.links.fetch_add(1, std::memory_order_relaxed);
   for (GLuint s : shaders) glDeleteShader(s);
@@ -240,7 +261,7 @@ uint32_t GpuContext::link(std::string_view name, std::initializer_list<std::pair
   if (!ok) {
     const std::string why = log(program, true);
     glDeleteProgram(program);
-    throw InternalError(cat("shader ", name, " does not link on ", renderer_, ": ", why));
+    return fail(cat("shader ", name, " does not link on ", renderer_, ": ", oneLine(why)));
   }
   return program;
 }
@@ -256,6 +277,14 @@ const GpuProgram& GpuContext::computeProgram(std::string_view name, std::string_
     source = variant;
   }
   return programs_.emplace(std::move(key), GpuProgram(link(name, {{GL_COMPUTE_SHADER, source}}))).first->second;
+}
+
+const GpuProgram& GpuContext::feedbackProgram(std::string_view vertex, std::span<const char* const> varyings) const {
+  std::string key = "feedback|" + std::string(vertex);
+  if (auto it = programs_.find(key); it != programs_.end()) return it->second;
+  return programs_
+      .emplace(std::move(key), GpuProgram(link("of the caller's geometry (vertex shader)", {{GL_VERTEX_SHADER, vertex}}, varyings, true)))
+      .first->second;
 }
 
 const GpuProgram& GpuContext::renderProgram(std::string_view name, std::string_view vertex, std::string_view fragment) const {
@@ -388,6 +417,7 @@ GpuStateGuard::GpuStateGuard() {
   }
   glGetIntegerv(GL_DISPATCH_INDIRECT_BUFFER_BINDING, &dispatchIndirect_);
   glGetIntegerv(GL_PIXEL_UNPACK_BUFFER_BINDING, &pixelUnpack_);
+  glGetIntegerv(GL_TRANSFORM_FEEDBACK_BINDING, &transformFeedback_);
   for (size_t i = 0; i < kUnpack.size(); ++i) glGetIntegerv(kUnpack[i], &unpack_[i]);
 }
 
@@ -407,6 +437,7 @@ GpuStateGuard::~GpuStateGuard() {
   glBindBuffer(GL_SHADER_STORAGE_BUFFER, GLuint(storage_));
   glBindBuffer(GL_DISPATCH_INDIRECT_BUFFER, GLuint(dispatchIndirect_));
   glBindBuffer(GL_PIXEL_UNPACK_BUFFER, GLuint(pixelUnpack_));
+  glBindTransformFeedback(GL_TRANSFORM_FEEDBACK, GLuint(transformFeedback_));
   for (size_t i = 0; i < kUnpack.size(); ++i) glPixelStorei(kUnpack[i], unpack_[i]);
 }
 

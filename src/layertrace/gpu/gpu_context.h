@@ -9,6 +9,7 @@
 #include <cstddef>
 #include <cstdint>
 #include <string>
+#include <span>
 #include <string_view>
 #include <initializer_list>
 #include <map>
@@ -114,6 +115,12 @@ class GpuContext {
   const GpuProgram& computeProgram(std::string_view name, std::string_view source, std::string_view defines = {}) const;
   /// The same for a vertex and a fragment shader linked together.
   const GpuProgram& renderProgram(std::string_view name, std::string_view vertex, std::string_view fragment) const;
+  /// A caller's vertex shader (GLSL 4.50, its #version line included) linked alone, with the
+  /// outputs `varyings` captured by transform feedback into separate buffers, in that order (the
+  /// geometry a caller's draw calls give the capture, layertrace/gpu.h). Cached by its source.
+  /// InputError with the driver's log when the source does not compile or link: it is the
+  /// caller's, not layertrace's.
+  const GpuProgram& feedbackProgram(std::string_view vertex, std::span<const char* const> varyings) const;
   /// Runs `program` (a compute shader of local size 64 whose invocation i handles item
   /// uFirst + gl_GlobalInvocationID.x) over `n` items, in dispatches the smallest OpenGL 4.5
   /// limit allows, then makes its buffer writes visible to the next commands.
@@ -130,7 +137,10 @@ class GpuContext {
   void* display_ = nullptr;
   void* context_ = nullptr;
   bool adopted_ = false;  ///< the caller's context (AdoptCurrent): not ours to make current or destroy
-  uint32_t link(std::string_view name, std::initializer_list<std::pair<uint32_t, std::string_view>> stages) const;
+  /// Compiles and links `stages`, capturing `varyings` (separate buffers) when there are any;
+  /// InternalError on failure, InputError where `callerSource` (the source is the caller's).
+  uint32_t link(std::string_view name, std::initializer_list<std::pair<uint32_t, std::string_view>> stages,
+                std::span<const char* const> varyings = {}, bool callerSource = false) const;
   /// Initializes `display` and makes a 4.5 core context current on it; the reason it could not,
   /// else empty.
   std::string open(void* display);
@@ -198,7 +208,7 @@ class GpuStateGuard {
   int program_ = 0, vertexArray_ = 0, drawFramebuffer_ = 0, readFramebuffer_ = 0;
   int viewport_[4] = {}, polygonMode_[2] = {};
   std::array<bool, kCapabilities.size()> enabled_{};
-  int storage_ = 0, dispatchIndirect_ = 0, pixelUnpack_ = 0;
+  int storage_ = 0, dispatchIndirect_ = 0, pixelUnpack_ = 0, transformFeedback_ = 0;
   std::array<Binding, kStorageBindings> storageIndexed_{};
   std::array<int, kUnpack.size()> unpack_{};
 };

@@ -67,6 +67,10 @@ void GpuFrame::submit(const Camera& camera, const GpuEffectParams& effect, GpuPi
   const int W = camera.width(), H = camera.height(), k = config_.capture.layers.k;
   const size_t pixels = size_t(W) * size_t(H), slots = pixels * size_t(k);
   timeline_.begin(kCapture);
+  if (geometryPass_) {
+    GpuDebugGroup group("geometry");
+    geometryPass_(*capture_);
+  }
   capture_->submit(camera, config_.capture);
   timeline_.end(kCapture);
 

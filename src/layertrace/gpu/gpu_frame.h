@@ -12,6 +12,7 @@
 #pragma once
 
 #include <cstdint>
+#include <functional>
 #include <memory>
 #include <span>
 #include <vector>
@@ -83,6 +84,12 @@ class GpuFrame {
   /// frame's layers and pyramid into `hits` (GpuHit), on the device (a caller's buffers).
   void trace(const GpuBuffer& rays, const GpuBuffer& hits, size_t n) const;
 
+  /// A pass issued at the start of every attempt of every frame, before the capture, that writes
+  /// the scene's world-space positions and normals and its triangles' materials on the device
+  /// (GpuCapture::positions, …): a caller's draw calls through transform feedback
+  /// (layertrace/gpu.h). The frame's scene then gives only the sizes, materials and textures.
+  void setGeometryPass(std::function<void(const GpuCapture&)> pass) { geometryPass_ = std::move(pass); }
+
   /// Runs the last frame's effect again with `effect` over the same layers and pyramid (a timed
   /// repeat: no capture, nothing read but the sums) and gives its GPU milliseconds.
   void retrace(const GpuEffectParams& effect, double& traceMs, double& shadeMs);
@@ -117,6 +124,7 @@ class GpuFrame {
   const GpuProgram* trianglesPass_ = nullptr;
   const GpuProgram* picturePass_ = nullptr;
   GpuBuffer picture_;  ///< the packed picture (Srgb8, Float32)
+  std::function<void(const GpuCapture&)> geometryPass_;
 };
 
 }  // namespace lt

@@ -128,7 +128,7 @@ bool rendersResident(const std::string& tracer, const Frame& frame, const Effect
 }
 
 std::unique_ptr<GpuFrame> makeResidentFrame(GpuContext& gpu, const FrameOptions& options, const Frame& frame, const std::string& tracer,
-                                            const TracerOptions& tracers) {
+                                            const TracerOptions& tracers, const Scene* geometry) {
 #if LAYERTRACE_HAS_GPU
   if (!isResidentTracer(tracer)) inputError("tracer \"", tracer, "\": the resident GPU frame traces with hssr, hiz or exhaustive");
   if (!GpuEffects::supports(int(frame.lights.size())))
@@ -136,9 +136,9 @@ std::unique_ptr<GpuFrame> makeResidentFrame(GpuContext& gpu, const FrameOptions&
   validateTracerOptions(tracers);
   GpuFrameConfig fc = residentConfig(options, tracer, tracers);
   fc.capture.layers = layerConfig(options, frame);
-  return std::make_unique<GpuFrame>(gpu, frame.scene, frame.lights, fc);
+  return std::make_unique<GpuFrame>(gpu, geometry ? *geometry : frame.scene, frame.lights, fc);
 #else
-  (void)gpu, (void)options, (void)frame, (void)tracer, (void)tracers;
+  (void)gpu, (void)options, (void)frame, (void)tracer, (void)tracers, (void)geometry;
   openGpu();
   return nullptr;
 #endif

@@ -73,9 +73,11 @@ struct ResidentRender {
 class GpuFrame;
 /// The resident frame (gpu/gpu_frame.h) of the loaded `frame`'s scene and lights for `tracer`
 /// (hssr, hiz or exhaustive; InputError for another, or for more lights than the GPU passes
-/// hold) with `tracers`' parameters and `options`' capture. `frame` must outlive it.
+/// hold) with `tracers`' parameters and `options`' capture. `geometry`, when given, is the scene
+/// the frame captures in place of `frame`'s (a caller's draw calls write its geometry on the
+/// device: GpuFrame::setGeometryPass). `frame` and `geometry` must outlive it.
 std::unique_ptr<GpuFrame> makeResidentFrame(GpuContext& gpu, const FrameOptions& options, const Frame& frame, const std::string& tracer,
-                                            const TracerOptions& tracers);
+                                            const TracerOptions& tracers, const Scene* geometry = nullptr);
 
 /// Whether `render --device gpu` can run `tracer` with `effect` as one resident frame: a resident
 /// tracer, lights the GPU passes hold, and an effect that needs nothing per pixel on the host
