@@ -31,7 +31,7 @@ uniform uint uSlotBase;
 uniform int uWaves;  // waves of rays: the bounces (reflection), 2 (refraction), 1 (AO, shadow, view synthesis), 0 (shade)
 uniform float uMaxDistance, uAoRadius, uEps;
 uniform uint uSeedLo, uSeedHi;
-uniform bool uCount, uMirrorBelowSurface;
+uniform bool uCount, uMirrorBelowSurface, uExcludeOriginTriangle;
 uniform uint uTriangleCount;  // triangles[uTriangleCount] describes an unknown triangle
 uniform vec3 uEnvironment;
 uniform int uLights;
@@ -148,14 +148,15 @@ vec3 keepOutside(vec3 dir, Surface s) {
   return bentUp;
 }
 
-// effects.cpp Renderer::ray: a ray leaving surface s, which never answers with s's triangle.
+// effects.cpp Renderer::ray: a ray leaving surface s, which never answers with s's triangle
+// (unless the slots name no triangles: uExcludeOriginTriangle off).
 void emitRay(uint slot, Surface s, vec3 d, float maxDistance) {
   const vec3 dir = normalizeStd(d);
   rays[slot].originMax = vec4(s.p, maxDistance);
   rays[slot].dirSurface = vec4(dir, 1.0);
   effectRays[slot].originMax = vec4(s.p, maxDistance);
   effectRays[slot].dirSurface = vec4(dir, 1.0);
-  effectRays[slot].originTriangle = s.triangle;
+  effectRays[slot].originTriangle = uExcludeOriginTriangle ? s.triangle : kNoTriangle;
   effectRays[slot].pending = 1u;
 }
 

@@ -7,6 +7,8 @@
 #include <array>
 #include <cstddef>
 #include <cstring>
+#include <limits>
+#include <cmath>
 #include <random>
 #include <stdexcept>
 #include <string>
@@ -14,11 +16,13 @@
 
 #include <epoxy/egl.h>
 #include <epoxy/gl.h>
+#include <glm/gtc/matrix_transform.hpp>
 #include <gtest/gtest.h>
 #include <stb_image.h>
 
 #include "layertrace/api/gpu.h"
 #include "layertrace/api/layertrace.h"
+#include "layertrace/pipeline/frame.h"
 #include "test_util.h"
 
 namespace lt {
@@ -135,6 +139,36 @@ void expectCliPicture(const std::string& scenePath, GLuint target, int W, int H,
   stbi_image_free(cli);
   EXPECT_EQ(differ, 0u);
   EXPECT_GT(lit, size_t(W * H));
+}
+
+/// Rays from points in front of the default view in random directions (camera space), as the
+/// CPU's Rays and as the GPU API's records.
+void randomRays(uint32_t seed, std::vector<Ray>& cpuRays, std::vector<GpuRayRecord>& records) {
+  std::mt19937 rng(seed);
+  std::uniform_real_distribution<float> u(-1.0f, 1.0f);
+  for (int i = 0; i < 3000; ++i) {
+    glm::vec3 d(u(rng), u(rng), u(rng));
+    if (glm::length(d) < 0.1f) continue;
+    d = glm::normalize(d);
+    const glm::vec3 origin = glm::vec3(u(rng) * 0.3f, u(rng) * 0.3f, -1.5f - u(rng));
+    Ray r;
+    r.origin = origin, r.dir = d, r.maxDistance = 20.0f, r.startsOnSurface = false;
+    cpuRays.push_back(r);
+    records.push_back({{origin.x, origin.y, origin.z}, r.maxDistance, {d.x, d.y, d.z}, 0.0f});
+  }
+}
+
+/// `renderer`'s answers to `records`, through buffers of the test's own.
+std::vector<GpuHitRecord> traceRecords(const GpuRenderer& renderer, const std::vector<GpuRayRecord>& records) {
+  GLuint buffers[2] = {};
+  glCreateBuffers(2, buffers);
+  glNamedBufferStorage(buffers[0], GLsizeiptr(records.size() * sizeof(GpuRayRecord)), records.data(), 0);
+  glNamedBufferStorage(buffers[1], GLsizeiptr(records.size() * sizeof(GpuHitRecord)), nullptr, 0);
+  renderer.trace(buffers[0], buffers[1], records.size());
+  std::vector<GpuHitRecord> hits(records.size());
+  glGetNamedBufferSubData(buffers[1], 0, GLsizeiptr(hits.size() * sizeof(GpuHitRecord)), hits.data());
+  glDeleteBuffers(2, buffers);
+  return hits;
 }
 
 TEST_F(GpuApi, RendersIntoTheCallersTextureTheCliPictureAndLeavesItsState) {
@@ -289,23 +323,12 @@ TEST_F(GpuApi, TracesTheCallersRaysAsTheCpuTracer) {
   const GLuint target = texture(GL_RGBA32F, W, H);
   renderer.render(view, GpuEffectRequest{"shade"}, target);
 
-  // Rays from points on the view's surfaces in random directions (camera space).
+  // Rays from points in front of the view's surfaces in random directions (camera space).
   const ScreenLayers layers = captureLayers(scene, view, 4, 6.0f);
   const ScreenTracer cpu(layers, "hssr");
-  std::mt19937 rng(uint32_t(test::testSeed() + 71));
-  std::uniform_real_distribution<float> u(-1.0f, 1.0f);
   std::vector<Ray> cpuRays;
   std::vector<GpuRayRecord> records;
-  for (int i = 0; i < 3000; ++i) {
-    glm::vec3 d(u(rng), u(rng), u(rng));
-    if (glm::length(d) < 0.1f) continue;
-    d = glm::normalize(d);
-    const glm::vec3 origin = glm::vec3(u(rng) * 0.3f, u(rng) * 0.3f, -1.5f - u(rng));
-    Ray r;
-    r.origin = origin, r.dir = d, r.maxDistance = 20.0f, r.startsOnSurface = false;
-    cpuRays.push_back(r);
-    records.push_back({{origin.x, origin.y, origin.z}, r.maxDistance, {d.x, d.y, d.z}, 0.0f});
-  }
+  randomRays(uint32_t(test::testSeed() + 71), cpuRays, records);
   glNamedBufferStorage(rays, GLsizeiptr(records.size() * sizeof(GpuRayRecord)), records.data(), 0);
   glNamedBufferStorage(hits, GLsizeiptr(records.size() * sizeof(GpuHitRecord)), nullptr, GL_DYNAMIC_STORAGE_BIT);
   try {
@@ -332,6 +355,181 @@ TEST_F(GpuApi, TracesTheCallersRaysAsTheCpuTracer) {
   glDeleteBuffers(1, &rays);
   glDeleteBuffers(1, &hits);
   glDeleteTextures(1, &target);
+}
+
+// A renderer's own k-layer arrays (here the CPU capture's of the same view, in the documented
+// slot layout, each slot's material from its triangle): the march answers as over the layers
+// layertrace captures, ray for ray, and the picture is the captured frame's but where the
+// effects use a triangle's geometric normal, which a caller's layers do not carry.
+TEST_F(GpuApi, YourLayersAreTracedAsTheCapturedOnes) {
+  const int W = 120, H = 72, k = 4;
+  const TriangleScene scene = TriangleScene::load(test::sourceDir() + "/scenes/default.json");
+  const View view = scene.view("", W, H);
+  const Frame frame = buildFrame(test::defaultSceneOptions(W, H));
+  ASSERT_EQ(frame.layers.k, k);
+  const size_t pixels = size_t(W) * H, slots = pixels * k;
+  std::vector<uint32_t> counts(frame.layers.count.begin(), frame.layers.count.end()), materials(slots, 0);
+  for (size_t s = 0; s < slots; ++s)
+    if (s % k < frame.layers.count[s / k]) materials[s] = scene.materialOfTriangle()[frame.layers.triangle[s]];
+  GLuint buffers[3] = {};
+  glCreateBuffers(3, buffers);
+  glNamedBufferStorage(buffers[0], GLsizeiptr(slots * sizeof(GpuLayerSlot)), frame.layers.slots.data(), 0);
+  glNamedBufferStorage(buffers[1], GLsizeiptr(pixels * 4), counts.data(), 0);
+  glNamedBufferStorage(buffers[2], GLsizeiptr(slots * 4), materials.data(), 0);
+  const GpuLayers layers{buffers[0], buffers[1], buffers[2]};
+
+  GpuDevice device;
+  GpuRenderer captured(device, scene), given(device, scene, GpuLayerFormat{k});
+  const GLuint pictures[2] = {texture(GL_RGBA8, W, H), texture(GL_RGBA8, W, H)};
+  GLuint callerVao = 0, callerBuffer = 0;
+  const CallerState before = setCallerState(callerVao, callerBuffer);
+  const GpuFrameInfo a = captured.render(view, GpuEffectRequest{}, pictures[0]);
+  const GpuFrameInfo b = given.render(view, GpuEffectRequest{}, pictures[1], layers);
+  EXPECT_TRUE(CallerState::read() == before);
+  EXPECT_EQ(b.rays, a.rays);
+  EXPECT_GT(b.hits, b.rays / 4);
+
+  std::vector<Ray> cpuRays;
+  std::vector<GpuRayRecord> records;
+  randomRays(uint32_t(test::testSeed() + 72), cpuRays, records);
+  const std::vector<GpuHitRecord> want = traceRecords(captured, records), got = traceRecords(given, records);
+  size_t differ = 0, hits = 0;
+  for (size_t i = 0; i < want.size(); ++i) {
+    hits += want[i].layer >= 0;
+    differ += std::memcmp(&want[i], &got[i], sizeof(GpuHitRecord)) != 0;
+  }
+  EXPECT_EQ(differ, 0u);
+  EXPECT_GT(hits, want.size() / 4);
+
+  std::vector<uint8_t> texels[2];
+  for (int i = 0; i < 2; ++i) {
+    texels[i].resize(pixels * 4);
+    glGetTextureImage(pictures[i], 0, GL_RGBA, GL_UNSIGNED_BYTE, GLsizei(texels[i].size()), texels[i].data());
+  }
+  size_t far = 0;
+  for (size_t i = 0; i < texels[0].size(); ++i) far += std::abs(int(texels[0][i]) - int(texels[1][i])) > 2;
+  EXPECT_LT(far, texels[0].size() / 100) << far << " of " << texels[0].size() << " values differ by more than 2";
+
+  // A buffer too small is named with its size.
+  try {
+    given.render(scene.view("", W + 1, H), GpuEffectRequest{}, pictures[1], layers);
+    ADD_FAILURE() << "layers smaller than the view were accepted";
+  } catch (const std::invalid_argument& e) {
+    EXPECT_NE(std::string(e.what()).find("layers.slots"), std::string::npos) << e.what();
+  }
+  EXPECT_THROW(given.render(view, GpuEffectRequest{}, pictures[1]), std::invalid_argument);  // layers, not a scene
+  EXPECT_TRUE(CallerState::read() == before);
+  glDeleteBuffers(3, buffers);
+  glDeleteTextures(2, pictures);
+  glDeleteBuffers(1, &callerBuffer);
+  glDeleteVertexArrays(1, &callerVao);
+}
+
+// A renderer's G-buffer: the test draws the scene with its own program into a depth texture and
+// a normal texture, with glm's perspective of the view. Rays traced through that one layer
+// answer as the CPU tracer over the same depths (fromDepthBuffer), apart from the rare ray
+// whose depth the two conversions of window depth round differently.
+TEST_F(GpuApi, YourGBufferIsOneLayer) {
+  const int W = 120, H = 72;
+  const TriangleScene scene = TriangleScene::load(test::sourceDir() + "/scenes/default.json");
+  const View view = scene.view("", W, H);
+  const glm::mat4 viewMatrix = glm::lookAt(view.eye, view.target, view.up);
+  const glm::mat4 clip = glm::perspective(glm::radians(view.fovY), float(W) / float(H), view.near, view.far) * viewMatrix;
+  std::vector<glm::vec3> vertices;
+  for (size_t t = 0; t < scene.triangleCount(); ++t)
+    for (int i = 0; i < 3; ++i) {
+      const uint32_t v = scene.triangles()[t][i];
+      vertices.push_back(scene.positions()[v]);
+      vertices.push_back(glm::mat3(viewMatrix) * scene.normals()[v]);
+    }
+  GLuint buffer = 0, vao = 0, fbo = 0, depth = texture(GL_DEPTH_COMPONENT32F, W, H), normals = texture(GL_RGBA16F, W, H);
+  glCreateBuffers(1, &buffer);
+  glNamedBufferStorage(buffer, GLsizeiptr(vertices.size() * sizeof(glm::vec3)), vertices.data(), 0);
+  glCreateVertexArrays(1, &vao);
+  glVertexArrayVertexBuffer(vao, 0, buffer, 0, 2 * sizeof(glm::vec3));
+  glVertexArrayAttribFormat(vao, 0, 3, GL_FLOAT, GL_FALSE, 0);
+  glVertexArrayAttribFormat(vao, 1, 3, GL_FLOAT, GL_FALSE, sizeof(glm::vec3));
+  for (GLuint a = 0; a < 2; ++a) glEnableVertexArrayAttrib(vao, a), glVertexArrayAttribBinding(vao, a, 0);
+  glCreateFramebuffers(1, &fbo);
+  glNamedFramebufferTexture(fbo, GL_DEPTH_ATTACHMENT, depth, 0);
+  glNamedFramebufferTexture(fbo, GL_COLOR_ATTACHMENT0, normals, 0);
+  const char* vs = "#version 450\nlayout(location = 0) in vec3 p;\nlayout(location = 1) in vec3 n;\nuniform mat4 uClip;\nout vec3 vn;\n"
+                   "void main() { vn = n; gl_Position = uClip * vec4(p, 1.0); }\n";
+  const char* fs = "#version 450\nin vec3 vn;\nout vec4 colour;\nvoid main() { colour = vec4(normalize(vn), 1.0); }\n";
+  const GLuint program = glCreateProgram();
+  for (const auto& [stage, source] : {std::pair{GL_VERTEX_SHADER, vs}, std::pair{GL_FRAGMENT_SHADER, fs}}) {
+    const GLuint shader = glCreateShader(stage);
+    glShaderSource(shader, 1, &source, nullptr);
+    glCompileShader(shader);
+    glAttachShader(program, shader);
+    glDeleteShader(shader);
+  }
+  glLinkProgram(program);
+  GLint linked = 0;
+  glGetProgramiv(program, GL_LINK_STATUS, &linked);
+  ASSERT_TRUE(linked);
+  glProgramUniformMatrix4fv(program, glGetUniformLocation(program, "uClip"), 1, GL_FALSE, &clip[0][0]);
+  glBindFramebuffer(GL_FRAMEBUFFER, fbo);
+  glViewport(0, 0, W, H);
+  glDisable(GL_SCISSOR_TEST);  // (an earlier test's caller state may have left it on)
+  const float one = 1.0f, zero[4] = {};
+  glClearNamedFramebufferfv(fbo, GL_DEPTH, 0, &one);
+  glClearNamedFramebufferfv(fbo, GL_COLOR, 0, zero);
+  glEnable(GL_DEPTH_TEST);
+  glUseProgram(program);
+  glBindVertexArray(vao);
+  glDrawArrays(GL_TRIANGLES, 0, GLsizei(vertices.size() / 2));
+  glUseProgram(0);
+  glBindFramebuffer(GL_FRAMEBUFFER, 0);
+  glDisable(GL_DEPTH_TEST);
+
+  GpuDevice device;
+  GpuRenderer renderer(device, scene, GpuLayerFormat{1, 6.0f});
+  const GLuint picture = texture(GL_RGBA8, W, H);
+  const GpuFrameInfo info = renderer.render(view, GpuEffectRequest{"ao"}, picture, GpuGBuffer{depth, normals, 0});
+  EXPECT_GT(info.rays, uint64_t(W * H / 2));
+  EXPECT_GT(info.hits, info.rays / 20);
+
+  // The same depths on the CPU: window depth back to camera depth, rows flipped.
+  std::vector<float> window(size_t(W) * H), cameraDepth(size_t(W) * H);
+  glGetTextureImage(depth, 0, GL_DEPTH_COMPONENT, GL_FLOAT, GLsizei(window.size() * 4), window.data());
+  for (int y = 0; y < H; ++y)
+    for (int x = 0; x < W; ++x) {
+      const float d = window[size_t(H - 1 - y) * W + size_t(x)], ndc = 2.0f * d - 1.0f;
+      cameraDepth[size_t(y) * W + size_t(x)] = d < 1.0f ? 2.0f * view.near * view.far / ((view.far + view.near) - ndc * (view.far - view.near))
+                                                       : std::numeric_limits<float>::infinity();
+    }
+  const ScreenLayers layers = ScreenLayers::fromDepthBuffer(view, cameraDepth);
+  const ScreenTracer cpu(layers, "hssr");
+  std::vector<Ray> cpuRays;
+  std::vector<GpuRayRecord> records;
+  randomRays(uint32_t(test::testSeed() + 73), cpuRays, records);
+  const std::vector<GpuHitRecord> got = traceRecords(renderer, records);
+  std::vector<TraceHit> want(cpuRays.size());
+  cpu.trace(cpuRays, want);
+  size_t differ = 0, hits = 0;
+  for (size_t i = 0; i < want.size(); ++i) {
+    const bool gpuHit = got[i].layer >= 0;
+    hits += want[i].hit;
+    differ += gpuHit != want[i].hit || (gpuHit && (got[i].x != want[i].x || got[i].y != want[i].y));
+  }
+  EXPECT_GT(hits, want.size() / 4);
+  EXPECT_LE(differ, want.size() / 200) << differ << " of " << want.size() << " rays answered differently";
+
+  // A texture of another size is named.
+  const GLuint small = texture(GL_RGBA16F, W / 2, H);
+  try {
+    renderer.render(view, GpuEffectRequest{"ao"}, picture, GpuGBuffer{depth, small, 0});
+    ADD_FAILURE() << "normals of another size were accepted";
+  } catch (const std::invalid_argument& e) {
+    EXPECT_NE(std::string(e.what()).find("gbuffer.normals"), std::string::npos) << e.what();
+  }
+  const GLuint textures[] = {depth, normals, picture, small};
+  glDeleteTextures(4, textures);
+  glDeleteProgram(program);
+  glDeleteFramebuffers(1, &fbo);
+  glDeleteBuffers(1, &buffer);
+  glDeleteVertexArrays(1, &vao);
 }
 
 TEST_F(GpuApi, RefusesUnknownTracersAndParametersWithTheCliMessages) {

@@ -51,18 +51,32 @@ struct GpuRenderer::Impl {
   std::unique_ptr<GpuFrame> resident;  ///< made on the first render (its lights follow that view)
   bool rendered = false;
 
-  // The caller's geometry (GpuGeometry): the frame captures `drawn`, a scene of `capacity`
-  // triangles (three vertices each, in draw order) whose positions, normals and materials the
-  // caller's draw calls write through transform feedback at the start of each frame.
-  bool callerGeometry = false;
+  /// Where the frame's layers come from: the scene's capture, the caller's draw calls
+  /// (GpuGeometry), or the caller's layers (GpuLayers, GpuGBuffer).
+  enum class Source { Scene, Geometry, Layers } source = Source::Scene;
+  std::string sourceName() const {
+    return source == Source::Scene ? "its TriangleScene" : source == Source::Geometry ? "your draw calls" : "your layers";
+  }
+  static constexpr size_t kMaxTriangles = size_t(0x7FFFFFFF) / 3;
+
+  // The caller's geometry (GpuGeometry): the frame captures `drawn`, a scene of as many
+  // triangles as the capacity (three vertices each, in draw order) whose positions, normals and
+  // materials the caller's draw calls write through transform feedback at the start of each
+  // frame. The caller's layers: `drawn` holds a degenerate triangle per material, which the
+  // slots' material indices name (their geometric normal is 0: the effects use the slot's).
   const GpuProgram* program = nullptr;  ///< the caller's vertex shader, linked for transform feedback
   Scene drawn;
   GpuBuffer vertexMaterial;  ///< ltMaterial per vertex
   GLuint feedback = 0, primitives = 0, framebuffer = 0;
   const GpuDrawCalls* draw = nullptr;  ///< the callback of the render in progress
+  GpuBuffer gslots, gcounts;           ///< a G-buffer's layer (GpuGBuffer)
 
+  void useMaterialsOf(const Scene& scene);
   void resize(size_t triangles);
   void captureGeometry(const GpuCapture& capture) const;
+  /// One frame from this renderer's source into `texture`; `input` gives the caller's layers.
+  GpuFrameInfo render(const View& view, const GpuEffectRequest& request, uint32_t texture,
+                      const std::function<void(GpuCapture&, const Camera&)>& input);
 };
 
 namespace {
@@ -92,6 +106,16 @@ size_t bufferBytes(uint32_t id, const char* what) {
 constexpr std::array<const char*, 3> kGeometryOutputs = {"ltPosition", "ltNormal", "ltMaterial"};
 
 }  // namespace
+
+void GpuRenderer::Impl::useMaterialsOf(const Scene& scene) {
+  // The materials (their textures off: no texture coordinates come with the caller's vertices
+  // or layers), lights and environment of `scene`; the geometry is the caller's.
+  drawn = scene;
+  drawn.positions.clear(), drawn.normals.clear(), drawn.triangles.clear(), drawn.triMaterial.clear();
+  drawn.texcoords.clear(), drawn.lightmapCoords.clear(), drawn.triUvScaleLog2.clear(), drawn.textures.clear();
+  for (Material& material : drawn.materials) material.baseTexture = material.specularTexture = material.lightmap = -1;
+  if (drawn.materials.empty()) drawn.materials.emplace_back();
+}
 
 void GpuRenderer::Impl::resize(size_t triangles) {
   const size_t vertices = 3 * triangles;
@@ -166,21 +190,15 @@ GpuRenderer::GpuRenderer(GpuDevice& device, const TriangleScene& materials, cons
                          const TracerParams& params, int layers, float thicknessPx)
     : GpuRenderer(device, materials, tracer, params, layers, thicknessPx) {
   Impl& m = *impl_;
-  if (geometry.maxTriangles == 0 || geometry.maxTriangles > size_t(0x7FFFFFFF) / 3)
-    invalid(cat("maxTriangles ", geometry.maxTriangles, ": must be between 1 and ", size_t(0x7FFFFFFF) / 3));
+  if (geometry.maxTriangles == 0 || geometry.maxTriangles > Impl::kMaxTriangles)
+    invalid(cat("maxTriangles ", geometry.maxTriangles, ": must be between 1 and ", Impl::kMaxTriangles));
   const GpuStateGuard state;
   guarded([&] { m.program = &m.gpu.feedbackProgram(geometry.vertexShader, kGeometryOutputs); });
   for (const char* output : kGeometryOutputs)
     if (glGetProgramResourceIndex(m.program->id(), GL_TRANSFORM_FEEDBACK_VARYING, output) == GL_INVALID_INDEX)
       invalid(cat("vertexShader: writes no ", output, " (GpuGeometry lists the outputs the capture reads)"));
-  m.callerGeometry = true;
-  // The scene the frame captures: the materials (their textures off: no texture coordinates
-  // come with the caller's vertices), lights and environment of `materials`, the geometry the
-  // draw calls write.
-  m.drawn = m.frame.scene;
-  m.drawn.texcoords.clear(), m.drawn.lightmapCoords.clear(), m.drawn.triUvScaleLog2.clear(), m.drawn.textures.clear();
-  for (Material& material : m.drawn.materials) material.baseTexture = material.specularTexture = material.lightmap = -1;
-  if (m.drawn.materials.empty()) m.drawn.materials.emplace_back();
+  m.source = Impl::Source::Geometry;
+  m.useMaterialsOf(m.frame.scene);
   glCreateTransformFeedbacks(1, &m.feedback);
   glCreateQueries(GL_PRIMITIVES_GENERATED, 1, &m.primitives);
   glCreateFramebuffers(1, &m.framebuffer);
@@ -189,19 +207,119 @@ GpuRenderer::GpuRenderer(GpuDevice& device, const TriangleScene& materials, cons
   m.resize(geometry.maxTriangles);
 }
 
+GpuRenderer::GpuRenderer(GpuDevice& device, const TriangleScene& materials, const GpuLayerFormat& format, const std::string& tracer,
+                         const TracerParams& params)
+    : GpuRenderer(device, materials, tracer, params, format.k, format.thicknessPx) {
+  Impl& m = *impl_;
+  m.source = Impl::Source::Layers;
+  m.useMaterialsOf(m.frame.scene);
+  const size_t count = m.drawn.materials.size();
+  m.drawn.positions.assign(3 * count, glm::vec3(0.0f));
+  m.drawn.normals.assign(3 * count, glm::vec3(0.0f));
+  m.drawn.triangles.resize(count);
+  m.drawn.triMaterial.resize(count);
+  for (uint32_t t = 0; t < count; ++t) m.drawn.triangles[t] = glm::uvec3(3 * t, 3 * t + 1, 3 * t + 2), m.drawn.triMaterial[t] = t;
+}
+
 GpuRenderer::~GpuRenderer() = default;
 
 GpuFrameInfo GpuRenderer::render(const View& view, const GpuEffectRequest& request, uint32_t texture) {
-  if (impl_->callerGeometry) invalid("render: this renderer draws your geometry (GpuGeometry): pass your draw calls");
-  return render(view, request, texture, GpuDrawCalls());
+  if (impl_->source != Impl::Source::Scene) invalid(cat("render: this renderer takes ", impl_->sourceName(), " with each frame"));
+  return impl_->render(view, request, texture, nullptr);
 }
 
 GpuFrameInfo GpuRenderer::render(const View& view, const GpuEffectRequest& request, uint32_t texture, const GpuDrawCalls& draw) {
   Impl& m = *impl_;
-  if (draw && !m.callerGeometry) invalid("render: this renderer draws its TriangleScene; it takes no draw calls");
-  if (m.callerGeometry && !draw) invalid("render: no draw calls given (an empty GpuDrawCalls)");
-  Frame& frame = m.frame;
-  const Camera camera = cameraOf(view);
+  if (m.source != Impl::Source::Geometry) invalid(cat("render: this renderer takes ", m.sourceName(), ", not draw calls"));
+  if (!draw) invalid("render: no draw calls given (an empty GpuDrawCalls)");
+  m.draw = &draw;
+  const auto done = [&m] { m.draw = nullptr; };
+  try {
+    const GpuFrameInfo info = m.render(view, request, texture, nullptr);
+    done();
+    return info;
+  } catch (...) {
+    done();
+    throw;
+  }
+}
+
+GpuFrameInfo GpuRenderer::render(const View& view, const GpuEffectRequest& request, uint32_t texture, const GpuLayers& layers) {
+  Impl& m = *impl_;
+  if (m.source != Impl::Source::Layers) invalid(cat("render: this renderer takes ", m.sourceName(), ", not layers"));
+  guarded([&] { cameraOf(view); });
+  const size_t pixels = size_t(view.width) * size_t(view.height), slots = pixels * size_t(m.options.layers);
+  const size_t slotBytes = bufferBytes(layers.slots, "layers.slots"), countBytes = bufferBytes(layers.counts, "layers.counts");
+  if (slotBytes < slots * sizeof(GpuLayerSlot))
+    invalid(cat("layers.slots ", layers.slots, ": ", slotBytes, " bytes hold ", slotBytes / sizeof(GpuLayerSlot), " slots, fewer than the ", slots,
+                " of a ", view.width, "x", view.height, " view with k = ", m.options.layers));
+  if (countBytes < pixels * 4)
+    invalid(cat("layers.counts ", layers.counts, ": ", countBytes, " bytes hold ", countBytes / 4, " counts, fewer than the view's ", pixels, " pixels"));
+  size_t materialBytes = 0;
+  if (layers.materials != 0) {
+    materialBytes = bufferBytes(layers.materials, "layers.materials");
+    if (materialBytes < slots * 4)
+      invalid(cat("layers.materials ", layers.materials, ": ", materialBytes, " bytes hold ", materialBytes / 4, " indices, fewer than the ", slots,
+                  " slots"));
+  }
+  const int k = m.options.layers;
+  const uint32_t materialCount = uint32_t(m.drawn.materials.size());
+  return m.render(view, request, texture, [&](GpuCapture& capture, const Camera& camera) {
+    const GpuBuffer materials = layers.materials ? GpuBuffer::borrowed(layers.materials, materialBytes) : GpuBuffer();
+    capture.submitLayers(camera, k, GpuBuffer::borrowed(layers.slots, slotBytes), GpuBuffer::borrowed(layers.counts, countBytes),
+                         layers.materials ? &materials : nullptr, materialCount);
+  });
+}
+
+GpuFrameInfo GpuRenderer::render(const View& view, const GpuEffectRequest& request, uint32_t texture, const GpuGBuffer& gbuffer) {
+  Impl& m = *impl_;
+  if (m.source != Impl::Source::Layers || m.options.layers != 1)
+    invalid(cat("render: a G-buffer is one layer; this renderer takes ", m.source == Impl::Source::Layers ? "k = " + std::to_string(m.options.layers) + " layers" : m.sourceName()));
+  guarded([&] { cameraOf(view); });
+  const auto check = [&](uint32_t id, const char* what, bool optional) {
+    if (optional && id == 0) return;
+    if (id == 0 || !glIsTexture(id)) invalid(cat(what, " ", id, ": not a texture of the current context"));
+    GLint target = 0, width = 0, height = 0;
+    glGetTextureParameteriv(id, GL_TEXTURE_TARGET, &target);
+    if (target != GL_TEXTURE_2D) invalid(cat(what, " ", id, ": not a 2D texture"));
+    glGetTextureLevelParameteriv(id, 0, GL_TEXTURE_WIDTH, &width);
+    glGetTextureLevelParameteriv(id, 0, GL_TEXTURE_HEIGHT, &height);
+    if (width != view.width || height != view.height)
+      invalid(cat(what, " ", id, ": ", width, "x", height, " texels, not the ", view.width, "x", view.height, " view's"));
+  };
+  check(gbuffer.depth, "gbuffer.depth", false);
+  check(gbuffer.normals, "gbuffer.normals", false);
+  check(gbuffer.albedo, "gbuffer.albedo", true);
+  GLint normalFormat = 0;
+  glGetTextureLevelParameteriv(gbuffer.normals, 0, GL_TEXTURE_RED_TYPE, &normalFormat);
+  return m.render(view, request, texture, [&](GpuCapture& capture, const Camera& camera) {
+    const size_t pixels = size_t(camera.width()) * size_t(camera.height());
+    if (m.gslots.bytes() != pixels * 16) m.gslots = GpuBuffer(pixels * 16), m.gcounts = GpuBuffer(pixels * 4);
+    const GpuProgram& convert = m.gpu.computeProgram("layers_gbuffer.comp", shader_source::layers_gbuffer_comp);
+    m.gslots.bindStorage(0), m.gcounts.bindStorage(1);
+    glBindTextureUnit(0, gbuffer.depth);
+    glBindTextureUnit(1, gbuffer.normals);
+    glBindTextureUnit(2, gbuffer.albedo ? gbuffer.albedo : gbuffer.normals);
+    for (GLuint unit = 0; unit < 3; ++unit) glBindSampler(unit, 0);
+    convert.set("uWidth", camera.width());
+    convert.set("uHeight", camera.height());
+    convert.set("uNear", camera.near());
+    convert.set("uFar", camera.far());
+    convert.set("uThickness", 0.0f);
+    convert.set("uThicknessPerDepth", m.frame.thicknessPerDepth);
+    convert.set("uNormalsUnsigned", normalFormat == GL_UNSIGNED_NORMALIZED);
+    convert.set("uHaveAlbedo", gbuffer.albedo != 0);
+    convert.set("uDepth", 0);
+    convert.set("uNormals", 1);
+    convert.set("uAlbedo", 2);
+    m.gpu.dispatch(convert, pixels);
+    capture.submitLayers(camera, 1, m.gslots, m.gcounts, nullptr, 1);
+  });
+}
+
+GpuFrameInfo GpuRenderer::Impl::render(const View& view, const GpuEffectRequest& request, uint32_t texture,
+                                       const std::function<void(GpuCapture&, const Camera&)>& input) {
+  const Camera camera = guarded([&] { return cameraOf(view); });
   EffectConfig ec;
   guarded([&] {
     ec.effect = parseEffect(request.effect);
@@ -228,36 +346,36 @@ GpuFrameInfo GpuRenderer::render(const View& view, const GpuEffectRequest& reque
   const GpuStateGuard state;
   return guarded([&] {
     frame.camera = camera;
-    frame.thicknessPerDepth = thicknessPerDepth(camera, m.thicknessPx);
+    frame.thicknessPerDepth = thicknessPerDepth(camera, thicknessPx);
     const auto makeFrame = [&] {
       if (frame.lights.empty()) {
         frame.lights = frame.scene.lights;  // the scene's, else one above this first view's eye
         if (frame.lights.empty()) frame.lights.push_back(defaultLight(camera));
       }
-      m.resident = makeResidentFrame(m.gpu, m.options, frame, m.tracer, m.tracers, m.callerGeometry ? &m.drawn : nullptr);
-      if (m.callerGeometry) m.resident->setGeometryPass([&m](const GpuCapture& capture) { m.captureGeometry(capture); });
+      resident = makeResidentFrame(gpu, options, frame, tracer, tracers, source == Source::Scene ? nullptr : &drawn);
+      if (source == Source::Geometry) resident->setGeometryPass([this](const GpuCapture& capture) { captureGeometry(capture); });
     };
-    m.draw = &draw;
-    if (!m.resident) makeFrame();
-    GpuFrameResult r = m.resident->render(camera, layerConfig(m.options, frame), gpuEffectParams(frame, ec), picture, false);
+    if (!resident) makeFrame();
+    if (input) resident->setInputLayers(input);
+    GpuEffectParams params = gpuEffectParams(frame, ec);
+    params.excludeOriginTriangle = source != Source::Layers;
+    GpuFrameResult r = resident->render(camera, layerConfig(options, frame), params, picture, false);
     uint64_t triangles = 0;
-    if (m.callerGeometry) {
+    if (source == Source::Geometry) {
       // The count, complete with the frame the one wait finished. More triangles than the
       // capacity: a capacity that holds them all, and the frame again.
-      glGetQueryObjectui64v(m.primitives, GL_QUERY_RESULT, &triangles);
-      if (triangles > m.drawn.triangles.size()) {
-        const size_t need = std::max<size_t>(triangles, 2 * m.drawn.triangles.size());
-        if (triangles > size_t(0x7FFFFFFF) / 3) inputError("draw calls: ", triangles, " triangles exceed one GPU capture's ", size_t(0x7FFFFFFF) / 3);
-        m.resize(need);
+      glGetQueryObjectui64v(primitives, GL_QUERY_RESULT, &triangles);
+      if (triangles > drawn.triangles.size()) {
+        if (triangles > kMaxTriangles) inputError("draw calls: ", triangles, " triangles exceed one GPU capture's ", kMaxTriangles);
+        resize(std::max<size_t>(triangles, std::min<size_t>(2 * drawn.triangles.size(), kMaxTriangles)));
         makeFrame();
-        r = m.resident->render(camera, layerConfig(m.options, frame), gpuEffectParams(frame, ec), picture, false);
+        r = resident->render(camera, layerConfig(options, frame), params, picture, false);
         r.attempts += 1;
       }
     }
-    m.draw = nullptr;
-    m.rendered = true;
+    rendered = true;
     // The picture, packed in rows on the device, into the texture from a pixel-unpack buffer.
-    glBindBuffer(GL_PIXEL_UNPACK_BUFFER, m.resident->picture().id());
+    glBindBuffer(GL_PIXEL_UNPACK_BUFFER, resident->picture().id());
     glPixelStorei(GL_UNPACK_ALIGNMENT, 4);
     glPixelStorei(GL_UNPACK_ROW_LENGTH, 0);
     glPixelStorei(GL_UNPACK_SKIP_ROWS, 0);
@@ -298,12 +416,31 @@ bool GpuDevice::software() const { return false; }
 GpuRenderer::GpuRenderer(GpuDevice&, const TriangleScene&, const std::string&, const TracerParams&, int, float) {
   throw std::runtime_error("layertrace was built without its GPU back end (LAYERTRACE_GPU)");
 }
+GpuRenderer::GpuRenderer(GpuDevice& device, const TriangleScene& materials, const GpuLayerFormat& format, const std::string& tracer,
+                         const TracerParams& params)
+    : GpuRenderer(device, materials, tracer, params, format.k, format.thicknessPx) {
+  Impl& m = *impl_;
+  m.source = Impl::Source::Layers;
+  m.useMaterialsOf(m.frame.scene);
+  const size_t count = m.drawn.materials.size();
+  m.drawn.positions.assign(3 * count, glm::vec3(0.0f));
+  m.drawn.normals.assign(3 * count, glm::vec3(0.0f));
+  m.drawn.triangles.resize(count);
+  m.drawn.triMaterial.resize(count);
+  for (uint32_t t = 0; t < count; ++t) m.drawn.triangles[t] = glm::uvec3(3 * t, 3 * t + 1, 3 * t + 2), m.drawn.triMaterial[t] = t;
+}
+
 GpuRenderer::~GpuRenderer() = default;
 GpuRenderer::GpuRenderer(GpuDevice&, const TriangleScene&, const GpuGeometry&, const std::string&, const TracerParams&, int, float) {
   throw std::runtime_error("layertrace was built without its GPU back end (LAYERTRACE_GPU)");
 }
 GpuFrameInfo GpuRenderer::render(const View&, const GpuEffectRequest&, uint32_t) { return {}; }
+GpuRenderer::GpuRenderer(GpuDevice&, const TriangleScene&, const GpuLayerFormat&, const std::string&, const TracerParams&) {
+  throw std::runtime_error("layertrace was built without its GPU back end (LAYERTRACE_GPU)");
+}
 GpuFrameInfo GpuRenderer::render(const View&, const GpuEffectRequest&, uint32_t, const GpuDrawCalls&) { return {}; }
+GpuFrameInfo GpuRenderer::render(const View&, const GpuEffectRequest&, uint32_t, const GpuLayers&) { return {}; }
+GpuFrameInfo GpuRenderer::render(const View&, const GpuEffectRequest&, uint32_t, const GpuGBuffer&) { return {}; }
 void GpuRenderer::trace(uint32_t, uint32_t, size_t) const {}
 
 #endif

@@ -11,9 +11,10 @@
 // it changes and restores it before it returns, also when it throws (docs/library.md, "On the
 // GPU", lists it): your program, vertex array, framebuffers, viewport, polygon mode, depth,
 // cull, stencil, scissor and rasterizer-discard switches, shader storage bindings 0–15, the
-// dispatch-indirect and pixel-unpack buffers and the unpack pixel-store settings. It creates
-// its own buffers, programs, a vertex array, a framebuffer and queries, which it deletes with
-// the objects.
+// dispatch-indirect and pixel-unpack buffers, the unpack pixel-store settings, the transform
+// feedback object, the active texture unit and the 2D textures and samplers of units 0–2. It
+// creates its own buffers, programs, vertex arrays, framebuffers, a transform feedback object
+// and queries, which it deletes with the objects.
 //
 // Errors: std::invalid_argument with one line naming the argument and the value (a texture too
 // small or of a format it cannot write, a buffer too small, an unknown tracer or parameter);
@@ -89,6 +90,41 @@ struct GpuGeometry {
   std::string vertexShader;
   size_t maxTriangles = 1 << 16;  ///< the first capacity; a frame that draws more grows it and draws again
 };
+/// One slot of YOUR k-layer arrays (GpuLayers), std430, 16 bytes: the fragment node of Hofmann
+/// et al. 2017, §4.1, as layertrace's capture writes it.
+struct GpuLayerSlot {
+  float depth;          ///< positive camera-space depth (-z of the point, the View's camera space)
+  uint32_t normal;      ///< camera-space unit normal, octahedral: two snorm16, x in the low half
+  uint32_t albedoSpec;  ///< albedo as 8-bit sRGB codes (R in the low byte) and specular weight · 255 (high byte)
+  float thickness;      ///< z-thickness: the surface spans depths [depth, depth + thickness]
+};
+static_assert(sizeof(GpuLayerSlot) == 16);
+
+/// YOUR layers, in buffers of the current context (render with GpuLayers): k slots a pixel,
+/// pixel-major with pixel = row · width + column and row 0 the TOP row, each pixel's slots in
+/// ascending depth.
+struct GpuLayers {
+  uint32_t slots = 0;      ///< GpuLayerSlot[width · height · k]
+  uint32_t counts = 0;     ///< uint[width · height]: the slots in use (a count above k reads as k)
+  uint32_t materials = 0;  ///< optional uint[width · height · k]: each slot's material, an index into
+                           ///< the TriangleScene's materials (its mirror, transmission, …); 0: material 0
+};
+
+/// YOUR G-buffer (render with GpuGBuffer, a renderer of k = 1): 2D textures of the view's size,
+/// drawn with the View's perspective (glm::perspective of its fovY, near and far) and the default
+/// depth range, row 0 the BOTTOM row as OpenGL draws them.
+struct GpuGBuffer {
+  uint32_t depth = 0;    ///< depth texture (window depth; 1: nothing drawn)
+  uint32_t normals = 0;  ///< camera-space normals in RGB: signed (float, snorm) as they are, unsigned normalized as n · 0.5 + 0.5
+  uint32_t albedo = 0;   ///< optional: linear albedo in RGB, specular weight in A (sRGB textures decode as they are read); 0: grey
+};
+
+/// The k of your layers, and for a G-buffer the z-thickness of its one layer in pixel footprints.
+struct GpuLayerFormat {
+  int k = 4;
+  float thicknessPx = 6.0f;
+};
+
 /// Your draw calls, issued into the capture with `program` (your vertex shader) bound. Called at
 /// least once per frame, again when a buffer of the frame overflowed and it runs again.
 using GpuDrawCalls = std::function<void(uint32_t program)>;
@@ -125,6 +161,10 @@ class LAYERTRACE_API GpuRenderer {
   /// vertex shader does not compile or link, or lacks an output, with the driver's log.
   GpuRenderer(GpuDevice& device, const TriangleScene& materials, const GpuGeometry& geometry, const std::string& tracer = "hssr",
               const TracerParams& params = TracerParams(), int layers = 4, float thicknessPx = 6.0f);
+  /// Frames of the layers you give (render with GpuLayers or GpuGBuffer), k as `format` says;
+  /// `materials` as above.
+  GpuRenderer(GpuDevice& device, const TriangleScene& materials, const GpuLayerFormat& format, const std::string& tracer = "hssr",
+              const TracerParams& params = TracerParams());
   ~GpuRenderer();
   GpuRenderer(const GpuRenderer&) = delete;
   GpuRenderer& operator=(const GpuRenderer&) = delete;
@@ -137,6 +177,13 @@ class LAYERTRACE_API GpuRenderer {
   GpuFrameInfo render(const View& view, const GpuEffectRequest& effect, uint32_t texture);
   /// The same for a renderer of your geometry: `draw` issues your draw calls into the capture.
   GpuFrameInfo render(const View& view, const GpuEffectRequest& effect, uint32_t texture, const GpuDrawCalls& draw);
+  /// The same for a renderer of your layers (GpuLayerFormat): the frame starts at your k-layer
+  /// arrays, read on the device (no capture). std::invalid_argument for a buffer too small.
+  GpuFrameInfo render(const View& view, const GpuEffectRequest& effect, uint32_t texture, const GpuLayers& layers);
+  /// The same from your G-buffer, one layer (a renderer of GpuLayerFormat{1, …}): Hi-Z, HSSR or
+  /// the one-level march over a single depth layer. std::invalid_argument for a texture not of
+  /// the view's size.
+  GpuFrameInfo render(const View& view, const GpuEffectRequest& effect, uint32_t texture, const GpuGBuffer& gbuffer);
 
   /// Traces `count` rays from your buffer `rays` (GpuRayRecord each) through the last rendered
   /// frame's layers with this renderer's tracer, writing a GpuHitRecord per ray into your buffer

@@ -125,6 +125,8 @@ class LAYERTRACE_API TracerParams {
 class LAYERTRACE_API ScreenTracer {
  public:
   explicit ScreenTracer(const ScreenLayers& layers, const std::string& name = "hssr", const TracerParams& params = TracerParams());
+  /// Refused at compile time: the tracer reads the layers it was given, so they must be named.
+  explicit ScreenTracer(ScreenLayers&& temporary, const std::string& name = "hssr", const TracerParams& params = TracerParams()) = delete;
   ScreenTracer(ScreenTracer&&) noexcept;
   ~ScreenTracer();
 

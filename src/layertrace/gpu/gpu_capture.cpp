@@ -171,6 +171,48 @@ double GpuCapture::sortMs() const { return sortTimer_.ms(); }
 
 void GpuCapture::growPool(uint64_t fragments) { capacity_ = fragments; }
 
+void GpuCapture::prepareView(int width, int height, int k) {
+  // Per-view buffers, allocated when the size or k changes.
+  const size_t pixels = size_t(width) * size_t(height);
+  if (pixels != pixels_ || k != k_) {
+    complexity_ = GpuBuffer(pixels * 4);
+    slots_ = GpuBuffer(pixels * size_t(k) * 16);
+    counts_ = GpuBuffer(pixels * 4);
+    slotTriangle_ = GpuBuffer(pixels * size_t(k) * 4);
+    heads_ = GpuBuffer(pixels * 4);
+    peelDepth_ = GpuBuffer();
+    peelTriangle_ = GpuBuffer();
+    pixels_ = pixels, k_ = k;
+  }
+  width_ = width, height_ = height;
+}
+
+void GpuCapture::submitLayers(const Camera& camera, int k, const GpuBuffer& slots, const GpuBuffer& counts, const GpuBuffer* materials,
+                              uint32_t materialCount) {
+  const size_t pixels = size_t(camera.width()) * size_t(camera.height());
+  LT_CHECK(slots.bytes() >= pixels * size_t(k) * 16 && counts.bytes() >= pixels * 4, slots.bytes(), counts.bytes(), pixels, k);
+  gpu_.makeCurrent();
+  GpuDebugGroup group("layers in");
+  prepareView(camera.width(), camera.height(), k);
+  // No pool: the count the frame checks against it is at most every slot.
+  capacity_ = std::max<uint64_t>(capacity_, uint64_t(pixels) * uint64_t(k));
+  peel_ = false;
+  geometryPasses_ = 0;
+  const GpuProgram& input = gpu_.computeProgram("layers_input.comp", shader_source::layers_input_comp);
+  counter_.fill(0u);
+  slots.bindStorage(0), counts.bindStorage(1), slots_.bindStorage(3), counts_.bindStorage(4), slotTriangle_.bindStorage(5);
+  complexity_.bindStorage(6), counter_.bindStorage(7);
+  (materials ? *materials : counts).bindStorage(2);  // (read only with materials)
+  input.set("uPixels", int(pixels));
+  input.set("uK", k);
+  input.set("uMaterialCount", int(std::max<uint32_t>(materialCount, 1)));
+  input.set("uHaveMaterials", materials != nullptr);
+  setupTimer_.begin(), setupTimer_.end(), rasterTimer_.begin(), rasterTimer_.end();
+  sortTimer_.begin();
+  gpu_.dispatch(input, pixels);
+  sortTimer_.end();
+}
+
 void GpuCapture::submit(const Camera& camera, const GpuCaptureConfig& config) {
   validateLayerConfig(config.layers);
   const bool peel = config.method == GpuCaptureMethod::Peel;
@@ -185,18 +227,7 @@ void GpuCapture::submit(const Camera& camera, const GpuCaptureConfig& config) {
     b.surfaceWords.bindStorage(8), b.surfaceTexels.bindStorage(9);
     b.surface.setUniforms(p, scene_);
   };
-  // Per-view buffers, allocated when the size or k changes.
-  if (pixels != pixels_ || k != k_) {
-    complexity_ = GpuBuffer(pixels * 4);
-    slots_ = GpuBuffer(pixels * size_t(k) * 16);
-    counts_ = GpuBuffer(pixels * 4);
-    slotTriangle_ = GpuBuffer(pixels * size_t(k) * 4);
-    heads_ = GpuBuffer(pixels * 4);
-    peelDepth_ = GpuBuffer();
-    peelTriangle_ = GpuBuffer();
-    pixels_ = pixels, k_ = k;
-  }
-  width_ = W, height_ = H;
+  prepareView(W, H, k);
   if (W != fboWidth_ || H != fboHeight_) {
     glNamedFramebufferParameteri(fbo_, GL_FRAMEBUFFER_DEFAULT_WIDTH, W);
     glNamedFramebufferParameteri(fbo_, GL_FRAMEBUFFER_DEFAULT_HEIGHT, H);

@@ -72,6 +72,13 @@ class GpuCapture {
   /// read-back: a pool that overflows keeps counting (counter() holds the exact number of
   /// fragments), stores what fits, and the caller grows it (growPool) and captures again.
   void submit(const Camera& camera, const GpuCaptureConfig& config);
+  /// Takes the k-layer arrays of the view `camera` from a caller instead of capturing them
+  /// (layertrace/gpu.h GpuLayers): `slots` holds k 16-byte nodes a pixel (depth, octahedral
+  /// normal, albedo and specular, z-thickness; pixel-major, ascending depth), `counts` a uint a
+  /// pixel (held to k), `materials` (or none: material 0) a uint a slot (held below
+  /// `materialCount`), which stands in for the slot's triangle.
+  void submitLayers(const Camera& camera, int k, const GpuBuffer& slots, const GpuBuffer& counts, const GpuBuffer* materials,
+                    uint32_t materialCount);
   /// A pool of `fragments`, for the next submit.
   void growPool(uint64_t fragments);
 
@@ -104,6 +111,8 @@ class GpuCapture {
 
  private:
   struct SceneBuffers;
+  /// The per-view buffers for a width × height view with k layers (allocated when these change).
+  void prepareView(int width, int height, int k);
   GpuContext& gpu_;
   const Scene& scene_;
   std::unique_ptr<SceneBuffers> sceneBuffers_;

@@ -418,6 +418,13 @@ GpuStateGuard::GpuStateGuard() {
   glGetIntegerv(GL_DISPATCH_INDIRECT_BUFFER_BINDING, &dispatchIndirect_);
   glGetIntegerv(GL_PIXEL_UNPACK_BUFFER_BINDING, &pixelUnpack_);
   glGetIntegerv(GL_TRANSFORM_FEEDBACK_BINDING, &transformFeedback_);
+  glGetIntegerv(GL_ACTIVE_TEXTURE, &activeTexture_);
+  for (GLuint unit = 0; unit < kTextureUnits; ++unit) {
+    glActiveTexture(GL_TEXTURE0 + unit);
+    glGetIntegerv(GL_TEXTURE_BINDING_2D, &texture2d_[unit]);
+    glGetIntegerv(GL_SAMPLER_BINDING, &sampler_[unit]);
+  }
+  glActiveTexture(GLenum(activeTexture_));
   for (size_t i = 0; i < kUnpack.size(); ++i) glGetIntegerv(kUnpack[i], &unpack_[i]);
 }
 
@@ -438,6 +445,12 @@ GpuStateGuard::~GpuStateGuard() {
   glBindBuffer(GL_DISPATCH_INDIRECT_BUFFER, GLuint(dispatchIndirect_));
   glBindBuffer(GL_PIXEL_UNPACK_BUFFER, GLuint(pixelUnpack_));
   glBindTransformFeedback(GL_TRANSFORM_FEEDBACK, GLuint(transformFeedback_));
+  for (GLuint unit = 0; unit < kTextureUnits; ++unit) {
+    glActiveTexture(GL_TEXTURE0 + unit);
+    glBindTexture(GL_TEXTURE_2D, GLuint(texture2d_[unit]));
+    glBindSampler(unit, GLuint(sampler_[unit]));
+  }
+  glActiveTexture(GLenum(activeTexture_));
   for (size_t i = 0; i < kUnpack.size(); ++i) glPixelStorei(kUnpack[i], unpack_[i]);
 }
 

@@ -185,7 +185,8 @@ class GpuBuffer {
 /// destruction, for a caller's context (layertrace/gpu.h): the program, the vertex array, the
 /// draw and read framebuffers, the viewport, the polygon mode, the depth, cull, stencil, scissor
 /// and rasterizer-discard switches, the shader storage bindings 0–15 (indexed and generic), the
-/// dispatch-indirect and pixel-unpack buffers, and the unpack pixel-store settings.
+/// dispatch-indirect and pixel-unpack buffers, the unpack pixel-store settings, the transform
+/// feedback object, the active texture unit and the 2D textures and samplers of units 0–2.
 class GpuStateGuard {
  public:
   GpuStateGuard();
@@ -208,7 +209,9 @@ class GpuStateGuard {
   int program_ = 0, vertexArray_ = 0, drawFramebuffer_ = 0, readFramebuffer_ = 0;
   int viewport_[4] = {}, polygonMode_[2] = {};
   std::array<bool, kCapabilities.size()> enabled_{};
-  int storage_ = 0, dispatchIndirect_ = 0, pixelUnpack_ = 0, transformFeedback_ = 0;
+  int storage_ = 0, dispatchIndirect_ = 0, pixelUnpack_ = 0, transformFeedback_ = 0, activeTexture_ = 0;
+  static constexpr uint32_t kTextureUnits = 3;  ///< the 2D textures and samplers of units 0–2 (a G-buffer's)
+  std::array<int, kTextureUnits> texture2d_{}, sampler_{};
   std::array<Binding, kStorageBindings> storageIndexed_{};
   std::array<int, kUnpack.size()> unpack_{};
 };

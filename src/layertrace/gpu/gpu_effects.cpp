@@ -207,6 +207,7 @@ GpuEffectOutput GpuEffects::run(const GpuScreenTracer& tracer, const GpuEffectPa
   step.set("uSeedHi", uint32_t(p.seed >> 32));
   step.set("uCount", int(p.countRays));
   step.set("uMirrorBelowSurface", int(p.mirrorBelowSurface));
+  step.set("uExcludeOriginTriangle", int(p.excludeOriginTriangle));
   step.set("uRaysPerPixel", R);
   resolve.set("uRaysPerPixel", R);
   if (p.kind == GpuEffectKind::Warp) {

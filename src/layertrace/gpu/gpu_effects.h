@@ -49,6 +49,10 @@ struct GpuEffectParams {
   uint64_t seed = 1;          ///< AO: per-pixel random streams derive from it
   bool countRays = true;      ///< per-ray counters and their histogram
   bool mirrorBelowSurface = true;
+  /// Whether a ray never answers with the triangle it leaves (the CPU renderer's rule). Off for
+  /// a caller's layers (layertrace/gpu.h), whose slots name a material, not a triangle: there
+  /// the origin pixel's rule alone keeps a ray off its own surface.
+  bool excludeOriginTriangle = true;
   GpuWarp warp;  ///< GpuEffectKind::Warp
   /// The frame's pixels run in chunks of whole 8×8 tiles whose per-ray buffers (208 bytes a ray
   /// slot) stay under this many bytes (at least one tile a chunk), so that a large frame with

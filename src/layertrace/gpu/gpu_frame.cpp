@@ -71,7 +71,8 @@ void GpuFrame::submit(const Camera& camera, const GpuEffectParams& effect, GpuPi
     GpuDebugGroup group("geometry");
     geometryPass_(*capture_);
   }
-  capture_->submit(camera, config_.capture);
+  if (inputLayers_) inputLayers_(*capture_, camera);
+  else capture_->submit(camera, config_.capture);
   timeline_.end(kCapture);
 
   {

@@ -90,6 +90,10 @@ class GpuFrame {
   /// (layertrace/gpu.h). The frame's scene then gives only the sizes, materials and textures.
   void setGeometryPass(std::function<void(const GpuCapture&)> pass) { geometryPass_ = std::move(pass); }
 
+  /// A pass that gives the frame its layers in place of the capture (GpuCapture::submitLayers:
+  /// a caller's own k-layer arrays, layertrace/gpu.h).
+  void setInputLayers(std::function<void(GpuCapture&, const Camera&)> pass) { inputLayers_ = std::move(pass); }
+
   /// Runs the last frame's effect again with `effect` over the same layers and pyramid (a timed
   /// repeat: no capture, nothing read but the sums) and gives its GPU milliseconds.
   void retrace(const GpuEffectParams& effect, double& traceMs, double& shadeMs);
@@ -125,6 +129,7 @@ class GpuFrame {
   const GpuProgram* picturePass_ = nullptr;
   GpuBuffer picture_;  ///< the packed picture (Srgb8, Float32)
   std::function<void(const GpuCapture&)> geometryPass_;
+  std::function<void(GpuCapture&, const Camera&)> inputLayers_;
 };
 
 }  // namespace lt
