@@ -1,7 +1,10 @@
 // layertrace on the GPU inside your renderer: the GPU back end's resident frame (capture, sort
 // to k layers, interval pyramid, march, effect; Hofmann et al. 2017, §4–5) run in YOUR OpenGL
 // 4.5 context, its picture written into your texture and its tracer answering rays from your
-// buffers. layertrace creates no context and needs no EGL here.
+// buffers. layertrace creates no context and needs no EGL here. The layers come from a
+// TriangleScene layertrace draws, from YOUR draw calls (GpuGeometry), from YOUR k-layer buffers
+// (GpuLayers) or from YOUR G-buffer's depth and normals (GpuGBuffer). docs/library.md, "On the
+// GPU", has a 20-line program and every layout in one table.
 //
 //   #include <layertrace/gpu.h>        CMake: find_package(layertrace) → layertrace::layertrace
 //                                      pkg-config: layertrace (its private libs hold -lepoxy)

@@ -94,6 +94,14 @@ std::vector<Candidate> candidateDisplays() {
 bool contextCurrent() {
   using GetCurrent = void* (*)();
   if (auto glx = reinterpret_cast<GetCurrent>(dlsym(RTLD_DEFAULT, "glXGetCurrentContext")); glx && glx()) return true;
+  // A window library (GLFW, SDL) may load GLX privately (RTLD_LOCAL): ask its library.
+  for (const char* library : {"libGLX.so.0", "libGL.so.1"})
+    if (void* handle = dlopen(library, RTLD_LAZY | RTLD_LOCAL | RTLD_NOLOAD)) {
+      auto glx = reinterpret_cast<GetCurrent>(dlsym(handle, "glXGetCurrentContext"));
+      const bool current = glx && glx();
+      dlclose(handle);
+      if (current) return true;
+    }
   if (void* egl = dlopen("libEGL.so.1", RTLD_LAZY | RTLD_LOCAL | RTLD_NOLOAD)) {
     dlclose(egl);
     return eglGetCurrentContext() != EGL_NO_CONTEXT;
