@@ -416,20 +416,6 @@ bool GpuDevice::software() const { return false; }
 GpuRenderer::GpuRenderer(GpuDevice&, const TriangleScene&, const std::string&, const TracerParams&, int, float) {
   throw std::runtime_error("layertrace was built without its GPU back end (LAYERTRACE_GPU)");
 }
-GpuRenderer::GpuRenderer(GpuDevice& device, const TriangleScene& materials, const GpuLayerFormat& format, const std::string& tracer,
-                         const TracerParams& params)
-    : GpuRenderer(device, materials, tracer, params, format.k, format.thicknessPx) {
-  Impl& m = *impl_;
-  m.source = Impl::Source::Layers;
-  m.useMaterialsOf(m.frame.scene);
-  const size_t count = m.drawn.materials.size();
-  m.drawn.positions.assign(3 * count, glm::vec3(0.0f));
-  m.drawn.normals.assign(3 * count, glm::vec3(0.0f));
-  m.drawn.triangles.resize(count);
-  m.drawn.triMaterial.resize(count);
-  for (uint32_t t = 0; t < count; ++t) m.drawn.triangles[t] = glm::uvec3(3 * t, 3 * t + 1, 3 * t + 2), m.drawn.triMaterial[t] = t;
-}
-
 GpuRenderer::~GpuRenderer() = default;
 GpuRenderer::GpuRenderer(GpuDevice&, const TriangleScene&, const GpuGeometry&, const std::string&, const TracerParams&, int, float) {
   throw std::runtime_error("layertrace was built without its GPU back end (LAYERTRACE_GPU)");

@@ -139,8 +139,8 @@ std::unique_ptr<GpuFrame> makeResidentFrame(GpuContext& gpu, const FrameOptions&
   return std::make_unique<GpuFrame>(gpu, geometry ? *geometry : frame.scene, frame.lights, fc);
 #else
   (void)gpu, (void)options, (void)frame, (void)tracer, (void)tracers, (void)geometry;
-  openGpu();
-  return nullptr;
+  openGpu();  // throws: this build has no GPU back end
+  throw InternalError("no GPU back end in this build");
 #endif
 }
 
