@@ -143,6 +143,21 @@ TEST(ViewSession, GpuDeviceGivesTheCpuPictures) {
     EXPECT_GE(b.gpuFrame.value("dispatches", 0), 3);
     EXPECT_TRUE(a.gpuFrame.is_null());
   }
+  // HSSR's picture is one resident frame: the next one links, allocates and uploads nothing and
+  // waits once.
+  ViewRequest q = cpu.initialRequest();
+  q.camera.eye.x += 0.05f;
+  const ViewResult again = gpu.render(q);
+  ASSERT_TRUE(again.error.empty()) << again.error;
+  EXPECT_EQ(again.gpuFrame.value("program_links", 99), 0);
+  EXPECT_EQ(again.gpuFrame.value("buffer_allocations", 99), 0);
+  EXPECT_EQ(again.gpuFrame.value("host_waits", 99), 1);
+  const ViewResult want = cpu.render(q);
+  ASSERT_EQ(again.traced.data.size(), want.traced.data.size());
+  size_t differ = 0;
+  for (size_t i = 0; i < want.traced.data.size(); ++i)
+    differ += std::abs(want.traced.data[i] - again.traced.data[i]) / std::max(1.0f, std::abs(want.traced.data[i])) > 1e-4f;
+  EXPECT_LE(double(differ), software ? 0.0 : 1e-3 * double(want.traced.data.size()));
 }
 
 TEST(ViewSession, RefusedOptionsBecomeMessages) {

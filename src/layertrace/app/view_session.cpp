@@ -8,7 +8,12 @@
 
 #include "layertrace/eval/classify.h"
 #include "layertrace/pipeline/gpu_tracers.h"
+#include "layertrace/render/frame_sequence.h"
 #include "layertrace/util/error.h"
+#if LAYERTRACE_HAS_GPU
+#include "layertrace/gpu/gpu_frame.h"
+#include "layertrace/render/gpu_effect_params.h"
+#endif
 
 namespace lt {
 
@@ -33,6 +38,11 @@ std::string structureKey(const TracerEntry& entry, const TracerOptions& o) {
 struct ViewCache {
   std::map<std::string, BuiltTracer> geometric;
   std::unique_ptr<BuiltTracer> reference;
+  /// --device gpu, a tracer of the resident frame and the plain picture: the frame stays on the
+  /// device (gpu/gpu_frame.h) and is made again only when `residentKey` (the tracer, its
+  /// parameters and the capture's) changes.
+  std::unique_ptr<GpuFrame> resident;
+  std::string residentKey;
 };
 
 ViewOverlay parseViewOverlay(const std::string& name) {
@@ -53,7 +63,12 @@ void validateViewOptions(const ViewOptions& o) {
   if (!isKnownTracer(r.tracer)) inputError("--tracer ", r.tracer, ": unknown (use ", tracerNames(), ")");
 }
 
-ViewSession::~ViewSession() = default;
+ViewSession::~ViewSession() {
+  if (gpu_ && cache_->resident) {
+    makeGpuCurrent(*gpu_);  // its buffers go with the context current
+    cache_->resident.reset();
+  }
+}
 
 ViewSession::ViewSession(const RenderOptions& options) : options_(options), cache_(std::make_unique<ViewCache>()) {
   validateTracerOptions(options.tracers);
@@ -94,6 +109,42 @@ ViewResult ViewSession::render(const ViewRequest& q) {
     validateFrameOptions(fo);
     setFrameView(fo, q.camera, frame_);
     const nlohmann::json activityBefore = gpu_ ? gpuActivityReading() : nlohmann::json();
+    EffectConfig ec = q.effect;
+    ec.progress = false;
+#if LAYERTRACE_HAS_GPU
+    if (gpu_ && q.overlay == ViewOverlay::None && rendersResident(q.tracer, frame_, ec)) {
+      // One resident frame: capture to picture on the device, one wait, the picture read back
+      // as linear RGBA32F (the values the downloaded path gives, to the bit).
+      makeGpuCurrent(*gpu_);
+      ViewCache& cache = *cache_;
+      const TracerEntry* entry = findTracer(q.tracer);
+      const std::string key = cat(structureKey(*entry, q.tracers), " k", fo.layers, " peel", fo.depthPeeling, " pool", fo.pool, " front",
+                                  fo.frontFacesOnly);
+      if (!cache.resident || key != cache.residentKey) {
+        cache.resident.reset();
+        cache.resident = makeResidentFrame(*gpu_, fo, frame_, q.tracer, q.tracers);
+        cache.residentKey = key;
+      }
+      ec.countRays = true;
+      const GpuFrameResult r = cache.resident->render(frame_.camera, layerConfig(fo, frame_), gpuEffectParams(frame_, ec), GpuPicture::Float32);
+      frame_.capturePipeline = fo.depthPeeling ? "gpu-peel" : "gpu-lists";
+      out.image = Image(frame_.camera.width(), frame_.camera.height());
+      for (size_t i = 0; i < r.float32.size(); ++i)
+        for (int c = 0; c < 3; ++c) out.image.data[3 * i + size_t(c)] = r.float32[i][c];
+      out.traced = out.image;
+      out.captureMs = r.captureMs + r.layersMs;
+      out.structureMs = r.pyramidMs;
+      out.traceMs = r.traceMs;
+      out.shadeMs = r.shadeMs;
+      out.rays = r.sums[0];
+      out.iterationsMean = r.sums[0] ? double(r.sums[2]) / double(r.sums[0]) : 0.0;
+      out.device = out.shading = "gpu";
+      out.gpuFrame = gpuActivityReading();
+      for (auto& [name, value] : out.gpuFrame.items()) value = value.get<uint64_t>() - activityBefore.value(name, uint64_t(0));
+      out.totalMs = msSince(t0);
+      return out;
+    }
+#endif
     if (gpu_) {
       makeGpuCurrent(*gpu_);
       rasterizeFrameOnGpu(*gpu_, fo, "lists", frame_);
@@ -130,8 +181,6 @@ ViewResult ViewSession::render(const ViewRequest& q) {
       if (!cache.reference) cache.reference = std::make_unique<BuiltTracer>(buildReference(frame_));
       classes = std::make_unique<ClassifyObserver>(*cache.reference->tracer, frame_.camera, frame_.layers);
     }
-    EffectConfig ec = q.effect;
-    ec.progress = false;
     ec.countRays = q.overlay == ViewOverlay::Iterations;  // the heat map needs the counters
     ec.wholeWaves = onGpu;  // one dispatch per wave
     ec.shadeOnDevice = onGpu;

@@ -3,7 +3,9 @@
 // It has no window, so tests run it headless; apps/viewer/ puts it on screen. With
 // `--device gpu` the capture and the tracers that have a GPU version run on the GPU, through a
 // headless context of its own (gpu/): the caller makes its window's context current again after
-// render().
+// render(). The plain picture of hssr, hiz and exhaustive is one resident frame
+// (gpu/gpu_frame.h), made once per tracer and parameters: the next frames link, allocate and
+// upload nothing, wait once and read back only the picture.
 #pragma once
 
 #include <array>
