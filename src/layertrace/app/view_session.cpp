@@ -141,6 +141,7 @@ ViewResult ViewSession::render(const ViewRequest& q) {
       out.device = out.shading = "gpu";
       out.gpuFrame = gpuActivityReading();
       for (auto& [name, value] : out.gpuFrame.items()) value = value.get<uint64_t>() - activityBefore.value(name, uint64_t(0));
+      releaseGpu(*gpu_);  // the frame is kept: whichever thread renders next, or destroys it, takes the context
       out.totalMs = msSince(t0);
       return out;
     }
@@ -218,6 +219,7 @@ ViewResult ViewSession::render(const ViewRequest& q) {
     out.scale = std::max(1, q.scale);
     out.error = e.what();
   }
+  if (gpu_) releaseGpu(*gpu_);  // (after this frame's GPU objects went) for whichever thread comes next
   out.totalMs = msSince(t0);
   return out;
 }
