@@ -291,7 +291,7 @@ TEST(CliRender, PaperPresetSetsThePapersParametersAndExplicitFlagsWin) {
   EXPECT_EQ(p["preset"], "paper");
   EXPECT_EQ(t["preset"], "tuned");
   EXPECT_EQ(p["parameters"]["hssr-tau"], 25);
-  EXPECT_EQ(p["parameters"]["hssr-levels"], 5);
+  EXPECT_EQ(p["parameters"]["hssr-levels"], 6);
   EXPECT_EQ(p["parameters"]["hssr-parent-ascent"], false);
   EXPECT_EQ(p["parameters"]["ssr-max-steps"], 25);
   EXPECT_EQ(p["parameters"]["ssr-refine"], false);
@@ -299,7 +299,7 @@ TEST(CliRender, PaperPresetSetsThePapersParametersAndExplicitFlagsWin) {
   EXPECT_EQ(p["parameters"]["quadtree-root-start"], true);
   EXPECT_EQ(p["parameters"]["grid-partial-expansion"], false);
   EXPECT_EQ(e["parameters"]["hssr-tau"], 8);          // the older spelling, given explicitly
-  EXPECT_EQ(e["parameters"]["hssr-levels"], 5);       // still the preset's
+  EXPECT_EQ(e["parameters"]["hssr-levels"], 6);       // still the preset's
   EXPECT_EQ(e["parameters"]["ssr-max-steps"], 0);     // given explicitly
   EXPECT_EQ(t["parameters"]["hssr-tau"], 4);
   EXPECT_EQ(t["parameters"]["hssr-parent-ascent"], true);

@@ -6,10 +6,14 @@
 
 namespace lt {
 
+// The paper's level count: Fig. 13 shows level 5, and Fig. 9's 147 MB at 720p is the worst case
+// of five coarse levels (each, with nothing merged, holds the 29.5 MB of four full base layers
+// of 8-byte intervals: 5 × 29.5 MB). "5 levels of our hierarchy" therefore counts the levels
+// above the base, and --preset paper builds levels 0 to 5: 6 including level 0.
 std::span<const Param<PyramidConfig>> pyramidParams() {
   static const Param<PyramidConfig> params[] = {
       {"--hssr-tau", "--tau", "merge threshold in pixel footprints (paper: 25)", &PyramidConfig::tau, "25"},
-      {"--hssr-levels", "--levels", "pyramid levels including level 0, 1..16 (also Hi-Z's; paper: 5)", &PyramidConfig::levels, "5"},
+      {"--hssr-levels", "--levels", "pyramid levels including level 0, 1..16 (also Hi-Z's; paper: 6, levels 0-5)", &PyramidConfig::levels, "6"},
   };
   return params;
 }

@@ -18,7 +18,8 @@
 namespace lt {
 
 struct PyramidConfig {
-  /// Levels including level 0. Hofmann et al. 2017 (Figure 9) use 5; answers are the same for
+  /// Levels including level 0. Hofmann et al. 2017 use levels 0 to 5 (Figures 9 and 13: six with
+  /// the base; hssr_method.cpp gives the reading); answers are the same for
   /// any count (the pyramid only accelerates, §4.3), and on this CPU 7 march faster — top cells
   /// 64 px wide take a long ray across the screen in fewer steps (measured with bench_trace
   /// BM_HssrLanes: 1.11× FZK-Haus, 1.06× am_thornish against 5 levels; 6 and 8 no better than 7).
