@@ -241,6 +241,35 @@ TEST(Quadtree, PrintedLine10ZeroesTheSmallDerivatives) {
   EXPECT_EQ(small, 0u) << "as printed, no derivative below lambda-h survives";
 }
 
+// Algorithm 1 line 8 as printed, mix(df, db, abs(df) < abs(db)), takes the one-sided derivative
+// of larger magnitude; the default the smaller. With line 10 keeping every derivative, each
+// printed slope is at least the default's in magnitude, and larger where a pixel's two
+// neighbours disagree (at the default scene's silhouettes and corners).
+TEST(Quadtree, PrintedLine8TakesTheLargerDerivative) {
+  const Frame f = buildFrame(test::defaultSceneOptions(96, 64));
+  QuadtreeConfig smaller;
+  smaller.lambdaH = 1e30f;  // line 10 zeroes nothing
+  QuadtreeConfig larger = smaller;
+  larger.printedLine8 = true;
+  const Quadtree a = buildQuadtree(f.layers, f.camera, smaller), b = buildQuadtree(f.layers, f.camera, larger);
+  size_t planes = 0, steeper = 0, flatter = 0;
+  for (int y = 0; y < f.camera.height(); ++y)
+    for (int x = 0; x < f.camera.width(); ++x) {
+      const QuadNode& s = a.node(0, 0, x, y);
+      const QuadNode& l = b.node(0, 0, x, y);
+      if (s.kind() != QuadNode::Plane) continue;
+      ++planes;
+      for (int axis = 0; axis < 2; ++axis) {
+        const float gs = std::abs(axis == 0 ? s.b : s.c), gl = std::abs(axis == 0 ? l.b : l.c);
+        flatter += gl < gs;
+        steeper += gl > gs * 1.5f;
+      }
+    }
+  ASSERT_GT(planes, size_t(f.camera.width() * f.camera.height()) / 2);
+  EXPECT_EQ(flatter, 0u);
+  EXPECT_GT(steeper, planes / 50) << "the silhouettes and corners have neighbours that disagree";
+}
+
 // The pseudo-code reports a plane crossed from behind as an occlusion, not a hit. Rays from under
 // the tilted floor going up cross it from behind: the default hits it (Embree does too), the
 // paper's rule never does.

@@ -51,6 +51,11 @@ struct QuadtreeConfig {
   /// it starts at the ray's first pixel: every box above that pixel holds the surface the ray
   /// leaves, so the descent decides nothing (quadtree_tracer.cpp).
   bool rootStart = false;
+  /// Algorithm 1, line 8 as printed: mix(d_f, d_b, |d_f| < |d_b|), which in GLSL picks d_b, the
+  /// one-sided derivative of LARGER magnitude, where d_f is the smaller. Off (the default), the
+  /// smaller one, which is what the line's purpose ("enforce smoothness") asks: across a depth
+  /// step the larger derivative is the one that spans it.
+  bool printedLine8 = false;
   /// Algorithm 1, line 10 as printed: step(λ_h, |d|)·d, which keeps the derivatives at or above
   /// λ_h and zeroes the small ones. Off (the default), the line does what its comment says: it
   /// zeroes the large derivatives that connect different surfaces.

@@ -56,7 +56,8 @@ void nodeRange(const QuadNode& n, float size, float& lo, float& hi) {
 }
 
 /// Algorithm 1 for pixel (x, y) of `layer`: a plane through the pixel's own w with, per axis,
-/// the one-sided derivative of smaller magnitude (line 8), zeroed above λ_h (line 10), and the
+/// the one-sided derivative of smaller magnitude (line 8; as printed, the larger:
+/// printedLine8), zeroed above λ_h (line 10), and the
 /// Laplacian discontinuity hint (line 3).
 /// `w` holds the layer's w per pixel, NaN where the layer holds nothing.
 QuadNode leafNode(const float* w0, int W, int H, const QuadtreeConfig& cfg, int x, int y) {
@@ -76,7 +77,8 @@ QuadNode leafNode(const float* w0, int W, int H, const QuadtreeConfig& cfg, int 
     const float fwd = next - w, bwd = w - prev;  // NaN where missing
     float d = 0.0f;
     if (!std::isnan(fwd) && !std::isnan(bwd)) {
-      d = std::abs(fwd) < std::abs(bwd) ? fwd : bwd;
+      const bool forwardSmaller = std::abs(fwd) < std::abs(bwd);
+      d = forwardSmaller != cfg.printedLine8 ? fwd : bwd;  // printedLine8: the larger (QuadtreeConfig)
       // The paper's getLaplacian sums both axes; we add the absolute second differences so a
       // saddle (a step up in x, down in y) cannot cancel out.
       laplacian += std::abs(fwd - bwd);
