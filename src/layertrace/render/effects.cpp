@@ -119,7 +119,7 @@ uint64_t percentile99(const std::vector<Count>& histogram, uint64_t rays) {
 }
 
 struct Accum {
-  uint64_t rays = 0, hits = 0, it = 0, iv = 0, px = 0, giveUps = 0, bent = 0;
+  uint64_t rays = 0, hits = 0, it = 0, iv = 0, px = 0, fr = 0, giveUps = 0, bent = 0;
   uint64_t planes = 0, boxes = 0, occlusions = 0;
   uint64_t level[RayCounters::kLevels] = {};
   std::vector<uint64_t> histogram;
@@ -365,7 +365,7 @@ class Renderer {
     ++a.rays;
     a.hits += h.hit;
     if (!c) return;
-    a.it += c->iterations, a.iv += c->intervals, a.px += c->pixels, a.giveUps += c->giveUps;
+    a.it += c->iterations, a.iv += c->intervals, a.px += c->pixels, a.fr += c->fragments, a.giveUps += c->giveUps;
     a.planes += c->planeNodes, a.boxes += c->boxNodes, a.occlusions += c->occlusions;
     for (int l = 0; l < RayCounters::kLevels; ++l) a.level[l] += c->levelIterations[l];
     ++a.histogram[std::min<uint32_t>(c->iterations, kHistogramMax)];
@@ -376,7 +376,7 @@ class Renderer {
     std::vector<uint64_t> histogram(kHistogramMax + 1, 0);
     for (const Accum& a : accums_) {
       res.rays += a.rays, res.hits += a.hits, res.iterationSum += a.it, res.intervalSum += a.iv, res.pixelSum += a.px;
-      res.giveUps += a.giveUps;
+      res.fragmentSum += a.fr, res.giveUps += a.giveUps;
       res.planeNodeSum += a.planes, res.boxNodeSum += a.boxes, res.occlusionSum += a.occlusions;
       res.bentRays += a.bent;
       for (int l = 0; l < RayCounters::kLevels; ++l) res.levelIterations[l] += a.level[l];

@@ -87,6 +87,7 @@ struct EffectResult {
   Image intervals;   ///< per pixel: intervals tested summed over the pixel's rays (countRays)
   uint64_t rays = 0, hits = 0;
   uint64_t iterationSum = 0, intervalSum = 0, pixelSum = 0, giveUps = 0;
+  uint64_t fragmentSum = 0;  ///< level-0 fragments tested (RayCounters::fragments; CPU tracers)
   uint64_t planeNodeSum = 0, boxNodeSum = 0, occlusionSum = 0;  ///< quadtree: visited plane / box nodes, occlusion hits
   uint64_t bentRays = 0;
   std::vector<uint8_t> holes;  ///< Effect::Warp: per pixel 1 where the second camera's ray found nothing  ///< secondary rays bent out of their geometric surface (effects.cpp keepOutside)

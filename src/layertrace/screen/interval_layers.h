@@ -47,6 +47,7 @@ int firstMet(const Interval* f, int n, float zmin, float zmax, bool increasing, 
   float bestEntry = 0.0f;
   for (int i = 0; i < n; ++i) {
     counters.interval();
+    counters.fragment();
     if (f[i].front > zmax) break;  // sorted by front: nothing further can overlap
     if (f[i].back < zmin) continue;
     if (increasing) return i;

@@ -67,6 +67,10 @@ struct RayCounters {
   uint32_t iterations = 0;
   uint32_t intervals = 0;
   uint32_t pixels = 0;  ///< visited level-0 pixels (screen tracers)
+  /// The stored fragments (level-0 intervals) tested at those pixels: fragments / pixels is
+  /// Hofmann et al.'s "fragments per visited pixel" (§6), the same quantity for SSR and HSSR
+  /// (whose `intervals` also count the coarse cells' intervals).
+  uint32_t fragments = 0;
   uint32_t giveUps = 0;  ///< traversals stopped by a step cap (an answer not backed by the data)
   uint32_t levelIterations[kLevels] = {};  ///< HSSR: visited cells per pyramid level
   uint32_t planeNodes = 0;   ///< quadtree: visited plane nodes (the other visits are AABB or empty nodes)
@@ -80,12 +84,13 @@ struct RayCounters {
   void addIterations(uint32_t n) { iterations += n, levelIterations[0] += n; }
   void interval() { ++intervals; }
   void pixel() { ++pixels; }
+  void fragment() { ++fragments; }
   void giveUp() { ++giveUps; }
   void planeNode() { ++planeNodes; }
   void boxNode() { ++boxNodes; }
   void occlusion() { ++occlusions; }
   RayCounters& operator+=(const RayCounters& o) {
-    iterations += o.iterations, intervals += o.intervals, pixels += o.pixels, giveUps += o.giveUps;
+    iterations += o.iterations, intervals += o.intervals, pixels += o.pixels, fragments += o.fragments, giveUps += o.giveUps;
     for (int l = 0; l < kLevels; ++l) levelIterations[l] += o.levelIterations[l];
     planeNodes += o.planeNodes, boxNodes += o.boxNodes, occlusions += o.occlusions;
     return *this;
@@ -99,6 +104,7 @@ struct NoCounters {
   void addIterations(uint32_t) {}
   void interval() {}
   void pixel() {}
+  void fragment() {}
   void giveUp() {}
   void planeNode() {}
   void boxNode() {}
