@@ -609,39 +609,80 @@ Section gridTable(Context& c) {
   return s;
 }
 
-// Bürger et al. 2007, Table 1: construction and tracing at 512² and 1K².
+/// The largest number of samples in one texel of any of the cube's three LDIs: the LDIs a
+/// layered depth image approach needs to capture the scene (Bürger et al. 2007, Table 1's counts).
+uint32_t ldisNeeded(const LayeredDepthCube& ldc) {
+  uint32_t most = 0;
+  for (const LdcView& v : ldc.views)
+    for (size_t i = 0; i + 1 < v.offset.size(); ++i) most = std::max(most, v.offset[i + 1] - v.offset[i]);
+  return most;
+}
+
+/// The single objects of Bürger et al.'s Table 1 that the fetched data has (the paper's bunny;
+/// the duck and the engine stand in for its car and Max Planck bust), seen by their default
+/// camera at the paper's 1280×1024.
+const std::vector<std::string> kLdcObjects = {"data/models/bunny.obj", "data/models/duck/duck.dae", "data/models/2CylinderEngine.glb"};
+
+// Bürger et al. 2007, Table 1: construction and tracing at 512² and 1K², on the views and on
+// single objects.
 Section ldcTable(Context& c) {
   Section s;
   s.id = "ldc_table1";
   s.title = "Layered depth cube: construction and tracing at 512² and 1K² (Bürger et al. 2007, Table 1)";
   s.paper = "GeForce 8800 GTX, 1280×1024, construction / tracing ms at 512² and 1K²: bunny (8 k triangles) 6 / 61 and 19 / 115; "
-            "car (20 k) 9 / 82 and 25 / 250; Max Planck (300 k) 19 / 160 and 53 / 346.";
-  s.claim = "construction costs more at 1K² than at 512², and the finer cube answers at least as many rays correctly";
-  s.columns = {"view", "preset", "resolution", "construction ms (CPU)", "tracing ms (CPU)", "correct hits", "false misses", "memory"};
-  for (const View& v : c.views) {
-    c.progress("ldc: " + v.label);
-    const BuiltTracer ref = buildReference(v.frame);
+            "car (20 k) 9 / 82 and 25 / 250; Max Planck (300 k) 19 / 160 and 53 / 346. The scenes need 8, 12, 7, 6 and 6 LDIs; "
+            "a ray hits a sample closer than 0.001.";
+  s.claim = "construction costs more at 1K² than at 512², under every reading of the hit test";
+  s.columns = {"view", "preset", "resolution", "LDIs needed", "construction ms (CPU)", "tracing ms (CPU)", "correct hits", "false misses", "memory"};
+  // One view or object: each preset, and for the paper's hit distance also its reading at the
+  // object's scale (0.001 of the scene box's diagonal: the paper's models are unit-sized).
+  const auto measure = [&](const std::string& label, const Frame& frame) {
+    c.progress("ldc: " + label);
+    const BuiltTracer ref = buildReference(frame);
     const EffectConfig ec = effect(Effect::Reflection, c.o.run.seed);
-    for (const char* preset : kPresets) {
-      double build[2] = {}, correct[2] = {};
+    struct Variant {
+      std::string name;
+      TracerOptions options;
+    };
+    std::vector<Variant> variants = {{"paper", presetOptions("paper")}, {"paper, 0.001 × diagonal", presetOptions("paper")}, {"tuned", presetOptions("tuned")}};
+    variants[1].options.ldc.hitDistance = 0.001f * frame.scene.bounds().diagonal();
+    for (const Variant& var : variants) {
+      double build[2] = {};
       for (int i = 0; i < 2; ++i) {
-        TracerOptions to = presetOptions(preset);
+        TracerOptions to = var.options;
         to.ldc.resolution = i == 0 ? 512 : 1024;
-        BuiltTracer b = buildTracer("ldc", v.frame, to);
-        build[i] = medianMs(c.repeat, [&] { b = buildTracer("ldc", v.frame, to); });
-        const Traced t = traced(v.frame, *b.tracer, ec, *ref.tracer, c.repeat);
-        correct[i] = t.correctHit;
-        s.row({v.label, preset, i == 0 ? "512²" : "1K²", fmt(build[i], 0), fmt(t.traceMs, 0), pct(t.correctHit), pct(t.falseMiss),
-               mib(double(b.memoryBytes))},
-              {{"view", v.label}, {"preset", preset}, {"resolution", to.ldc.resolution}, {"build_ms", build[i]}, {"trace_ms", t.traceMs},
-               {"correct_hit", t.correctHit}, {"false_miss", t.falseMiss}, {"memory_bytes", b.memoryBytes}});
+        BuiltTracer b = buildTracer("ldc", frame, to);
+        build[i] = medianMs(c.repeat, [&] { b = buildTracer("ldc", frame, to); });
+        const Traced t = traced(frame, *b.tracer, ec, *ref.tracer, c.repeat);
+        const uint32_t ldis = ldisNeeded(*b.ldc);
+        s.row({label, var.name, i == 0 ? "512²" : "1K²", std::to_string(ldis), fmt(build[i], 0), fmt(t.traceMs, 0), pct(t.correctHit),
+               pct(t.falseMiss), mib(double(b.memoryBytes))},
+              {{"view", label}, {"preset", var.name}, {"resolution", to.ldc.resolution}, {"ldis", ldis}, {"build_ms", build[i]},
+               {"trace_ms", t.traceMs}, {"correct_hit", t.correctHit}, {"false_miss", t.falseMiss}, {"memory_bytes", b.memoryBytes}});
       }
-      s.holds = s.holds && build[1] > build[0] && correct[1] + 1e-3 >= correct[0];
+      s.holds = s.holds && build[1] > build[0];
     }
-  }
-  s.note = "One-bounce reflections from every pixel of the view. Under `paper` the hit test is the paper's absolute 0.001 "
-           "(scene units), which most rays pass between samples without meeting: the tolerance does not scale with the scene. "
-           "`tuned` intersects each sample's tangent-plane patch and keeps 4 intervals per block.";
+  };
+  for (const View& v : c.views) measure(v.label, v.frame);
+  // The single objects, on the full run of the default scenes (the quick run keeps to its scene).
+  if (!c.o.quick && c.o.scenes.empty())
+    for (const std::string& path : kLdcObjects) {
+      const fs::path source = fs::path(LAYERTRACE_TOOLS_DIR).parent_path() / path;
+      FrameOptions fo = c.o.run.frame;
+      fo.scenePath = fs::exists(path) ? path : source.string();
+      fo.width = 1280, fo.height = 1024;
+      if (!fs::exists(fo.scenePath)) continue;  // not fetched (scripts/fetch-scenes.sh)
+      Frame f;
+      loadFrameScene(fo, f);
+      rasterizeFrame(fo, f);
+      measure(cat(fs::path(path).filename().string(), " (object, 1280×1024)"), f);
+    }
+  s.note = "One-bounce reflections from every pixel of the view. `paper` takes the paper's hit distance as 0.001 scene units, "
+           "which most rays pass between samples without meeting: the tolerance does not scale with the scene. The paper's "
+           "models are unit-sized, so `paper, 0.001 × diagonal` reads it at the object's scale: 0.001 of the scene box's "
+           "diagonal (the reading this page takes for the paper's claim). `tuned` intersects each sample's tangent-plane "
+           "patch and keeps 4 intervals per block. LDIs needed: the most samples in one texel of any axis. A finer cube does not "
+           "always answer more rays correctly: the rows show where it does not.";
   return s;
 }
 
