@@ -356,6 +356,13 @@ GpuFrameInfo GpuRenderer::Impl::render(const View& view, const GpuEffectRequest&
       if (source == Source::Geometry) resident->setGeometryPass([this](const GpuCapture& capture) { captureGeometry(capture); });
     };
     if (!resident) makeFrame();
+    // The caller's layers for this frame only: the pass refers to this call's arguments.
+    struct Forget {
+      std::unique_ptr<GpuFrame>& frame;
+      ~Forget() {
+        if (frame) frame->setInputLayers(nullptr);
+      }
+    } forget{resident};
     if (input) resident->setInputLayers(input);
     GpuEffectParams params = gpuEffectParams(frame, ec);
     params.excludeOriginTriangle = source != Source::Layers;
