@@ -11,6 +11,7 @@ layout(local_size_x = 64) in;
 uniform float uStride, uJitter;
 uniform int uMaxSteps;
 uniform bool uRefine;
+uniform int uMaxIntervals;  // of a pixel's intervals, the first this many (SSR over a resident frame's k: 1)
 
 // SsrStart.
 Segment gSeg;
@@ -28,7 +29,7 @@ bool pixelAt(float t, out int px, out int py) {
 }
 
 int pixelMet(int x, int y, float zmin, float zmax) {
-  return firstMet(pixelBase(x, y), int(counts[uint(y) * uint(uWidth) + uint(x)]), zmin, zmax, gIncreasing);
+  return firstMet(pixelBase(x, y), min(int(counts[uint(y) * uint(uWidth) + uint(x)]), uMaxIntervals), zmin, zmax, gIncreasing);
 }
 
 void main() {

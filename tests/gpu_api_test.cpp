@@ -109,9 +109,9 @@ CallerState setCallerState(GLuint& vao, GLuint& buffer) {
 }
 
 /// Expects the top-left W × H texels of the RGBA8 `target` (`rowTexels` a row) to be the CLI's
-/// PNG of `render SCENE --device gpu --tracer hssr --effect reflection --bounces 2` at W × H, byte
-/// for byte, and lit.
-void expectCliPicture(const std::string& scenePath, GLuint target, int W, int H, int rowTexels) {
+/// PNG of `render SCENE --device gpu --tracer TRACER --effect reflection --bounces 2` at W × H,
+/// byte for byte, and lit.
+void expectCliPicture(const std::string& scenePath, GLuint target, int W, int H, int rowTexels, const std::string& tracer = "hssr") {
   GLint height = 0;
   glGetTextureLevelParameteriv(target, 0, GL_TEXTURE_HEIGHT, &height);
   std::vector<uint8_t> texels(size_t(rowTexels) * size_t(height) * 4);
@@ -119,7 +119,7 @@ void expectCliPicture(const std::string& scenePath, GLuint target, int W, int H,
   glPixelStorei(GL_PACK_ALIGNMENT, 4);
   glGetTextureImage(target, 0, GL_RGBA, GL_UNSIGNED_BYTE, GLsizei(texels.size()), texels.data());
   test::TempDir dir;
-  ASSERT_EQ(test::runCli("render " + scenePath + " --device gpu --tracer hssr --effect reflection --bounces 2 --quiet --width " +
+  ASSERT_EQ(test::runCli("render " + scenePath + " --device gpu --tracer " + tracer + " --effect reflection --bounces 2 --quiet --width " +
                          std::to_string(W) + " --height " + std::to_string(H) + " -o " + (dir / "cli.png")),
             0);
   int w = 0, h = 0, n = 0;
@@ -530,6 +530,45 @@ TEST_F(GpuApi, YourGBufferIsOneLayer) {
   glDeleteFramebuffers(1, &fbo);
   glDeleteBuffers(1, &buffer);
   glDeleteVertexArrays(1, &vao);
+}
+
+// SSR over the frame's layers (McGuire and Mara 2014; the front layer, or all k): the picture is
+// `render --device gpu`'s (whose SSR marches layers it downloaded), and rays from the caller's
+// buffer get the CPU SSR's answers over the same capture, ray for ray.
+TEST_F(GpuApi, SsrMarchesTheFramesLayersAsTheCpu) {
+  const int W = 120, H = 72;
+  const std::string scenePath = test::sourceDir() + "/scenes/default.json";
+  const TriangleScene scene = TriangleScene::load(scenePath);
+  const View view = scene.view("", W, H);
+  const ScreenLayers layers = captureLayers(scene, view, 4, 6.0f);
+  GpuDevice device;
+  for (const char* name : {"ssr", "ssr-layers"}) {
+    SCOPED_TRACE(name);
+    GpuRenderer renderer(device, scene, name);
+    const GLuint target = texture(GL_RGBA8, W, H);
+    GpuEffectRequest effect;
+    effect.bounces = 2;
+    const GpuFrameInfo info = renderer.render(view, effect, target);
+    EXPECT_GT(info.hits, info.rays / 4);
+    expectCliPicture(scenePath, target, W, H, W, name);
+    glDeleteTextures(1, &target);
+
+    const ScreenTracer cpu(layers, name);
+    std::vector<Ray> cpuRays;
+    std::vector<GpuRayRecord> records;
+    randomRays(uint32_t(test::testSeed() + 74), cpuRays, records);
+    const std::vector<GpuHitRecord> got = traceRecords(renderer, records);
+    std::vector<TraceHit> want(cpuRays.size());
+    cpu.trace(cpuRays, want);
+    size_t differ = 0, hits = 0;
+    for (size_t i = 0; i < want.size(); ++i) {
+      const bool gpuHit = got[i].layer >= 0;
+      hits += want[i].hit;
+      differ += gpuHit != want[i].hit || (gpuHit && (got[i].x != want[i].x || got[i].y != want[i].y || got[i].layer != want[i].layer));
+    }
+    EXPECT_EQ(differ, 0u);
+    EXPECT_GT(hits, want.size() / 5);
+  }
 }
 
 TEST_F(GpuApi, RefusesUnknownTracersAndParametersWithTheCliMessages) {

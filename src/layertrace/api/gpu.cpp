@@ -178,7 +178,8 @@ bool GpuDevice::software() const { return impl_->context->software(); }
 GpuRenderer::GpuRenderer(GpuDevice& device, const TriangleScene& scene, const std::string& tracer, const TracerParams& params, int layers,
                          float thicknessPx)
     : impl_(std::make_unique<Impl>(*device.impl().context, tracer, tracerOptions(params), thicknessPx)) {
-  if (!isResidentTracer(tracer)) invalid(cat("tracer \"", tracer, "\": the GPU frame traces with hssr, hiz or exhaustive"));
+  if (!isGpuFrameTracer(tracer))
+    invalid(cat("tracer \"", tracer, "\": the GPU frame traces with hssr, hiz, exhaustive, ssr or ssr-layers"));
   if (layers < 1 || layers > 16) invalid(cat("layers ", layers, ": must be between 1 and 16"));
   if (!(thicknessPx > 0.0f) || !std::isfinite(thicknessPx)) invalid(cat("thicknessPx ", thicknessPx, ": must be positive"));
   guarded([&] { validateTracerOptions(impl_->tracers); });

@@ -149,8 +149,9 @@ struct GpuHitRecord {
 static_assert(sizeof(GpuRayRecord) == 32 && sizeof(GpuHitRecord) == 64);
 
 /// A scene's frames on the GPU: the scene (copied) is uploaded on the first render, programs are
-/// linked once, buffers allocated once per size and kept. `tracer` is hssr, hiz or exhaustive
-/// (the one-level march), `params` any registry parameter and preset (TracerParams), `layers`
+/// linked once, buffers allocated once per size and kept. `tracer` is hssr, hiz, exhaustive
+/// (the one-level march), ssr (McGuire and Mara's march over the front layer) or ssr-layers
+/// (over all k), `params` any registry parameter and preset (TracerParams), `layers`
 /// the k of the capture (1–16) and `thicknessPx` the fragments' z-thickness in pixel footprints.
 /// The lights are the scene's, else one above the first rendered view's eye, as the CLI's.
 class LAYERTRACE_API GpuRenderer {

@@ -36,7 +36,8 @@ GpuFrame::GpuFrame(GpuContext& gpu, const Scene& scene, std::span<const PointLig
 void GpuFrame::create() {
   const Scene& scene = scene_;
   capture_ = std::make_unique<GpuCapture>(gpu_, scene);
-  tracer_ = std::make_unique<GpuScreenTracer>(gpu_, config_.pyramid, config_.march);
+  tracer_ = config_.ssr ? std::make_unique<GpuScreenTracer>(gpu_, config_.ssrMarch)
+                        : std::make_unique<GpuScreenTracer>(gpu_, config_.pyramid, config_.march);
   effects_ = std::make_unique<GpuEffects>(gpu_, scene, lights_);
   layersPass_ = &gpu_.computeProgram("frame_layers.comp", shader_source::frame_layers_comp);
   trianglesPass_ = &gpu_.computeProgram("frame_triangles.comp", shader_source::frame_triangles_comp);
@@ -133,7 +134,10 @@ void GpuFrame::submit(const Camera& camera, const GpuEffectParams& effect, GpuPi
   glCopyNamedBufferSubData(capture_->counter().id(), status_.id(), 0, kFragmentsWord * 4, 4);
   static_assert(kKeptWord == kComplexityWord + 1);
   glCopyNamedBufferSubData(reduced_.id(), status_.id(), 0, kComplexityWord * 4, 8);
-  glCopyNamedBufferSubData(tracer_->pyramid()->status.id(), status_.id(), 0, kLevelsWord * 4, GpuPyramid::kStatusWords * 4);
+  if (tracer_->pyramid())
+    glCopyNamedBufferSubData(tracer_->pyramid()->status.id(), status_.id(), 0, kLevelsWord * 4, GpuPyramid::kStatusWords * 4);
+  else
+    glClearNamedBufferSubData(status_.id(), GL_R32UI, kLevelsWord * 4, GpuPyramid::kStatusWords * 4, GL_RED_INTEGER, GL_UNSIGNED_INT, nullptr);
   glCopyNamedBufferSubData(effects_->sums().id(), status_.id(), 0, kSumsWord * 4, kSumsWords * 4);
 }
 
@@ -165,7 +169,7 @@ GpuFrameResult GpuFrame::render(const Camera& camera, const LayerConfig& layers,
       capture_->growPool(std::max<uint64_t>(out.fragments, 2 * capture_->poolCapacity()));
       again = true;
     }
-    if (!tracer_->pyramid()->fits(status + kLevelsWord)) again = true;
+    if (tracer_->pyramid() && !tracer_->pyramid()->fits(status + kLevelsWord)) again = true;
     if (again) {
       LT_CHECK(out.attempts < 4, out.attempts, out.fragments);
       continue;
@@ -173,7 +177,7 @@ GpuFrameResult GpuFrame::render(const Camera& camera, const LayerConfig& layers,
     const size_t pixels = size_t(camera.width()) * size_t(camera.height());
     if (readPicture && picture == GpuPicture::Srgb8) out.srgb8.resize(pixels), picture_.read(out.srgb8.data(), pixels * 4);
     if (readPicture && picture == GpuPicture::Float32) out.float32.resize(pixels), picture_.read(out.float32.data(), pixels * 16);
-    out.levelIntervals.assign(status + kLevelsWord, status + kLevelsWord + tracer_->pyramid()->levels);
+    out.levelIntervals.assign(status + kLevelsWord, status + kLevelsWord + (tracer_->pyramid() ? tracer_->pyramid()->levels : 1));
     for (size_t i = 0; i < 16; ++i) out.sums[i] = uint64_t(status[kSumsWord + 2 * i]) | uint64_t(status[kSumsWord + 2 * i + 1]) << 32;
     out.iterationsP99 = effect.countRays ? status[kSumsWord + kPercentileWord] : 0;
     out.maxComplexity = status[kComplexityWord];

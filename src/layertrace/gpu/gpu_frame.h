@@ -32,6 +32,8 @@ struct GpuFrameConfig {
   GpuCaptureConfig capture;  ///< lists or peel, k and the layer rules, the first pool
   PyramidConfig pyramid;     ///< the interval pyramid (τ = ∞: Hi-Z's min/max pyramid)
   HssrConfig march;          ///< the march over it (hssr, hiz, exhaustive)
+  bool ssr = false;          ///< SSR's march instead (McGuire and Mara 2014): no pyramid
+  SsrConfig ssrMarch;        ///< with ssr: its stride, steps and layers (ssr or ssr-layers)
   GpuEffectParams effect;
 };
 

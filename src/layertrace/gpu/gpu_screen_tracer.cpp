@@ -80,6 +80,16 @@ GpuScreenTracer::GpuScreenTracer(GpuContext& gpu, const Camera& camera, const La
   timer_ = std::make_unique<GpuTimer>();
 }
 
+GpuScreenTracer::GpuScreenTracer(GpuContext& gpu, const SsrConfig& config)
+    : gpu_(gpu), name_(config.allLayers ? "ssr-layers" : "ssr"), ssr_(config), isSsr_(true) {
+  validateSsrConfig(config);
+  gpu_.makeCurrent();
+  program_ = &gpu_.computeProgram("ssr_march.comp", shader_source::ssr_march_comp);
+  timedProgram_ = &gpu_.computeProgram("ssr_march.comp", shader_source::ssr_march_comp, kNoCounters);
+  if (!config.allLayers) maxIntervals_ = 1;
+  timer_ = std::make_unique<GpuTimer>();
+}
+
 GpuScreenTracer::GpuScreenTracer(GpuContext& gpu, const PyramidConfig& pyramid, const HssrConfig& config)
     : gpu_(gpu), hssr_(config), pyramidConfig_(pyramid) {
   validateHssrConfig(config);
@@ -98,7 +108,7 @@ void GpuScreenTracer::rebuild(const Camera& camera, const GpuBuffer& level0, con
   level0_ = &level0;
   counts_ = &counts;
   k_ = k;
-  buildPyramidResident(gpu_, level0, counts, camera.width(), camera.height(), k, camera, pyramidConfig_, *pyramid_);
+  if (pyramid_) buildPyramidResident(gpu_, level0, counts, camera.width(), camera.height(), k, camera, pyramidConfig_, *pyramid_);
 }
 
 GpuScreenTracer::~GpuScreenTracer() {
@@ -122,6 +132,7 @@ void GpuScreenTracer::setUniforms(const GpuProgram& p, size_t n, bool persistent
   p.set("uOrtho", camera_.orthographic());
   p.set("uFocal", camera_.focal());
   if (isSsr_) {
+    p.set("uMaxIntervals", maxIntervals_);
     p.set("uStride", ssr_.stride);
     p.set("uJitter", ssr_.jitter);
     p.set("uMaxSteps", ssrMaxSteps(ssr_, camera_.width(), camera_.height()));

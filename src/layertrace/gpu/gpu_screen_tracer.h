@@ -45,6 +45,9 @@ class GpuScreenTracer final : public Tracer {
   /// stays on the device (gpu_frame.h): no structure until rebuild(), which builds the pyramid
   /// into the buffers of earlier frames. It answers marchResident only (no CPU layers).
   GpuScreenTracer(GpuContext& gpu, const PyramidConfig& pyramid, const HssrConfig& config);
+  /// A resident SSR (front layer) or SSR-layers tracer: rebuild() only takes the frame's level 0
+  /// (k intervals a pixel; SSR reads the first).
+  GpuScreenTracer(GpuContext& gpu, const SsrConfig& config);
   ~GpuScreenTracer() override;
 
   /// The resident tracer's structure for the next frame: the pyramid over `level0` and `counts`
@@ -135,6 +138,7 @@ class GpuScreenTracer final : public Tracer {
   const GpuBuffer* level0_ = &ownLevel0_;
   const GpuBuffer* counts_ = &ownCounts_;
   int k_ = 0;
+  int maxIntervals_ = 16;  ///< of a pixel's k intervals, the ones the march reads (SSR over a resident level 0: 1)
   HssrConfig hssr_;
   PyramidConfig pyramidConfig_;
   SsrConfig ssr_;

@@ -69,6 +69,12 @@ GpuFrameConfig residentConfig(const FrameOptions& options, const std::string& na
   fc.capture.poolCapacity = options.pool;
   fc.capture.growOnOverflow = options.pool == 0;
   fc.capture.frontFacesOnly = options.frontFacesOnly;
+  if (name == "ssr" || name == "ssr-layers") {
+    fc.ssr = true;
+    fc.ssrMarch = to.ssr;
+    fc.ssrMarch.allLayers = name == "ssr-layers";
+    return fc;
+  }
   const bool hiz = name == "hiz";
   fc.march = hiz ? hizConfig(to.pyramid.levels) : to.hssr;
   fc.march.maxLevels = name == "exhaustive" ? 1 : to.pyramid.levels;
@@ -118,6 +124,8 @@ std::vector<FrameSample> runOnGpu(const FrameOptions& options, Frame& frame, con
 
 bool isResidentTracer(const std::string& name) { return name == "hssr" || name == "hiz" || name == "exhaustive"; }
 
+bool isGpuFrameTracer(const std::string& name) { return isResidentTracer(name) || name == "ssr" || name == "ssr-layers"; }
+
 bool rendersResident(const std::string& tracer, const Frame& frame, const EffectConfig& effect) {
 #if LAYERTRACE_HAS_GPU
   return isResidentTracer(tracer) && GpuEffects::supports(int(frame.lights.size())) && effect.effect != Effect::Warp;
@@ -130,7 +138,8 @@ bool rendersResident(const std::string& tracer, const Frame& frame, const Effect
 std::unique_ptr<GpuFrame> makeResidentFrame(GpuContext& gpu, const FrameOptions& options, const Frame& frame, const std::string& tracer,
                                             const TracerOptions& tracers, const Scene* geometry) {
 #if LAYERTRACE_HAS_GPU
-  if (!isResidentTracer(tracer)) inputError("tracer \"", tracer, "\": the resident GPU frame traces with hssr, hiz or exhaustive");
+  if (!isGpuFrameTracer(tracer))
+    inputError("tracer \"", tracer, "\": the resident GPU frame traces with hssr, hiz, exhaustive, ssr or ssr-layers");
   if (!GpuEffects::supports(int(frame.lights.size())))
     inputError("--device gpu: ", frame.lights.size(), " lights, more than the GPU frame's ", GpuEffects::kMaxLights);
   validateTracerOptions(tracers);

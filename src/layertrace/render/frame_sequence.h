@@ -50,8 +50,12 @@ struct FrameSequenceConfig {
   std::function<void(int, const Image&)> onImage;
 };
 
-/// Whether the resident GPU frame (gpu/gpu_frame.h) traces with `name`: hssr, hiz, exhaustive.
+/// Whether the CLI's resident GPU frame (gpu/gpu_frame.h: render, view, bench --experiment
+/// frame) traces with `name`: hssr, hiz, exhaustive.
 bool isResidentTracer(const std::string& name);
+/// Whether a resident frame can march with `name` at all: those and SSR over the front layer
+/// or all k (ssr, ssr-layers), which the library's GPU API (layertrace/gpu.h) offers.
+bool isGpuFrameTracer(const std::string& name);
 
 /// What one resident frame gives `render --device gpu`: the picture and the effect's counters
 /// (reduced on the device), the capture's counts, the pyramid's intervals per level, the GPU
@@ -72,7 +76,7 @@ struct ResidentRender {
 
 class GpuFrame;
 /// The resident frame (gpu/gpu_frame.h) of the loaded `frame`'s scene and lights for `tracer`
-/// (hssr, hiz or exhaustive; InputError for another, or for more lights than the GPU passes
+/// (hssr, hiz, exhaustive, ssr or ssr-layers; InputError for another, or for more lights than the GPU passes
 /// hold) with `tracers`' parameters and `options`' capture. `geometry`, when given, is the scene
 /// the frame captures in place of `frame`'s (a caller's draw calls write its geometry on the
 /// device: GpuFrame::setGeometryPass). `frame` and `geometry` must outlive it.
