@@ -946,7 +946,7 @@ TEST(CliGpu, RenderIsOneResidentFrameWithTheCpusStatistics) {
   if (!gpuBuilt()) GTEST_SKIP() << "built without the GPU back end";
   test::TempDir dir;
   const int W = 160, H = 96;
-  for (const std::string t : {"hssr", "hiz"})
+  for (const std::string t : {"hssr", "hiz", "ssr", "ssr-layers"})
     for (const std::string effect : {"reflection --bounces 3", "ao --ao-samples 2", "refraction"}) {
       const std::string common = "render " + kDefault + " --width 160 --height 96 --quiet --tracer " + t + " --effect " + effect;
       ASSERT_NO_FATAL_FAILURE(expectRuns(common + " -o " + (dir / "cpu.png")));
@@ -1077,11 +1077,11 @@ TEST(CliGpu, BenchFrameCountsEveryFrameOnBothDevices) {
     }
     for (const char* f : {"frame.csv", "frame_0000.png", "frame_0002.png"}) EXPECT_TRUE(fs::exists(out + "/" + f)) << f;
   }
-  // The resident GPU frame's tracers, refused by name before anything is written.
+  // A tracer without a resident GPU frame, refused by name before anything is written.
   if (gpuBuilt()) {
     std::string err;
-    EXPECT_EQ(test::runCli("bench " + kDefault + " --experiment frame --device gpu --tracer ssr --quiet -o " + (dir / "bad"), &err), 2);
-    EXPECT_NE(err.find("--tracer ssr"), std::string::npos) << err;
+    EXPECT_EQ(test::runCli("bench " + kDefault + " --experiment frame --device gpu --tracer quadtree --quiet -o " + (dir / "bad"), &err), 2);
+    EXPECT_NE(err.find("--tracer quadtree"), std::string::npos) << err;
     EXPECT_FALSE(fs::exists(dir / "bad"));
   }
 }

@@ -309,7 +309,7 @@ int runCliImpl(int argc, const char* const* argv, CliMode mode, CliCommand* pars
   addDeviceOption(benchCmd, bench.run);
   benchCmd->add_option("--experiment", bench.experiment, "stride | layers | tau | memory | resolution | threads | capture | warp | gamma | ldc | stages (every stage on --device cpu or gpu) | peel (per-pixel lists against depth peeling, k = 1..8, on --device cpu or gpu) | simd (capture, pyramid, HSSR and grid on every vector target of this CPU) | textures (capture and reference with the textures against --textures off) | frame (--frames frames of one effect along an orbit of the camera, each counted: wall and GPU ms, bytes each way, host waits, links, allocations, dispatches)")->required();
   addEffectOptions(benchCmd, bench.effect, benchEffect, benchRaw);
-  benchCmd->add_option("--tracer", bench.tracer, "frame: the tracer (on --device gpu: hssr, hiz or exhaustive)")->capture_default_str();
+  benchCmd->add_option("--tracer", bench.tracer, "frame: the tracer (on --device gpu: hssr, hiz, exhaustive, ssr or ssr-layers)")->capture_default_str();
   benchCmd->add_option("--frames", bench.frames, "frame: frames along the orbit (the summary is the median of those after the first)")->capture_default_str();
   benchCmd->add_flag("--images", bench.images, "frame: also read back and write each frame's picture (frame_NNNN.png)");
   benchCmd->add_option("--repeat", bench.repeat, "timed runs of each measured time; the median is reported")->capture_default_str();

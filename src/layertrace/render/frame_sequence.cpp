@@ -62,7 +62,7 @@ std::vector<FrameSample> runOnCpu(const FrameOptions& options, Frame& frame, con
 }
 
 #if LAYERTRACE_HAS_GPU
-/// The resident frame's configuration for the tracer `name` (hssr, hiz or exhaustive).
+/// The resident frame's configuration for the tracer `name` (isGpuFrameTracer).
 GpuFrameConfig residentConfig(const FrameOptions& options, const std::string& name, const TracerOptions& to) {
   GpuFrameConfig fc;
   fc.capture.method = options.depthPeeling ? GpuCaptureMethod::Peel : GpuCaptureMethod::Lists;
@@ -85,8 +85,9 @@ GpuFrameConfig residentConfig(const FrameOptions& options, const std::string& na
 
 std::vector<FrameSample> runOnGpu(const FrameOptions& options, Frame& frame, const FrameSequenceConfig& c, GpuContext& gpu) {
   const std::string& name = c.tracer;
-  if (!isResidentTracer(name))
-    inputError("--tracer ", name, ": the resident GPU frame traces with hssr, hiz or exhaustive (bench --experiment frame --device gpu)");
+  if (!isGpuFrameTracer(name))
+    inputError("--tracer ", name,
+               ": the resident GPU frame traces with hssr, hiz, exhaustive, ssr or ssr-layers (bench --experiment frame --device gpu)");
   if (!GpuEffects::supports(int(frame.lights.size())))
     inputError("--device gpu: ", frame.lights.size(), " lights, more than the GPU frame's ", GpuEffects::kMaxLights);
   validateTracerOptions(c.tracers);
@@ -122,13 +123,13 @@ std::vector<FrameSample> runOnGpu(const FrameOptions& options, Frame& frame, con
 
 }  // namespace
 
-bool isResidentTracer(const std::string& name) { return name == "hssr" || name == "hiz" || name == "exhaustive"; }
-
-bool isGpuFrameTracer(const std::string& name) { return isResidentTracer(name) || name == "ssr" || name == "ssr-layers"; }
+bool isGpuFrameTracer(const std::string& name) {
+  return name == "hssr" || name == "hiz" || name == "exhaustive" || name == "ssr" || name == "ssr-layers";
+}
 
 bool rendersResident(const std::string& tracer, const Frame& frame, const EffectConfig& effect) {
 #if LAYERTRACE_HAS_GPU
-  return isResidentTracer(tracer) && GpuEffects::supports(int(frame.lights.size())) && effect.effect != Effect::Warp;
+  return isGpuFrameTracer(tracer) && GpuEffects::supports(int(frame.lights.size())) && effect.effect != Effect::Warp;
 #else
   (void)tracer, (void)frame, (void)effect;
   return false;

@@ -42,7 +42,7 @@ struct FrameSample {
 CameraDesc orbitCamera(const CameraDesc& desc, int i, float degrees = kOrbitDegreesPerFrame);
 
 struct FrameSequenceConfig {
-  std::string tracer = "hssr";  ///< --tracer (GPU: hssr, hiz or exhaustive)
+  std::string tracer = "hssr";  ///< --tracer (GPU: hssr, hiz, exhaustive, ssr or ssr-layers)
   TracerOptions tracers;
   EffectConfig effect;
   int frames = 30;              ///< --frames
@@ -50,11 +50,9 @@ struct FrameSequenceConfig {
   std::function<void(int, const Image&)> onImage;
 };
 
-/// Whether the CLI's resident GPU frame (gpu/gpu_frame.h: render, view, bench --experiment
-/// frame) traces with `name`: hssr, hiz, exhaustive.
-bool isResidentTracer(const std::string& name);
-/// Whether a resident frame can march with `name` at all: those and SSR over the front layer
-/// or all k (ssr, ssr-layers), which the library's GPU API (layertrace/gpu.h) offers.
+/// Whether a resident GPU frame (gpu/gpu_frame.h) marches with `name`: over the interval pyramid
+/// (hssr, hiz, exhaustive) or SSR over the front layer or all k (ssr, ssr-layers). Used by
+/// render, view, bench --experiment frame and layertrace/gpu.h.
 bool isGpuFrameTracer(const std::string& name);
 
 /// What one resident frame gives `render --device gpu`: the picture and the effect's counters
