@@ -995,16 +995,16 @@ TEST(CliGpu, RenderIsOneResidentFrameWithTheCpusStatistics) {
 TEST(CliGpu, CompareReportsTheAgreementOfTheSameRaysOnBothDevices) {
   if (!gpuBuilt()) GTEST_SKIP() << "built without the GPU back end";
   test::TempDir dir;
-  ASSERT_NO_FATAL_FAILURE(expectRuns("compare " + kDefault + " --width 160 --height 90 --quiet --device gpu --tracers ssr,ssr-layers,hssr,quadtree -o " +
+  ASSERT_NO_FATAL_FAILURE(expectRuns("compare " + kDefault + " --width 160 --height 90 --quiet --device gpu --tracers ssr,ssr-layers,hssr,quadtree,ldc -o " +
                                      (dir / "c")));
   const auto j = readJson(dir / "c/compare.json");
   EXPECT_EQ(j["device"], "gpu");
-  for (const char* t : {"ssr", "ssr-layers", "hssr"}) {
+  for (const char* t : {"ssr", "ssr-layers", "hssr", "quadtree"}) {
     EXPECT_EQ(j["compare"][t]["gpu_agreement"].get<double>(), 1.0) << t;
     EXPECT_GT(j["compare"][t]["gpu_trace_ms"].get<double>(), 0.0) << t;
     EXPECT_EQ(j["compare"][t]["gpu_iterations_mean"], j["compare"][t]["iterations_mean"]) << t;
   }
-  EXPECT_FALSE(j["compare"]["quadtree"].contains("gpu_agreement"));  // no GPU version
+  EXPECT_FALSE(j["compare"]["ldc"].contains("gpu_agreement"));  // no GPU version
 }
 
 TEST(CliGpu, LayersCapturedOnTheGpuAreVerifiedAgainstEmbreeAndTheCpu) {
@@ -1094,14 +1094,16 @@ TEST(CliGpu, BenchReportsEveryStageOnBothDevicesAndListsAgainstPeeling) {
                                        " -o " + (dir / device)));
     const auto j = readJson(dir / (device + "/stages.json"));
     EXPECT_EQ(j["device"], device);
-    ASSERT_EQ(j["rows"].size(), device == "gpu" ? 6u : 5u);  // the GPU adds HSSR with persistent threads
+    ASSERT_EQ(j["rows"].size(), device == "gpu" ? 7u : 6u);  // the GPU adds HSSR with persistent threads
     std::map<std::string, double> iterations;
     for (const auto& row : j["rows"]) {
       EXPECT_GT(row["trace_ms"].get<double>(), 0.0) << row;
       EXPECT_GT(row["memory_bytes"].get<double>(), 0.0) << row;
-      // The default effect (reflection) runs on the device with every GPU tracer.
-      EXPECT_EQ(row["shade_device"], device) << row;
-      EXPECT_EQ(row["effect_bytes"].get<double>() > 0.0, device == "gpu") << row;
+      // The default effect (reflection) runs on the device with every GPU screen tracer; the
+      // quad-tree's answers (an exact ray-plane point) are shaded on the CPU.
+      const bool deviceEffect = device == "gpu" && row["tracer"] != "quadtree";
+      EXPECT_EQ(row["shade_device"], deviceEffect ? "gpu" : "cpu") << row;
+      EXPECT_EQ(row["effect_bytes"].get<double>() > 0.0, deviceEffect) << row;
       iterations[row["tracer"].get<std::string>() + row["stride"].dump()] = row["iterations_mean"].get<double>();
     }
     EXPECT_LT(iterations["hssr1.0"], iterations["ssr-layers1.0"]) << device << ": the hierarchy skips empty space";
@@ -1109,8 +1111,9 @@ TEST(CliGpu, BenchReportsEveryStageOnBothDevicesAndListsAgainstPeeling) {
   // The same rays, the same answers: the GPU's counters equal the CPU's.
   const auto c = readJson(dir / "cpu/stages.json")["rows"], g = readJson(dir / "gpu/stages.json")["rows"];
   for (size_t i = 0; i < c.size(); ++i) EXPECT_EQ(c[i]["iterations_mean"], g[i]["iterations_mean"]) << c[i]["tracer"];
-  EXPECT_EQ(g[5]["persistent"], true);
-  EXPECT_EQ(g[5]["iterations_mean"], g[4]["iterations_mean"]);  // another schedule, the same rays and steps
+  EXPECT_EQ(g[5]["tracer"], "quadtree");
+  EXPECT_EQ(g[6]["persistent"], true);
+  EXPECT_EQ(g[6]["iterations_mean"], g[4]["iterations_mean"]);  // another schedule, the same rays and steps
   ASSERT_NO_FATAL_FAILURE(expectRuns("bench " + kDefault + " --experiment peel --repeat 1 --width 96 --height 54 --quiet --device gpu -o " + (dir / "peel")));
   const auto p = readJson(dir / "peel/peel.json")["rows"];
   ASSERT_EQ(p.size(), 8u);
@@ -1119,8 +1122,8 @@ TEST(CliGpu, BenchReportsEveryStageOnBothDevicesAndListsAgainstPeeling) {
 
 TEST(CliGpu, NoDeviceOrNoGpuVersionIsOneLineStatusTwo) {
   test::TempDir dir;
-  expectRejected({"render " + kDefault + " --tracer quadtree --device gpu", "quadtree"}, dir);
-  expectRejected({"compare " + kDefault + " --tracers quadtree,embree --device gpu", "--device gpu"}, dir);
+  expectRejected({"render " + kDefault + " --tracer ldc --device gpu", "ldc"}, dir);
+  expectRejected({"compare " + kDefault + " --tracers ldc,embree --device gpu", "--device gpu"}, dir);
   expectRejected({"render " + kDefault + " --device tpu", "--device"}, dir);
   expectRejected({"bench " + kDefault + " --experiment tau --device gpu", "--device gpu"}, dir);
   expectRejected({"layers " + kDefault + " --capture peel --device gpu --adaptive-thickness", "--adaptive-thickness"}, dir);

@@ -9,6 +9,7 @@
 #if LAYERTRACE_HAS_GPU
 #include "layertrace/gpu/gpu_capture.h"
 #include "layertrace/gpu/gpu_context.h"
+#include "layertrace/gpu/gpu_quadtree.h"
 #include "layertrace/gpu/gpu_screen_tracer.h"
 #include "layertrace/hiz/hiz_pyramid.h"
 #endif
@@ -16,7 +17,7 @@
 namespace lt {
 
 namespace {
-constexpr std::array<const char*, 4> kGpuTracers = {"ssr", "ssr-layers", "hiz", "hssr"};
+constexpr std::array<const char*, 5> kGpuTracers = {"ssr", "ssr-layers", "hiz", "hssr", "quadtree"};
 }
 
 
@@ -89,6 +90,15 @@ BuiltTracer buildGpuTracer(const std::string& name, const Frame& frame, const Tr
   if (!hasGpuTracer(name)) inputError("--device gpu: ", name, " has no GPU version (GPU tracers: ", gpuTracerNames(), ")");
   validateTracerOptions(options);
   BuiltTracer b;
+  if (name == "quadtree") {
+    // Algorithms 1–2 on the device from the layers' depths; the nodes stay there.
+    auto q = std::make_unique<GpuQuadtreeTracer>(gpu, frame.camera, frame.layers, options.quadtree);
+    b.quadtree = std::make_unique<Quadtree>(q->summary());
+    b.buildMs = b.quadtree->buildMs;
+    b.memoryBytes = q->memoryBytes();
+    b.tracer = std::move(q);
+    return b;
+  }
   std::unique_ptr<GpuScreenTracer> t;
   if (name == "ssr" || name == "ssr-layers") {
     SsrConfig sc = options.ssr;
@@ -127,6 +137,7 @@ void makeGpuCurrent(const GpuContext& gpu) { gpu.makeCurrent(); }
 void releaseGpu(const GpuContext& gpu) { gpu.release(); }
 
 double gpuTraceMs(const Tracer& tracer) {
+  if (const auto* q = dynamic_cast<const GpuQuadtreeTracer*>(&tracer)) return q->totalTraceMs();
   const auto* g = dynamic_cast<const GpuScreenTracer*>(&tracer);
   return g ? g->totalTraceMs() : 0.0;
 }

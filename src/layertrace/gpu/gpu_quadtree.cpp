@@ -1,0 +1,217 @@
+#include "layertrace/gpu/gpu_quadtree.h"
+
+#include <algorithm>
+#include <cmath>
+
+#include <epoxy/gl.h>
+#include <glm/trigonometric.hpp>
+
+#include "layertrace/gpu/shader_sources.h"
+#include "layertrace/screen/fragment_hit.h"
+#include "layertrace/screen/screen_segment.h"
+#include "layertrace/util/default_init.h"
+#include "layertrace/util/error.h"
+#include "layertrace/util/parallel.h"
+
+namespace lt {
+
+namespace {
+
+/// shaders/ray_io.glsl GpuRay and GpuHit, and the march's extra answer, std430.
+struct RayRecord {
+  float origin[3], maxDistance;
+  float dir[3], startsOnSurface;
+};
+struct HitRecord {
+  int32_t x, y, layer;
+  uint32_t iterations, intervals, pixels, giveUps, pad;
+  uint32_t levelIterations[8];
+};
+struct ExtraRecord {
+  float s;
+  uint32_t planes, boxes, occlusions;
+};
+static_assert(sizeof(RayRecord) == 32 && sizeof(HitRecord) == 64 && sizeof(ExtraRecord) == 16 && sizeof(QuadNode) == 16);
+
+}  // namespace
+
+GpuQuadtreeTracer::GpuQuadtreeTracer(GpuContext& gpu, const Camera& camera, const LayerArrays& layers, const QuadtreeConfig& config)
+    : gpu_(gpu), camera_(camera), layers_(layers) {
+  validateQuadtreeConfig(config);
+  Quadtree& t = summary_;
+  t.width = layers.width, t.height = layers.height, t.k = layers.k;
+  t.config = config;
+  for (int w = t.width, h = t.height;; w = (w + 1) / 2, h = (h + 1) / 2) {  // as buildQuadtree
+    t.levels.push_back({w, h, t.nodesPerLayer});
+    t.nodesPerLayer += size_t(w) * size_t(h);
+    if (w == 1 && h == 1) break;
+  }
+  if (t.levelCount() > kMaxLevels) inputError("the quad-tree of ", t.width, "x", t.height, ": ", t.levelCount(), " levels, the GPU's limit is ", kMaxLevels);
+  const size_t nodes = t.nodesPerLayer * size_t(t.k);
+  if (nodes > size_t(INT32_MAX)) inputError("the quad-tree of ", t.width, "x", t.height, " with k = ", t.k, ": ", nodes, " nodes, the GPU's limit is ", INT32_MAX);
+  gpu_.makeCurrent();
+  GpuDebugGroup group("quadtree build");
+  // Each slot's depth (k per pixel) and the counts: what Algorithm 1 reads.
+  const size_t pixels = size_t(t.width) * size_t(t.height);
+  PoolVector<float> depths(layers.slots.size());
+  parallelFor(size_t(0), depths.size(), [&](size_t i) { depths[i] = layers.slots[i].depth; });
+  const std::vector<uint32_t> counts(layers.count.begin(), layers.count.end());
+  depths_ = GpuBuffer(std::max<size_t>(depths.size(), 1) * sizeof(float), depths.data());
+  counts_ = GpuBuffer(std::max<size_t>(pixels, 1) * sizeof(uint32_t), counts.data());
+  nodes_ = GpuBuffer(std::max<size_t>(nodes, 1) * sizeof(QuadNode));
+  scale_ = GpuBuffer(sizeof(float));
+  kinds_ = GpuBuffer(size_t(t.levelCount()) * 3 * sizeof(uint32_t));
+  kinds_.fill(0u);
+  timer_ = std::make_unique<GpuTimer>();
+  timer_->begin();
+  depths_.bindStorage(0);
+  counts_.bindStorage(1);
+  nodes_.bindStorage(2);
+  scale_.bindStorage(3);
+  kinds_.bindStorage(4);
+  {
+    GpuDebugGroup scaleGroup("quadtree depth scale");
+    const GpuProgram& p = gpu_.computeProgram("quadtree_scale.comp", shader_source::quadtree_scale_comp);
+    p.set("uPixels", int(pixels));
+    p.set("uStride", int(std::max<size_t>(1, pixels / 65536)));  // as defaultDepthScale
+    p.set("uK", t.k);
+    p.set("uFocal", camera.focal());
+    p.set("uGrazing", std::tan(glm::radians(85.0f)));
+    p.set("uFixedScale", config.depthScale);
+    gpu_.dispatchGroups(p, 1);
+  }
+  const GpuProgram& build = gpu_.computeProgram("quadtree_build.comp", shader_source::quadtree_build_comp);
+  setLevels(build);
+  build.set("uK", t.k);
+  build.set("uLambdaH", config.lambdaH);
+  build.set("uLambdaD", config.lambdaD);
+  build.set("uGammaNorm", config.gammaNorm);
+  build.set("uGammaDist", config.gammaDist);
+  build.set("uPrintedLine8", int(config.printedLine8));
+  build.set("uPrintedLine10", int(config.printedLine10));
+  for (int l = 0; l < t.levelCount(); ++l) {
+    GpuDebugGroup levelGroup(l == 0 ? "quadtree leaves" : "quadtree merge");
+    build.set("uLevel", l);
+    const QuadtreeLevel& lv = t.levels[size_t(l)];
+    gpu_.dispatch(build, size_t(lv.width) * size_t(lv.height) * size_t(t.k));
+  }
+  timer_->end();
+  glUseProgram(0);
+}
+
+GpuQuadtreeTracer::~GpuQuadtreeTracer() {
+  gpu_.makeCurrent();  // the buffers go with the context current
+}
+
+void GpuQuadtreeTracer::setLevels(const GpuProgram& p) const {
+  const Quadtree& t = summary_;
+  int width[kMaxLevels] = {}, height[kMaxLevels] = {}, offset[kMaxLevels] = {};
+  for (int l = 0; l < t.levelCount(); ++l) {
+    width[l] = t.levels[size_t(l)].width;
+    height[l] = t.levels[size_t(l)].height;
+    offset[l] = int(t.levels[size_t(l)].offset);
+  }
+  p.set("uLevelCount", t.levelCount());
+  p.set("uLevelWidth", width, kMaxLevels);
+  p.set("uLevelHeight", height, kMaxLevels);
+  p.set("uLevelOffset", offset, kMaxLevels);
+  p.set("uNodesPerLayer", int(t.nodesPerLayer));
+}
+
+const Quadtree& GpuQuadtreeTracer::summary() const {
+  if (!summaryRead_) {
+    gpu_.makeCurrent();
+    scale_.read(&summary_.depthScale, sizeof(float));
+    std::vector<uint32_t> kinds(size_t(summary_.levelCount()) * 3);
+    kinds_.read(kinds.data(), kinds.size() * sizeof(uint32_t));
+    summary_.kindCounts.assign(summary_.levels.size(), {0, 0, 0});
+    for (size_t l = 0; l < summary_.levels.size(); ++l)
+      for (size_t k = 0; k < 3; ++k) summary_.kindCounts[l][k] = kinds[l * 3 + k];
+    summary_.buildMs = timer_->ms();
+    summaryRead_ = true;
+  }
+  return summary_;
+}
+
+std::vector<QuadNode> GpuQuadtreeTracer::readNodes() const {
+  gpu_.makeCurrent();
+  std::vector<QuadNode> nodes(summary_.nodesPerLayer * size_t(summary_.k));
+  nodes_.read(nodes.data(), nodes.size() * sizeof(QuadNode));
+  return nodes;
+}
+
+size_t GpuQuadtreeTracer::memoryBytes() const { return nodes_.bytes() + depths_.bytes() + counts_.bytes(); }
+
+TraceHit GpuQuadtreeTracer::trace(const Ray& ray, RayCounters& counters) const {
+  TraceHit hit;
+  traceBatch(std::span<const Ray>(&ray, 1), std::span<TraceHit>(&hit, 1), std::span<RayCounters>(&counters, 1));
+  return hit;
+}
+
+void GpuQuadtreeTracer::traceBatch(std::span<const Ray> rays, std::span<TraceHit> hits, std::span<RayCounters> counters) const {
+  if (rays.empty()) return;
+  const float scale = summary().depthScale;
+  gpu_.makeCurrent();
+  GpuDebugGroup group("quadtree march");
+  PoolVector<RayRecord> records(rays.size());
+  parallelFor(size_t(0), rays.size(), [&](size_t i) {
+    const Ray& r = rays[i];
+    records[i] = {{r.origin.x, r.origin.y, r.origin.z}, r.maxDistance, {r.dir.x, r.dir.y, r.dir.z}, r.startsOnSurface ? 1.0f : 0.0f};
+  });
+  const size_t rayBytes = rays.size() * sizeof(RayRecord), hitBytes = rays.size() * sizeof(HitRecord),
+               extraBytes = rays.size() * sizeof(ExtraRecord);
+  if (rays_.bytes() < rayBytes) rays_ = GpuBuffer(std::max(rayBytes, 2 * rays_.bytes()));
+  if (hits_.bytes() < hitBytes) hits_ = GpuBuffer(std::max(hitBytes, 2 * hits_.bytes()));
+  if (extra_.bytes() < extraBytes) extra_ = GpuBuffer(std::max(extraBytes, 2 * extra_.bytes()));
+  rays_.write(records.data(), rayBytes);
+  const bool counted = !counters.empty();
+  const GpuProgram& p = counted ? gpu_.computeProgram("quadtree_march.comp", shader_source::quadtree_march_comp)
+                                : gpu_.computeProgram("quadtree_march.comp", shader_source::quadtree_march_comp, "#define LT_NO_COUNTERS 1\n");
+  rays_.bindStorage(0);
+  hits_.bindStorage(1);
+  nodes_.bindStorage(4);
+  scale_.bindStorage(5);
+  extra_.bindStorage(6);
+  setLevels(p);
+  p.set("uRayCount", int(rays.size()));
+  p.set("uWidth", camera_.width());
+  p.set("uHeight", camera_.height());
+  p.set("uK", summary_.k);
+  p.set("uNear", camera_.near());
+  p.set("uOrtho", camera_.orthographic());
+  p.set("uFocal", camera_.focal());
+  p.set("uRootStart", int(summary_.config.rootStart));
+  p.set("uBackfaceHits", int(summary_.config.backfaceHits));
+  timer_->begin();
+  gpu_.dispatch(p, rays.size());
+  timer_->end();
+  PoolVector<HitRecord> answers(rays.size());
+  PoolVector<ExtraRecord> extra(rays.size());
+  hits_.read(answers.data(), hitBytes);
+  extra_.read(extra.data(), extraBytes);
+  totalTraceMs_ += timer_->ms();
+  glUseProgram(0);
+  parallelFor(size_t(0), rays.size(), [&](size_t i) {
+    const HitRecord& a = answers[i];
+    if (a.layer < 0) {
+      hits[i] = TraceHit{};
+    } else {
+      LT_CHECK(layers_.countAt(a.x, a.y) > a.layer, "quadtree plane over an empty pixel ", a.x, ",", a.y);
+      hits[i] = fragmentHit(camera_, layers_, a.x, a.y, a.layer);
+      // The exact ray–plane point, as QuadtreeTracer::traceImpl computes it from the same
+      // segment (the GPU's segment is the CPU's, bit for bit).
+      const ScreenSegment seg = makeScreenSegment(camera_, rays[i]);
+      const float s = extra[i].s;
+      const glm::vec2 at = seg.p0 + s * (seg.p1 - seg.p0);
+      const float w = scale * seg.k0 + s * (scale * (seg.k1 - seg.k0));
+      hits[i].point = camera_.rayThrough(at) * (scale / w);
+    }
+    if (!counted) return;
+    RayCounters& c = counters[i];
+    c.iterations += a.iterations, c.pixels += a.pixels, c.giveUps += a.giveUps;
+    for (int l = 0; l < RayCounters::kLevels; ++l) c.levelIterations[l] += a.levelIterations[l];
+    c.planeNodes += extra[i].planes, c.boxNodes += extra[i].boxes, c.occlusions += extra[i].occlusions;
+  });
+}
+
+}  // namespace lt

@@ -1,0 +1,70 @@
+// The plane/box quad-tree of Widmer et al. 2015 (HPG 2015, supplement, Algorithms 1–4) built and
+// traced on the GPU (shaders/quadtree_*.comp): the GLSL twin of quadtree/quadtree_build.cpp and
+// quadtree_tracer.cpp, node for node and ray for ray (tested bit for bit on llvmpipe).
+//
+// The build runs without a read-back between its passes: the depth scale (the median
+// front-layer depth, quadtree.h) by a radix select in one work group, Algorithm 1 in one
+// dispatch over every pixel of every layer, Algorithm 2 in one dispatch per level; each pass
+// adds its nodes of each kind to per-level counts on the device. The nodes never leave the
+// device; summary() reads the scale and the counts once, for the statistics.
+//
+// Widmer et al. build and trace in GLSL with one quad-tree per layer; so do we. Their tree
+// lives in a mip-mapped texture; ours is one storage buffer in the CPU's layout, so that both
+// builds compare node for node.
+#pragma once
+
+#include <memory>
+#include <span>
+#include <vector>
+
+#include "layertrace/gpu/gpu_context.h"
+#include "layertrace/quadtree/quadtree.h"
+#include "layertrace/raster/layer_arrays.h"
+#include "layertrace/scene/camera.h"
+#include "layertrace/trace/tracer.h"
+
+namespace lt {
+
+class GpuQuadtreeTracer final : public Tracer {
+ public:
+  /// Uploads each slot's depth and the per-pixel counts of `layers` and builds the quad-trees on
+  /// the GPU. The context and the layers must outlive the tracer. InputError for a bad config
+  /// (validateQuadtreeConfig) or an image whose levels exceed the shaders' 24.
+  GpuQuadtreeTracer(GpuContext& gpu, const Camera& camera, const LayerArrays& layers, const QuadtreeConfig& config);
+  ~GpuQuadtreeTracer() override;
+  GpuQuadtreeTracer(const GpuQuadtreeTracer&) = delete;
+  GpuQuadtreeTracer& operator=(const GpuQuadtreeTracer&) = delete;
+
+  const char* name() const override { return "quadtree"; }
+  TraceHit trace(const Ray& ray, RayCounters& counters) const override;
+  /// The whole batch in one dispatch: the hit fragment, the exact ray–plane point (from the hit's
+  /// parameter on the screen segment, as the CPU tracer computes it) and the counters.
+  void traceBatch(std::span<const Ray> rays, std::span<TraceHit> hits, std::span<RayCounters> counters) const override;
+
+  /// The trees' shape, depth scale, nodes of each kind per level and GPU build time (the kind
+  /// counts and the scale are read back on the first call); `nodes` stays empty.
+  const Quadtree& summary() const;
+  /// Every node, read back from the device in Quadtree::nodes' layout (an explicit request: the
+  /// tests compare it with the CPU's build).
+  std::vector<QuadNode> readNodes() const;
+  /// Bytes on the GPU: the nodes, the depths and the counts.
+  size_t memoryBytes() const;
+  /// GPU time of every batch so far (timer queries), milliseconds.
+  double totalTraceMs() const { return totalTraceMs_; }
+  static constexpr int kMaxLevels = 24;  ///< shaders/quadtree_common.glsl kMaxQuadLevels
+
+ private:
+  void setLevels(const GpuProgram& program) const;
+
+  GpuContext& gpu_;
+  Camera camera_;
+  const LayerArrays& layers_;
+  mutable Quadtree summary_;  ///< levels and config at construction; scale and counts on first summary()
+  mutable bool summaryRead_ = false;
+  GpuBuffer depths_, counts_, nodes_, scale_, kinds_;
+  mutable GpuBuffer rays_, hits_, extra_;
+  std::unique_ptr<GpuTimer> timer_;
+  mutable double totalTraceMs_ = 0.0;
+};
+
+}  // namespace lt

@@ -1,0 +1,166 @@
+// The seeds' other methods on the GPU against their CPU twins: the quad-tree of Widmer et al.
+// 2015 built on the device (node for node the CPU's build) and traced there (ray for ray the
+// CPU's answers: fragment, exact hit point and every counter). The CPU tracers are the reference
+// (tested against Embree and the exhaustive march in their own suites).
+#include <cstring>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include <gtest/gtest.h>
+
+#include "layertrace/pipeline/frame.h"
+#include "layertrace/pipeline/gpu_tracers.h"
+#include "layertrace/pipeline/tracer_registry.h"
+#include "test_util.h"
+
+#if LAYERTRACE_HAS_GPU
+#include "layertrace/gpu/gpu_context.h"
+#include "layertrace/gpu/gpu_quadtree.h"
+#endif
+
+namespace lt {
+namespace {
+
+#if LAYERTRACE_HAS_GPU
+
+class GpuMethods : public test::GpuSuite {
+ protected:
+  /// Answers that may differ out of n: none on llvmpipe (IEEE arithmetic in the CPU's order);
+  /// the documented 0.1 % on a GPU whose division is approximate.
+  static size_t allowed(size_t n) { return gpu_->software() ? 0 : n / 1000; }
+};
+
+struct NodeAgreement {
+  size_t nodes = 0, differ = 0;
+};
+
+/// The GPU's quad-tree of `f`'s layers against the CPU's, node for node (all 16 bytes).
+NodeAgreement compareQuadtrees(GpuContext& gpu, const Frame& f, const QuadtreeConfig& config) {
+  const Quadtree cpu = buildQuadtree(f.layers, f.camera, config);
+  const GpuQuadtreeTracer onGpu(gpu, f.camera, f.layers, config);
+  const std::vector<QuadNode> nodes = onGpu.readNodes();
+  const Quadtree& summary = onGpu.summary();
+  EXPECT_EQ(summary.depthScale, cpu.depthScale);
+  EXPECT_EQ(summary.levelCount(), cpu.levelCount());
+  EXPECT_EQ(summary.kindCounts, cpu.kindCounts);
+  NodeAgreement a;
+  a.nodes = cpu.nodes.size();
+  EXPECT_EQ(nodes.size(), cpu.nodes.size());
+  for (size_t i = 0; i < std::min(nodes.size(), cpu.nodes.size()); ++i)
+    if (std::memcmp(&nodes[i], &cpu.nodes[i], sizeof(QuadNode)) != 0) {
+      if (a.differ++ < 5 && gpu.software())
+        ADD_FAILURE() << "node " << i << ": CPU {" << cpu.nodes[i].a << ", " << cpu.nodes[i].b << ", " << cpu.nodes[i].c << ", "
+                      << cpu.nodes[i].flags << "}, GPU {" << nodes[i].a << ", " << nodes[i].b << ", " << nodes[i].c << ", "
+                      << nodes[i].flags << "}";
+    }
+  return a;
+}
+
+struct RayAgreement {
+  size_t rays = 0, differ = 0, cpuHits = 0;
+};
+
+/// `rays` through the CPU tracer `name` (one by one, counted: the reference path) and its GPU
+/// version (one batch): the hit fragment, the hit point bit for bit and every counter.
+RayAgreement compareRays(GpuContext& gpu, const Frame& f, const std::string& name, const TracerOptions& options,
+                         const std::vector<Ray>& rays) {
+  const BuiltTracer cpu = buildTracer(name, f, options);
+  const BuiltTracer onGpu = buildGpuTracer(name, f, options, gpu);
+  std::vector<TraceHit> hits(rays.size());
+  std::vector<RayCounters> counters(rays.size());
+  onGpu.tracer->traceBatch(rays, hits, counters);
+  RayAgreement a;
+  a.rays = rays.size();
+  for (size_t i = 0; i < rays.size(); ++i) {
+    RayCounters c;
+    const TraceHit h = cpu.tracer->trace(rays[i], c);
+    const TraceHit& g = hits[i];
+    const RayCounters& gc = counters[i];
+    a.cpuHits += h.hit;
+    const bool sameHit = h.hit == g.hit && h.x == g.x && h.y == g.y && h.layer == g.layer && h.triangle == g.triangle &&
+                         std::memcmp(&h.point, &g.point, sizeof(h.point)) == 0;
+    const bool sameCounters = std::memcmp(&c, &gc, sizeof(RayCounters)) == 0;
+    if (!sameHit || !sameCounters) {
+      if (a.differ++ < 5 && gpu.software())
+        ADD_FAILURE() << name << " ray " << i << ": CPU " << h.hit << " (" << h.x << ", " << h.y << ", " << h.layer << ") it "
+                      << c.iterations << ", GPU " << g.hit << " (" << g.x << ", " << g.y << ", " << g.layer << ") it " << gc.iterations
+                      << (sameHit ? " (counters differ)" : "");
+    }
+  }
+  return a;
+}
+
+Frame defaultFrame(int W, int H) { return buildFrame(test::defaultSceneOptions(W, H)); }
+
+TEST_F(GpuMethods, QuadtreeBuildEqualsTheCpusNodeForNode) {
+  // Odd sizes: nodes past the image on every level.
+  const Frame f = defaultFrame(317, 179);
+  QuadtreeConfig printed;
+  printed.printedLine8 = printed.printedLine10 = true;
+  QuadtreeConfig fixedScale;
+  fixedScale.depthScale = 0.37f, fixedScale.gammaNorm = 1e-2f, fixedScale.gammaDist = 1e-3f;  // more proxy planes
+  const QuadtreeConfig configs[] = {QuadtreeConfig{}, presetOptions("paper").quadtree, printed, fixedScale};
+  for (const QuadtreeConfig& config : configs) {
+    const NodeAgreement a = compareQuadtrees(*gpu_, f, config);
+    EXPECT_LE(a.differ, allowed(a.nodes));
+  }
+  // The comparison can fail: other rules give other nodes.
+  const GpuQuadtreeTracer plain(*gpu_, f.camera, f.layers, QuadtreeConfig{}), other(*gpu_, f.camera, f.layers, printed);
+  const std::vector<QuadNode> a = plain.readNodes(), b = other.readNodes();
+  EXPECT_NE(std::memcmp(a.data(), b.data(), a.size() * sizeof(QuadNode)), 0);
+  // Proxy planes above level 0 exist, so Algorithm 2's merge is exercised, not only its boxes.
+  uint64_t merged = 0;
+  for (size_t l = 1; l < plain.summary().kindCounts.size(); ++l) merged += plain.summary().kindCounts[l][QuadNode::Plane];
+  EXPECT_GT(merged, 0u);
+}
+
+TEST_F(GpuMethods, QuadtreeAnswersAsTheCpuRayForRay) {
+  const Frame f = defaultFrame(317, 179);
+  const std::vector<Ray> rays = test::sampleRays(f, 20000, test::testSeed() + 61);
+  TracerOptions rootStart;
+  rootStart.quadtree.rootStart = true;
+  rootStart.quadtree.backfaceHits = false;
+  for (const TracerOptions& o : {TracerOptions{}, presetOptions("paper"), rootStart}) {
+    const RayAgreement a = compareRays(*gpu_, f, "quadtree", o, rays);
+    EXPECT_LE(a.differ, allowed(a.rays));
+    EXPECT_GT(a.cpuHits, a.rays / 10) << "the rays must hit something for the comparison to mean anything";
+  }
+  // View synthesis: rays entering the view from outside, and an orthographic camera.
+  std::vector<Ray> outside;
+  const float d = f.scene.bounds().diagonal();
+  for (int i = 0; i < 3000; ++i) {
+    const glm::vec3 eye(0.2f * d * float(i % 7 - 3) / 3.0f, 0.1f * d, 0.6f * d);
+    const glm::vec3 target = f.camera.rayThrough({float(i % 317) + 0.5f, float(i % 179) + 0.5f}) * (0.5f * d);
+    outside.push_back(test::freeRay(eye, glm::normalize(target - eye), 2.0f * d));
+  }
+  EXPECT_LE(compareRays(*gpu_, f, "quadtree", TracerOptions{}, outside).differ, allowed(outside.size()));
+  CameraDesc desc = f.camera.desc();
+  desc.orthoHeight = 0.8f * d;
+  const Frame of = test::frameOf(f.scene, desc, 160, 100);
+  const std::vector<Ray> orays = test::sampleRays(of, 6000, test::testSeed() + 62);
+  const RayAgreement ortho = compareRays(*gpu_, of, "quadtree", TracerOptions{}, orays);
+  EXPECT_LE(ortho.differ, allowed(ortho.rays));
+  EXPECT_GT(ortho.cpuHits, 0u);
+}
+
+// A fetched real scene (real label: `make test` fetches the scenes first).
+class GpuMethodsRealScene : public GpuMethods {};
+
+TEST_F(GpuMethodsRealScene, QuadtreeOnAFetchedSceneEqualsTheCpu) {
+  ASSERT_TRUE(test::haveFetchedScenes()) << "run scripts/fetch-scenes.sh";
+  FrameOptions o = test::realSceneOptions("am-thornish.json", "hall");
+  o.width = 240, o.height = 136;
+  const Frame f = buildFrame(o);
+  const NodeAgreement nodes = compareQuadtrees(*gpu_, f, QuadtreeConfig{});
+  EXPECT_LE(nodes.differ, allowed(nodes.nodes));
+  const std::vector<Ray> rays = test::sampleRays(f, 12000, test::testSeed() + 63);
+  const RayAgreement a = compareRays(*gpu_, f, "quadtree", TracerOptions{}, rays);
+  EXPECT_LE(a.differ, allowed(a.rays));
+  EXPECT_GT(a.cpuHits, a.rays / 10);
+}
+
+#endif  // LAYERTRACE_HAS_GPU
+
+}  // namespace
+}  // namespace lt
