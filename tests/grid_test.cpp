@@ -352,6 +352,37 @@ TEST(Grid, FlatSlabIsSubdividedPerAxisAndAgreesWithEmbree) {
   }
 }
 
+/// The paper's rule (--preset paper): one octree depth per top cell, from its longest side. On a
+/// flat slab its leaves are cubes of voxels, there are more of them than with a depth per axis,
+/// the depth is the per-axis build's deepest, and the answers are Embree's.
+TEST(Grid, OneDepthPerCellCutsEveryAxisAlikeAndAgreesWithEmbree) {
+  Scene s;
+  std::mt19937 rng(6);
+  std::uniform_real_distribution<float> u(0.0f, 1.0f);
+  for (int i = 0; i < 800; ++i) {
+    const glm::vec3 lo(10.0f * u(rng), 0.2f * u(rng), 10.0f * u(rng));
+    s.append(makeBox(lo, lo + glm::vec3(0.05f + 0.1f * u(rng))));
+  }
+  s.finalize("slab");
+  GridConfig perAxis;
+  perAxis.merge = false;
+  GridConfig cubic = perAxis;
+  cubic.oneDepthPerCell = true;
+  const IrregularGrid a(s, perAxis), b(s, cubic);
+  ASSERT_EQ(a.stats().top[1], 1);
+  EXPECT_EQ(b.stats().depth, a.stats().depth);
+  EXPECT_GT(b.stats().cellsInitial, a.stats().cellsInitial);
+  for (const GridCell& c : b.cells()) {
+    ASSERT_EQ(c.hi[0] - c.lo[0], c.hi[1] - c.lo[1]);
+    ASSERT_EQ(c.hi[0] - c.lo[0], c.hi[2] - c.lo[2]);
+  }
+  CameraDesc cd;
+  cd.eye = {-2.0f, 2.0f, -2.0f};
+  cd.target = {5.0f, 0.0f, 5.0f};
+  const Agreement agree = compareWithEmbree(s, cd, b, 160, 90, test::testSeed());
+  EXPECT_GE(agree.fraction(), 0.99999) << agree.agree << " of " << agree.rays;
+}
+
 /// Embree's rule for the ray's start, tnear < t: a ray starting on a triangle (an eye or a
 /// bounce origin lying on it) does not hit it there — in the grid, the watertight and the
 /// Möller–Trumbore test as in Embree.

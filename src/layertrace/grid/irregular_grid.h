@@ -6,11 +6,11 @@
 //   2. in each top cell an octree of depth D_i from the same formula with λ2 and the cell's own
 //      object count and volume, clamped to a power of two — stored fully subdivided, so the
 //      voxel map is a compact two-level grid (top cell → depths, offset → leaf cell ids);
-//      all cells are aligned on a virtual grid of resolution R · 2^D, D = max D_i. Our choice
-//      where the paper is silent: the depth is per axis (the formula on each side of the cell),
-//      so a top cell longer on one axis is not cut as finely on the others — the paper's cubic
+//      all cells are aligned on a virtual grid of resolution R · 2^D, D = max D_i. Our default
+//      departs from the paper: the depth is per axis (the formula on each side of the cell), so a
+//      top cell longer on one axis is not cut as finely on the others — the paper's cubic
 //      octree cut a flat slab's 0.35 × 0.35 × 1 cells to the depth the long side needs, 26.6 M
-//      initial cells for 240 k triangles;
+//      initial cells for 240 k triangles (GridConfig::oneDepthPerCell gives the paper's rule);
 //   3. cell merging: a cell and its neighbour whose union is a box merge when the SAH criterion
 //      holds, for empty and non-empty cells, repeated until N_after ≥ α N_before;
 //   4. cell expansion: each cell's exit boundaries grow over neighbours whose references are a
@@ -42,7 +42,14 @@ struct GridConfig {
   /// am_thornish, for about twice the build time and 1.3–1.5× the memory.
   float lambda1 = 0.5f;
   float lambda2 = 2.4f;       ///< second-level density (the paper: λ2 = 2.4; the sweep agrees)
-  int maxDepth = 6;           ///< cap on the per-cell octree depth (2^6 = 64 leaves per axis)
+  /// Cap on the per-cell octree depth (2^6 = 64 leaves per axis). The slides allow up to 2^15
+  /// per axis (4 bits of depth); every top cell is stored fully subdivided here, so the build
+  /// refuses, with the cell count, an octree that would not fit (irregular_grid_build.cpp).
+  int maxDepth = 6;
+  /// One octree depth per top cell, from its longest side: D = ⌈log2 max(R_x, R_y, R_z)⌉ (the
+  /// slides, "Initialization"; hagrid's compute_log_dims). Off (the default), each axis gets the
+  /// formula on its own side (the header comment: a flat slab is not cut as finely across).
+  bool oneDepthPerCell = false;
   bool merge = true;          ///< cell merging
   /// Merge passes find their candidates and join the chosen pairs in parallel; false runs the
   /// serial greedy pass they reproduce exactly (the tests' reference).
@@ -50,7 +57,9 @@ struct GridConfig {
   float alpha = 0.995f;       ///< stop merging when N_after ≥ α N_before
   /// Cost of one traversal step relative to one intersection, in the SAH merge test:
   /// merge A, B when SA(A∪B)(C_t + |R(A∪B)|) ≤ SA(A)(C_t + |R(A)|) + SA(B)(C_t + |R(B)|).
-  /// (Our reading of the slides' C_t: a traversal step costs like a primitive test.)
+  /// This is the test of the authors' released code (hagrid, src/merge.cu, unit_cost = 1).
+  /// The slides print |R(A)| SA(A) + |R(B)| SA(B) ≥ |R(A∪B)| SA(A∪B) − C_t, which subtracts
+  /// one C_t from the union's cost instead of charging each cell a step; we follow the code.
   float traversalCost = 1.0f;
   int expansionPasses = 3;    ///< the paper: 3 for static scenes, 1 for dynamic ones
   /// Partial expansion (the slides' expansion is all-or-nothing per neighbour; hagrid's

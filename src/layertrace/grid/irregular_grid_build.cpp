@@ -119,17 +119,21 @@ struct GridBuilder {
       for (const auto& [cell, t] : list) topRefs[cell].push_back(t);
     pairs.clear();
     // Octree depth per top cell: the same formula with λ2 and the cell's own count and volume,
-    // per axis (irregular_grid.h: Pérard-Gayot et al. 2017 take the longest axis's for all three).
+    // per axis (irregular_grid.h), or the longest axis's for all three (oneDepthPerCell: the
+    // paper's D = ⌈log2 max(R_x, R_y, R_z)⌉, which is the largest of the per-axis depths).
     g.topDepth_.assign(numTop, {0, 0, 0});
     const float topVolume = topSize.x * topSize.y * topSize.z;
     g.depth_ = 0;
     for (size_t c = 0; c < numTop; ++c) {
       if (topRefs[c].empty()) continue;
       const float dens = std::cbrt(cfg.lambda2 * float(topRefs[c].size()) / topVolume);
+      int deepest = 0;
       for (int i = 0; i < 3; ++i) {
         g.topDepth_[c][size_t(i)] = uint8_t(std::clamp(int(std::ceil(std::log2(std::max(topSize[i] * dens, 1.0f)))), 0, cfg.maxDepth));
-        g.depth_ = std::max(g.depth_, int(g.topDepth_[c][size_t(i)]));
+        deepest = std::max(deepest, int(g.topDepth_[c][size_t(i)]));
       }
+      if (cfg.oneDepthPerCell) g.topDepth_[c] = {uint8_t(deepest), uint8_t(deepest), uint8_t(deepest)};
+      g.depth_ = std::max(g.depth_, deepest);
     }
     for (int i = 0; i < 3; ++i) g.virt_[i] = g.top_[i] << g.depth_;
     g.voxel_ = d / glm::vec3(g.virt_[0], g.virt_[1], g.virt_[2]);
@@ -394,7 +398,7 @@ struct GridBuilder {
 IrregularGrid::IrregularGrid(const Scene& scene, const GridConfig& config) : scene_(&scene), cutOuts_(scene.anyCutOut()) {
   if (!(config.lambda1 > 0.0f)) inputError("--lambda1 ", config.lambda1, ": must be positive");
   if (!(config.lambda2 > 0.0f)) inputError("--lambda2 ", config.lambda2, ": must be positive");
-  if (config.maxDepth < 0 || config.maxDepth > 10) inputError("grid max depth ", config.maxDepth, ": must be in [0, 10]");
+  if (config.maxDepth < 0 || config.maxDepth > 15) inputError("--grid-max-depth ", config.maxDepth, ": must be between 0 and 15");
   const auto start = std::chrono::steady_clock::now();
   auto since = [](std::chrono::steady_clock::time_point t) {
     return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t).count();
