@@ -79,14 +79,3 @@ vec3 fragmentPoint(int x, int y, uvec4 f) {
   return p;
 }
 
-// glm::normalize: v · (1 / sqrt(v·v)), the sum from x to z.
-vec3 normalizeStd(vec3 v) {
-  precise float d = v.x * v.x + v.y * v.y + v.z * v.z;
-  precise vec3 n = v * (1.0 / sqrt(d));
-  return n;
-}
-
-float dotStd(vec3 a, vec3 b) {
-  precise float d = a.x * b.x + a.y * b.y + a.z * b.z;
-  return d;
-}

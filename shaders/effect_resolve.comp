@@ -7,6 +7,7 @@
 layout(local_size_x = 64) in;
 
 #include "ray_io.glsl"
+#include "glm_float.glsl"
 #include "effect_common.glsl"
 
 layout(std430, binding = 0) buffer Rays { GpuRay rays[]; };

@@ -6,6 +6,7 @@
 layout(local_size_x = 64) in;
 
 #include "ray_io.glsl"
+#include "glm_float.glsl"
 #include "effect_common.glsl"
 
 layout(std430, binding = 0) writeonly buffer Rays { GpuRay rays[]; };
@@ -51,22 +52,6 @@ struct Surface {
   uint triangle;
 };
 
-// raster/fragment.cpp decodeOctahedral.
-float fromSnorm16(uint bits) {
-  return max(float(bitfieldExtract(int(bits), 0, 16)) / 32767.0, -1.0);
-}
-vec3 decodeOctahedral(uint bits) {
-  const vec2 p = vec2(fromSnorm16(bits & 0xFFFFu), fromSnorm16(bits >> 16));
-  precise vec3 n = vec3(p.x, p.y, 1.0 - abs(p.x) - abs(p.y));
-  if (n.z < 0.0) {
-    const vec2 s = vec2(n.x >= 0.0 ? 1.0 : -1.0, n.y >= 0.0 ? 1.0 : -1.0);
-    precise vec2 q = (1.0 - abs(vec2(n.y, n.x))) * s;
-    n.x = q.x;
-    n.y = q.y;
-  }
-  precise float len = sqrt(n.x * n.x + n.y * n.y + n.z * n.z);
-  return vec3(n.x / len, n.y / len, n.z / len);
-}
 
 // glm::cross.
 vec3 crossStd(vec3 x, vec3 y) {

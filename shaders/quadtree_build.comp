@@ -5,6 +5,7 @@
 // plane or a box (parentNode), one dispatch per level. One invocation per node of every layer;
 // each work group adds its nodes of each kind to the level's counts.
 layout(local_size_x = 64) in;
+#include "glm_float.glsl"
 #include "quadtree_common.glsl"
 layout(std430, binding = 0) readonly buffer Depths { float depths[]; };  // k per pixel
 layout(std430, binding = 1) readonly buffer Counts { uint counts[]; };
@@ -78,21 +79,6 @@ void nodeRange(QuadNode n, float size, out float lo, out float hi) {
   }
 }
 
-// glm::normalize: v · (1 / sqrt(dot(v, v))), the dot product summed x, y, z.
-vec3 normalizeGlm(vec3 v) {
-  precise vec3 sq = v * v;
-  precise float d = sq.x + sq.y + sq.z;
-  precise float inv = 1.0 / sqrt(d);
-  precise vec3 n = v * inv;
-  return n;
-}
-
-float dotGlm(vec3 a, vec3 b) {
-  precise vec3 p = a * b;
-  precise float d = p.x + p.y + p.z;
-  return d;
-}
-
 // parentNode (Algorithm 2) from the four children ch (Empty outside the child level).
 QuadNode parentNode(QuadNode ch[4], float childSize, float rootSize) {
   uint discontinuity = 0u;
@@ -108,14 +94,14 @@ QuadNode parentNode(QuadNode ch[4], float childSize, float rootSize) {
     vec3 normal[4];
     for (int i = 0; i < 4; ++i) {
       precise float nx = negStd(ch[i].b) * rootSize, ny = negStd(ch[i].c) * rootSize;
-      normal[i] = normalizeGlm(vec3(nx, ny, 1.0));
+      normal[i] = normalizeStd(vec3(nx, ny, 1.0));
     }
     precise vec3 sum = zeroPlus(normal[0]);  // the CPU's sum starts at zero
     for (int i = 1; i < 4; ++i) sum += normal[i];
-    const vec3 proxy = normalizeGlm(sum);
+    const vec3 proxy = normalizeStd(sum);
     float maxAngle = 0.0;
     for (int i = 0; i < 4; ++i) {
-      precise float angle = 1.0 - dotGlm(proxy, normal[i]);
+      precise float angle = 1.0 - dotStd(proxy, normal[i]);
       maxAngle = maxStd(maxAngle, angle);
     }
     if (maxAngle < uGammaNorm) {

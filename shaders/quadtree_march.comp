@@ -9,6 +9,7 @@
 layout(local_size_x = 64) in;
 #include "ray_io.glsl"
 #include "screen_common.glsl"
+#include "glm_float.glsl"
 #include "quadtree_common.glsl"
 layout(std430, binding = 4) readonly buffer Nodes { QuadNode nodes[]; };
 layout(std430, binding = 5) readonly buffer Scale { float depthScale; };

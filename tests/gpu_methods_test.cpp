@@ -1,7 +1,8 @@
 // The seeds' other methods on the GPU against their CPU twins: the quad-tree of Widmer et al.
-// 2015 built on the device (node for node the CPU's build) and traced there (ray for ray the
-// CPU's answers: fragment, exact hit point and every counter). The CPU tracers are the reference
-// (tested against Embree and the exhaustive march in their own suites).
+// 2015 built on the device (node for node the CPU's build) and traced there, and the layered
+// depth cube of Bürger et al. 2007 traced there, ray for ray the CPU's answers (hit, exact point,
+// normal, material and every counter). The CPU tracers are the reference (tested against Embree
+// and the exhaustive march in their own suites).
 #include <cstring>
 #include <memory>
 #include <string>
@@ -62,36 +63,55 @@ struct RayAgreement {
 };
 
 /// `rays` through the CPU tracer `name` (one by one, counted: the reference path) and its GPU
-/// version (one batch): the hit fragment, the hit point bit for bit and every counter.
+/// version (one batch), as closest-hit and, with `anyHit`, also as any-hit queries: the hit, its
+/// point, normal, material and triangle bit for bit, and every counter (summed over the queries).
 RayAgreement compareRays(GpuContext& gpu, const Frame& f, const std::string& name, const TracerOptions& options,
-                         const std::vector<Ray>& rays) {
+                         const std::vector<Ray>& rays, bool anyHit = false) {
   const BuiltTracer cpu = buildTracer(name, f, options);
   const BuiltTracer onGpu = buildGpuTracer(name, f, options, gpu);
-  std::vector<TraceHit> hits(rays.size());
-  std::vector<RayCounters> counters(rays.size());
-  onGpu.tracer->traceBatch(rays, hits, counters);
   RayAgreement a;
-  a.rays = rays.size();
-  for (size_t i = 0; i < rays.size(); ++i) {
-    RayCounters c;
-    const TraceHit h = cpu.tracer->trace(rays[i], c);
-    const TraceHit& g = hits[i];
-    const RayCounters& gc = counters[i];
-    a.cpuHits += h.hit;
-    const bool sameHit = h.hit == g.hit && h.x == g.x && h.y == g.y && h.layer == g.layer && h.triangle == g.triangle &&
-                         std::memcmp(&h.point, &g.point, sizeof(h.point)) == 0;
-    const bool sameCounters = std::memcmp(&c, &gc, sizeof(RayCounters)) == 0;
-    if (!sameHit || !sameCounters) {
-      if (a.differ++ < 5 && gpu.software())
-        ADD_FAILURE() << name << " ray " << i << ": CPU " << h.hit << " (" << h.x << ", " << h.y << ", " << h.layer << ") it "
-                      << c.iterations << ", GPU " << g.hit << " (" << g.x << ", " << g.y << ", " << g.layer << ") it " << gc.iterations
-                      << (sameHit ? " (counters differ)" : "");
+  for (const Query q : {Query::Closest, Query::Any}) {
+    if (q == Query::Any && !anyHit) break;
+    SCOPED_TRACE(q == Query::Any ? "any hit" : "closest hit");
+    std::vector<TraceHit> hits(rays.size());
+    std::vector<RayCounters> counters(rays.size());
+    onGpu.tracer->batch(q, rays, hits, counters);
+    a.rays += rays.size();
+    for (size_t i = 0; i < rays.size(); ++i) {
+      RayCounters c;
+      TraceHit h;
+      cpu.tracer->batch(q, std::span<const Ray>(&rays[i], 1), std::span<TraceHit>(&h, 1), std::span<RayCounters>(&c, 1));
+      const TraceHit& g = hits[i];
+      const RayCounters& gc = counters[i];
+      a.cpuHits += h.hit;
+      const bool sameHit = h.hit == g.hit && h.x == g.x && h.y == g.y && h.layer == g.layer && h.triangle == g.triangle &&
+                           h.albedoSpec == g.albedoSpec && std::memcmp(&h.point, &g.point, sizeof(h.point)) == 0 &&
+                           std::memcmp(&h.normal, &g.normal, sizeof(h.normal)) == 0;
+      const bool sameCounters = std::memcmp(&c, &gc, sizeof(RayCounters)) == 0;
+      if (!sameHit || !sameCounters) {
+        if (a.differ++ < 5 && gpu.software())
+          ADD_FAILURE() << name << " ray " << i << ": CPU " << h.hit << " (" << h.x << ", " << h.y << ", " << h.layer << ") it "
+                        << c.iterations << ", GPU " << g.hit << " (" << g.x << ", " << g.y << ", " << g.layer << ") it " << gc.iterations
+                        << (sameHit ? " (counters differ)" : "");
+      }
     }
   }
   return a;
 }
 
 Frame defaultFrame(int W, int H) { return buildFrame(test::defaultSceneOptions(W, H)); }
+
+/// Rays from outside the view toward it (view synthesis), `count` of them.
+std::vector<Ray> raysFromOutside(const Frame& f, int count) {
+  std::vector<Ray> rays;
+  const float d = f.scene.bounds().diagonal();
+  for (int i = 0; i < count; ++i) {
+    const glm::vec3 eye(0.2f * d * float(i % 7 - 3) / 3.0f, 0.1f * d, 0.6f * d);
+    const glm::vec3 target = f.camera.rayThrough({float(i % f.camera.width()) + 0.5f, float(i % f.camera.height()) + 0.5f}) * (0.5f * d);
+    rays.push_back(test::freeRay(eye, glm::normalize(target - eye), 2.0f * d));
+  }
+  return rays;
+}
 
 TEST_F(GpuMethods, QuadtreeBuildEqualsTheCpusNodeForNode) {
   // Odd sizes: nodes past the image on every level.
@@ -127,16 +147,10 @@ TEST_F(GpuMethods, QuadtreeAnswersAsTheCpuRayForRay) {
     EXPECT_GT(a.cpuHits, a.rays / 10) << "the rays must hit something for the comparison to mean anything";
   }
   // View synthesis: rays entering the view from outside, and an orthographic camera.
-  std::vector<Ray> outside;
-  const float d = f.scene.bounds().diagonal();
-  for (int i = 0; i < 3000; ++i) {
-    const glm::vec3 eye(0.2f * d * float(i % 7 - 3) / 3.0f, 0.1f * d, 0.6f * d);
-    const glm::vec3 target = f.camera.rayThrough({float(i % 317) + 0.5f, float(i % 179) + 0.5f}) * (0.5f * d);
-    outside.push_back(test::freeRay(eye, glm::normalize(target - eye), 2.0f * d));
-  }
+  const std::vector<Ray> outside = raysFromOutside(f, 3000);
   EXPECT_LE(compareRays(*gpu_, f, "quadtree", TracerOptions{}, outside).differ, allowed(outside.size()));
   CameraDesc desc = f.camera.desc();
-  desc.orthoHeight = 0.8f * d;
+  desc.orthoHeight = 0.8f * f.scene.bounds().diagonal();
   const Frame of = test::frameOf(f.scene, desc, 160, 100);
   const std::vector<Ray> orays = test::sampleRays(of, 6000, test::testSeed() + 62);
   const RayAgreement ortho = compareRays(*gpu_, of, "quadtree", TracerOptions{}, orays);
@@ -144,10 +158,33 @@ TEST_F(GpuMethods, QuadtreeAnswersAsTheCpuRayForRay) {
   EXPECT_GT(ortho.cpuHits, 0u);
 }
 
+TEST_F(GpuMethods, LdcAnswersAsTheCpuRayForRay) {
+  const Frame f = defaultFrame(200, 120);
+  const std::vector<Ray> rays = test::sampleRays(f, 5000, test::testSeed() + 64);
+  TracerOptions coarse;  // a coarser cube, one interval per block (§1.3 as published), a wider patch
+  coarse.ldc.resolution = 160, coarse.ldc.blockIntervals = 1, coarse.ldc.epsilon = 0.5f, coarse.ldc.block = 4;
+  for (const TracerOptions& o : {TracerOptions{}, presetOptions("paper"), coarse}) {
+    const RayAgreement a = compareRays(*gpu_, f, "ldc", o, rays, true);
+    EXPECT_LE(a.differ, allowed(a.rays));
+    EXPECT_GT(a.cpuHits, a.rays / 10) << "the rays must hit something for the comparison to mean anything";
+  }
+  // The cube answers rays from anywhere: from outside the view too.
+  const std::vector<Ray> outside = raysFromOutside(f, 3000);
+  EXPECT_LE(compareRays(*gpu_, f, "ldc", TracerOptions{}, outside).differ, allowed(outside.size()));
+  // The comparison can fail: another cube gives other answers to the same rays.
+  const BuiltTracer a = buildGpuTracer("ldc", f, TracerOptions{}, *gpu_), b = buildGpuTracer("ldc", f, coarse, *gpu_);
+  std::vector<TraceHit> ha(rays.size()), hb(rays.size());
+  a.tracer->traceBatch(rays, ha, {});
+  b.tracer->traceBatch(rays, hb, {});
+  size_t differ = 0;
+  for (size_t i = 0; i < rays.size(); ++i) differ += std::memcmp(&ha[i].point, &hb[i].point, sizeof(ha[i].point)) != 0;
+  EXPECT_GT(differ, 0u);
+}
+
 // A fetched real scene (real label: `make test` fetches the scenes first).
 class GpuMethodsRealScene : public GpuMethods {};
 
-TEST_F(GpuMethodsRealScene, QuadtreeOnAFetchedSceneEqualsTheCpu) {
+TEST_F(GpuMethodsRealScene, QuadtreeAndLdcOnAFetchedSceneEqualTheCpu) {
   ASSERT_TRUE(test::haveFetchedScenes()) << "run scripts/fetch-scenes.sh";
   FrameOptions o = test::realSceneOptions("am-thornish.json", "hall");
   o.width = 240, o.height = 136;
@@ -155,9 +192,11 @@ TEST_F(GpuMethodsRealScene, QuadtreeOnAFetchedSceneEqualsTheCpu) {
   const NodeAgreement nodes = compareQuadtrees(*gpu_, f, QuadtreeConfig{});
   EXPECT_LE(nodes.differ, allowed(nodes.nodes));
   const std::vector<Ray> rays = test::sampleRays(f, 12000, test::testSeed() + 63);
-  const RayAgreement a = compareRays(*gpu_, f, "quadtree", TracerOptions{}, rays);
-  EXPECT_LE(a.differ, allowed(a.rays));
-  EXPECT_GT(a.cpuHits, a.rays / 10);
+  for (const char* name : {"quadtree", "ldc"}) {
+    const RayAgreement a = compareRays(*gpu_, f, name, TracerOptions{}, rays);
+    EXPECT_LE(a.differ, allowed(a.rays)) << name;
+    EXPECT_GT(a.cpuHits, a.rays / 10) << name;
+  }
 }
 
 #endif  // LAYERTRACE_HAS_GPU

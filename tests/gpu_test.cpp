@@ -152,7 +152,7 @@ TEST_F(Gpu, RaysFromOutsideTheViewAndAnOrthographicCamera) {
 
 TEST_F(Gpu, TracersWithoutAGpuVersionAreRefusedByName) {
   const Frame f = defaultFrame(64, 36);
-  for (const char* name : {"ldc", "grid", "embree", "hybrid"}) {
+  for (const char* name : {"grid", "embree", "hybrid"}) {
     EXPECT_FALSE(hasGpuTracer(name));
     try {
       buildGpuTracer(name, f, TracerOptions{}, *gpu_);

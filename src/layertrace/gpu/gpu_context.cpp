@@ -368,8 +368,11 @@ void GpuProgram::set(const char* name, const float* v, int count) const {
 void GpuProgram::setVec3(const char* name, const float* xyz, int count) const {
   glProgramUniform3fv(id_, glGetUniformLocation(id_, name), count, xyz);
 }
-void GpuProgram::setMatrix(const char* name, const float* columns) const {
-  glProgramUniformMatrix4fv(id_, glGetUniformLocation(id_, name), 1, GL_FALSE, columns);
+void GpuProgram::setMatrix(const char* name, const float* columns, int count) const {
+  glProgramUniformMatrix4fv(id_, glGetUniformLocation(id_, name), count, GL_FALSE, columns);
+}
+void GpuProgram::setIvec2(const char* name, const int* xy, int count) const {
+  glProgramUniform2iv(id_, glGetUniformLocation(id_, name), count, xy);
 }
 void GpuProgram::set(const char* name, const int* v, int count) const {
   glProgramUniform1iv(id_, glGetUniformLocation(id_, name), count, v);

@@ -17,11 +17,7 @@ namespace lt {
 
 namespace {
 
-/// shaders/ray_io.glsl GpuRay and GpuHit, and the march's extra answer, std430.
-struct RayRecord {
-  float origin[3], maxDistance;
-  float dir[3], startsOnSurface;
-};
+/// shaders/ray_io.glsl GpuHit and the march's extra answer, std430.
 struct HitRecord {
   int32_t x, y, layer;
   uint32_t iterations, intervals, pixels, giveUps, pad;
@@ -31,7 +27,7 @@ struct ExtraRecord {
   float s;
   uint32_t planes, boxes, occlusions;
 };
-static_assert(sizeof(RayRecord) == 32 && sizeof(HitRecord) == 64 && sizeof(ExtraRecord) == 16 && sizeof(QuadNode) == 16);
+static_assert(sizeof(HitRecord) == 64 && sizeof(ExtraRecord) == 16 && sizeof(QuadNode) == 16);
 
 }  // namespace
 
@@ -153,25 +149,18 @@ void GpuQuadtreeTracer::traceBatch(std::span<const Ray> rays, std::span<TraceHit
   const float scale = summary().depthScale;
   gpu_.makeCurrent();
   GpuDebugGroup group("quadtree march");
-  PoolVector<RayRecord> records(rays.size());
-  parallelFor(size_t(0), rays.size(), [&](size_t i) {
-    const Ray& r = rays[i];
-    records[i] = {{r.origin.x, r.origin.y, r.origin.z}, r.maxDistance, {r.dir.x, r.dir.y, r.dir.z}, r.startsOnSurface ? 1.0f : 0.0f};
-  });
-  const size_t rayBytes = rays.size() * sizeof(RayRecord), hitBytes = rays.size() * sizeof(HitRecord),
-               extraBytes = rays.size() * sizeof(ExtraRecord);
-  if (rays_.bytes() < rayBytes) rays_ = GpuBuffer(std::max(rayBytes, 2 * rays_.bytes()));
-  if (hits_.bytes() < hitBytes) hits_ = GpuBuffer(std::max(hitBytes, 2 * hits_.bytes()));
-  if (extra_.bytes() < extraBytes) extra_ = GpuBuffer(std::max(extraBytes, 2 * extra_.bytes()));
-  rays_.write(records.data(), rayBytes);
+  batch_.upload(rays);
+  const size_t hitBytes = rays.size() * sizeof(HitRecord), extraBytes = rays.size() * sizeof(ExtraRecord);
+  const GpuBuffer& hitsOut = batch_.answers(0, hitBytes);
+  const GpuBuffer& extraOut = batch_.answers(1, extraBytes);
   const bool counted = !counters.empty();
   const GpuProgram& p = counted ? gpu_.computeProgram("quadtree_march.comp", shader_source::quadtree_march_comp)
                                 : gpu_.computeProgram("quadtree_march.comp", shader_source::quadtree_march_comp, "#define LT_NO_COUNTERS 1\n");
-  rays_.bindStorage(0);
-  hits_.bindStorage(1);
+  batch_.rays().bindStorage(0);
+  hitsOut.bindStorage(1);
   nodes_.bindStorage(4);
   scale_.bindStorage(5);
-  extra_.bindStorage(6);
+  extraOut.bindStorage(6);
   setLevels(p);
   p.set("uRayCount", int(rays.size()));
   p.set("uWidth", camera_.width());
@@ -187,8 +176,8 @@ void GpuQuadtreeTracer::traceBatch(std::span<const Ray> rays, std::span<TraceHit
   timer_->end();
   PoolVector<HitRecord> answers(rays.size());
   PoolVector<ExtraRecord> extra(rays.size());
-  hits_.read(answers.data(), hitBytes);
-  extra_.read(extra.data(), extraBytes);
+  hitsOut.read(answers.data(), hitBytes);
+  extraOut.read(extra.data(), extraBytes);
   totalTraceMs_ += timer_->ms();
   glUseProgram(0);
   parallelFor(size_t(0), rays.size(), [&](size_t i) {

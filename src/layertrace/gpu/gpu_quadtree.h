@@ -18,6 +18,7 @@
 #include <vector>
 
 #include "layertrace/gpu/gpu_context.h"
+#include "layertrace/gpu/gpu_ray_batch.h"
 #include "layertrace/quadtree/quadtree.h"
 #include "layertrace/raster/layer_arrays.h"
 #include "layertrace/scene/camera.h"
@@ -62,7 +63,7 @@ class GpuQuadtreeTracer final : public Tracer {
   mutable Quadtree summary_;  ///< levels and config at construction; scale and counts on first summary()
   mutable bool summaryRead_ = false;
   GpuBuffer depths_, counts_, nodes_, scale_, kinds_;
-  mutable GpuBuffer rays_, hits_, extra_;
+  mutable GpuRayBatch batch_;  ///< the CPU's rays and their answers
   std::unique_ptr<GpuTimer> timer_;
   mutable double totalTraceMs_ = 0.0;
 };

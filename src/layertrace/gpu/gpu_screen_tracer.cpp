@@ -18,17 +18,13 @@ namespace lt {
 
 namespace {
 
-/// shaders/screen_common.glsl GpuRay and GpuHit, std430.
-struct RayRecord {
-  float origin[3], maxDistance;
-  float dir[3], startsOnSurface;
-};
+/// shaders/ray_io.glsl GpuHit, std430.
 struct HitRecord {
   int32_t x, y, layer;
   uint32_t iterations, intervals, pixels, giveUps, pad;
   uint32_t levelIterations[8];
 };
-static_assert(sizeof(RayRecord) == 32 && sizeof(HitRecord) == 64);
+static_assert(sizeof(HitRecord) == 64);
 static_assert(RayCounters::kLevels == 8, "the shaders count 8 levels");
 
 constexpr size_t kGroupSize = 64;  ///< local_size_x of the march shaders
@@ -184,20 +180,14 @@ void GpuScreenTracer::march(std::span<const Ray> rays, std::vector<GpuMarchHit>&
   if (rays.empty()) return;
   LT_CHECK(layers_ != nullptr, name_);  // a resident tracer answers marchResident only
   gpu_.makeCurrent();
-  PoolVector<RayRecord> records(rays.size());
-  parallelFor(size_t(0), rays.size(), [&](size_t i) {
-    const Ray& r = rays[i];
-    records[i] = {{r.origin.x, r.origin.y, r.origin.z}, r.maxDistance, {r.dir.x, r.dir.y, r.dir.z}, r.startsOnSurface ? 1.0f : 0.0f};
-  });
-  const size_t rayBytes = records.size() * sizeof(RayRecord), hitBytes = rays.size() * sizeof(HitRecord);
-  if (rays_.bytes() < rayBytes) rays_ = GpuBuffer(std::max(rayBytes, 2 * rays_.bytes()));
-  if (hits_.bytes() < hitBytes) hits_ = GpuBuffer(std::max(hitBytes, 2 * hits_.bytes()));
-  rays_.write(records.data(), rayBytes);
+  batch_.upload(rays);
+  const size_t hitBytes = rays.size() * sizeof(HitRecord);
+  const GpuBuffer& hits = batch_.answers(0, hitBytes);
   timer_->begin();
-  marchResident(rays_, hits_, rays.size());
+  marchResident(batch_.rays(), hits, rays.size());
   timer_->end();
   PoolVector<HitRecord> answers(rays.size());
-  hits_.read(answers.data(), hitBytes);
+  hits.read(answers.data(), hitBytes);
   lastTraceMs_ = timer_->ms();
   totalTraceMs_ += lastTraceMs_;
   glUseProgram(0);

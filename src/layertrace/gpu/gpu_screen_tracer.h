@@ -17,6 +17,7 @@
 #include "layertrace/gpu/gpu_context.h"
 #include "layertrace/gpu/gpu_effects.h"
 #include "layertrace/gpu/gpu_pyramid.h"
+#include "layertrace/gpu/gpu_ray_batch.h"
 #include "layertrace/hssr/hssr_tracer.h"
 #include "layertrace/raster/layer_arrays.h"
 #include "layertrace/scene/camera.h"
@@ -143,7 +144,8 @@ class GpuScreenTracer final : public Tracer {
   PyramidConfig pyramidConfig_;
   SsrConfig ssr_;
   bool isSsr_ = false;
-  mutable GpuBuffer rays_, hits_, queue_;
+  mutable GpuRayBatch batch_;  ///< march(): the CPU's rays and their answers
+  mutable GpuBuffer queue_;
   bool persistent_ = false;
   mutable double lastTraceMs_ = 0.0, totalTraceMs_ = 0.0;
   std::unique_ptr<GpuTimer> timer_;

@@ -9,6 +9,7 @@
 #if LAYERTRACE_HAS_GPU
 #include "layertrace/gpu/gpu_capture.h"
 #include "layertrace/gpu/gpu_context.h"
+#include "layertrace/gpu/gpu_ldc.h"
 #include "layertrace/gpu/gpu_quadtree.h"
 #include "layertrace/gpu/gpu_screen_tracer.h"
 #include "layertrace/hiz/hiz_pyramid.h"
@@ -17,7 +18,7 @@
 namespace lt {
 
 namespace {
-constexpr std::array<const char*, 5> kGpuTracers = {"ssr", "ssr-layers", "hiz", "hssr", "quadtree"};
+constexpr std::array<const char*, 6> kGpuTracers = {"ssr", "ssr-layers", "hiz", "hssr", "quadtree", "ldc"};
 }
 
 
@@ -99,6 +100,16 @@ BuiltTracer buildGpuTracer(const std::string& name, const Frame& frame, const Tr
     b.tracer = std::move(q);
     return b;
   }
+  if (name == "ldc") {
+    // The cube built by the CPU (its three LDIs rasterized here), uploaded once, traced there.
+    BuiltTracer cpu = buildTracer("ldc", frame, options);
+    auto l = std::make_unique<GpuLdcTracer>(gpu, frame.camera, *cpu.ldc);
+    b.ldc = std::move(cpu.ldc);
+    b.buildMs = cpu.buildMs;
+    b.memoryBytes = l->memoryBytes();
+    b.tracer = std::move(l);
+    return b;
+  }
   std::unique_ptr<GpuScreenTracer> t;
   if (name == "ssr" || name == "ssr-layers") {
     SsrConfig sc = options.ssr;
@@ -138,6 +149,7 @@ void releaseGpu(const GpuContext& gpu) { gpu.release(); }
 
 double gpuTraceMs(const Tracer& tracer) {
   if (const auto* q = dynamic_cast<const GpuQuadtreeTracer*>(&tracer)) return q->totalTraceMs();
+  if (const auto* l = dynamic_cast<const GpuLdcTracer*>(&tracer)) return l->totalTraceMs();
   const auto* g = dynamic_cast<const GpuScreenTracer*>(&tracer);
   return g ? g->totalTraceMs() : 0.0;
 }
