@@ -1094,14 +1094,14 @@ TEST(CliGpu, BenchReportsEveryStageOnBothDevicesAndListsAgainstPeeling) {
                                        " -o " + (dir / device)));
     const auto j = readJson(dir / (device + "/stages.json"));
     EXPECT_EQ(j["device"], device);
-    ASSERT_EQ(j["rows"].size(), device == "gpu" ? 7u : 6u);  // the GPU adds HSSR with persistent threads
+    ASSERT_EQ(j["rows"].size(), device == "gpu" ? 8u : 7u);  // the GPU adds HSSR with persistent threads
     std::map<std::string, double> iterations;
     for (const auto& row : j["rows"]) {
       EXPECT_GT(row["trace_ms"].get<double>(), 0.0) << row;
       EXPECT_GT(row["memory_bytes"].get<double>(), 0.0) << row;
       // The default effect (reflection) runs on the device with every GPU screen tracer; the
-      // quad-tree's answers (an exact ray-plane point) are shaded on the CPU.
-      const bool deviceEffect = device == "gpu" && row["tracer"] != "quadtree";
+      // quad-tree's and the cube's answers (hit points of their own) are shaded on the CPU.
+      const bool deviceEffect = device == "gpu" && row["tracer"] != "quadtree" && row["tracer"] != "ldc";
       EXPECT_EQ(row["shade_device"], deviceEffect ? "gpu" : "cpu") << row;
       EXPECT_EQ(row["effect_bytes"].get<double>() > 0.0, deviceEffect) << row;
       iterations[row["tracer"].get<std::string>() + row["stride"].dump()] = row["iterations_mean"].get<double>();
@@ -1112,8 +1112,9 @@ TEST(CliGpu, BenchReportsEveryStageOnBothDevicesAndListsAgainstPeeling) {
   const auto c = readJson(dir / "cpu/stages.json")["rows"], g = readJson(dir / "gpu/stages.json")["rows"];
   for (size_t i = 0; i < c.size(); ++i) EXPECT_EQ(c[i]["iterations_mean"], g[i]["iterations_mean"]) << c[i]["tracer"];
   EXPECT_EQ(g[5]["tracer"], "quadtree");
-  EXPECT_EQ(g[6]["persistent"], true);
-  EXPECT_EQ(g[6]["iterations_mean"], g[4]["iterations_mean"]);  // another schedule, the same rays and steps
+  EXPECT_EQ(g[6]["tracer"], "ldc");
+  EXPECT_EQ(g[7]["persistent"], true);
+  EXPECT_EQ(g[7]["iterations_mean"], g[4]["iterations_mean"]);  // another schedule, the same rays and steps
   ASSERT_NO_FATAL_FAILURE(expectRuns("bench " + kDefault + " --experiment peel --repeat 1 --width 96 --height 54 --quiet --device gpu -o " + (dir / "peel")));
   const auto p = readJson(dir / "peel/peel.json")["rows"];
   ASSERT_EQ(p.size(), 8u);
