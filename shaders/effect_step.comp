@@ -53,11 +53,6 @@ struct Surface {
 };
 
 
-// glm::cross.
-vec3 crossStd(vec3 x, vec3 y) {
-  precise vec3 c = vec3(x.y * y.z - y.y * x.z, x.z * y.x - y.z * x.x, x.x * y.y - y.x * x.y);
-  return c;
-}
 
 // std::clamp(v, 0, 1).
 float clampUnit(float v) {

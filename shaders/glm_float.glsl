@@ -28,6 +28,12 @@ vec3 normalizeStd(vec3 v) {
   return n;
 }
 
+// glm::cross.
+vec3 crossStd(vec3 x, vec3 y) {
+  precise vec3 c = vec3(x.y * y.z - y.y * x.z, x.z * y.x - y.z * x.x, x.x * y.y - y.x * x.y);
+  return c;
+}
+
 // raster/fragment.cpp decodeOctahedral.
 float fromSnorm16(uint bits) {
   return max(float(bitfieldExtract(int(bits), 0, 16)) / 32767.0, -1.0);

@@ -277,7 +277,7 @@ uniform bool uPersistent;
 layout(std430, binding = 5) buffer Queue { uint nextRay; };
 
 void beginRay(uint id) {
-  cIterations = 0u, cIntervals = 0u, cPixels = 0u, cGiveUps = 0u;
+  cIterations = 0u, cIntervals = 0u, cPixels = 0u, cGiveUps = 0u, cFragments = 0u;
   for (int l = 0; l < 8; ++l) cLevel[l] = 0u;
 }
 

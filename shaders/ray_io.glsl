@@ -9,9 +9,9 @@ struct GpuRay {
   vec4 dirSurface;
 };
 // One answer: the hit fragment (x, y, layer; layer -1 for a miss) and the per-ray counters of
-// trace/tracer.h RayCounters.
+// trace/tracer.h RayCounters (fragments: the stored fragments tested at visited level-0 pixels).
 struct GpuHit {
   int x, y, layer;
-  uint iterations, intervals, pixels, giveUps, pad;
+  uint iterations, intervals, pixels, giveUps, fragments;
   uint levelIterations[8];
 };

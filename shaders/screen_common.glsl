@@ -20,7 +20,7 @@ uniform bool uOrtho;
 #define kInf uintBitsToFloat(0x7f800000u)
 
 // The counters of the ray this invocation traces.
-uint cIterations = 0u, cIntervals = 0u, cPixels = 0u, cGiveUps = 0u;
+uint cIterations = 0u, cIntervals = 0u, cPixels = 0u, cGiveUps = 0u, cFragments = 0u;
 uint cLevel[8] = uint[8](0u, 0u, 0u, 0u, 0u, 0u, 0u, 0u);
 void countIteration(int level) {
   ++cIterations;
@@ -140,6 +140,7 @@ int firstMet(uint base, int n, float zmin, float zmax, bool increasing) {
   float bestEntry = 0.0;
   for (int i = 0; i < n; ++i) {
     ++cIntervals;
+    ++cFragments;
     const vec2 f = level0[base + uint(i)];
     if (f.x > zmax) break;
     if (f.y < zmin) continue;
@@ -169,14 +170,14 @@ void writeHit(uint id, int x, int y, int layer) {
   hits[id].intervals = 0u;
   hits[id].pixels = 0u;
   hits[id].giveUps = 0u;
-  hits[id].pad = 0u;
+  hits[id].fragments = 0u;
   for (int l = 0; l < 8; ++l) hits[id].levelIterations[l] = 0u;
 #else
   hits[id].iterations = cIterations;
   hits[id].intervals = cIntervals;
   hits[id].pixels = cPixels;
   hits[id].giveUps = cGiveUps;
-  hits[id].pad = 0u;
+  hits[id].fragments = cFragments;
   for (int l = 0; l < 8; ++l) hits[id].levelIterations[l] = cLevel[l];
 #endif
 }

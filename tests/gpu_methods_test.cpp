@@ -1,8 +1,9 @@
 // The seeds' other methods on the GPU against their CPU twins: the quad-tree of Widmer et al.
-// 2015 built on the device (node for node the CPU's build) and traced there, and the layered
-// depth cube of Bürger et al. 2007 traced there, ray for ray the CPU's answers (hit, exact point,
-// normal, material and every counter). The CPU tracers are the reference (tested against Embree
-// and the exhaustive march in their own suites).
+// 2015 built on the device (node for node the CPU's build) and traced there; the layered depth
+// cube of Bürger et al. 2007 and the irregular grid of Pérard-Gayot et al. 2017 traced there;
+// and the hybrid with both halves there: ray for ray the CPU's answers (hit, exact point, normal,
+// material and every counter). The CPU tracers are the reference (tested against Embree and the
+// exhaustive march in their own suites).
 #include <cstring>
 #include <memory>
 #include <string>
@@ -13,10 +14,12 @@
 #include "layertrace/pipeline/frame.h"
 #include "layertrace/pipeline/gpu_tracers.h"
 #include "layertrace/pipeline/tracer_registry.h"
+#include "layertrace/util/error.h"
 #include "test_util.h"
 
 #if LAYERTRACE_HAS_GPU
 #include "layertrace/gpu/gpu_context.h"
+#include "layertrace/gpu/gpu_grid.h"
 #include "layertrace/gpu/gpu_quadtree.h"
 #endif
 
@@ -181,10 +184,99 @@ TEST_F(GpuMethods, LdcAnswersAsTheCpuRayForRay) {
   EXPECT_GT(differ, 0u);
 }
 
+TEST_F(GpuMethods, GridAnswersAsTheCpuGridRayForRay) {
+  const Frame f = defaultFrame(200, 120);
+  const std::vector<Ray> rays = test::sampleRays(f, 8000, test::testSeed() + 65);
+  for (const TracerOptions& o : {TracerOptions{}, presetOptions("paper")}) {
+    const RayAgreement a = compareRays(*gpu_, f, "grid", o, rays, true);
+    EXPECT_LE(a.differ, allowed(a.rays));
+    EXPECT_GT(a.cpuHits, a.rays / 2);
+  }
+  const std::vector<Ray> outside = raysFromOutside(f, 3000);
+  EXPECT_LE(compareRays(*gpu_, f, "grid", TracerOptions{}, outside, true).differ, allowed(2 * outside.size()));
+  // Segments from a point along each ray (the hybrid's geometric queries): the CPU grid's hits.
+  const BuiltTracer cpu = buildTracer("grid", f, TracerOptions{}), onGpu = buildGpuTracer("grid", f, TracerOptions{}, *gpu_);
+  std::vector<float> from(rays.size());
+  for (size_t i = 0; i < rays.size(); ++i) from[i] = float(i % 5) * 0.05f * rays[i].maxDistance;
+  std::vector<GeoHit> want(rays.size()), got(rays.size());
+  std::vector<uint8_t> wantBlocked(rays.size()), gotBlocked(rays.size());
+  const auto& cpuGeo = dynamic_cast<const GeoHitQueries&>(*cpu.tracer);
+  const auto& gpuGeo = dynamic_cast<const GeoHitQueries&>(*onGpu.tracer);
+  cpuGeo.intersectSegments(rays, from, want, {});
+  gpuGeo.intersectSegments(rays, from, got, {});
+  cpuGeo.occludedSegments(rays, from, wantBlocked, {});
+  gpuGeo.occludedSegments(rays, from, gotBlocked, {});
+  size_t differ = 0, hits = 0;
+  for (size_t i = 0; i < rays.size(); ++i) {
+    hits += want[i].hit();
+    differ += want[i].triangle != got[i].triangle || std::memcmp(&want[i].t, &got[i].t, sizeof(float)) != 0 ||
+              std::memcmp(&want[i].ng, &got[i].ng, sizeof(want[i].ng)) != 0 || wantBlocked[i] != gotBlocked[i];
+  }
+  EXPECT_LE(differ, allowed(rays.size()));
+  EXPECT_GT(hits, rays.size() / 4);
+}
+
+// Alpha-tested triangles: a ray whose walk meets one as a candidate is answered by the CPU grid
+// (the GPU reads no texture), so the answers are the CPU grid's through the grate's holes too.
+TEST_F(GpuMethods, GridAnswersThroughAlphaTestedTrianglesAsTheCpu) {
+  test::TempDir dir;
+  FrameOptions o;
+  o.scenePath = test::writeGrateObj(dir);
+  o.eye = glm::dvec3(0.35, 0.45, 1.5), o.target = glm::dvec3(0.0, 0.2, -3.0);
+  o.width = 96, o.height = 72;
+  const Frame f = buildFrame(o);
+  std::vector<Ray> rays;
+  for (int y = 0; y < f.camera.height(); ++y)
+    for (int x = 0; x < f.camera.width(); ++x)
+      rays.push_back(test::freeRay(f.camera.rayOrigin({float(x) + 0.5f, float(y) + 0.5f}),
+                                   glm::normalize(f.camera.rayThrough({float(x) + 0.5f, float(y) + 0.5f})), 100.0f));
+  const RayAgreement a = compareRays(*gpu_, f, "grid", TracerOptions{}, rays, true);
+  EXPECT_LE(a.differ, allowed(a.rays));
+  const BuiltTracer onGpu = buildGpuTracer("grid", f, TracerOptions{}, *gpu_);
+  std::vector<TraceHit> hits(rays.size());
+  onGpu.tracer->traceBatch(rays, hits, {});
+  EXPECT_GT(dynamic_cast<const GpuGridTracer&>(*onGpu.tracer).cpuAnswered(), 0u) << "the grate was met";
+}
+
+// The hybrid with both halves on the GPU answers as the CPU hybrid whose geometric half is the
+// grid: the same decisions over the same answers.
+TEST_F(GpuMethods, HybridAnswersAsTheCpuHybridRayForRay) {
+  const Frame f = defaultFrame(200, 120);
+  const std::vector<Ray> rays = test::sampleRays(f, 8000, test::testSeed() + 66);
+  for (const char* screen : {"hssr", "quadtree", "ldc"}) {
+    SCOPED_TRACE(screen);
+    TracerOptions cpuOptions;
+    cpuOptions.hybrid.screen = screen, cpuOptions.hybrid.geo = "grid";
+    TracerOptions gpuOptions = cpuOptions;
+    gpuOptions.hybrid.geo = "embree";  // ignored on the GPU: its geometric half is the grid
+    const BuiltTracer cpu = buildTracer("hybrid", f, cpuOptions), onGpu = buildGpuTracer("hybrid", f, gpuOptions, *gpu_);
+    for (const Query q : {Query::Closest, Query::Any}) {
+      std::vector<TraceHit> want(rays.size()), got(rays.size());
+      std::vector<RayCounters> wantC(rays.size()), gotC(rays.size());
+      cpu.tracer->query(q, rays, want, wantC);
+      onGpu.tracer->query(q, rays, got, gotC);
+      size_t differ = 0, hits = 0;
+      for (size_t i = 0; i < rays.size(); ++i) {
+        hits += want[i].hit;
+        const bool sameHit = want[i].hit == got[i].hit && want[i].triangle == got[i].triangle &&
+                             std::memcmp(&want[i].point, &got[i].point, sizeof(want[i].point)) == 0 &&
+                             std::memcmp(&want[i].normal, &got[i].normal, sizeof(want[i].normal)) == 0;
+        const bool sameCounters = std::memcmp(&wantC[i], &gotC[i], sizeof(RayCounters)) == 0;
+        if ((!sameHit || !sameCounters) && differ++ < 3 && gpu_->software())
+          ADD_FAILURE() << "ray " << i << (sameHit ? ": counters differ" : ": hits differ") << ", iterations " << wantC[i].iterations << " / "
+                        << gotC[i].iterations << ", intervals " << wantC[i].intervals << " / " << gotC[i].intervals << ", fragments "
+                        << wantC[i].fragments << " / " << gotC[i].fragments << ", pixels " << wantC[i].pixels << " / " << gotC[i].pixels;
+      }
+      EXPECT_LE(differ, allowed(rays.size())) << (q == Query::Any ? "any hit" : "closest hit");
+      EXPECT_GT(hits, rays.size() / 2);
+    }
+  }
+}
+
 // A fetched real scene (real label: `make test` fetches the scenes first).
 class GpuMethodsRealScene : public GpuMethods {};
 
-TEST_F(GpuMethodsRealScene, QuadtreeAndLdcOnAFetchedSceneEqualTheCpu) {
+TEST_F(GpuMethodsRealScene, QuadtreeLdcAndGridOnAFetchedSceneEqualTheCpu) {
   ASSERT_TRUE(test::haveFetchedScenes()) << "run scripts/fetch-scenes.sh";
   FrameOptions o = test::realSceneOptions("am-thornish.json", "hall");
   o.width = 240, o.height = 136;
@@ -192,7 +284,7 @@ TEST_F(GpuMethodsRealScene, QuadtreeAndLdcOnAFetchedSceneEqualTheCpu) {
   const NodeAgreement nodes = compareQuadtrees(*gpu_, f, QuadtreeConfig{});
   EXPECT_LE(nodes.differ, allowed(nodes.nodes));
   const std::vector<Ray> rays = test::sampleRays(f, 12000, test::testSeed() + 63);
-  for (const char* name : {"quadtree", "ldc"}) {
+  for (const char* name : {"quadtree", "ldc", "grid"}) {
     const RayAgreement a = compareRays(*gpu_, f, name, TracerOptions{}, rays);
     EXPECT_LE(a.differ, allowed(a.rays)) << name;
     EXPECT_GT(a.cpuHits, a.rays / 10) << name;

@@ -115,16 +115,16 @@ TEST(ViewSession, GpuDeviceGivesTheCpuPictures) {
   gpuOptions.run.device = "gpu";
   ViewSession cpu(cpuOptions), gpu(gpuOptions);
   const bool software = gpuStats(*openGpu())["software"].get<bool>();  // an IEEE device: exact
-  for (const char* tracer : {"hssr", "ssr-layers", "quadtree", "ldc", "grid"}) {
+  for (const char* tracer : {"hssr", "ssr-layers", "quadtree", "ldc", "grid", "hybrid", "embree"}) {
     SCOPED_TRACE(tracer);
     ViewRequest q = cpu.initialRequest();
     q.tracer = tracer;
     const ViewResult a = cpu.render(q), b = gpu.render(q);
     ASSERT_TRUE(b.error.empty()) << b.error;
-    // hssr and ssr-layers: resident frames; quadtree and ldc: traced on the GPU, shaded on the
-    // CPU; grid: no GPU version, on the CPU over the GPU's capture.
+    // hssr and ssr-layers: resident frames; quadtree, ldc, grid and hybrid: traced on the GPU,
+    // shaded on the CPU; embree: no GPU version, on the CPU.
     const std::string name = tracer;
-    EXPECT_EQ(b.device, name == "grid" ? "cpu" : "gpu");
+    EXPECT_EQ(b.device, name == "embree" ? "cpu" : "gpu");
     EXPECT_EQ(a.device, "cpu");
     // The default effect (reflection) is generated and shaded on the GPU with a GPU screen tracer.
     EXPECT_EQ(b.shading, name == "hssr" || name == "ssr-layers" ? "gpu" : "cpu");

@@ -143,7 +143,8 @@ struct GpuRayRecord {
 struct GpuHitRecord {
   int32_t x, y;    ///< the hit fragment's pixel
   int32_t layer;   ///< its layer, 0 = front; -1: no hit
-  uint32_t iterations, intervals, pixels, giveUps, unused;  ///< the march's counters
+  uint32_t iterations, intervals, pixels, giveUps;  ///< the march's counters
+  uint32_t fragments;  ///< stored fragments tested at the visited level-0 pixels
   uint32_t levelIterations[8];                               ///< cells visited per pyramid level
 };
 static_assert(sizeof(GpuRayRecord) == 32 && sizeof(GpuHitRecord) == 64);

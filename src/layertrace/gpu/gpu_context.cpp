@@ -374,6 +374,9 @@ void GpuProgram::setMatrix(const char* name, const float* columns, int count) co
 void GpuProgram::setIvec2(const char* name, const int* xy, int count) const {
   glProgramUniform2iv(id_, glGetUniformLocation(id_, name), count, xy);
 }
+void GpuProgram::setIvec3(const char* name, const int* xyz) const {
+  glProgramUniform3iv(id_, glGetUniformLocation(id_, name), 1, xyz);
+}
 void GpuProgram::set(const char* name, const int* v, int count) const {
   glProgramUniform1iv(id_, glGetUniformLocation(id_, name), count, v);
 }

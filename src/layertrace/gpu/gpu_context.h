@@ -40,6 +40,7 @@ class GpuProgram {
   void set(const char* name, float v) const;
   void setMatrix(const char* name, const float* columns, int count = 1) const;  ///< 4×4 matrices, 16 floats column-major each
   void setIvec2(const char* name, const int* xy, int count) const;  ///< an ivec2 array, 2 ints each
+  void setIvec3(const char* name, const int* xyz) const;  ///< an ivec3
   void set(const char* name, const int* v, int count) const;  ///< an int array
   void set(const char* name, const float* v, int count) const;  ///< a float array
   void setVec3(const char* name, const float* xyz, int count = 1) const;  ///< a vec3 (array), 3 floats each

@@ -20,7 +20,7 @@ namespace {
 /// shaders/ray_io.glsl GpuHit and the march's extra answer, std430.
 struct HitRecord {
   int32_t x, y, layer;
-  uint32_t iterations, intervals, pixels, giveUps, pad;
+  uint32_t iterations, intervals, pixels, giveUps, fragments;
   uint32_t levelIterations[8];
 };
 struct ExtraRecord {

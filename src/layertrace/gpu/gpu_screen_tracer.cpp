@@ -21,7 +21,7 @@ namespace {
 /// shaders/ray_io.glsl GpuHit, std430.
 struct HitRecord {
   int32_t x, y, layer;
-  uint32_t iterations, intervals, pixels, giveUps, pad;
+  uint32_t iterations, intervals, pixels, giveUps, fragments;
   uint32_t levelIterations[8];
 };
 static_assert(sizeof(HitRecord) == 64);
@@ -200,6 +200,7 @@ void GpuScreenTracer::march(std::span<const Ray> rays, std::vector<GpuMarchHit>&
     h.counters.intervals = a.intervals;
     h.counters.pixels = a.pixels;
     h.counters.giveUps = a.giveUps;
+    h.counters.fragments = a.fragments;
     std::copy(std::begin(a.levelIterations), std::end(a.levelIterations), h.counters.levelIterations);
   });
 }
@@ -258,7 +259,7 @@ void GpuScreenTracer::traceBatch(std::span<const Ray> rays, std::span<TraceHit> 
     if (counters.empty()) return;
     RayCounters& c = counters[i];
     c.iterations += m.counters.iterations, c.intervals += m.counters.intervals, c.pixels += m.counters.pixels;
-    c.giveUps += m.counters.giveUps;
+    c.giveUps += m.counters.giveUps, c.fragments += m.counters.fragments;
     for (int l = 0; l < RayCounters::kLevels; ++l) c.levelIterations[l] += m.counters.levelIterations[l];
   });
 }

@@ -127,6 +127,23 @@ class IrregularGrid {
   glm::vec3 inverseVoxelSize() const { return invVoxel_; }
   glm::vec3 origin() const { return lo_; }  ///< the grid box's lower corner
   glm::vec3 boxMax() const { return hi_; }   ///< the grid box's upper corner
+  int topResolution(int axis) const { return top_[axis]; }
+  int depth() const { return depth_; }  ///< D: the virtual grid is topResolution · 2^D
+
+  /// The traversal's packed structure as bytes, for a device that walks it as the CPU does
+  /// (gpu/gpu_grid.h). Top cells: 12 bytes each, the first leaf (uint32), then the shifts of x,
+  /// y and z and bits1 (one byte each), then bits2 (a byte, 3 bytes of padding); see TopCell.
+  /// Leaves: the walk unit (32 bytes) of each leaf's cell. Walk: per cell a 32-byte record
+  /// (elo[3], ehi[3], references, cell id) followed by its triangle blocks (160 bytes: vertex
+  /// coordinates v[vertex][axis][lane] for four triangles, then their four ids).
+  struct Packed {
+    std::span<const unsigned char> topCells;
+    std::span<const uint32_t> leaves;
+    std::span<const unsigned char> walk;
+  };
+  Packed packed() const;
+  /// Whether any triangle is alpha-tested (a hit on it needs the texture: surfacePresent).
+  bool hasCutOuts() const { return cutOuts_; }
 
  private:
   template <bool AnyHit>

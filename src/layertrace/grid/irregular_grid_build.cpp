@@ -1,4 +1,5 @@
 #include <algorithm>
+#include <cstddef>
 #include <limits>
 #include <atomic>
 #include <chrono>
@@ -434,6 +435,15 @@ IrregularGrid::IrregularGrid(const Scene& scene, const GridConfig& config) : sce
   stats_.refs = refs_.size();
   packForTraversal();
   stats_.buildMs = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
+}
+
+IrregularGrid::Packed IrregularGrid::packed() const {
+  static_assert(sizeof(TopCell) == 12 && offsetof(TopCell, shift) == 4 && offsetof(TopCell, bits1) == 7 && offsetof(TopCell, bits2) == 8,
+                "the layout Packed documents");
+  static_assert(sizeof(TriangleBlock) == 160);
+  return {{reinterpret_cast<const unsigned char*>(topCells_.data()), topCells_.size() * sizeof(TopCell)},
+          {walkLeaf_.data(), walkLeaf_.size()},
+          {reinterpret_cast<const unsigned char*>(walk_.data()), walk_.size() * sizeof(Line)}};
 }
 
 void IrregularGrid::packForTraversal() {

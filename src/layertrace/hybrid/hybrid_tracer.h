@@ -99,6 +99,8 @@ class HybridTracer : public Tracer {
   HybridTracer(const Scene& scene, const Camera& camera, const LayerArrays& layers, const KnownSpace& known, const Tracer& screen,
                const GeoHitQueries& geo, float worldMargin = 0.0f, bool uncertainEmptySpace = false);
   const char* name() const override { return "hybrid"; }
+  const Tracer& screen() const { return screen_; }       ///< the image-space half
+  const GeoHitQueries& geometry() const { return geo_; }  ///< the geometric half
   TraceHit trace(const Ray& ray, RayCounters& counters) const override;
   void traceBatch(std::span<const Ray> rays, std::span<TraceHit> hits, std::span<RayCounters> counters) const override;
   void occludedBatch(std::span<const Ray> rays, std::span<TraceHit> hits, std::span<RayCounters> counters) const override;

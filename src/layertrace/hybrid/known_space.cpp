@@ -84,7 +84,7 @@ IntervalLayers solidIntervals(const Camera& camera, const CaptureCoverage& c, fl
       if (n > 0 && (iv[n - 1].back >= d || n == L.k)) iv[n - 1].back = kInf;  // joins (or no slot left: from earlier)
       else iv[n] = {d, kInf}, ++n;
     }
-    for (int i = n; i < L.k; ++i) iv[i] = {0.0f, 0.0f};
+    for (int i = n; i < L.k; ++i) iv[i] = {kInf, kInf};  // the march's sentinel (interval_layers.h)
     out.count[p] = uint8_t(n);
   });
   return out;

@@ -9,6 +9,7 @@
 #if LAYERTRACE_HAS_GPU
 #include "layertrace/gpu/gpu_capture.h"
 #include "layertrace/gpu/gpu_context.h"
+#include "layertrace/gpu/gpu_grid.h"
 #include "layertrace/gpu/gpu_ldc.h"
 #include "layertrace/gpu/gpu_quadtree.h"
 #include "layertrace/gpu/gpu_screen_tracer.h"
@@ -18,7 +19,7 @@
 namespace lt {
 
 namespace {
-constexpr std::array<const char*, 6> kGpuTracers = {"ssr", "ssr-layers", "hiz", "hssr", "quadtree", "ldc"};
+constexpr std::array<const char*, 8> kGpuTracers = {"ssr", "ssr-layers", "hiz", "hssr", "quadtree", "ldc", "grid", "hybrid"};
 }
 
 
@@ -100,6 +101,33 @@ BuiltTracer buildGpuTracer(const std::string& name, const Frame& frame, const Tr
     b.tracer = std::move(q);
     return b;
   }
+  if (name == "hybrid") {
+    // Both halves on the GPU: the screen march over the hybrid's solid intervals (its pyramid
+    // built there), the GPU grid for the rest; the hybrid's decisions between them stay the
+    // CPU's (known_space.h), so the answers are the CPU hybrid's with --hybrid-geo grid.
+    HybridBuilders onGpu;
+    onGpu.pyramidScreen = [&](IntervalLayers solid, const PyramidConfig& pc, const HssrConfig& hc) {
+      BuiltTracer screen;
+      auto t = std::make_unique<GpuScreenTracer>(gpu, frame.camera, frame.layers, solid, pc, hc);
+      screen.buildMs = t->pyramid()->buildMs;
+      screen.memoryBytes = t->memoryBytes();
+      screen.tracer = std::move(t);
+      return screen;
+    };
+    onGpu.part = [&](const std::string& part) { return buildGpuTracer(part, frame, options, gpu); };
+    onGpu.geo = "grid";
+    return buildHybrid(frame, options, onGpu);
+  }
+  if (name == "grid") {
+    // The grid built by the CPU, its packed traversal structure uploaded once, walked there.
+    BuiltTracer cpu = buildTracer("grid", frame, options);
+    auto g = std::make_unique<GpuGridTracer>(gpu, frame.scene, frame.camera, *cpu.grid);
+    b.grid = std::move(cpu.grid);
+    b.buildMs = cpu.buildMs;
+    b.memoryBytes = g->memoryBytes();
+    b.tracer = std::move(g);
+    return b;
+  }
   if (name == "ldc") {
     // The cube built by the CPU (its three LDIs rasterized here), uploaded once, traced there.
     BuiltTracer cpu = buildTracer("ldc", frame, options);
@@ -148,8 +176,11 @@ void makeGpuCurrent(const GpuContext& gpu) { gpu.makeCurrent(); }
 void releaseGpu(const GpuContext& gpu) { gpu.release(); }
 
 double gpuTraceMs(const Tracer& tracer) {
+  if (const auto* h = dynamic_cast<const HybridTracer*>(&tracer))  // both halves' dispatches
+    return gpuTraceMs(h->screen()) + (dynamic_cast<const Tracer*>(&h->geometry()) ? gpuTraceMs(dynamic_cast<const Tracer&>(h->geometry())) : 0.0);
   if (const auto* q = dynamic_cast<const GpuQuadtreeTracer*>(&tracer)) return q->totalTraceMs();
   if (const auto* l = dynamic_cast<const GpuLdcTracer*>(&tracer)) return l->totalTraceMs();
+  if (const auto* g = dynamic_cast<const GpuGridTracer*>(&tracer)) return g->totalTraceMs();
   const auto* g = dynamic_cast<const GpuScreenTracer*>(&tracer);
   return g ? g->totalTraceMs() : 0.0;
 }

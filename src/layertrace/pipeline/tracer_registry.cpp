@@ -111,6 +111,23 @@ BuiltTracer buildGrid(const Frame& frame, const TracerOptions& o) {
 }
 
 BuiltTracer buildHybrid(const Frame& frame, const TracerOptions& o) {
+  HybridBuilders cpu;
+  cpu.pyramidScreen = [&](IntervalLayers solid, const PyramidConfig& pc, const HssrConfig& hc) {
+    BuiltTracer screen;
+    const auto start = std::chrono::steady_clock::now();
+    screen.pyramid = std::make_unique<IntervalPyramid>(buildIntervalPyramid(std::move(solid), frame.camera, pc));
+    screen.buildMs = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
+    screen.memoryBytes = screen.pyramid->memoryBytes();
+    screen.tracer = std::make_unique<HssrTracer>(frame.camera, frame.layers, *screen.pyramid, hc);
+    return screen;
+  };
+  cpu.part = [&](const std::string& name) { return buildTracer(name, frame, o); };
+  return buildHybrid(frame, o, cpu);
+}
+
+}  // namespace
+
+BuiltTracer buildHybrid(const Frame& frame, const TracerOptions& o, const HybridBuilders& build) {
   BuiltTracer b;
   validateHybridConfig(o.hybrid);
   // Triangles thinner than a pixel that cross pixels unstored end those pixels' knowledge; the
@@ -120,33 +137,31 @@ BuiltTracer buildHybrid(const Frame& frame, const TracerOptions& o) {
   const bool pyramidScreen = o.hybrid.screen == "hssr" || o.hybrid.screen == "hiz";
   if (pyramidScreen) {
     // HSSR or Hi-Z over the solid intervals: one march answers rule 3 and the surfaces.
-    BuiltTracer screen;
     const auto start = std::chrono::steady_clock::now();
     IntervalLayers solid = solidIntervals(frame.camera, coverage, kHybridLastThicknessPx);
+    const double solidMs = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
     const bool hiz = o.hybrid.screen == "hiz";
     const PyramidConfig pc = hiz ? PyramidConfig{o.pyramid.levels, std::numeric_limits<float>::infinity()} : o.pyramid;
-    screen.pyramid = std::make_unique<IntervalPyramid>(buildIntervalPyramid(std::move(solid), frame.camera, pc));
-    screen.buildMs = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
-    screen.memoryBytes = screen.pyramid->memoryBytes();
     HssrConfig hc = hiz ? hizConfig(o.pyramid.levels) : o.hssr;
     hc.maxLevels = o.pyramid.levels;
-    screen.tracer = std::make_unique<HssrTracer>(frame.camera, frame.layers, *screen.pyramid, hc);
-    b.parts.push_back(std::move(screen));
+    b.parts.push_back(build.pyramidScreen(std::move(solid), pc, hc));
+    b.parts.back().buildMs += solidMs;
   } else {
-    b.parts.push_back(buildTracer(o.hybrid.screen, frame, o));
+    b.parts.push_back(build.part(o.hybrid.screen));
   }
   // embree-robust: Embree with RTC_SCENE_FLAG_ROBUST, the reference `compare` grades against
   // (watertight at shared edges and vertices, where plain Embree lets rays through: on a closed
   // sphere, 8–13 % of rays aimed exactly at its vertices and edge points). Every answer the
   // hybrid returns comes from its geometric half, so with it the hybrid answers as the
   // reference does, at the robust kernels' cost.
-  const bool robust = o.hybrid.geo == "embree-robust";
-  b.parts.push_back(robust ? buildReference(frame) : buildTracer(o.hybrid.geo, frame, o));
+  const std::string geoName = build.geo.empty() ? o.hybrid.geo : build.geo;
+  const bool robust = geoName == "embree-robust";
+  b.parts.push_back(robust ? buildReference(frame) : build.part(geoName));
   // Embree as the geometric half traces closest hits in 16-wide packets: the hybrid hands it
   // whole batches (windows, then remainders) of rays from neighbouring pixels, and the answers
   // are Embree's bit for bit (TraceInterface.EmbreePacketsAnswerAsSingleRays). Measured on
   // FZK-Haus / engine one-bounce reflections: windows 1.5–2.2×, remainders 1.4–1.6× faster.
-  if (o.hybrid.geo == "embree" || robust)
+  if (geoName == "embree" || robust)
     b.parts.back().tracer = std::make_unique<EmbreePacketTracer>(frame.scene, frame.camera, *b.parts.back().embree);
   // The layered depth cube knows the whole scene box (the hybrid does not ask the camera's
   // known space, so only its cheap frustum part is built).
@@ -168,7 +183,6 @@ BuiltTracer buildHybrid(const Frame& frame, const TracerOptions& o) {
   return b;
 }
 
-}  // namespace
 
 std::span<const TracerParam> tracerParams() {
   static const std::vector<TracerParam> params = [] {

@@ -125,6 +125,19 @@ struct BuiltTracer {
 /// Builds the registry's tracer `name` for `frame`; InputError for an unknown name.
 BuiltTracer buildTracer(const std::string& name, const Frame& frame, const TracerOptions& options);
 
+/// How the hybrid's halves are made: on the CPU by buildTracer, on the GPU by the GPU tracers
+/// (gpu_tracers.h). Its decisions (known_space.h) are the same either way.
+struct HybridBuilders {
+  /// HSSR or Hi-Z over the hybrid's solid intervals (known_space.h solidIntervals).
+  std::function<BuiltTracer(IntervalLayers solid, const PyramidConfig& pyramid, const HssrConfig& march)> pyramidScreen;
+  /// Another screen half (quadtree, ldc) or the geometric half, by its registry name.
+  std::function<BuiltTracer(const std::string& name)> part;
+  /// The geometric half's name in place of --hybrid-geo (empty: the option's).
+  std::string geo;
+};
+/// The hybrid of `options.hybrid` with halves made by `build`.
+BuiltTracer buildHybrid(const Frame& frame, const TracerOptions& options, const HybridBuilders& build);
+
 /// The geometric ground truth of classification: Embree in robust (watertight) mode. The
 /// "embree" tracer of buildTracer is the fast baseline (default scene flags) that speed claims
 /// are measured against.

@@ -1,0 +1,158 @@
+#include "layertrace/gpu/gpu_grid.h"
+
+#include <algorithm>
+#include <atomic>
+#include <vector>
+
+#include <epoxy/gl.h>
+
+#include "layertrace/gpu/shader_sources.h"
+#include "layertrace/util/default_init.h"
+#include "layertrace/util/error.h"
+#include "layertrace/util/parallel.h"
+
+namespace lt {
+
+namespace {
+/// shaders/grid_march.comp's query and answer, std430.
+struct QueryRecord {
+  float origin[3], tnear;
+  float dir[3], tfar;
+};
+struct AnswerRecord {
+  float t;
+  uint32_t triangle, steps, tests;
+  float ng[3];
+  uint32_t flags;  ///< 1: a step cap ended the walk; 2: undecided (an alpha-tested candidate)
+};
+static_assert(sizeof(QueryRecord) == 32 && sizeof(AnswerRecord) == 32);
+constexpr uint32_t kMiss = 0xFFFFFFFFu;
+}  // namespace
+
+GpuGridTracer::GpuGridTracer(GpuContext& gpu, const Scene& scene, const Camera& camera, const IrregularGrid& grid)
+    : gpu_(gpu), hits_(scene, camera), grid_(grid) {
+  const IrregularGrid::Packed p = grid.packed();
+  if (p.walk.size() / 4 > size_t(UINT32_MAX) - 64 || p.leaves.size() > size_t(UINT32_MAX))
+    inputError("the irregular grid: ", p.walk.size(), " bytes of cells exceed the GPU traversal's 32-bit word index");
+  gpu_.makeCurrent();
+  topCells_ = GpuBuffer(std::max<size_t>(p.topCells.size(), 16), p.topCells.data());
+  leaves_ = GpuBuffer(std::max<size_t>(p.leaves.size_bytes(), 16), p.leaves.data());
+  walk_ = GpuBuffer(std::max<size_t>(p.walk.size(), 16), p.walk.data());
+  if (grid.hasCutOuts()) {
+    std::vector<uint32_t> bits((scene.triangleCount() + 31) / 32, 0u);
+    for (uint32_t t = 0; t < scene.triangleCount(); ++t)
+      if (scene.cutOut(t)) bits[t / 32] |= 1u << (t % 32);
+    cutOuts_ = GpuBuffer(std::max<size_t>(bits.size() * sizeof(uint32_t), 16), bits.data());
+  }
+  timer_ = std::make_unique<GpuTimer>();
+}
+
+GpuGridTracer::~GpuGridTracer() {
+  gpu_.makeCurrent();  // the buffers go with the context current
+}
+
+size_t GpuGridTracer::memoryBytes() const { return topCells_.bytes() + leaves_.bytes() + walk_.bytes(); }
+
+void GpuGridTracer::query(std::span<const Ray> rays, std::span<const float> from, bool anyHit, std::span<GeoHit> hits,
+                          std::span<RayCounters> counters) const {
+  if (rays.empty()) return;
+  gpu_.makeCurrent();
+  GpuDebugGroup group("grid march");
+  // World-space queries from each ray's segment start, as GeometricTracer::query makes them.
+  const Camera& cam = hits_.camera();
+  PoolVector<QueryRecord> records(rays.size());
+  parallelFor(size_t(0), rays.size(), [&](size_t i) {
+    const Ray& r = rays[i];
+    const glm::vec3 o = cam.toWorld(r.origin), d = cam.dirToWorld(r.dir);
+    const float tnear = segmentStart(startOf(from, i), hits_.originOffset(r), o);
+    records[i] = {{o.x, o.y, o.z}, tnear, {d.x, d.y, d.z}, r.maxDistance};
+  });
+  const size_t queryBytes = records.size() * sizeof(QueryRecord), answerBytes = rays.size() * sizeof(AnswerRecord);
+  // (the batch's ray buffer holds camera-space rays; the world-space queries go in its answer
+  // slot 1, the answers in slot 0)
+  const GpuBuffer& queries = batch_.answers(1, queryBytes);
+  const GpuBuffer& out = batch_.answers(0, answerBytes);
+  queries.write(records.data(), queryBytes);
+  const GpuProgram& prog = gpu_.computeProgram("grid_march.comp", shader_source::grid_march_comp);
+  queries.bindStorage(0);
+  out.bindStorage(1);
+  topCells_.bindStorage(2);
+  leaves_.bindStorage(3);
+  walk_.bindStorage(4);
+  if (cutOuts_.id()) cutOuts_.bindStorage(5);
+  const glm::vec3 lo = grid_.origin(), hi = grid_.boxMax(), voxel = grid_.voxelSize(), invVoxel = grid_.inverseVoxelSize();
+  const int top[3] = {grid_.topResolution(0), grid_.topResolution(1), grid_.topResolution(2)};
+  const int virt[3] = {grid_.virtualResolution(0), grid_.virtualResolution(1), grid_.virtualResolution(2)};
+  prog.set("uQueryCount", int(rays.size()));
+  prog.setVec3("uLo", &lo.x);
+  prog.setVec3("uHi", &hi.x);
+  prog.setVec3("uVoxel", &voxel.x);
+  prog.setVec3("uInvVoxel", &invVoxel.x);
+  prog.setIvec3("uTop", top);
+  prog.setIvec3("uVirt", virt);
+  prog.set("uDepth", grid_.depth());
+  prog.set("uAnyHit", int(anyHit));
+  prog.set("uCutOuts", int(cutOuts_.id() != 0));
+  timer_->begin();
+  gpu_.dispatch(prog, rays.size());
+  timer_->end();
+  PoolVector<AnswerRecord> answers(rays.size());
+  out.read(answers.data(), answerBytes);
+  totalTraceMs_ += timer_->ms();
+  glUseProgram(0);
+  std::atomic<uint64_t> undecided{0};
+  parallelFor(size_t(0), rays.size(), [&](size_t i) {
+    const AnswerRecord& a = answers[i];
+    TraversalCounts n{a.steps, a.tests, a.flags & 1u};
+    GeoHit g;
+    if (a.flags & 2u) {
+      // A candidate on an alpha-tested triangle: the CPU grid answers the ray (its one-ray
+      // traversal, the same walk with the texture test).
+      const QueryRecord& q = records[i];
+      const glm::vec3 o{q.origin[0], q.origin[1], q.origin[2]}, d{q.dir[0], q.dir[1], q.dir[2]};
+      n = {};
+      if (anyHit) g.triangle = grid_.occluded(o, d, q.tnear, q.tfar, &n) ? 0u : kMiss;
+      else g = grid_.intersect(o, d, q.tnear, q.tfar, &n);
+      undecided.fetch_add(1, std::memory_order_relaxed);
+    } else if (a.triangle != kMiss) {
+      g.t = a.t, g.triangle = a.triangle, g.ng = {a.ng[0], a.ng[1], a.ng[2]};
+    }
+    hits[i] = g;
+    if (counters.empty() || !kCountersCompiled) return;
+    counters[i].addIterations(std::max(n.steps, 1u));
+    if (n.giveUps) counters[i].giveUp();
+  });
+  cpuAnswered_ += undecided.load();
+}
+
+TraceHit GpuGridTracer::trace(const Ray& ray, RayCounters& counters) const {
+  TraceHit hit;
+  traceBatch(std::span<const Ray>(&ray, 1), std::span<TraceHit>(&hit, 1), std::span<RayCounters>(&counters, 1));
+  return hit;
+}
+
+void GpuGridTracer::traceBatch(std::span<const Ray> rays, std::span<TraceHit> hits, std::span<RayCounters> counters) const {
+  PoolVector<GeoHit> g(rays.size());
+  query(rays, {}, false, g, counters);
+  parallelFor(size_t(0), rays.size(), [&](size_t i) { hits[i] = hits_.makeHit(rays[i], g[i]); });
+}
+
+void GpuGridTracer::occludedBatch(std::span<const Ray> rays, std::span<TraceHit> hits, std::span<RayCounters> counters) const {
+  PoolVector<GeoHit> g(rays.size());
+  query(rays, {}, true, g, counters);
+  for (size_t i = 0; i < rays.size(); ++i) hits[i] = GeometricHits::occludedHit(g[i].hit());
+}
+
+void GpuGridTracer::intersectSegments(std::span<const Ray> rays, std::span<const float> from, std::span<GeoHit> hits,
+                                      std::span<RayCounters> counters) const {
+  query(rays, from, false, hits, counters);
+}
+
+void GpuGridTracer::occludedSegments(std::span<const Ray> rays, std::span<const float> from, std::span<uint8_t> blocked,
+                                     std::span<RayCounters> counters) const {
+  PoolVector<GeoHit> g(rays.size());
+  query(rays, from, true, g, counters);
+  for (size_t i = 0; i < rays.size(); ++i) blocked[i] = g[i].hit() ? 1 : 0;
+}
+
+}  // namespace lt
