@@ -199,7 +199,7 @@ void finishFrameOptions(lt::RunOptions& run, const RawFrameOptions& raw) {
 /// --device: where the tracers run.
 void addDeviceOption(CLI::App* cmd, lt::RunOptions& run) {
   cmd->add_option("--device", run.device,
-                  "where the tracers run: cpu, or gpu (OpenGL 4.5 compute shaders through headless EGL; ssr, ssr-layers, hiz, hssr, quadtree, ldc)")
+                  "where the tracers run: cpu, or gpu (OpenGL 4.5 compute shaders through headless EGL; every tracer but embree and embree-robust)")
       ->capture_default_str()
       ->check(CLI::IsMember({"cpu", "gpu"}));
 }
