@@ -4,8 +4,9 @@
 # tree). It writes OUT/gpu-bench.json and OUT/gpu-bench.md:
 #   - every stage (raster, sort, hierarchy, trace, shade; GL timer queries) of ssr (stride 1 and 4),
 #     ssr-layers, hiz, hssr, the quad-tree (built and traced on the GPU, beside HSSR), the layered
-#     depth cube and hssr with persistent threads, with plain Embree on the CPU over the same rays,
-#     iterations per ray and memory, at 1280×720, 1920×1080 and 3840×2160, k = 4,
+#     depth cube, the grid and the hybrid (traced on the GPU) and hssr with persistent threads, with
+#     plain Embree on the CPU over the same rays (trace_vs_embree), iterations per ray and memory,
+#     at 1280×720, 1920×1080 and 3840×2160, k = 4,
 #     on the default scene and two fetched real scenes;
 #   - per-pixel lists against depth peeling for k = 1…8 at 1280×720 (Hofmann et al. 2017, Fig. 8);
 #   - the resident frame (bench --experiment frame): GPU_BENCH_FRAMES (default 30) frames of HSSR

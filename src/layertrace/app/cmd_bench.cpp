@@ -507,7 +507,7 @@ int runBench(const BenchOptions& o) {
     // on the device (shade_device "gpu"; render/effects.h EffectConfig::shadeOnDevice).
     t.columns = {"device", "tracer", "stride", "persistent", "raster_ms", "sort_ms", "hierarchy_ms", "trace_ms", "shade_ms", "shade_device", "iterations_mean",
                  "memory_bytes", "effect_bytes", "embree_trace_ms", "trace_vs_embree"};
-    Progress p(o.run.quiet, e, gpu ? 10 : 9);
+    Progress p(o.run.quiet, e, gpu ? 12 : 11);
     p.step("capture");
     std::vector<double> rs, ss;
     auto capture = [&] {
@@ -527,7 +527,7 @@ int runBench(const BenchOptions& o) {
       bool persistent;
     };
     std::vector<Run> runs = {{"ssr", 1.0f, false}, {"ssr", 4.0f, false}, {"ssr-layers", 1.0f, false}, {"hiz", 1.0f, false}, {"hssr", 1.0f, false},
-                             {"quadtree", 1.0f, false}, {"ldc", 1.0f, false}};
+                             {"quadtree", 1.0f, false}, {"ldc", 1.0f, false}, {"grid", 1.0f, false}, {"hybrid", 1.0f, false}};
     // Hofmann et al. 2017, §5.3 and Fig. 7: HSSR with persistent threads reloading rays.
     if (gpu) runs.push_back({"hssr", 1.0f, true});
     for (const auto& [name, stride, persistent] : runs) {
