@@ -304,8 +304,9 @@ TEST(TraceInterface, SourceTreeKeepsTheLayering) {
       {"util", 0},     {"scene", 1},    {"raster", 2}, {"trace", 3},  {"screen", 4}, {"geometry", 4}, {"ssr", 5},
       {"hssr", 5},     {"quadtree", 5}, {"ldc", 5},    {"grid", 5},   {"hiz", 6},    {"hybrid", 7},   {"gpu", 7},      {"pipeline", 8},
       {"render", 9},   {"eval", 10},    {"api", 11},   {"app", 12}};
-  // Image space answers from stored fragments only; geometry answers from triangles only.
-  const std::set<std::string> imageSpace = {"screen", "ssr", "hssr", "hiz", "quadtree", "ldc", "gpu"}, geometric = {"geometry", "grid"};
+  // Image space answers from stored fragments only; geometry answers from triangles only. gpu/
+  // holds the GPU twins of both kinds (above both, as hybrid/ composes both).
+  const std::set<std::string> imageSpace = {"screen", "ssr", "hssr", "hiz", "quadtree", "ldc"}, geometric = {"geometry", "grid"};
   const std::string include = "#include \"layertrace/";
   const std::filesystem::path root = std::filesystem::path(test::sourceDir()) / "src/layertrace";
   size_t files = 0;
