@@ -310,19 +310,25 @@ TEST(Grid, FlatScenesAwayFromTheOriginAgreeWithEmbree) {
   }
 }
 
+/// `boxes` random small boxes over `side` × 0.2 × `side` units: a flat scene.
+Scene flatSlab(int boxes, float side, uint32_t seed) {
+  Scene s;
+  std::mt19937 rng(seed);
+  std::uniform_real_distribution<float> u(0.0f, 1.0f);
+  for (int i = 0; i < boxes; ++i) {
+    const glm::vec3 lo(side * u(rng), 0.2f * u(rng), side * u(rng));
+    s.append(makeBox(lo, lo + glm::vec3(0.05f + 0.1f * u(rng))));
+  }
+  s.finalize("slab");
+  return s;
+}
+
 /// A flat scene: the top cells are not cubes (one cell high), and each axis is subdivided to its own
 /// depth (irregular_grid.h; Pérard-Gayot et al. 2017's cubic octree cut the short axis as finely as
 /// the long ones). The leaves are then not cubic in voxels, there are fewer of them, and every
 /// voxel still maps to the cell that contains it; the grid agrees with Embree.
 TEST(Grid, FlatSlabIsSubdividedPerAxisAndAgreesWithEmbree) {
-  Scene s;
-  std::mt19937 rng(5);
-  std::uniform_real_distribution<float> u(0.0f, 1.0f);
-  for (int i = 0; i < 3000; ++i) {
-    const glm::vec3 lo(20.0f * u(rng), 0.2f * u(rng), 20.0f * u(rng));
-    s.append(makeBox(lo, lo + glm::vec3(0.05f + 0.1f * u(rng))));
-  }
-  s.finalize("slab");
+  const Scene s = flatSlab(3000, 20.0f, 5);
   GridConfig initial;  // the cells as subdivided, before merging
   initial.merge = false;
   const IrregularGrid grid(s, initial);
@@ -356,14 +362,7 @@ TEST(Grid, FlatSlabIsSubdividedPerAxisAndAgreesWithEmbree) {
 /// flat slab its leaves are cubes of voxels, there are more of them than with a depth per axis,
 /// the depth is the per-axis build's deepest, and the answers are Embree's.
 TEST(Grid, OneDepthPerCellCutsEveryAxisAlikeAndAgreesWithEmbree) {
-  Scene s;
-  std::mt19937 rng(6);
-  std::uniform_real_distribution<float> u(0.0f, 1.0f);
-  for (int i = 0; i < 800; ++i) {
-    const glm::vec3 lo(10.0f * u(rng), 0.2f * u(rng), 10.0f * u(rng));
-    s.append(makeBox(lo, lo + glm::vec3(0.05f + 0.1f * u(rng))));
-  }
-  s.finalize("slab");
+  const Scene s = flatSlab(800, 10.0f, 6);
   GridConfig perAxis;
   perAxis.merge = false;
   GridConfig cubic = perAxis;

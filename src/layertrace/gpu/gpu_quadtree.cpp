@@ -17,17 +17,12 @@ namespace lt {
 
 namespace {
 
-/// shaders/ray_io.glsl GpuHit and the march's extra answer, std430.
-struct HitRecord {
-  int32_t x, y, layer;
-  uint32_t iterations, intervals, pixels, giveUps, fragments;
-  uint32_t levelIterations[8];
-};
+/// The march's extra answer, std430 (beside its GpuMarchRecord).
 struct ExtraRecord {
   float s;
   uint32_t planes, boxes, occlusions;
 };
-static_assert(sizeof(HitRecord) == 64 && sizeof(ExtraRecord) == 16 && sizeof(QuadNode) == 16);
+static_assert(sizeof(ExtraRecord) == 16 && sizeof(QuadNode) == 16);
 
 }  // namespace
 
@@ -150,7 +145,7 @@ void GpuQuadtreeTracer::traceBatch(std::span<const Ray> rays, std::span<TraceHit
   gpu_.makeCurrent();
   GpuDebugGroup group("quadtree march");
   batch_.upload(rays);
-  const size_t hitBytes = rays.size() * sizeof(HitRecord), extraBytes = rays.size() * sizeof(ExtraRecord);
+  const size_t hitBytes = rays.size() * sizeof(GpuMarchRecord), extraBytes = rays.size() * sizeof(ExtraRecord);
   const GpuBuffer& hitsOut = batch_.answers(0, hitBytes);
   const GpuBuffer& extraOut = batch_.answers(1, extraBytes);
   const bool counted = !counters.empty();
@@ -174,14 +169,14 @@ void GpuQuadtreeTracer::traceBatch(std::span<const Ray> rays, std::span<TraceHit
   timer_->begin();
   gpu_.dispatch(p, rays.size());
   timer_->end();
-  PoolVector<HitRecord> answers(rays.size());
+  PoolVector<GpuMarchRecord> answers(rays.size());
   PoolVector<ExtraRecord> extra(rays.size());
   hitsOut.read(answers.data(), hitBytes);
   extraOut.read(extra.data(), extraBytes);
   totalTraceMs_ += timer_->ms();
   glUseProgram(0);
   parallelFor(size_t(0), rays.size(), [&](size_t i) {
-    const HitRecord& a = answers[i];
+    const GpuMarchRecord& a = answers[i];
     if (a.layer < 0) {
       hits[i] = TraceHit{};
     } else {

@@ -12,6 +12,15 @@
 
 namespace lt {
 
+/// shaders/ray_io.glsl GpuHit, std430: the hit fragment (layer −1: a miss) and the march's
+/// counters.
+struct GpuMarchRecord {
+  int32_t x, y, layer;
+  uint32_t iterations, intervals, pixels, giveUps, fragments;
+  uint32_t levelIterations[8];
+};
+static_assert(sizeof(GpuMarchRecord) == 64 && RayCounters::kLevels == 8, "the shaders count 8 levels");
+
 class GpuRayBatch {
  public:
   static constexpr int kAnswerBuffers = 2;

@@ -18,14 +18,6 @@ namespace lt {
 
 namespace {
 
-/// shaders/ray_io.glsl GpuHit, std430.
-struct HitRecord {
-  int32_t x, y, layer;
-  uint32_t iterations, intervals, pixels, giveUps, fragments;
-  uint32_t levelIterations[8];
-};
-static_assert(sizeof(HitRecord) == 64);
-static_assert(RayCounters::kLevels == 8, "the shaders count 8 levels");
 
 constexpr size_t kGroupSize = 64;  ///< local_size_x of the march shaders
 constexpr const char* kNoCounters = "#define LT_NO_COUNTERS 1\n";  ///< the timed variant (screen_common.glsl writeHit)
@@ -181,18 +173,18 @@ void GpuScreenTracer::march(std::span<const Ray> rays, std::vector<GpuMarchHit>&
   LT_CHECK(layers_ != nullptr, name_);  // a resident tracer answers marchResident only
   gpu_.makeCurrent();
   batch_.upload(rays);
-  const size_t hitBytes = rays.size() * sizeof(HitRecord);
+  const size_t hitBytes = rays.size() * sizeof(GpuMarchRecord);
   const GpuBuffer& hits = batch_.answers(0, hitBytes);
   timer_->begin();
   marchResident(batch_.rays(), hits, rays.size());
   timer_->end();
-  PoolVector<HitRecord> answers(rays.size());
+  PoolVector<GpuMarchRecord> answers(rays.size());
   hits.read(answers.data(), hitBytes);
   lastTraceMs_ = timer_->ms();
   totalTraceMs_ += lastTraceMs_;
   glUseProgram(0);
   parallelFor(size_t(0), rays.size(), [&](size_t i) {
-    const HitRecord& a = answers[i];
+    const GpuMarchRecord& a = answers[i];
     GpuMarchHit& h = out[i];
     h.counters = RayCounters{};
     h.x = a.x, h.y = a.y, h.layer = a.layer;
