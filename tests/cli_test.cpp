@@ -1008,6 +1008,15 @@ TEST(CliGpu, CompareReportsTheAgreementOfTheSameRaysOnBothDevices) {
     }
   }
   EXPECT_FALSE(j["compare"]["embree"].contains("gpu_agreement"));  // no GPU version
+  // Any-hit rays (AO) are asked as any-hit queries on the GPU too: a geometric tracer's any-hit
+  // answer names no pixel, its closest-hit answer does.
+  ASSERT_NO_FATAL_FAILURE(expectRuns("compare " + kDefault + " --width 160 --height 90 --quiet --device gpu --effect ao --ao-samples 2 "
+                                     "--tracers grid,ldc,hssr -o " + (dir / "ao")));
+  const auto ao = readJson(dir / "ao/compare.json");
+  for (const char* t : {"grid", "ldc", "hssr"}) {
+    EXPECT_EQ(ao["compare"][t]["gpu_agreement"].get<double>(), 1.0) << t;
+    EXPECT_EQ(ao["compare"][t]["gpu_iterations_mean"], ao["compare"][t]["iterations_mean"]) << t;
+  }
 }
 
 TEST(CliGpu, LayersCapturedOnTheGpuAreVerifiedAgainstEmbreeAndTheCpu) {

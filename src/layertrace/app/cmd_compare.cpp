@@ -25,41 +25,52 @@ namespace {
 
 /// Every ray a pass traced, with the answer (screen tracers: the hit fragment), for tracing the
 /// same rays again on the GPU.
+/// Every traced ray with its answer and its query (closest or any hit), from every thread.
+struct RecordedRay {
+  Ray ray;
+  TraceHit hit;
+  Query query;
+};
 class RayRecorder : public RayObserver {
  public:
   void observe(std::span<const RayEvent> events) override {
     auto& mine = perThread_.local();
-    for (const RayEvent& e : events) mine.emplace_back(*e.ray, *e.hit);
+    for (const RayEvent& e : events) mine.push_back({*e.ray, *e.hit, e.query});
   }
-  std::vector<std::pair<Ray, TraceHit>> take() {
-    std::vector<std::pair<Ray, TraceHit>> all;
+  std::vector<RecordedRay> take() {
+    std::vector<RecordedRay> all;
     for (auto& v : perThread_) all.insert(all.end(), v.begin(), v.end()), v.clear();
     return all;
   }
 
  private:
-  tbb::enumerable_thread_specific<std::vector<std::pair<Ray, TraceHit>>> perThread_;
+  tbb::enumerable_thread_specific<std::vector<RecordedRay>> perThread_;
 };
 
-/// The GPU version of tracer `name` on the rays `recorded` traced on the CPU: the share whose
-/// answer is the same fragment (or a miss on both), the GPU time, the mean iterations per ray.
+/// The GPU version of tracer `name` on the rays `recorded` traced on the CPU, each asked as the
+/// CPU asked it (closest or any hit): the share whose answer is the same fragment (or a miss on
+/// both), the GPU time, the mean iterations per ray.
 nlohmann::json gpuAgreement(const std::string& name, const Frame& frame, const TracerOptions& options, GpuContext& gpu,
-                            const std::vector<std::pair<Ray, TraceHit>>& recorded) {
+                            const std::vector<RecordedRay>& recorded) {
   const BuiltTracer built = buildGpuTracer(name, frame, options, gpu);
-  std::vector<Ray> rays(recorded.size());
-  for (size_t i = 0; i < recorded.size(); ++i) rays[i] = recorded[i].first;
-  std::vector<TraceHit> hits(rays.size());
-  std::vector<RayCounters> counters(rays.size());
-  built.tracer->query(Query::Closest, rays, hits, counters);
   uint64_t same = 0, iterations = 0;
-  for (size_t i = 0; i < rays.size(); ++i) {
-    const TraceHit& c = recorded[i].second;
-    const TraceHit& g = hits[i];
-    same += c.hit ? g.hit && g.x == c.x && g.y == c.y && g.layer == c.layer : !g.hit;
-    iterations += counters[i].iterations;
+  for (const Query q : {Query::Closest, Query::Any}) {
+    std::vector<Ray> rays;
+    std::vector<const TraceHit*> want;
+    for (const RecordedRay& r : recorded)
+      if (r.query == q) rays.push_back(r.ray), want.push_back(&r.hit);
+    std::vector<TraceHit> hits(rays.size());
+    std::vector<RayCounters> counters(rays.size());
+    built.tracer->query(q, rays, hits, counters);
+    for (size_t i = 0; i < rays.size(); ++i) {
+      const TraceHit& c = *want[i];
+      const TraceHit& g = hits[i];
+      same += c.hit ? g.hit && g.x == c.x && g.y == c.y && g.layer == c.layer : !g.hit;
+      iterations += counters[i].iterations;
+    }
   }
-  const double n = double(std::max<size_t>(rays.size(), 1));
-  return {{"agreement", rays.empty() ? 1.0 : double(same) / n},
+  const double n = double(std::max<size_t>(recorded.size(), 1));
+  return {{"agreement", recorded.empty() ? 1.0 : double(same) / n},
           {"trace_ms", gpuTraceMs(*built.tracer)},
           {"iterations_mean", double(iterations) / n},
           {"memory_bytes", built.memoryBytes}};
