@@ -9,6 +9,8 @@
 #     at 1280×720, 1920×1080 and 3840×2160, k = 4,
 #     on the default scene and two fetched real scenes;
 #   - per-pixel lists against depth peeling for k = 1…8 at 1280×720 (Hofmann et al. 2017, Fig. 8);
+#   - the irregular grid walked on the GPU (geobench --device gpu at the first size): MRays/s of
+#     primary, AO and diffuse rays against plain Embree on the CPU and the grid on the CPU;
 #   - the resident frame (bench --experiment frame): GPU_BENCH_FRAMES (default 30) frames of HSSR
 #     reflections along an orbit at each size, wall against GPU milliseconds per frame, and what
 #     each frame moved over the bus and waited for.
@@ -36,6 +38,7 @@ sizes=${GPU_BENCH_SIZES:-"1280x720 1920x1080 3840x2160"}
 first=${sizes%% *}
 start=$SECONDS
 runs=()
+geo=()
 for scene in default fzk-haus am-thornish; do
   for size in $sizes; do
     dir="$out/$scene-$size"
@@ -47,6 +50,10 @@ for scene in default fzk-haus am-thornish; do
         --width "${size%x*}" --height "${size#*x}" --quiet -o "$dir" || { echo "gpu-bench: $scene frame $size failed" >&2; exit 1; }
     runs+=("$dir/frame.json")
   done
+  dir="$out/$scene-geobench"
+  "$bin" geobench "$here/scenes/$scene.json" --device gpu --repeat 5 --width "${first%x*}" --height "${first#*x}" --quiet -o "$dir" ||
+      { echo "gpu-bench: $scene geobench failed" >&2; exit 1; }
+  geo+=("$dir/geobench.json")
   dir="$out/$scene-peel"
   "$bin" bench "$here/scenes/$scene.json" --experiment peel --device gpu --repeat 5 --width "${first%x*}" --height "${first#*x}" --quiet -o "$dir" ||
       { echo "gpu-bench: $scene peel failed" >&2; exit 1; }
@@ -56,7 +63,7 @@ done
 {
   echo "["
   first=1
-  for f in "${runs[@]}"; do [ $first -eq 1 ] || echo ","; first=0; cat "$f"; done
+  for f in "${runs[@]}" "${geo[@]}"; do [ $first -eq 1 ] || echo ","; first=0; cat "$f"; done
   echo "]"
 } > "$out/gpu-bench.json"
 {
@@ -79,6 +86,22 @@ done
         echo "summary (median of the frames after the first): $(python3 -c 'import json,sys; print(json.dumps(json.load(open(sys.argv[1]))["summary"]))' "$f" 2>/dev/null || grep -o '"summary": {[^}]*}' "$f")"
         ;;
     esac
+  done
+  # The grid on the GPU (the CPU's structure, uploaded) against Embree and the grid on the CPU.
+  for f in "${geo[@]}"; do
+    echo
+    echo "## $(basename "$(dirname "$f")")"
+    echo
+    python3 - "$f" <<'PY' 2>/dev/null || grep -o '"grid_gpu": {[^}]*}' "$f"
+import json, sys
+g = json.load(open(sys.argv[1]))["geobench"]
+print("| tracer | build ms | MiB | MRays/s primary | ao | diffuse | agreement with plain Embree (worst) |")
+print("|---|---|---|---|---|---|---|")
+for t in ("embree", "grid", "grid_gpu"):
+    r = g[t]
+    worst = min(r["agreement_" + s] for s in ("primary", "ao", "diffuse"))
+    print(f"| {t} | {r['build_ms']:.1f} | {r['memory_bytes'] / 1048576:.1f} | {r['mrays_primary']:.2f} | {r['mrays_ao']:.2f} | {r['mrays_diffuse']:.2f} | {worst:.6f} |")
+PY
   done
 } > "$out/gpu-bench.md"
 echo "gpu-bench: wrote $out/gpu-bench.json and $out/gpu-bench.md in $((SECONDS - start)) s"

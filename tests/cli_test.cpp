@@ -1141,6 +1141,18 @@ TEST(CliGpu, BenchReportsEveryStageOnBothDevicesAndListsAgainstPeeling) {
   EXPECT_LT(p[0]["peel_bytes"].get<double>(), p[7]["peel_bytes"].get<double>());  // peeling's memory grows with k
 }
 
+TEST(CliGpu, GeobenchWalksTheGridOnTheGpuAsOnTheCpu) {
+  if (!gpuBuilt()) GTEST_SKIP() << "built without the GPU back end";
+  test::TempDir dir;
+  ASSERT_NO_FATAL_FAILURE(expectRuns("geobench " + kDefault + " --device gpu --width 96 --height 54 --repeat 1 --quiet -o " + (dir / "g")));
+  const auto g = readJson(dir / "g/geobench.json")["geobench"]["grid_gpu"];
+  for (const char* set : {"primary", "ao", "diffuse"}) {
+    EXPECT_EQ(g[std::string("agreement_cpu_grid_") + set].get<double>(), 1.0) << set;  // the CPU grid's answers
+    EXPECT_GT(g[std::string("mrays_") + set].get<double>(), 0.0) << set;
+  }
+  EXPECT_EQ(g["build"], "cpu");
+}
+
 TEST(CliGpu, NoDeviceOrNoGpuVersionIsOneLineStatusTwo) {
   test::TempDir dir;
   expectRejected({"render " + kDefault + " --tracer embree --device gpu", "embree"}, dir);

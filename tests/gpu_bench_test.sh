@@ -15,8 +15,14 @@ peel=$(awk '/^## /{inpeel = /-peel$/} inpeel && /^\| [1-8] \|/' "$md" | wc -l)
 grep -q '"experiment": "peel"' "$work/out/gpu-bench.json" || { echo "FAIL: no peel run in the JSON"; exit 1; }
 frames=$(grep -c '^summary (median' "$md")
 [ "$frames" -eq 3 ] || { echo "FAIL: $frames frame summaries (want one per scene)"; exit 1; }
+for t in quadtree ldc grid hybrid; do
+  n=$(grep -c "^| gpu | $t |" "$md")
+  [ "$n" -eq 3 ] || { echo "FAIL: $n $t rows (want one per scene)"; exit 1; }
+done
+geo=$(grep -c '^| grid_gpu |' "$md")
+[ "$geo" -eq 3 ] || { echo "FAIL: $geo GPU grid rows (want one per scene)"; exit 1; }
 err=$(__EGL_VENDOR_LIBRARY_FILENAMES=/nonexistent.json "$src/scripts/gpu-bench.sh" "$work/none" 2>&1 >/dev/null)
 status=$?
 [ $status -eq 2 ] || { echo "FAIL: without a device the status is $status"; exit 1; }
 [ "$(printf '%s\n' "$err" | wc -l)" -eq 1 ] || { echo "FAIL: without a device: $err"; exit 1; }
-echo "ok: $rows hssr rows, $peel peel rows, $frames frame runs; without a device: $err"
+echo "ok: $rows hssr rows, $peel peel rows, $frames frame runs, $geo GPU grid runs; without a device: $err"

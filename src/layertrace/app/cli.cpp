@@ -341,6 +341,7 @@ int runCliImpl(int argc, const char* const* argv, CliMode mode, CliCommand* pars
   CLI::App* geobenchCmd = app.add_subcommand("geobench", "geometric tracers (grid vs embree): build, memory, MRays/s, agreement");
   addFrameOptions(geobenchCmd, geobench.run, geobenchRaw, "output folder (default out/geobench; statistics in geobench.json)");
   addTracerOptions(geobenchCmd, geobench.tracers, {"grid"});
+  addDeviceOption(geobenchCmd, geobench.run);
   geobenchCmd->add_option("--repeat", geobench.repeat, "timed runs of each measured time; the median is reported")->capture_default_str();
   geobenchCmd->add_flag("--sweep", geobench.sweep, "also sweep lambda1 x lambda2: build time vs traversal time");
 

@@ -53,28 +53,45 @@ GpuGridTracer::~GpuGridTracer() {
 
 size_t GpuGridTracer::memoryBytes() const { return topCells_.bytes() + leaves_.bytes() + walk_.bytes(); }
 
-void GpuGridTracer::query(std::span<const Ray> rays, std::span<const float> from, bool anyHit, std::span<GeoHit> hits,
-                          std::span<RayCounters> counters) const {
-  if (rays.empty()) return;
-  gpu_.makeCurrent();
-  GpuDebugGroup group("grid march");
+void GpuGridTracer::queryRays(std::span<const Ray> rays, std::span<const float> from, bool anyHit, std::span<GeoHit> hits,
+                              std::span<RayCounters> counters) const {
   // World-space queries from each ray's segment start, as GeometricTracer::query makes them.
   const Camera& cam = hits_.camera();
-  PoolVector<QueryRecord> records(rays.size());
+  PoolVector<IrregularGrid::Query> queries(rays.size());
   parallelFor(size_t(0), rays.size(), [&](size_t i) {
     const Ray& r = rays[i];
-    const glm::vec3 o = cam.toWorld(r.origin), d = cam.dirToWorld(r.dir);
-    const float tnear = segmentStart(startOf(from, i), hits_.originOffset(r), o);
-    records[i] = {{o.x, o.y, o.z}, tnear, {d.x, d.y, d.z}, r.maxDistance};
+    const glm::vec3 o = cam.toWorld(r.origin);
+    queries[i] = {o, cam.dirToWorld(r.dir), segmentStart(startOf(from, i), hits_.originOffset(r), o), r.maxDistance};
   });
-  const size_t queryBytes = records.size() * sizeof(QueryRecord), answerBytes = rays.size() * sizeof(AnswerRecord);
-  // (the batch's ray buffer holds camera-space rays; the world-space queries go in its answer
-  // slot 1, the answers in slot 0)
-  const GpuBuffer& queries = batch_.answers(1, queryBytes);
+  const bool counted = !counters.empty() && kCountersCompiled;
+  PoolVector<TraversalCounts> counts(counted ? rays.size() : 0);
+  query(queries, anyHit, hits, counts);
+  if (!counted) return;
+  for (size_t i = 0; i < rays.size(); ++i) {
+    counters[i].addIterations(std::max(counts[i].steps, 1u));
+    if (counts[i].giveUps) counters[i].giveUp();
+  }
+}
+
+void GpuGridTracer::query(std::span<const IrregularGrid::Query> queries, bool anyHit, std::span<GeoHit> hits,
+                          std::span<TraversalCounts> counts) const {
+  lastTraceMs_ = 0.0;
+  if (queries.empty()) return;
+  gpu_.makeCurrent();
+  GpuDebugGroup group("grid march");
+  PoolVector<QueryRecord> records(queries.size());
+  parallelFor(size_t(0), queries.size(), [&](size_t i) {
+    const IrregularGrid::Query& q = queries[i];
+    records[i] = {{q.origin.x, q.origin.y, q.origin.z}, q.tnear, {q.dir.x, q.dir.y, q.dir.z}, q.tfar};
+  });
+  const size_t queryBytes = records.size() * sizeof(QueryRecord), answerBytes = queries.size() * sizeof(AnswerRecord);
+  // (the batch's ray buffer is for camera-space rays: the world-space queries go in answer slot
+  // 1, the answers in slot 0)
+  const GpuBuffer& in = batch_.answers(1, queryBytes);
   const GpuBuffer& out = batch_.answers(0, answerBytes);
-  queries.write(records.data(), queryBytes);
+  in.write(records.data(), queryBytes);
   const GpuProgram& prog = gpu_.computeProgram("grid_march.comp", shader_source::grid_march_comp);
-  queries.bindStorage(0);
+  in.bindStorage(0);
   out.bindStorage(1);
   topCells_.bindStorage(2);
   leaves_.bindStorage(3);
@@ -83,7 +100,7 @@ void GpuGridTracer::query(std::span<const Ray> rays, std::span<const float> from
   const glm::vec3 lo = grid_.origin(), hi = grid_.boxMax(), voxel = grid_.voxelSize(), invVoxel = grid_.inverseVoxelSize();
   const int top[3] = {grid_.topResolution(0), grid_.topResolution(1), grid_.topResolution(2)};
   const int virt[3] = {grid_.virtualResolution(0), grid_.virtualResolution(1), grid_.virtualResolution(2)};
-  prog.set("uQueryCount", int(rays.size()));
+  prog.set("uQueryCount", int(queries.size()));
   prog.setVec3("uLo", &lo.x);
   prog.setVec3("uHi", &hi.x);
   prog.setVec3("uVoxel", &voxel.x);
@@ -94,33 +111,31 @@ void GpuGridTracer::query(std::span<const Ray> rays, std::span<const float> from
   prog.set("uAnyHit", int(anyHit));
   prog.set("uCutOuts", int(cutOuts_.id() != 0));
   timer_->begin();
-  gpu_.dispatch(prog, rays.size());
+  gpu_.dispatch(prog, queries.size());
   timer_->end();
-  PoolVector<AnswerRecord> answers(rays.size());
+  PoolVector<AnswerRecord> answers(queries.size());
   out.read(answers.data(), answerBytes);
-  totalTraceMs_ += timer_->ms();
+  lastTraceMs_ = timer_->ms();
+  totalTraceMs_ += lastTraceMs_;
   glUseProgram(0);
   std::atomic<uint64_t> undecided{0};
-  parallelFor(size_t(0), rays.size(), [&](size_t i) {
+  parallelFor(size_t(0), queries.size(), [&](size_t i) {
     const AnswerRecord& a = answers[i];
     TraversalCounts n{a.steps, a.tests, a.flags & 1u};
     GeoHit g;
     if (a.flags & 2u) {
-      // A candidate on an alpha-tested triangle: the CPU grid answers the ray (its one-ray
+      // A candidate on an alpha-tested triangle: the CPU grid answers the query (its one-ray
       // traversal, the same walk with the texture test).
-      const QueryRecord& q = records[i];
-      const glm::vec3 o{q.origin[0], q.origin[1], q.origin[2]}, d{q.dir[0], q.dir[1], q.dir[2]};
+      const IrregularGrid::Query& q = queries[i];
       n = {};
-      if (anyHit) g.triangle = grid_.occluded(o, d, q.tnear, q.tfar, &n) ? 0u : kMiss;
-      else g = grid_.intersect(o, d, q.tnear, q.tfar, &n);
+      if (anyHit) g.triangle = grid_.occluded(q.origin, q.dir, q.tnear, q.tfar, &n) ? 0u : kMiss;
+      else g = grid_.intersect(q.origin, q.dir, q.tnear, q.tfar, &n);
       undecided.fetch_add(1, std::memory_order_relaxed);
     } else if (a.triangle != kMiss) {
       g.t = a.t, g.triangle = a.triangle, g.ng = {a.ng[0], a.ng[1], a.ng[2]};
     }
     hits[i] = g;
-    if (counters.empty() || !kCountersCompiled) return;
-    counters[i].addIterations(std::max(n.steps, 1u));
-    if (n.giveUps) counters[i].giveUp();
+    if (!counts.empty()) counts[i] = n;
   });
   cpuAnswered_ += undecided.load();
 }
@@ -133,25 +148,25 @@ TraceHit GpuGridTracer::trace(const Ray& ray, RayCounters& counters) const {
 
 void GpuGridTracer::traceBatch(std::span<const Ray> rays, std::span<TraceHit> hits, std::span<RayCounters> counters) const {
   PoolVector<GeoHit> g(rays.size());
-  query(rays, {}, false, g, counters);
+  queryRays(rays, {}, false, g, counters);
   parallelFor(size_t(0), rays.size(), [&](size_t i) { hits[i] = hits_.makeHit(rays[i], g[i]); });
 }
 
 void GpuGridTracer::occludedBatch(std::span<const Ray> rays, std::span<TraceHit> hits, std::span<RayCounters> counters) const {
   PoolVector<GeoHit> g(rays.size());
-  query(rays, {}, true, g, counters);
+  queryRays(rays, {}, true, g, counters);
   for (size_t i = 0; i < rays.size(); ++i) hits[i] = GeometricHits::occludedHit(g[i].hit());
 }
 
 void GpuGridTracer::intersectSegments(std::span<const Ray> rays, std::span<const float> from, std::span<GeoHit> hits,
                                       std::span<RayCounters> counters) const {
-  query(rays, from, false, hits, counters);
+  queryRays(rays, from, false, hits, counters);
 }
 
 void GpuGridTracer::occludedSegments(std::span<const Ray> rays, std::span<const float> from, std::span<uint8_t> blocked,
                                      std::span<RayCounters> counters) const {
   PoolVector<GeoHit> g(rays.size());
-  query(rays, from, true, g, counters);
+  queryRays(rays, from, true, g, counters);
   for (size_t i = 0; i < rays.size(); ++i) blocked[i] = g[i].hit() ? 1 : 0;
 }
 

@@ -41,6 +41,14 @@ class GpuGridTracer final : public Tracer, public GeoHitQueries {
   void occludedSegments(std::span<const Ray> rays, std::span<const float> from, std::span<uint8_t> blocked,
                         std::span<RayCounters> counters) const override;
 
+  /// World-space queries (IrregularGrid::Query), answered as IrregularGrid::intersect or
+  /// occluded answers them (an any hit: GeoHit::triangle of a blocker), with what each walk did
+  /// in `counts` when it is not empty. The timer of the dispatch adds to totalTraceMs().
+  void query(std::span<const IrregularGrid::Query> queries, bool anyHit, std::span<GeoHit> hits,
+             std::span<TraversalCounts> counts = {}) const;
+  /// GPU time of the last query's dispatch (timer query), milliseconds.
+  double lastTraceMs() const { return lastTraceMs_; }
+
   /// Bytes on the GPU: top cells, leaves, cell records and triangle blocks.
   size_t memoryBytes() const;
   /// GPU time of every batch so far (timer queries), milliseconds.
@@ -51,8 +59,8 @@ class GpuGridTracer final : public Tracer, public GeoHitQueries {
  private:
   /// The grid's answers to ray i from segmentStart(from[i]) (an empty `from`: whole rays), with
   /// the counters added where `counters` is given.
-  void query(std::span<const Ray> rays, std::span<const float> from, bool anyHit, std::span<GeoHit> hits,
-             std::span<RayCounters> counters) const;
+  void queryRays(std::span<const Ray> rays, std::span<const float> from, bool anyHit, std::span<GeoHit> hits,
+                 std::span<RayCounters> counters) const;
 
   GpuContext& gpu_;
   GeometricHits hits_;
@@ -60,7 +68,7 @@ class GpuGridTracer final : public Tracer, public GeoHitQueries {
   GpuBuffer topCells_, leaves_, walk_, cutOuts_;
   mutable GpuRayBatch batch_;  ///< the answers (the queries are world-space: queries_)
   std::unique_ptr<GpuTimer> timer_;
-  mutable double totalTraceMs_ = 0.0;
+  mutable double totalTraceMs_ = 0.0, lastTraceMs_ = 0.0;
   mutable uint64_t cpuAnswered_ = 0;
 };
 

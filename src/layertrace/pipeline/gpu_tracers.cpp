@@ -185,6 +185,13 @@ double gpuTraceMs(const Tracer& tracer) {
   return g ? g->totalTraceMs() : 0.0;
 }
 
+double traceGpuGrid(const Tracer& tracer, std::span<const IrregularGrid::Query> queries, bool anyHit, std::span<GeoHit> hits) {
+  const auto* g = dynamic_cast<const GpuGridTracer*>(&tracer);
+  if (!g) throw InternalError("traceGpuGrid: not a GPU grid");
+  g->query(queries, anyHit, hits);
+  return g->lastTraceMs();
+}
+
 #else
 
 bool gpuBuilt() { return false; }
@@ -207,6 +214,10 @@ BuiltTracer buildGpuTracer(const std::string&, const Frame&, const TracerOptions
 }
 bool setGpuPersistentThreads(Tracer&, bool) { return false; }
 double gpuTraceMs(const Tracer&) { return 0.0; }
+double traceGpuGrid(const Tracer&, std::span<const IrregularGrid::Query>, bool, std::span<GeoHit>) {
+  openGpu();
+  return 0.0;
+}
 
 #endif
 

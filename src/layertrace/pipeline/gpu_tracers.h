@@ -46,14 +46,15 @@ nlohmann::json gpuFrameStats(const nlohmann::json& before, const nlohmann::json&
 /// storage buffer), or empty when it can.
 std::string gpuCaptureLimit(GpuContext& gpu, const Frame& frame);
 
-/// The tracers with a GPU version: ssr, ssr-layers, hiz, hssr.
+/// The tracers with a GPU version: every one but embree and embree-robust.
 bool hasGpuTracer(const std::string& name);
-/// "ssr, ssr-layers, hiz, hssr", for messages.
+/// "ssr, ssr-layers, hiz, hssr, …", for messages.
 const std::string& gpuTracerNames();
 
-/// The registry's tracer `name` on the GPU, over the same structures the CPU tracer reads (built
-/// here on the CPU and uploaded: level 0, the interval or min/max pyramid). `memoryBytes` is the
-/// GPU's share. InputError for a tracer without a GPU version.
+/// The registry's tracer `name` on the GPU, over the same structures the CPU tracer reads (the
+/// pyramid and the quad-tree built on the GPU from the uploaded layers; the layered depth cube
+/// and the grid built on the CPU and uploaded). `memoryBytes` is the GPU's share. InputError for
+/// a tracer without a GPU version.
 BuiltTracer buildGpuTracer(const std::string& name, const Frame& frame, const TracerOptions& options, GpuContext& gpu);
 /// Persistent threads for a GPU hssr, hiz or exhaustive tracer (Hofmann et al. 2017, §5.3: ray
 /// reloading from a queue); false for any other tracer, which is left as it is.
@@ -61,5 +62,9 @@ bool setGpuPersistentThreads(Tracer& tracer, bool on);
 /// GPU time of the dispatches of all batches a GPU tracer traced so far (GL timer queries),
 /// milliseconds; 0 for a CPU tracer.
 double gpuTraceMs(const Tracer& tracer);
+/// World-space queries through the GPU grid `tracer` (buildGpuTracer "grid"), answered as
+/// IrregularGrid::intersect / occluded answer them; returns the dispatch's GPU milliseconds.
+/// InternalError where `tracer` is no GPU grid.
+double traceGpuGrid(const Tracer& tracer, std::span<const IrregularGrid::Query> queries, bool anyHit, std::span<GeoHit> hits);
 
 }  // namespace lt
