@@ -140,12 +140,6 @@ void GpuGridTracer::query(std::span<const IrregularGrid::Query> queries, bool an
   cpuAnswered_ += undecided.load();
 }
 
-TraceHit GpuGridTracer::trace(const Ray& ray, RayCounters& counters) const {
-  TraceHit hit;
-  traceBatch(std::span<const Ray>(&ray, 1), std::span<TraceHit>(&hit, 1), std::span<RayCounters>(&counters, 1));
-  return hit;
-}
-
 void GpuGridTracer::traceBatch(std::span<const Ray> rays, std::span<TraceHit> hits, std::span<RayCounters> counters) const {
   PoolVector<GeoHit> g(rays.size());
   queryRays(rays, {}, false, g, counters);

@@ -19,7 +19,7 @@
 
 namespace lt {
 
-class GpuGridTracer final : public Tracer, public GeoHitQueries {
+class GpuGridTracer final : public GpuBatchTracer, public GeoHitQueries {
  public:
   /// Uploads `grid`'s packed structure. The context, the scene and the grid must outlive the
   /// tracer. InputError for a structure beyond the shaders' 32-bit word indices.
@@ -33,7 +33,6 @@ class GpuGridTracer final : public Tracer, public GeoHitQueries {
   GpuGridTracer& operator=(const GpuGridTracer&) = delete;
 
   const char* name() const override { return "grid"; }
-  TraceHit trace(const Ray& ray, RayCounters& counters) const override;
   void traceBatch(std::span<const Ray> rays, std::span<TraceHit> hits, std::span<RayCounters> counters) const override;
   void occludedBatch(std::span<const Ray> rays, std::span<TraceHit> hits, std::span<RayCounters> counters) const override;
   void intersectSegments(std::span<const Ray> rays, std::span<const float> from, std::span<GeoHit> hits,

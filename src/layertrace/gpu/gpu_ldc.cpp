@@ -54,12 +54,6 @@ GpuLdcTracer::~GpuLdcTracer() {
 
 size_t GpuLdcTracer::memoryBytes() const { return offsets_.bytes() + samples_.bytes() + blocks_.bytes(); }
 
-TraceHit GpuLdcTracer::trace(const Ray& ray, RayCounters& counters) const {
-  TraceHit hit;
-  traceBatch(std::span<const Ray>(&ray, 1), std::span<TraceHit>(&hit, 1), std::span<RayCounters>(&counters, 1));
-  return hit;
-}
-
 void GpuLdcTracer::traceBatch(std::span<const Ray> rays, std::span<TraceHit> hits, std::span<RayCounters> counters) const {
   march(rays, hits, counters, false);
 }

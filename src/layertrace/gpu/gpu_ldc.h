@@ -16,7 +16,7 @@
 
 namespace lt {
 
-class GpuLdcTracer final : public Tracer {
+class GpuLdcTracer final : public GpuBatchTracer {
  public:
   /// Uploads `ldc` (its offsets, samples and block intervals). The context and the cube must
   /// outlive the tracer. InputError where the cube exceeds the shaders' 32-bit indices.
@@ -26,7 +26,6 @@ class GpuLdcTracer final : public Tracer {
   GpuLdcTracer& operator=(const GpuLdcTracer&) = delete;
 
   const char* name() const override { return "ldc"; }
-  TraceHit trace(const Ray& ray, RayCounters& counters) const override;
   /// The whole batch in one dispatch: the hit sample, its point, normal, material and triangle
   /// as LdcTracer gives them, and the counters.
   void traceBatch(std::span<const Ray> rays, std::span<TraceHit> hits, std::span<RayCounters> counters) const override;

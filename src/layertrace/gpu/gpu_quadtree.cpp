@@ -133,12 +133,6 @@ std::vector<QuadNode> GpuQuadtreeTracer::readNodes() const {
 
 size_t GpuQuadtreeTracer::memoryBytes() const { return nodes_.bytes() + depths_.bytes() + counts_.bytes(); }
 
-TraceHit GpuQuadtreeTracer::trace(const Ray& ray, RayCounters& counters) const {
-  TraceHit hit;
-  traceBatch(std::span<const Ray>(&ray, 1), std::span<TraceHit>(&hit, 1), std::span<RayCounters>(&counters, 1));
-  return hit;
-}
-
 void GpuQuadtreeTracer::traceBatch(std::span<const Ray> rays, std::span<TraceHit> hits, std::span<RayCounters> counters) const {
   if (rays.empty()) return;
   const float scale = summary().depthScale;

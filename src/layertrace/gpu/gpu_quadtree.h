@@ -26,7 +26,7 @@
 
 namespace lt {
 
-class GpuQuadtreeTracer final : public Tracer {
+class GpuQuadtreeTracer final : public GpuBatchTracer {
  public:
   /// Uploads each slot's depth and the per-pixel counts of `layers` and builds the quad-trees on
   /// the GPU. The context and the layers must outlive the tracer. InputError for a bad config
@@ -37,7 +37,6 @@ class GpuQuadtreeTracer final : public Tracer {
   GpuQuadtreeTracer& operator=(const GpuQuadtreeTracer&) = delete;
 
   const char* name() const override { return "quadtree"; }
-  TraceHit trace(const Ray& ray, RayCounters& counters) const override;
   /// The whole batch in one dispatch: the hit fragment, the exact ray–plane point (from the hit's
   /// parameter on the screen segment, as the CPU tracer computes it) and the counters.
   void traceBatch(std::span<const Ray> rays, std::span<TraceHit> hits, std::span<RayCounters> counters) const override;

@@ -1,6 +1,6 @@
-// A batch of the CPU's rays on the GPU for one march, and room for the march's answers: what
-// every GPU tracer that answers the CPU's Tracer interface uploads and reads back. The buffers
-// grow geometrically and are kept from batch to batch.
+// What every GPU tracer that answers the CPU's Tracer interface shares: the base whose single
+// ray is a batch of one, the march's answer record, and a batch of the CPU's rays on the GPU with
+// room for the answers (the buffers grow geometrically and are kept from batch to batch).
 #pragma once
 
 #include <cstddef>
@@ -20,6 +20,16 @@ struct GpuMarchRecord {
   uint32_t levelIterations[8];
 };
 static_assert(sizeof(GpuMarchRecord) == 64 && RayCounters::kLevels == 8, "the shaders count 8 levels");
+
+/// A tracer whose every query is a batch on the device: one ray is a batch of one.
+class GpuBatchTracer : public Tracer {
+ public:
+  TraceHit trace(const Ray& ray, RayCounters& counters) const final {
+    TraceHit hit;
+    traceBatch(std::span<const Ray>(&ray, 1), std::span<TraceHit>(&hit, 1), std::span<RayCounters>(&counters, 1));
+    return hit;
+  }
+};
 
 class GpuRayBatch {
  public:

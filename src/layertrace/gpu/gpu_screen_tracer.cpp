@@ -235,12 +235,6 @@ const GpuEffects& GpuScreenTracer::effects(const Scene& scene, std::span<const P
   return *effects_;
 }
 
-TraceHit GpuScreenTracer::trace(const Ray& ray, RayCounters& counters) const {
-  TraceHit hit;
-  traceBatch(std::span<const Ray>(&ray, 1), std::span<TraceHit>(&hit, 1), std::span<RayCounters>(&counters, 1));
-  return hit;
-}
-
 void GpuScreenTracer::traceBatch(std::span<const Ray> rays, std::span<TraceHit> hits, std::span<RayCounters> counters) const {
   thread_local std::vector<GpuMarchHit> reused;  // from batch to batch
   std::vector<GpuMarchHit>& marched = reused;     // (the workers below read this thread's)

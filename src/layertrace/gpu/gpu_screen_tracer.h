@@ -33,7 +33,7 @@ struct GpuMarchHit {
   bool hit() const { return layer >= 0; }
 };
 
-class GpuScreenTracer final : public Tracer {
+class GpuScreenTracer final : public GpuBatchTracer {
  public:
   /// HSSR over a pyramid built here on the GPU from `level0` (gpu_pyramid.h): the whole
   /// structure of the CPU's tracer, made on the device. Hi-Z: hizConfig with τ = ∞; the
@@ -57,7 +57,6 @@ class GpuScreenTracer final : public Tracer {
   void rebuild(const Camera& camera, const GpuBuffer& level0, const GpuBuffer& counts, int k);
 
   const char* name() const override { return name_; }
-  TraceHit trace(const Ray& ray, RayCounters& counters) const override;
   /// The whole batch in one dispatch (call it from the context's thread; large batches pay the
   /// dispatch's fixed cost once).
   void traceBatch(std::span<const Ray> rays, std::span<TraceHit> hits, std::span<RayCounters> counters) const override;
