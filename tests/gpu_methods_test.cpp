@@ -14,11 +14,13 @@
 #include "layertrace/pipeline/frame.h"
 #include "layertrace/pipeline/gpu_tracers.h"
 #include "layertrace/pipeline/tracer_registry.h"
+#include "layertrace/render/frame_sequence.h"
 #include "layertrace/util/error.h"
 #include "test_util.h"
 
 #if LAYERTRACE_HAS_GPU
 #include "layertrace/gpu/gpu_context.h"
+#include "layertrace/gpu/gpu_frame.h"
 #include "layertrace/gpu/gpu_grid.h"
 #include "layertrace/gpu/gpu_quadtree.h"
 #endif
@@ -63,34 +65,35 @@ NodeAgreement compareQuadtrees(GpuContext& gpu, const Frame& f, const QuadtreeCo
 
 struct RayAgreement {
   size_t rays = 0, differ = 0, cpuHits = 0;
+  size_t albedoDiffer = 0;  ///< of the hits otherwise the same, those whose albedo and specular differ
 };
 
 /// `rays` through the CPU tracer `name` (one by one, counted: the reference path) and its GPU
 /// version (one batch), as closest-hit and, with `anyHit`, also as any-hit queries: the hit, its
 /// point, normal, material and triangle bit for bit, and every counter (summed over the queries).
-RayAgreement compareRays(GpuContext& gpu, const Frame& f, const std::string& name, const TracerOptions& options,
-                         const std::vector<Ray>& rays, bool anyHit = false) {
-  const BuiltTracer cpu = buildTracer(name, f, options);
-  const BuiltTracer onGpu = buildGpuTracer(name, f, options, gpu);
+/// With `exactAlbedo` false, a hit whose albedo alone differs counts in albedoDiffer only.
+RayAgreement compareAnswers(GpuContext& gpu, const std::string& name, const Tracer& cpu, const Tracer& onGpu, const std::vector<Ray>& rays,
+                            bool anyHit = false, bool exactAlbedo = true) {
   RayAgreement a;
   for (const Query q : {Query::Closest, Query::Any}) {
     if (q == Query::Any && !anyHit) break;
     SCOPED_TRACE(q == Query::Any ? "any hit" : "closest hit");
     std::vector<TraceHit> hits(rays.size());
     std::vector<RayCounters> counters(rays.size());
-    onGpu.tracer->batch(q, rays, hits, counters);
+    onGpu.batch(q, rays, hits, counters);
     a.rays += rays.size();
     for (size_t i = 0; i < rays.size(); ++i) {
       RayCounters c;
       TraceHit h;
-      cpu.tracer->batch(q, std::span<const Ray>(&rays[i], 1), std::span<TraceHit>(&h, 1), std::span<RayCounters>(&c, 1));
+      cpu.batch(q, std::span<const Ray>(&rays[i], 1), std::span<TraceHit>(&h, 1), std::span<RayCounters>(&c, 1));
       const TraceHit& g = hits[i];
       const RayCounters& gc = counters[i];
       a.cpuHits += h.hit;
       const bool sameHit = h.hit == g.hit && h.x == g.x && h.y == g.y && h.layer == g.layer && h.triangle == g.triangle &&
-                           h.albedoSpec == g.albedoSpec && std::memcmp(&h.point, &g.point, sizeof(h.point)) == 0 &&
+                           (h.albedoSpec == g.albedoSpec || !exactAlbedo) && std::memcmp(&h.point, &g.point, sizeof(h.point)) == 0 &&
                            std::memcmp(&h.normal, &g.normal, sizeof(h.normal)) == 0;
       const bool sameCounters = std::memcmp(&c, &gc, sizeof(RayCounters)) == 0;
+      a.albedoDiffer += sameHit && h.albedoSpec != g.albedoSpec;
       if (!sameHit || !sameCounters) {
         if (a.differ++ < 5 && gpu.software())
           ADD_FAILURE() << name << " ray " << i << ": CPU " << h.hit << " (" << h.x << ", " << h.y << ", " << h.layer << ") it "
@@ -100,6 +103,24 @@ RayAgreement compareRays(GpuContext& gpu, const Frame& f, const std::string& nam
     }
   }
   return a;
+}
+
+RayAgreement compareRays(GpuContext& gpu, const Frame& f, const std::string& name, const TracerOptions& options,
+                         const std::vector<Ray>& rays, bool anyHit = false) {
+  const BuiltTracer cpu = buildTracer(name, f, options);
+  const BuiltTracer onGpu = buildGpuTracer(name, f, options, gpu);
+  return compareAnswers(gpu, name, *cpu.tracer, *onGpu.tracer, rays, anyHit);
+}
+
+/// `rays` through the CPU tracer `name` and through the resident GPU frame of the same view
+/// (its own capture, layer arrays and pyramid on the device: `compare --device gpu`).
+RayAgreement compareResident(GpuContext& gpu, const FrameOptions& fo, const Frame& f, const std::string& name, const std::vector<Ray>& rays,
+                             bool exactAlbedo = true) {
+  const BuiltTracer cpu = buildTracer(name, f, TracerOptions{});
+  const std::unique_ptr<GpuFrame> resident = makeResidentFrame(gpu, fo, f, name, TracerOptions{});
+  resident->build(f.camera, layerConfig(fo, f));
+  const GpuFrameTracer onGpu(*resident, name.c_str());
+  return compareAnswers(gpu, name, *cpu.tracer, onGpu, rays, false, exactAlbedo);
 }
 
 Frame defaultFrame(int W, int H) { return buildFrame(test::defaultSceneOptions(W, H)); }
@@ -238,6 +259,21 @@ TEST_F(GpuMethods, GridAnswersThroughAlphaTestedTrianglesAsTheCpu) {
   EXPECT_GT(dynamic_cast<const GpuGridTracer&>(*onGpu.tracer).cpuAnswered(), 0u) << "the grate was met";
 }
 
+// The resident frame's own capture, layer arrays and pyramid answer the CPU's rays as the CPU
+// tracers do over the CPU's capture: the fragment, its point, normal, material and triangle, and
+// every counter (compare --device gpu asks the frame this way).
+TEST_F(GpuMethods, TheResidentFrameAnswersAsTheCpuRayForRay) {
+  const FrameOptions fo = test::defaultSceneOptions(203, 117);
+  const Frame f = buildFrame(fo);
+  const std::vector<Ray> rays = test::sampleRays(f, 8000, test::testSeed() + 67);
+  for (const char* name : {"hssr", "hiz", "ssr", "ssr-layers"}) {
+    SCOPED_TRACE(name);
+    const RayAgreement a = compareResident(*gpu_, fo, f, name, rays);
+    EXPECT_LE(a.differ, allowed(a.rays));
+    EXPECT_GT(a.cpuHits, a.rays / 4);
+  }
+}
+
 // The hybrid with both halves on the GPU answers as the CPU hybrid whose geometric half is the
 // grid: the same decisions over the same answers.
 TEST_F(GpuMethods, HybridAnswersAsTheCpuHybridRayForRay) {
@@ -276,7 +312,7 @@ TEST_F(GpuMethods, HybridAnswersAsTheCpuHybridRayForRay) {
 // A fetched real scene (real label: `make test` fetches the scenes first).
 class GpuMethodsRealScene : public GpuMethods {};
 
-TEST_F(GpuMethodsRealScene, QuadtreeLdcAndGridOnAFetchedSceneEqualTheCpu) {
+TEST_F(GpuMethodsRealScene, EveryGpuTracerOnAFetchedSceneEqualsTheCpu) {
   ASSERT_TRUE(test::haveFetchedScenes()) << "run scripts/fetch-scenes.sh";
   FrameOptions o = test::realSceneOptions("am-thornish.json", "hall");
   o.width = 240, o.height = 136;
@@ -287,6 +323,16 @@ TEST_F(GpuMethodsRealScene, QuadtreeLdcAndGridOnAFetchedSceneEqualTheCpu) {
   for (const char* name : {"quadtree", "ldc", "grid"}) {
     const RayAgreement a = compareRays(*gpu_, f, name, TracerOptions{}, rays);
     EXPECT_LE(a.differ, allowed(a.rays)) << name;
+    EXPECT_GT(a.cpuHits, a.rays / 10) << name;
+  }
+  // The resident frame's own capture. Its textured colours are those of the GPU capture, which
+  // on this scene differ from the CPU's for about 1 % of the view's fragments (2 % of these
+  // rays' hits; some by more than 32 codes of a channel, while the cut-out grate's are exact):
+  // the albedo is held to twice that share here, everything else to the bit.
+  for (const char* name : {"hssr", "ssr-layers"}) {
+    const RayAgreement a = compareResident(*gpu_, o, f, name, rays, false);
+    EXPECT_LE(a.differ, allowed(a.rays)) << name;
+    EXPECT_LE(a.albedoDiffer, a.cpuHits / 25) << name;
     EXPECT_GT(a.cpuHits, a.rays / 10) << name;
   }
 }

@@ -16,6 +16,10 @@
 #include "layertrace/eval/oracle_observer.h"
 #include "layertrace/gpu/gpu_context.h"
 #include "layertrace/pipeline/gpu_tracers.h"
+#include "layertrace/render/frame_sequence.h"
+#if LAYERTRACE_HAS_GPU
+#include "layertrace/gpu/gpu_frame.h"
+#endif
 #include "layertrace/util/error.h"
 
 namespace lt {
@@ -49,10 +53,25 @@ class RayRecorder : public RayObserver {
 
 /// The GPU version of tracer `name` on the rays `recorded` traced on the CPU, each asked as the
 /// CPU asked it (closest or any hit): the share whose answer is the same fragment (or a miss on
-/// both), the GPU time, the mean iterations per ray.
-nlohmann::json gpuAgreement(const std::string& name, const Frame& frame, const TracerOptions& options, GpuContext& gpu,
-                            const std::vector<RecordedRay>& recorded) {
-  const BuiltTracer built = buildGpuTracer(name, frame, options, gpu);
+/// both), the GPU time, the mean iterations per ray. The screen tracers of the resident frame
+/// (hssr, hiz, exhaustive, ssr, ssr-layers) march over layers captured and a pyramid built on
+/// the GPU (gpu/gpu_frame.h), so that the agreement covers the whole GPU frame; the others trace
+/// the CPU's layers, uploaded.
+nlohmann::json gpuAgreement(const std::string& name, const FrameOptions& frameOptions, const Frame& frame, const TracerOptions& options,
+                            GpuContext& gpu, const std::vector<RecordedRay>& recorded) {
+  BuiltTracer built;
+#if LAYERTRACE_HAS_GPU
+  std::unique_ptr<GpuFrame> resident;
+  if (isGpuFrameTracer(name)) {
+    resident = makeResidentFrame(gpu, frameOptions, frame, name, options);
+    resident->build(frame.camera, layerConfig(frameOptions, frame));
+    built.tracer = std::make_unique<GpuFrameTracer>(*resident, "resident");
+    built.memoryBytes = resident->hierarchyBytes();
+  }
+#else
+  (void)frameOptions;
+#endif
+  if (!built.tracer) built = buildGpuTracer(name, frame, options, gpu);
   uint64_t same = 0, iterations = 0;
   for (const Query q : {Query::Closest, Query::Any}) {
     std::vector<Ray> rays;
@@ -69,9 +88,10 @@ nlohmann::json gpuAgreement(const std::string& name, const Frame& frame, const T
       iterations += counters[i].iterations;
     }
   }
+  const double traceMs = gpuTraceMs(*built.tracer);
   const double n = double(std::max<size_t>(recorded.size(), 1));
   return {{"agreement", recorded.empty() ? 1.0 : double(same) / n},
-          {"trace_ms", gpuTraceMs(*built.tracer)},
+          {"trace_ms", traceMs},
           {"iterations_mean", double(iterations) / n},
           {"memory_bytes", built.memoryBytes}};
 }
@@ -205,7 +225,7 @@ CompareOutput compareFrame(const CompareOptions& o) {
     if (!hybrid.is_null()) t["hybrid"] = hybrid;
     if (built.ldc) t["ldc"] = ldcStats(*built.ldc, &r);
     if (onGpu) {
-      const nlohmann::json g = gpuAgreement(name, frame, o.options, *gpu, recorded.take());
+      const nlohmann::json g = gpuAgreement(name, o.run.frame, frame, o.options, *gpu, recorded.take());
       t["gpu_agreement"] = g["agreement"];
       t["gpu_trace_ms"] = g["trace_ms"];
       t["gpu_iterations_mean"] = g["iterations_mean"];

@@ -93,6 +93,7 @@ int runLayers(const LayersOptions& o) {
       stats["verify"]["gpu_vs_cpu"] = {{"pixel_layers", a.pixelLayers},
                                        {"matching", a.matching},
                                        {"match_fraction", a.matchFraction()},
+                                       {"same_bits", a.sameBits},
                                        {"pixels_count_differ", a.countsDiffer},
                                        {"relative_depth_tolerance", kGpuCaptureTolerance}};
     }

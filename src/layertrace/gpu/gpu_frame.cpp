@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <array>
+#include <bit>
 #include <initializer_list>
 
 #include <epoxy/gl.h>
@@ -9,8 +10,11 @@
 
 #include "layertrace/gpu/shader_sources.h"
 #include "layertrace/hssr/hssr_method.h"
+#include "layertrace/raster/fragment.h"
+#include "layertrace/util/default_init.h"
 #include "layertrace/util/error.h"
 #include "layertrace/util/image.h"
+#include "layertrace/util/parallel.h"
 
 namespace lt {
 
@@ -38,10 +42,13 @@ void GpuFrame::create() {
   capture_ = std::make_unique<GpuCapture>(gpu_, scene);
   tracer_ = config_.ssr ? std::make_unique<GpuScreenTracer>(gpu_, config_.ssrMarch)
                         : std::make_unique<GpuScreenTracer>(gpu_, config_.pyramid, config_.march);
+  if (persistent_) tracer_->setPersistentThreads(*persistent_);
   effects_ = std::make_unique<GpuEffects>(gpu_, scene, lights_);
   layersPass_ = &gpu_.computeProgram("frame_layers.comp", shader_source::frame_layers_comp);
   trianglesPass_ = &gpu_.computeProgram("frame_triangles.comp", shader_source::frame_triangles_comp);
   picturePass_ = &gpu_.computeProgram("frame_picture.comp", shader_source::frame_picture_comp);
+  gatherPass_ = &gpu_.computeProgram("frame_gather.comp", shader_source::frame_gather_comp);
+  timer_ = std::make_unique<GpuTimer>();
   std::vector<glm::vec4> materials;
   for (const Material& m : scene.materials) materials.emplace_back(m.mirror, m.shininess, m.transmission, m.ior);
   if (materials.empty()) materials.emplace_back(0.0f);
@@ -64,7 +71,7 @@ size_t GpuFrame::memoryBytes() const {
   return bytes;  // (effects_ counts fragments_ and triangles_)
 }
 
-void GpuFrame::submit(const Camera& camera, const GpuEffectParams& effect, GpuPicture picture, GpuFrameResult& out) {
+void GpuFrame::submit(const Camera& camera, const GpuEffectParams* effect, GpuPicture picture, GpuFrameResult& out) {
   const int W = camera.width(), H = camera.height(), k = config_.capture.layers.k;
   const size_t pixels = size_t(W) * size_t(H), slots = pixels * size_t(k);
   timeline_.begin(kCapture);
@@ -103,15 +110,17 @@ void GpuFrame::submit(const Camera& camera, const GpuEffectParams& effect, GpuPi
   timeline_.end(kPyramid);
 
   effects_->setFrame(camera, fragments_, triangles_, k);
-  GpuEffectReadback readback{};
-  readback.image = picture == GpuPicture::Linear;
-  readback.tally = readback.histogram = readback.sums = false;
-  const GpuEffectOutput eo = effects_->run(*tracer_, effect, readback);
-  if (readback.image) {
-    out.image = eo.image;
-    out.traceMs = eo.traceMs, out.shadeMs = eo.shadeMs;
+  if (effect) {
+    GpuEffectReadback readback{};
+    readback.image = picture == GpuPicture::Linear;
+    readback.tally = readback.histogram = readback.sums = false;
+    const GpuEffectOutput eo = effects_->run(*tracer_, *effect, readback);
+    if (readback.image) {
+      out.image = eo.image;
+      out.traceMs = eo.traceMs, out.shadeMs = eo.shadeMs;
+    }
   }
-  if (picture == GpuPicture::Srgb8 || picture == GpuPicture::Float32) {
+  if (effect && (picture == GpuPicture::Srgb8 || picture == GpuPicture::Float32)) {
     // Packed in rows on the device; read with the counters, after the frame's one wait.
     GpuDebugGroup group("picture");
     const bool srgb = picture == GpuPicture::Srgb8;
@@ -138,13 +147,24 @@ void GpuFrame::submit(const Camera& camera, const GpuEffectParams& effect, GpuPi
     glCopyNamedBufferSubData(tracer_->pyramid()->status.id(), status_.id(), 0, kLevelsWord * 4, GpuPyramid::kStatusWords * 4);
   else
     glClearNamedBufferSubData(status_.id(), GL_R32UI, kLevelsWord * 4, GpuPyramid::kStatusWords * 4, GL_RED_INTEGER, GL_UNSIGNED_INT, nullptr);
-  glCopyNamedBufferSubData(effects_->sums().id(), status_.id(), 0, kSumsWord * 4, kSumsWords * 4);
+  if (effect) glCopyNamedBufferSubData(effects_->sums().id(), status_.id(), 0, kSumsWord * 4, kSumsWords * 4);
+  else glClearNamedBufferSubData(status_.id(), GL_R32UI, kSumsWord * 4, kSumsWords * 4, GL_RED_INTEGER, GL_UNSIGNED_INT, nullptr);
 }
 
 GpuFrameResult GpuFrame::render(const Camera& camera, const LayerConfig& layers, const GpuEffectParams& effect, GpuPicture picture,
                                 bool readPicture) {
+  return run(camera, layers, &effect, picture, readPicture);
+}
+
+GpuFrameResult GpuFrame::build(const Camera& camera, const LayerConfig& layers) {
+  return run(camera, layers, nullptr, GpuPicture::None, false);
+}
+
+GpuFrameResult GpuFrame::run(const Camera& camera, const LayerConfig& layers, const GpuEffectParams* effect, GpuPicture picture,
+                             bool readPicture) {
   LT_CHECK(layers.k == config_.capture.layers.k, layers.k, config_.capture.layers.k);
   config_.capture.layers = layers;
+  camera_ = camera;
   gpu_.makeCurrent();
   GpuDebugGroup frame("frame");
   if (!capture_) create();
@@ -157,7 +177,7 @@ GpuFrameResult GpuFrame::render(const Camera& camera, const LayerConfig& layers,
     const std::vector<double> ms = timeline_.collect(kStages);
     out.captureMs = ms[kCapture], out.layersMs = ms[kLayers], out.pyramidMs = ms[kPyramid];
     out.rasterMs = capture_->setupMs() + capture_->rasterMs(), out.sortMs = capture_->sortMs();
-    if (picture != GpuPicture::Linear) effects_->collectTimes(out.traceMs, out.shadeMs);
+    if (effect && picture != GpuPicture::Linear) effects_->collectTimes(out.traceMs, out.shadeMs);
     out.fragments = status[kFragmentsWord];
     bool again = false;
     if (config_.capture.method == GpuCaptureMethod::Lists && out.fragments > capture_->poolCapacity()) {
@@ -179,7 +199,7 @@ GpuFrameResult GpuFrame::render(const Camera& camera, const LayerConfig& layers,
     if (readPicture && picture == GpuPicture::Float32) out.float32.resize(pixels), picture_.read(out.float32.data(), pixels * 16);
     out.levelIntervals.assign(status + kLevelsWord, status + kLevelsWord + (tracer_->pyramid() ? tracer_->pyramid()->levels : 1));
     for (size_t i = 0; i < 16; ++i) out.sums[i] = uint64_t(status[kSumsWord + 2 * i]) | uint64_t(status[kSumsWord + 2 * i + 1]) << 32;
-    out.iterationsP99 = effect.countRays ? status[kSumsWord + kPercentileWord] : 0;
+    out.iterationsP99 = effect && effect->countRays ? status[kSumsWord + kPercentileWord] : 0;
     out.maxComplexity = status[kComplexityWord];
     out.levelIntervals[0] = status[kKeptWord];
     out.poolCapacity = capture_->poolCapacity();
@@ -203,6 +223,55 @@ void GpuFrame::trace(const GpuBuffer& rays, const GpuBuffer& hits, size_t n) con
   gpu_.makeCurrent();
   GpuDebugGroup group("trace");
   tracer_->marchResident(rays, hits, n, nullptr, true);
+}
+
+double GpuFrame::march(std::span<const Ray> rays, std::span<TraceHit> hits, std::span<RayCounters> counters) const {
+  LT_CHECK(capture_ != nullptr && hits.size() == rays.size());
+  if (rays.empty()) return 0.0;
+  gpu_.makeCurrent();
+  GpuDebugGroup group("march");
+  batch_.upload(rays);
+  const size_t n = rays.size();
+  const GpuBuffer& answers = batch_.answers(0, n * sizeof(GpuMarchRecord));
+  const GpuBuffer& gathered = batch_.answers(1, n * sizeof(glm::uvec4));
+  timer_->begin();
+  tracer_->marchResident(batch_.rays(), answers, n, nullptr, !counters.empty());
+  timer_->end();
+  answers.bindStorage(0), fragments_.bindStorage(1), gathered.bindStorage(2);
+  gatherPass_->set("uCount", int(n));
+  gatherPass_->set("uWidth", camera_.width());
+  gatherPass_->set("uK", config_.capture.layers.k);
+  gpu_.dispatch(*gatherPass_, n);
+  PoolVector<GpuMarchRecord> marched(n);
+  PoolVector<glm::uvec4> stored(n);
+  answers.read(marched.data(), n * sizeof(GpuMarchRecord));
+  gathered.read(stored.data(), n * sizeof(glm::uvec4));
+  glUseProgram(0);
+  parallelFor(size_t(0), n, [&](size_t i) {
+    const GpuMarchRecord& a = marched[i];
+    TraceHit& h = hits[i];
+    h = TraceHit{};
+    if (a.layer >= 0) {
+      const glm::uvec4& f = stored[i];  // as fragmentHit reads the CPU's layers
+      h.hit = true;
+      h.x = a.x, h.y = a.y, h.layer = a.layer;
+      h.point = camera_.rayThrough({float(a.x) + 0.5f, float(a.y) + 0.5f}) * std::bit_cast<float>(f.x);
+      h.normal = decodeOctahedral(f.y);
+      h.albedoSpec = f.z;
+      h.triangle = f.w;
+    }
+    if (!counters.empty()) addCounters(a, counters[i]);
+  });
+  return timer_->ms();
+}
+
+void GpuFrameTracer::traceBatch(std::span<const Ray> rays, std::span<TraceHit> hits, std::span<RayCounters> counters) const {
+  totalTraceMs_ += frame_.march(rays, hits, counters);
+}
+
+void GpuFrame::setPersistentThreads(bool on) {
+  persistent_ = on;
+  if (tracer_) tracer_->setPersistentThreads(on);
 }
 
 size_t GpuFrame::captureBytes() const { return capture_ ? capture_->memoryBytes() : 0; }

@@ -14,6 +14,7 @@
 #include <cstdint>
 #include <functional>
 #include <memory>
+#include <optional>
 #include <span>
 #include <vector>
 
@@ -22,6 +23,7 @@
 #include "layertrace/gpu/gpu_capture.h"
 #include "layertrace/gpu/gpu_context.h"
 #include "layertrace/gpu/gpu_effects.h"
+#include "layertrace/gpu/gpu_ray_batch.h"
 #include "layertrace/gpu/gpu_screen_tracer.h"
 #include "layertrace/scene/camera.h"
 #include "layertrace/scene/scene.h"
@@ -63,6 +65,24 @@ struct GpuFrameResult {
   std::vector<glm::vec4> float32;  ///< row-major (GpuPicture::Float32)
 };
 
+class GpuFrame;
+
+/// The last frame of a GpuFrame as a Tracer of the CPU's rays (`compare --device gpu`): the
+/// screen march over the frame's own layers and pyramid, answered with the frame's fragments.
+class GpuFrameTracer final : public GpuBatchTracer {
+ public:
+  GpuFrameTracer(const GpuFrame& frame, const char* name) : frame_(frame), name_(name) {}
+  const char* name() const override { return name_; }
+  void traceBatch(std::span<const Ray> rays, std::span<TraceHit> hits, std::span<RayCounters> counters) const override;
+  /// GPU time of every batch so far, milliseconds.
+  double totalTraceMs() const { return totalTraceMs_; }
+
+ private:
+  const GpuFrame& frame_;
+  const char* name_;
+  mutable double totalTraceMs_ = 0.0;
+};
+
 class GpuFrame {
  public:
   /// The frame of `scene` for `config` with `lights` (scene coordinates, at most
@@ -79,6 +99,18 @@ class GpuFrame {
   /// picture as `picture` asks.
   GpuFrameResult render(const Camera& camera, const LayerConfig& layers, const GpuEffectParams& effect, GpuPicture picture,
                         bool readPicture = true);
+  /// The frame's structure without its effect: capture → sort → layer arrays → pyramid, for a
+  /// caller that marches its own rays through them (march, trace). The result's effect sums are 0.
+  GpuFrameResult build(const Camera& camera, const LayerConfig& layers);
+  /// Marches the CPU's camera-space `rays` through the last frame's layers and pyramid. Each
+  /// answer is the fragment the frame stored (its point on the pixel-centre ray at the stored
+  /// depth, its normal, albedo and triangle: screen/fragment_hit.h), gathered on the device, so
+  /// that only the rays and their answers cross the bus. Adds the march's counters to `counters`
+  /// (when not empty) and returns its GPU milliseconds (a timer query).
+  double march(std::span<const Ray> rays, std::span<TraceHit> hits, std::span<RayCounters> counters) const;
+  /// HSSR's schedule: persistent threads reloading rays (§5.3) or one invocation per ray (by
+  /// default the march's HssrConfig::rayReloading).
+  void setPersistentThreads(bool on);
   /// The last frame's packed picture (Srgb8: a uint a pixel; Float32: a vec4 a pixel; rows from
   /// the top), left on the device by render with readPicture false.
   const GpuBuffer& picture() const { return picture_; }
@@ -113,7 +145,8 @@ class GpuFrame {
   /// The first frame's uploads and programs.
   void create();
   /// Issues one attempt of the frame, up to the copy of its counters into status_.
-  void submit(const Camera& camera, const GpuEffectParams& effect, GpuPicture picture, GpuFrameResult& out);
+  void submit(const Camera& camera, const GpuEffectParams* effect, GpuPicture picture, GpuFrameResult& out);
+  GpuFrameResult run(const Camera& camera, const LayerConfig& layers, const GpuEffectParams* effect, GpuPicture picture, bool readPicture);
 
   GpuContext& gpu_;
   const Scene& scene_;
@@ -132,6 +165,11 @@ class GpuFrame {
   GpuBuffer picture_;  ///< the packed picture (Srgb8, Float32)
   std::function<void(const GpuCapture&)> geometryPass_;
   std::function<void(GpuCapture&, const Camera&)> inputLayers_;
+  const GpuProgram* gatherPass_ = nullptr;
+  Camera camera_;                  ///< the last frame's
+  mutable GpuRayBatch batch_;      ///< march(): the CPU's rays, the march's answers, their fragments
+  std::unique_ptr<GpuTimer> timer_;
+  std::optional<bool> persistent_;  ///< setPersistentThreads before the first frame (else the march's rayReloading)
 };
 
 }  // namespace lt

@@ -21,6 +21,13 @@ struct GpuMarchRecord {
 };
 static_assert(sizeof(GpuMarchRecord) == 64 && RayCounters::kLevels == 8, "the shaders count 8 levels");
 
+/// Adds the screen march's counters of `a` to `c`.
+inline void addCounters(const GpuMarchRecord& a, RayCounters& c) {
+  c.iterations += a.iterations, c.intervals += a.intervals, c.pixels += a.pixels;
+  c.giveUps += a.giveUps, c.fragments += a.fragments;
+  for (int l = 0; l < RayCounters::kLevels; ++l) c.levelIterations[l] += a.levelIterations[l];
+}
+
 /// A tracer whose every query is a batch on the device: one ray is a batch of one.
 class GpuBatchTracer : public Tracer {
  public:

@@ -170,7 +170,6 @@ void GpuScreenTracer::march(std::span<const Ray> rays, std::vector<GpuMarchHit>&
   out.resize(rays.size());  // every entry is written below
   lastTraceMs_ = 0.0;
   if (rays.empty()) return;
-  LT_CHECK(layers_ != nullptr, name_);  // a resident tracer answers marchResident only
   gpu_.makeCurrent();
   batch_.upload(rays);
   const size_t hitBytes = rays.size() * sizeof(GpuMarchRecord);
@@ -188,12 +187,7 @@ void GpuScreenTracer::march(std::span<const Ray> rays, std::vector<GpuMarchHit>&
     GpuMarchHit& h = out[i];
     h.counters = RayCounters{};
     h.x = a.x, h.y = a.y, h.layer = a.layer;
-    h.counters.iterations = a.iterations;
-    h.counters.intervals = a.intervals;
-    h.counters.pixels = a.pixels;
-    h.counters.giveUps = a.giveUps;
-    h.counters.fragments = a.fragments;
-    std::copy(std::begin(a.levelIterations), std::end(a.levelIterations), h.counters.levelIterations);
+    addCounters(a, h.counters);
   });
 }
 
@@ -236,6 +230,7 @@ const GpuEffects& GpuScreenTracer::effects(const Scene& scene, std::span<const P
 }
 
 void GpuScreenTracer::traceBatch(std::span<const Ray> rays, std::span<TraceHit> hits, std::span<RayCounters> counters) const {
+  LT_CHECK(layers_ != nullptr, name_);  // a resident tracer has no CPU layers to answer from: march()
   thread_local std::vector<GpuMarchHit> reused;  // from batch to batch
   std::vector<GpuMarchHit>& marched = reused;     // (the workers below read this thread's)
   march(rays, marched);
@@ -243,10 +238,7 @@ void GpuScreenTracer::traceBatch(std::span<const Ray> rays, std::span<TraceHit> 
     const GpuMarchHit& m = marched[i];
     hits[i] = m.hit() ? fragmentHit(camera_, *layers_, m.x, m.y, m.layer) : TraceHit{};
     if (counters.empty()) return;
-    RayCounters& c = counters[i];
-    c.iterations += m.counters.iterations, c.intervals += m.counters.intervals, c.pixels += m.counters.pixels;
-    c.giveUps += m.counters.giveUps, c.fragments += m.counters.fragments;
-    for (int l = 0; l < RayCounters::kLevels; ++l) c.levelIterations[l] += m.counters.levelIterations[l];
+    counters[i] += m.counters;
   });
 }
 

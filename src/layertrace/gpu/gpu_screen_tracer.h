@@ -44,7 +44,8 @@ class GpuScreenTracer final : public GpuBatchTracer {
   GpuScreenTracer(GpuContext& gpu, const Camera& camera, const LayerArrays& layers, const SsrConfig& config);
   /// A resident HSSR tracer (τ = ∞ and n_up = 1: Hi-Z; one level: exhaustive) for a frame that
   /// stays on the device (gpu_frame.h): no structure until rebuild(), which builds the pyramid
-  /// into the buffers of earlier frames. It answers marchResident only (no CPU layers).
+  /// into the buffers of earlier frames. It answers march and marchResident: it has no CPU
+  /// layers for traceBatch.
   GpuScreenTracer(GpuContext& gpu, const PyramidConfig& pyramid, const HssrConfig& config);
   /// A resident SSR (front layer) or SSR-layers tracer: rebuild() only takes the frame's level 0
   /// (k intervals a pixel; SSR reads the first).

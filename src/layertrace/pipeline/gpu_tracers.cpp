@@ -9,6 +9,7 @@
 #if LAYERTRACE_HAS_GPU
 #include "layertrace/gpu/gpu_capture.h"
 #include "layertrace/gpu/gpu_context.h"
+#include "layertrace/gpu/gpu_frame.h"
 #include "layertrace/gpu/gpu_grid.h"
 #include "layertrace/gpu/gpu_ldc.h"
 #include "layertrace/gpu/gpu_quadtree.h"
@@ -181,6 +182,7 @@ double gpuTraceMs(const Tracer& tracer) {
   if (const auto* q = dynamic_cast<const GpuQuadtreeTracer*>(&tracer)) return q->totalTraceMs();
   if (const auto* l = dynamic_cast<const GpuLdcTracer*>(&tracer)) return l->totalTraceMs();
   if (const auto* g = dynamic_cast<const GpuGridTracer*>(&tracer)) return g->totalTraceMs();
+  if (const auto* f = dynamic_cast<const GpuFrameTracer*>(&tracer)) return f->totalTraceMs();
   const auto* g = dynamic_cast<const GpuScreenTracer*>(&tracer);
   return g ? g->totalTraceMs() : 0.0;
 }
