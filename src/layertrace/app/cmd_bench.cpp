@@ -504,7 +504,9 @@ int runBench(const BenchOptions& o) {
     // (raster, sort), the hierarchy, and the trace of each screen tracer over the same rays, with
     // plain Embree on the CPU over those rays as the baseline. On the GPU the times are GL timer
     // queries of the device's work, ray generation and shading included where the effect runs
-    // on the device (shade_device "gpu"; render/effects.h EffectConfig::shadeOnDevice).
+    // on the device (shade_device "gpu"; render/effects.h EffectConfig::shadeOnDevice). There
+    // ssr, ssr-layers, hiz and hssr run as resident frames (gpu/gpu_frame.h), each row timing its
+    // own capture; the other tracers build over the capture read back once.
     t.columns = {"device", "tracer", "stride", "persistent", "raster_ms", "sort_ms", "hierarchy_ms", "trace_ms", "shade_ms", "shade_device", "iterations_mean",
                  "memory_bytes", "effect_bytes", "embree_trace_ms", "trace_vs_embree"};
     Progress p(o.run.quiet, e, gpu ? 12 : 11);
@@ -534,6 +536,15 @@ int runBench(const BenchOptions& o) {
       p.step(cat(name, " stride ", stride, persistent ? " persistent" : ""));
       TracerOptions to = o.options;
       to.ssr.stride = stride;
+      if (gpu && isGpuFrameTracer(name)) {
+        // The resident frame: every stage on the device, nothing read back between them; its
+        // own capture's times (hierarchy: the layer arrays and the pyramid).
+        to.hssr.rayReloading = persistent;
+        const ResidentStages r = measureResidentStages(o.run.frame, frame, name, to, ec, o.repeat, *gpu);
+        t.rows.push_back({device, name, stride, persistent, r.rasterMs, r.sortMs, r.layersMs + r.pyramidMs, r.traceMs, r.shadeMs, "gpu",
+                          r.iterationsMean, r.memoryBytes, r.effectBytes, embreeMs, r.traceMs > 0.0 ? embreeMs / r.traceMs : 0.0});
+        continue;
+      }
       auto build = [&] { return gpu ? buildGpuTracer(name, frame, to, *gpu) : buildTracer(name, frame, to); };
       std::vector<double> hs;
       BuiltTracer b = build();  // warm-up, discarded
@@ -576,20 +587,29 @@ int runBench(const BenchOptions& o) {
       fo.layers = k;
       double times[2][2];
       size_t bytes[2];
+      uint64_t fragments = 0;
       for (int m = 0; m < 2; ++m) {
         const std::string method = m == 0 ? "lists" : "peel";
         std::vector<double> rs, ss;
         FrameOptions mo = fo;
         mo.referenceCapture = m == 0, mo.depthPeeling = m == 1;
-        auto capture = [&] { gpu ? rasterizeFrameOnGpu(*gpu, fo, method, frame) : rasterizeFrame(mo, frame); };
-        capture();  // warm-up, discarded
-        for (int i = 0; i < o.repeat; ++i) capture(), rs.push_back(frame.rasterMs), ss.push_back(frame.sortMs);
+        if (gpu) {  // resident frames: the capture stays on the device
+          FrameOptions go = fo;
+          go.depthPeeling = m == 1;
+          const ResidentCapture r = measureResidentCapture(go, frame, o.repeat, *gpu);
+          times[m][0] = r.rasterMs, times[m][1] = r.sortMs, bytes[m] = r.bytes;
+          if (m == 0) fragments = r.fragments;
+          continue;
+        }
+        rasterizeFrame(mo, frame);  // warm-up, discarded
+        for (int i = 0; i < o.repeat; ++i) rasterizeFrame(mo, frame), rs.push_back(frame.rasterMs), ss.push_back(frame.sortMs);
         times[m][0] = median(rs), times[m][1] = median(ss);
-        bytes[m] = gpu ? frame.gpuMemoryBytes : frame.lists.memoryBytes() + frame.layers.memoryBytes();
+        bytes[m] = frame.lists.memoryBytes() + frame.layers.memoryBytes();
+        if (m == 0) fragments = frame.lists.generated;
       }
       const double lists = times[0][0] + times[0][1], peel = times[1][0] + times[1][1];
       t.rows.push_back({k, times[0][0], times[0][1], lists, times[1][0], times[1][1], peel, lists > 0.0 ? peel / lists : 0.0, bytes[0],
-                        bytes[1], frame.lists.generated});
+                        bytes[1], fragments});
     }
   }
 

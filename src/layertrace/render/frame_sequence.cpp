@@ -207,6 +207,58 @@ ResidentRender renderResident(const FrameOptions& options, Frame& frame, const s
   return out;
 }
 
+ResidentStages measureResidentStages(const FrameOptions& options, Frame& frame, const std::string& tracer, const TracerOptions& tracers,
+                                     const EffectConfig& effect, int repeat, GpuContext& gpu) {
+  if (repeat < 1) inputError("--repeat ", repeat, ": must be at least 1");
+  ResidentStages out;
+#if LAYERTRACE_HAS_GPU
+  const std::unique_ptr<GpuFrame> resident = makeResidentFrame(gpu, options, frame, tracer, tracers);
+  const LayerConfig layers = layerConfig(options, frame);
+  const GpuEffectParams counted = gpuEffectParams(frame, effect);
+  // The first frame uploads the scene and is counted; the timed ones read no counter.
+  const GpuFrameResult c = resident->render(frame.camera, layers, counted, GpuPicture::None);
+  out.iterationsMean = c.sums[0] ? double(c.sums[2]) / double(c.sums[0]) : 0.0;
+  GpuEffectParams timed = counted;
+  timed.countRays = false;
+  std::vector<double> raster, sort, arrays, pyramid, trace, shade;
+  for (int i = 0; i < repeat; ++i) {
+    const GpuFrameResult r = resident->render(frame.camera, layers, timed, GpuPicture::None);
+    raster.push_back(r.rasterMs), sort.push_back(r.sortMs), arrays.push_back(r.layersMs);
+    pyramid.push_back(r.pyramidMs), trace.push_back(r.traceMs), shade.push_back(r.shadeMs);
+  }
+  out.rasterMs = median(raster), out.sortMs = median(sort), out.layersMs = median(arrays);
+  out.pyramidMs = median(pyramid), out.traceMs = median(trace), out.shadeMs = median(shade);
+  out.memoryBytes = resident->captureBytes() + resident->hierarchyBytes();
+  out.effectBytes = resident->effectBytes();
+#else
+  (void)options, (void)frame, (void)tracer, (void)tracers, (void)effect, (void)gpu;
+  openGpu();  // throws: this build has no GPU back end
+#endif
+  return out;
+}
+
+ResidentCapture measureResidentCapture(const FrameOptions& options, Frame& frame, int repeat, GpuContext& gpu) {
+  if (repeat < 1) inputError("--repeat ", repeat, ": must be at least 1");
+  ResidentCapture out;
+#if LAYERTRACE_HAS_GPU
+  const std::unique_ptr<GpuFrame> resident = makeResidentFrame(gpu, options, frame, "hssr", TracerOptions{});
+  const LayerConfig layers = layerConfig(options, frame);
+  resident->build(frame.camera, layers);  // warm-up: the scene's upload
+  std::vector<double> raster, sort;
+  for (int i = 0; i < repeat; ++i) {
+    const GpuFrameResult r = resident->build(frame.camera, layers);
+    raster.push_back(r.rasterMs), sort.push_back(r.sortMs);
+    out.fragments = r.fragments;
+  }
+  out.rasterMs = median(std::move(raster)), out.sortMs = median(std::move(sort));
+  out.bytes = resident->captureBytes();
+#else
+  (void)options, (void)frame, (void)gpu;
+  openGpu();  // throws: this build has no GPU back end
+#endif
+  return out;
+}
+
 CameraDesc orbitCamera(const CameraDesc& desc, int i, float degrees) {
   CameraDesc d = desc;
   if (i == 0) return d;

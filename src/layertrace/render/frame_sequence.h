@@ -91,6 +91,32 @@ bool rendersResident(const std::string& tracer, const Frame& frame, const Effect
 ResidentRender renderResident(const FrameOptions& options, Frame& frame, const std::string& tracer, const TracerOptions& tracers,
                               const EffectConfig& effect, int repeat, bool srgb8, GpuContext& gpu);
 
+/// One row of `bench --experiment stages --device gpu` for a resident tracer: medians of GPU
+/// timer queries over `repeat` frames of the loaded `frame`'s view after a counted one, each
+/// frame captured, sorted, built and traced on the device with the effect's counter-free march.
+struct ResidentStages {
+  double rasterMs = 0.0, sortMs = 0.0;  ///< the capture's setup and geometry passes, its sort
+  double layersMs = 0.0;                ///< the layer arrays from the sorted slots
+  double pyramidMs = 0.0, traceMs = 0.0, shadeMs = 0.0;
+  double iterationsMean = 0.0;          ///< of the counted frame's rays
+  size_t memoryBytes = 0;               ///< the capture's buffers and the hierarchy on the GPU
+  size_t effectBytes = 0;               ///< the effect passes' buffers
+};
+ResidentStages measureResidentStages(const FrameOptions& options, Frame& frame, const std::string& tracer, const TracerOptions& tracers,
+                                     const EffectConfig& effect, int repeat, GpuContext& gpu);
+
+/// The GPU capture of the loaded `frame`'s view in a resident frame (lists, or peeling with
+/// options.depthPeeling): medians over `repeat` frames after a warm-up of its GPU milliseconds
+/// (timer queries), its buffers and the fragments it generated. Nothing is read back but the
+/// frame's counters.
+struct ResidentCapture {
+  double rasterMs = 0.0;  ///< the setup and geometry passes (peeling: every layer's)
+  double sortMs = 0.0;    ///< the sort of the lists (peeling: the resolve of the last pass)
+  size_t bytes = 0;       ///< the scene, the pool, the lists and the arrays on the GPU
+  uint64_t fragments = 0;
+};
+ResidentCapture measureResidentCapture(const FrameOptions& options, Frame& frame, int repeat, GpuContext& gpu);
+
 /// Renders `config.frames` frames of the loaded `frame` (loadFrameScene) along the orbit of its
 /// camera, on the CPU (`gpu` null) or resident on the GPU. InputError for a tracer the GPU frame
 /// lacks or more lights than the GPU passes hold.
