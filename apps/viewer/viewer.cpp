@@ -7,6 +7,10 @@
 // Scripted mode (--frames N): N full-resolution frames without input, then --screenshot writes
 // the last traced image exactly as `render` would and --screenshot-ui the whole window.
 #include <GLFW/glfw3.h>  // includes the system's GL/gl.h: the GL 1.1 calls used here are exported by libGL
+#if LAYERTRACE_HAS_GPU
+#define GLFW_EXPOSE_NATIVE_EGL
+#include <GLFW/glfw3native.h>  // glfwGetEGLDisplay, glfwGetEGLContext: the GPU context shares the window's objects
+#endif
 
 #include <algorithm>
 #include <chrono>
@@ -68,9 +72,11 @@ class Worker {
     std::unique_lock<std::mutex> lock(mutex_);
     cv_.wait(lock, [this] { return !pending_ && !busy_; });
   }
+  /// Nothing to do and nothing undelivered: a picture left on the GPU (ViewResult::gpuPicture)
+  /// is rewritten by the next render, so the next request waits until this one was taken.
   bool idle() {
     std::lock_guard<std::mutex> lock(mutex_);
-    return !pending_ && !busy_;
+    return !pending_ && !busy_ && !done_;
   }
 
  private:
@@ -146,6 +152,21 @@ void uploadTexture(unsigned texture, const Image& image, std::vector<uint8_t>& b
   glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MAG_FILTER, GL_NEAREST);
 }
 
+/// The picture the GPU left in a buffer shared with this context (ViewResult::gpuPicture: RGBA8
+/// sRGB codes, rows from the top) into `texture`, copied on the GPU (a pixel-unpack buffer), then
+/// waited for, since the next picture is drawn into the same buffer by the other context.
+void copyGpuPicture(unsigned texture, const ViewResult& r) {
+  static const auto bindBuffer = reinterpret_cast<PFNGLBINDBUFFERPROC>(glfwGetProcAddress("glBindBuffer"));
+  bindBuffer(GL_PIXEL_UNPACK_BUFFER, r.gpuPicture);
+  glBindTexture(GL_TEXTURE_2D, texture);
+  glPixelStorei(GL_UNPACK_ALIGNMENT, 4);
+  glTexImage2D(GL_TEXTURE_2D, 0, GL_RGBA8, r.pictureWidth, r.pictureHeight, 0, GL_RGBA, GL_UNSIGNED_BYTE, nullptr);
+  bindBuffer(GL_PIXEL_UNPACK_BUFFER, 0);
+  glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MIN_FILTER, GL_LINEAR);
+  glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MAG_FILTER, GL_NEAREST);
+  glFinish();
+}
+
 void writeWindow(const std::string& path, int width, int height) {
   std::vector<uint8_t> pixels(size_t(width) * size_t(height) * 3), flipped(pixels.size());
   glPixelStorei(GL_PACK_ALIGNMENT, 1);
@@ -167,7 +188,8 @@ bool panel(ViewRequest& q, FlyCamera& cam, const std::vector<CameraDesc>& camera
   ImGui::Text("UI %.1f ms/frame (%.0f fps)", frameMs, frameMs > 0.0 ? 1000.0 / frameMs : 0.0);
   if (shown) {
     if (!shown->error.empty()) ImGui::TextColored(ImVec4(1, 0.4f, 0.4f, 1), "%s", shown->error.c_str());
-    ImGui::Text("%dx%d%s: capture %.1f, structure %.1f, trace %.1f (%s), shade %.1f ms (%s)", shown->image.width, shown->image.height,
+    ImGui::Text("%dx%d%s: capture %.1f, structure %.1f, trace %.1f (%s), shade %.1f ms (%s)",
+                shown->gpuPicture ? shown->pictureWidth : shown->image.width, shown->gpuPicture ? shown->pictureHeight : shown->image.height,
                 shown->scale > 1 ? " (moving)" : "", shown->captureMs, shown->structureMs, shown->traceMs, shown->device.c_str(),
                 shown->shadeMs, shown->shading.c_str());
     ImGui::Text("picture %.0f ms, %.2f MRays/s", shown->totalMs, shown->traceMs > 0.0 ? double(shown->rays) / shown->traceMs / 1000.0 : 0.0);
@@ -218,7 +240,7 @@ bool panel(ViewRequest& q, FlyCamera& cam, const std::vector<CameraDesc>& camera
       if (ImGui::Selectable(d.name.c_str(), d.name == cam.name)) cam = FlyCamera::from(d), q.camera = d, changed = true;
     ImGui::EndCombo();
   }
-  ImGui::TextDisabled("WASD move, Q/E down/up, right mouse drag: look, shift: faster");
+  ImGui::TextDisabled("WASD move, Q/E down/up, right mouse drag: look, shift: faster, H: hide this panel");
   ImGui::End();
   return changed;
 }
@@ -267,12 +289,31 @@ int runViewer(const ViewOptions& o) {
   glfwWindowHint(GLFW_CONTEXT_VERSION_MINOR, 3);
   glfwWindowHint(GLFW_OPENGL_PROFILE, GLFW_OPENGL_CORE_PROFILE);
   glfwWindowHint(GLFW_RESIZABLE, scripted ? GLFW_FALSE : GLFW_TRUE);
+  // --device gpu: the window's context through EGL, so that the GPU's context can share its
+  // buffers and the picture is shown where it was computed; GLX where EGL gives no window.
+  const bool gpu = o.render.run.device == "gpu";
+#if LAYERTRACE_HAS_GPU
+  if (gpu) glfwWindowHint(GLFW_CONTEXT_CREATION_API, GLFW_EGL_CONTEXT_API);
+#endif
   GLFWwindow* window = glfwCreateWindow(request.width, request.height, "layertrace view", nullptr, nullptr);
+  if (!window && gpu) {
+    glfwWindowHint(GLFW_CONTEXT_CREATION_API, GLFW_NATIVE_CONTEXT_API);
+    window = glfwCreateWindow(request.width, request.height, "layertrace view", nullptr, nullptr);
+  }
   if (!window) {
     glfwTerminate();
     inputError("view: cannot create an OpenGL 3.3 core window (no display or no GL 3.3? scripted runs work under xvfb-run)");
   }
   glfwMakeContextCurrent(window);
+#if LAYERTRACE_HAS_GPU
+  if (gpu && glfwGetWindowAttrib(window, GLFW_CONTEXT_CREATION_API) == GLFW_EGL_CONTEXT_API) {
+    const std::string why = session.presentOnGpu(glfwGetEGLDisplay(), glfwGetEGLContext(window));
+    glfwMakeContextCurrent(window);
+    if (!why.empty() && !o.render.run.quiet) std::fprintf(stderr, "view: the picture is read back from the GPU (%s)\n", why.c_str());
+  }
+#endif
+  // The picture stays on the GPU unless a scripted run writes it to a file.
+  request.pictureOnGpu = session.presentsOnGpu() && o.screenshot.empty();
   glfwSwapInterval(scripted ? 0 : 1);
   IMGUI_CHECKVERSION();
   ImGui::CreateContext();
@@ -292,7 +333,7 @@ int runViewer(const ViewOptions& o) {
   FlyCamera cam = FlyCamera::from(cameras.front());
   const float speed = 0.15f * session.frame().scene.bounds().diagonal();  // scene units per second
   double lastX = 0.0, lastY = 0.0;
-  bool dragging = false, dirty = true;
+  bool dragging = false, dirty = true, showPanel = !o.hidePanel, hWasDown = false;
   auto lastMove = Clock::now() - std::chrono::seconds(1), lastFrame = Clock::now();
   int status = 0;
   {
@@ -309,7 +350,8 @@ int runViewer(const ViewOptions& o) {
         worker.wait();
       }
       if (std::optional<ViewResult> r = worker.take()) {
-        if (!r->image.data.empty()) uploadTexture(texture, r->image, bytes);
+        if (r->gpuPicture) copyGpuPicture(texture, *r);
+        else if (!r->image.data.empty()) uploadTexture(texture, r->image, bytes);
         shown = std::move(r);
       }
       ImGui_ImplOpenGL3_NewFrame();
@@ -330,10 +372,13 @@ int runViewer(const ViewOptions& o) {
       }
       int fbw, fbh;
       glfwGetFramebufferSize(window, &fbw, &fbh);
-      if (shown && !shown->image.data.empty())
+      if (shown && (shown->gpuPicture || !shown->image.data.empty()))
         ImGui::GetBackgroundDrawList()->AddImage(reinterpret_cast<ImTextureID>(static_cast<intptr_t>(texture)), ImVec2(0, 0),
                                                  ImGui::GetIO().DisplaySize);
-      if (panel(request, cam, cameras, shown ? &*shown : nullptr, frameMs, tracers)) dirty = true;
+      const bool hDown = glfwGetKey(window, GLFW_KEY_H) == GLFW_PRESS;
+      if (hDown && !hWasDown && !ImGui::GetIO().WantCaptureKeyboard) showPanel = !showPanel;
+      hWasDown = hDown;
+      if (showPanel && panel(request, cam, cameras, shown ? &*shown : nullptr, frameMs, tracers)) dirty = true;
       ImGui::Render();
       glViewport(0, 0, fbw, fbh);
       glClearColor(0.1f, 0.1f, 0.1f, 1.0f);
@@ -346,10 +391,17 @@ int runViewer(const ViewOptions& o) {
         } else {
           if (!o.screenshotUi.empty()) writeWindow(o.screenshotUi, fbw, fbh);
           if (!o.screenshot.empty() && shown) writeImage(o.screenshot, shown->traced);
-          if (!o.render.run.quiet && shown)
-            std::printf("view: %d frames, last %dx%d: capture %.1f ms, structure %.1f ms, trace %.1f ms (%s), shade %.1f ms (%s), picture %.1f ms\n",
-                        o.frames, shown->traced.width, shown->traced.height, shown->captureMs, shown->structureMs, shown->traceMs,
+          if (!o.render.run.quiet && shown) {
+            std::printf("view: %d frames, last %dx%d: capture %.1f ms, structure %.1f ms, trace %.1f ms (%s), shade %.1f ms (%s), picture %.1f ms",
+                        o.frames, shown->gpuPicture ? shown->pictureWidth : shown->traced.width,
+                        shown->gpuPicture ? shown->pictureHeight : shown->traced.height, shown->captureMs, shown->structureMs, shown->traceMs,
                         shown->device.c_str(), shown->shadeMs, shown->shading.c_str(), shown->totalMs);
+            if (shown->gpuFrame.is_object() && !shown->gpuFrame.empty())
+              std::printf("; GPU frame: %.0f B up, %.0f B down, %d waits, picture %s", shown->gpuFrame.value("upload_bytes", 0.0),
+                          shown->gpuFrame.value("download_bytes", 0.0), shown->gpuFrame.value("host_waits", 0),
+                          shown->gpuPicture ? "shown from the GPU" : "read back");
+            std::printf("\n");
+          }
         }
         glfwSwapBuffers(window);
         break;
@@ -358,6 +410,8 @@ int runViewer(const ViewOptions& o) {
     }
   }
   glDeleteTextures(1, &texture);
+  session.closeGpu();  // before GLFW closes the EGL display a shared context uses
+  glfwMakeContextCurrent(window);
   ImGui_ImplOpenGL3_Shutdown();
   ImGui_ImplGlfw_Shutdown();
   ImGui::DestroyContext();

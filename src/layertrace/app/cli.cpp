@@ -363,6 +363,7 @@ int runCliImpl(int argc, const char* const* argv, CliMode mode, CliCommand* pars
   viewCmd->add_option("--frames", view.frames, "render this many full frames without input, then exit (scripted mode)")->capture_default_str();
   viewCmd->add_option("--screenshot", view.render.run.output)->group("");  // the older spelling of -o
   viewCmd->add_option("--screenshot-ui", view.screenshotUi, "scripted mode: write the whole window of the last frame to this PNG");
+  viewCmd->add_flag("--hide-panel", view.hidePanel, "start with the panel hidden: the window shows the picture alone (H shows it)");
   viewCmd->add_option("--overlay", view.overlay, "image | classes (strict classes vs Embree) | iterations | layer | complexity")->capture_default_str();
 
   std::string names;

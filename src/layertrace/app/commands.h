@@ -109,6 +109,7 @@ struct ViewOptions {
   std::string screenshot;    ///< --screenshot PNG: the traced image of the last frame (no UI)
   std::string screenshotUi;  ///< --screenshot-ui PNG: the whole window of the last frame
   std::string overlay = "image";  ///< --overlay: image | classes | iterations | layer | complexity
+  bool hidePanel = false;    ///< --hide-panel: the window shows the picture alone (H toggles the panel)
 };
 
 struct CompareOptions {

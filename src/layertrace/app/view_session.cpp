@@ -63,11 +63,15 @@ void validateViewOptions(const ViewOptions& o) {
   if (!isKnownTracer(r.tracer)) inputError("--tracer ", r.tracer, ": unknown (use ", tracerNames(), ")");
 }
 
-ViewSession::~ViewSession() {
+ViewSession::~ViewSession() { closeGpu(); }
+
+void ViewSession::closeGpu() {
   if (gpu_ && cache_->resident) {
     makeGpuCurrent(*gpu_);  // its buffers go with the context current
     cache_->resident.reset();
+    releaseGpu(*gpu_);
   }
+  gpu_.reset();
 }
 
 ViewSession::ViewSession(const RenderOptions& options) : options_(options), cache_(std::make_unique<ViewCache>()) {
@@ -93,6 +97,18 @@ ViewSession::ViewSession(const RenderOptions& options) : options_(options), cach
 
 size_t ViewSession::cachedStructures() const { return cache_->geometric.size(); }
 
+std::string ViewSession::presentOnGpu(void* eglDisplay, void* eglContext) {
+  if (!gpu_) return "not --device gpu";
+  LT_CHECK(!cache_->resident, "presentOnGpu after the first frame");
+  try {
+    gpu_ = openGpuSharing(eglDisplay, eglContext);
+  } catch (const InputError& e) {
+    return e.what();
+  }
+  sharedGpu_ = true;
+  return {};
+}
+
 ViewResult ViewSession::render(const ViewRequest& q) {
   ViewResult out;
   out.scale = std::max(1, q.scale);
@@ -113,8 +129,7 @@ ViewResult ViewSession::render(const ViewRequest& q) {
     ec.progress = false;
 #if LAYERTRACE_HAS_GPU
     if (gpu_ && q.overlay == ViewOverlay::None && rendersResident(q.tracer, frame_, ec)) {
-      // One resident frame: capture to picture on the device, one wait, the picture read back
-      // as linear RGBA32F (the values the downloaded path gives, to the bit).
+      // One resident frame: capture to picture on the device and one wait.
       makeGpuCurrent(*gpu_);
       ViewCache& cache = *cache_;
       const TracerEntry* entry = findTracer(q.tracer);
@@ -126,12 +141,21 @@ ViewResult ViewSession::render(const ViewRequest& q) {
         cache.residentKey = key;
       }
       ec.countRays = true;
-      const GpuFrameResult r = cache.resident->render(frame_.camera, layerConfig(fo, frame_), gpuEffectParams(frame_, ec), GpuPicture::Float32);
+      // On the GPU the picture stays there as the sRGB codes the window shows; read back, it
+      // is the linear RGBA32F (the values the downloaded path gives, to the bit).
+      const bool stay = sharedGpu_ && q.pictureOnGpu;
+      const GpuFrameResult r = cache.resident->render(frame_.camera, layerConfig(fo, frame_), gpuEffectParams(frame_, ec),
+                                                      stay ? GpuPicture::Srgb8 : GpuPicture::Float32, !stay);
       frame_.capturePipeline = fo.depthPeeling ? "gpu-peel" : "gpu-lists";
-      out.image = Image(frame_.camera.width(), frame_.camera.height());
-      for (size_t i = 0; i < r.float32.size(); ++i)
-        for (int c = 0; c < 3; ++c) out.image.data[3 * i + size_t(c)] = r.float32[i][c];
-      out.traced = out.image;
+      if (stay) {
+        out.gpuPicture = cache.resident->picture().id();
+        out.pictureWidth = frame_.camera.width(), out.pictureHeight = frame_.camera.height();
+      } else {
+        out.image = Image(frame_.camera.width(), frame_.camera.height());
+        for (size_t i = 0; i < r.float32.size(); ++i)
+          for (int c = 0; c < 3; ++c) out.image.data[3 * i + size_t(c)] = r.float32[i][c];
+        out.traced = out.image;
+      }
       out.captureMs = r.captureMs + r.layersMs;
       out.structureMs = r.pyramidMs;
       out.traceMs = r.traceMs;

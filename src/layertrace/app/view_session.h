@@ -39,6 +39,9 @@ struct ViewRequest {
   float thicknessPx = kDefaultThicknessPx;
   ViewOverlay overlay = ViewOverlay::None;
   int layer = 0;  ///< ViewOverlay::Layer: which stored layer
+  /// With a shared context (ViewSession::presentOnGpu) and a resident frame: leave the picture on
+  /// the GPU (ViewResult::gpuPicture) instead of reading it back.
+  bool pictureOnGpu = false;
 };
 
 struct ViewResult {
@@ -56,6 +59,12 @@ struct ViewResult {
   /// --device gpu: what the frame asked of the GPU (the keys of gpu.frame: upload_bytes,
   /// download_bytes, host_waits, program_links, buffer_allocations, dispatches, draws).
   nlohmann::json gpuFrame;
+  /// ViewRequest::pictureOnGpu honoured: the GL buffer, shared with the window's context, that
+  /// holds the picture as RGBA8 sRGB codes (R in the low byte), `pictureWidth` × `pictureHeight`
+  /// rows from the top (image and traced are then empty); 0 otherwise. It is rewritten by the
+  /// next render: draw or copy it first.
+  uint32_t gpuPicture = 0;
+  int pictureWidth = 0, pictureHeight = 0;
 };
 
 /// Checks --frames and the screenshot paths (InputError naming the option).
@@ -77,6 +86,15 @@ class ViewSession {
   ViewResult render(const ViewRequest& request);
   /// View-independent structures built so far: one per tracer and set of its own parameters.
   size_t cachedStructures() const;
+  /// --device gpu: render from now on through a context that shares its objects with the
+  /// caller's EGL context (a window's), so that resident pictures can stay on the GPU
+  /// (ViewRequest::pictureOnGpu). Returns the reason it could not (the session then keeps its
+  /// headless context), else empty. Call it before the first render.
+  std::string presentOnGpu(void* eglDisplay, void* eglContext);
+  bool presentsOnGpu() const { return sharedGpu_; }
+  /// Frees what the session holds on the GPU and its context: before the window whose display a
+  /// shared context uses closes (no render after it).
+  void closeGpu();
 
  private:
   RenderOptions options_;
@@ -84,6 +102,7 @@ class ViewSession {
   ViewRequest initial_;
   std::unique_ptr<ViewCache> cache_;  ///< view-independent structures built so far (refer to frame_)
   std::shared_ptr<GpuContext> gpu_;   ///< --device gpu
+  bool sharedGpu_ = false;            ///< gpu_ shares its objects with the window's context
 };
 
 }  // namespace lt

@@ -160,7 +160,19 @@ GpuContext::GpuContext(AdoptCurrent) : adopted_(true) {
   platform_ = "the caller's context";
 }
 
-std::string GpuContext::open(void* candidate) {
+GpuContext::GpuContext(ShareWith share) {
+  const EGLContext previous = eglGetCurrentContext();
+  const EGLSurface draw = eglGetCurrentSurface(EGL_DRAW), read = eglGetCurrentSurface(EGL_READ);
+  const EGLDisplay previousDisplay = eglGetCurrentDisplay();
+  const std::string failure = open(share.display, share.context);
+  // The caller's context current again where it was (open made this one current).
+  if (failure.empty()) release();
+  if (previous != EGL_NO_CONTEXT) eglMakeCurrent(previousDisplay, draw, read, previous);
+  if (!failure.empty()) unavailable("the window's EGL display: " + failure);
+  platform_ = "shared with the caller's EGL context";
+}
+
+std::string GpuContext::open(void* candidate, void* shareContext) {
   auto display = static_cast<EGLDisplay>(candidate);
   EGLint major = 0, minor = 0;
   if (!eglInitialize(display, &major, &minor)) return cat("eglInitialize failed, EGL error ", eglGetError());
@@ -175,7 +187,7 @@ std::string GpuContext::open(void* candidate) {
   }
   const EGLint attributes[] = {EGL_CONTEXT_MAJOR_VERSION, 4, EGL_CONTEXT_MINOR_VERSION, 5, EGL_CONTEXT_OPENGL_PROFILE_MASK,
                                EGL_CONTEXT_OPENGL_CORE_PROFILE_BIT, EGL_NONE};
-  EGLContext context = eglCreateContext(display, config, EGL_NO_CONTEXT, attributes);
+  EGLContext context = eglCreateContext(display, config, shareContext ? static_cast<EGLContext>(shareContext) : EGL_NO_CONTEXT, attributes);
   if (context == EGL_NO_CONTEXT) return "the driver offers no OpenGL 4.5 core context";
   if (!eglMakeCurrent(display, EGL_NO_SURFACE, EGL_NO_SURFACE, context)) {
     eglDestroyContext(display, context);

@@ -91,6 +91,16 @@ class GpuContext {
   /// InputError naming the version when it is older or none is current.
   struct AdoptCurrent {};
   explicit GpuContext(AdoptCurrent);
+  /// A context of layertrace's own on the caller's EGL display that shares its objects (buffers,
+  /// textures) with the caller's EGL context, so that a window draws what the GPU computed
+  /// without a read-back (the viewer presents the resident frame's picture this way). The
+  /// caller's context stays current where it is; this one is made current by makeCurrent, on
+  /// whichever thread renders. InputError with the reason where the display gives none.
+  struct ShareWith {
+    void* display;  ///< EGLDisplay
+    void* context;  ///< EGLContext
+  };
+  explicit GpuContext(ShareWith share);
   ~GpuContext();
   GpuContext(const GpuContext&) = delete;
   GpuContext& operator=(const GpuContext&) = delete;
@@ -145,7 +155,7 @@ class GpuContext {
                 std::span<const char* const> varyings = {}, bool callerSource = false) const;
   /// Initializes `display` and makes a 4.5 core context current on it; the reason it could not,
   /// else empty.
-  std::string open(void* display);
+  std::string open(void* display, void* shareContext = nullptr);
 
   std::string renderer_, version_, platform_;
   mutable std::vector<std::string> extensions_;  ///< sorted, read on the first hasExtension

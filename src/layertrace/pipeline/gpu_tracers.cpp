@@ -55,6 +55,9 @@ nlohmann::json gpuActivityReading() {
 bool gpuBuilt() { return true; }
 
 std::shared_ptr<GpuContext> openGpu() { return std::make_shared<GpuContext>(); }
+std::shared_ptr<GpuContext> openGpuSharing(void* eglDisplay, void* eglContext) {
+  return std::make_shared<GpuContext>(GpuContext::ShareWith{eglDisplay, eglContext});
+}
 
 nlohmann::json gpuStats(const GpuContext& gpu) {
   return {{"renderer", gpu.renderer()},
@@ -205,6 +208,7 @@ nlohmann::json gpuActivityReading() {
 std::shared_ptr<GpuContext> openGpu() {
   inputError("--device gpu: this build has no GPU back end (apt-get install libepoxy-dev libegl-dev glslang-tools, then rebuild)");
 }
+std::shared_ptr<GpuContext> openGpuSharing(void*, void*) { return openGpu(); }
 nlohmann::json gpuStats(const GpuContext&) { return {}; }
 void makeGpuCurrent(const GpuContext&) {}
 void releaseGpu(const GpuContext&) {}

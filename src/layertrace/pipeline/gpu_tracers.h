@@ -20,6 +20,10 @@ bool gpuBuilt();
 /// Opens the GPU; InputError naming `--device gpu` when this build has no back end or the
 /// machine no OpenGL 4.5 device.
 std::shared_ptr<GpuContext> openGpu();
+/// A GPU context on the caller's EGL display sharing its objects with the caller's EGL context
+/// (GpuContext::ShareWith: a window draws the GPU's picture where it lies), not current on
+/// return. InputError where the display gives none, or in a build without the back end.
+std::shared_ptr<GpuContext> openGpuSharing(void* eglDisplay, void* eglContext);
 /// The device as the statistics report it: renderer, OpenGL version, and whether it is a
 /// CPU rasterizer (whose times are CPU times, never GPU speed).
 nlohmann::json gpuStats(const GpuContext& gpu);
