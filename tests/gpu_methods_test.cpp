@@ -22,6 +22,7 @@
 #include "layertrace/gpu/gpu_context.h"
 #include "layertrace/gpu/gpu_frame.h"
 #include "layertrace/gpu/gpu_grid.h"
+#include "layertrace/gpu/gpu_grid_build.h"
 #include "layertrace/gpu/gpu_quadtree.h"
 #endif
 
@@ -259,6 +260,49 @@ TEST_F(GpuMethods, GridAnswersThroughAlphaTestedTrianglesAsTheCpu) {
   EXPECT_GT(dynamic_cast<const GpuGridTracer&>(*onGpu.tracer).cpuAnswered(), 0u) << "the grate was met";
 }
 
+/// The GPU's grid build against the CPU's with merging and expansion off (what the GPU builds):
+/// the packed structure byte for byte — top cells, the voxel map's leaves, every cell record and
+/// triangle block — and the layout the traversal reads. Returns whether all of it is equal.
+bool gpuGridEqualsTheCpus(GpuContext& gpu, const Scene& scene, GridConfig config) {
+  config.merge = false, config.expansionPasses = 0;
+  const IrregularGrid cpu(scene, config);
+  const GpuGridBuild onGpu(gpu, scene, config);
+  const IrregularGrid::Packed p = cpu.packed();
+  EXPECT_EQ(onGpu.cells(), cpu.cells().size());
+  EXPECT_EQ(onGpu.refs(), cpu.refs().size());
+  const GpuGridLayout want = GpuGridLayout::of(cpu), got = onGpu.layout();
+  EXPECT_EQ(std::memcmp(&want, &got, sizeof want), 0) << "the layout (box, voxel, resolutions, depth)";
+  auto same = [](const GpuBuffer& b, const void* data, size_t bytes, const char* what) {
+    EXPECT_GE(b.bytes(), bytes) << what;
+    if (b.bytes() < bytes) return false;
+    std::vector<unsigned char> read(bytes);
+    if (bytes) b.read(read.data(), bytes);
+    const bool equal = bytes == 0 || std::memcmp(read.data(), data, bytes) == 0;
+    EXPECT_TRUE(equal) << what;
+    return equal;
+  };
+  gpu.makeCurrent();
+  const bool top = same(onGpu.topCells(), p.topCells.data(), p.topCells.size(), "top cells");
+  const bool leaves = same(onGpu.leaves(), p.leaves.data(), p.leaves.size_bytes(), "leaves");
+  const bool walk = same(onGpu.walk(), p.walk.data(), p.walk.size(), "cell records and triangle blocks");
+  return top && leaves && walk && onGpu.cells() == cpu.cells().size();
+}
+
+// Pérard-Gayot et al. 2017, steps 1 and 2 and the packing on the GPU: the CPU's cells, references
+// and packed bytes, for the default configuration, the paper's depth rule and a shallow cap.
+TEST_F(GpuMethods, GridBuiltOnTheGpuEqualsTheCpusByteForByte) {
+  if (!gpu_->software()) GTEST_SKIP() << "an IEEE device only (the division of a GPU may round its own way)";
+  const Frame f = defaultFrame(64, 36);
+  for (const bool oneDepth : {false, true}) {
+    GridConfig c;
+    c.oneDepthPerCell = oneDepth;
+    EXPECT_TRUE(gpuGridEqualsTheCpus(*gpu_, f.scene, c)) << "one depth per cell " << oneDepth;
+  }
+  GridConfig shallow;
+  shallow.maxDepth = 1, shallow.lambda1 = 0.05f;
+  EXPECT_TRUE(gpuGridEqualsTheCpus(*gpu_, f.scene, shallow)) << "depth cap 1";
+}
+
 // The resident frame's own capture, layer arrays and pyramid answer the CPU's rays as the CPU
 // tracers do over the CPU's capture: the fragment, its point, normal, material and triangle, and
 // every counter (compare --device gpu asks the frame this way).
@@ -319,6 +363,9 @@ TEST_F(GpuMethodsRealScene, EveryGpuTracerOnAFetchedSceneEqualsTheCpu) {
   const Frame f = buildFrame(o);
   const NodeAgreement nodes = compareQuadtrees(*gpu_, f, QuadtreeConfig{});
   EXPECT_LE(nodes.differ, allowed(nodes.nodes));
+  if (gpu_->software()) {  // (elsewhere the division may round its own way: the walks are checked)
+    EXPECT_TRUE(gpuGridEqualsTheCpus(*gpu_, f.scene, GridConfig{})) << "the grid built on the GPU";
+  }
   const std::vector<Ray> rays = test::sampleRays(f, 12000, test::testSeed() + 63);
   for (const char* name : {"quadtree", "ldc", "grid"}) {
     const RayAgreement a = compareRays(*gpu_, f, name, TracerOptions{}, rays);

@@ -70,6 +70,9 @@ struct GridConfig {
   bool partialExpansion = true;
 };
 
+/// Bytes of a walk unit (IrregularGrid::Packed: the leaves address the walk in these).
+inline constexpr size_t kGridWalkUnit = 32;
+
 struct GridCell {
   int lo[3], hi[3];    ///< the cell in virtual-grid voxels [lo, hi)
   int elo[3], ehi[3];  ///< the expanded box used to find the exit point (⊇ [lo, hi))
@@ -136,6 +139,14 @@ class IrregularGrid {
   /// Leaves: the walk unit (32 bytes) of each leaf's cell. Walk: per cell a 32-byte record
   /// (elo[3], ehi[3], references, cell id) followed by its triangle blocks (160 bytes: vertex
   /// coordinates v[vertex][axis][lane] for four triangles, then their four ids).
+  /// A top cell's subdivision: 2^d_a leaves along axis a, leaf entries from `offset` in x-fastest
+  /// order; shift_a = D − d_a turns a virtual voxel into a leaf coordinate, and the leaf
+  /// (l0, l1, l2) is entry l0 + (l1 << bits1) + (l2 << bits2), bits1 = d_0, bits2 = d_0 + d_1.
+  struct TopCell {
+    uint32_t offset;
+    uint8_t shift[3], bits1, bits2;
+    uint8_t padding[3] = {};  ///< zero: the packed bytes are the same from build to build
+  };
   struct Packed {
     std::span<const unsigned char> topCells;
     std::span<const uint32_t> leaves;
@@ -158,15 +169,8 @@ class IrregularGrid {
   /// dependent load per cell after the leaf). A triangle referenced by several cells
   /// is copied into each: 160 bytes per four references instead of 4 per reference plus 36 per
   /// triangle.
-  /// A top cell's subdivision: 2^d_a leaves along axis a, leaf entries from `offset` in x-fastest
-  /// order; shift_a = D − d_a turns a virtual voxel into a leaf coordinate, and the leaf
-  /// (l0, l1, l2) is entry l0 + (l1 << bits1) + (l2 << bits2), bits1 = d_0, bits2 = d_0 + d_1.
-  struct TopCell {
-    uint32_t offset;
-    uint8_t shift[3], bits1, bits2;
-  };
   static constexpr int kLanes = 4;
-  static constexpr size_t kUnit = 32;  ///< walk_ is addressed in 32-byte units
+  static constexpr size_t kUnit = kGridWalkUnit;  ///< walk_ is addressed in 32-byte units
   struct alignas(kUnit) TraversalCell {
     int elo[3], ehi[3];
     uint32_t refs;  ///< references; its ⌈refs / 4⌉ blocks follow the record
@@ -232,6 +236,24 @@ class IrregularGrid {
   std::vector<Line> walk_;          ///< every cell's record and triangle blocks, cell after cell
   GridStats stats_;
 };
+
+/// Step 1's decisions, shared by the CPU build and the GPU's (gpu/gpu_grid_build.h), so that both
+/// make the same cells: the grid's box (the scene box padded) and the top-level resolution.
+struct GridTopLevel {
+  glm::vec3 lo{0.0f}, hi{0.0f};
+  int top[3] = {1, 1, 1};
+  glm::vec3 topSize() const { return (hi - lo) / glm::vec3(float(top[0]), float(top[1]), float(top[2])); }
+  size_t cells() const { return size_t(top[0]) * size_t(top[1]) * size_t(top[2]); }
+};
+GridTopLevel gridTopLevel(const Scene& scene, const GridConfig& config);
+/// Step 2's decision for a top cell of `refs` references: its octree depth per axis.
+std::array<uint8_t, 3> topCellDepth(const GridConfig& config, glm::vec3 topSize, size_t refs);
+/// Walk units of a cell of `refs` references: its record, its triangle
+/// blocks, and padding to the next 64-byte line.
+inline uint64_t cellUnits(uint64_t refs) {
+  const uint64_t units = 1 + (refs + 3) / 4 * 5;
+  return units + units % 2;
+}
 
 /// Triangle / axis-aligned box overlap (separating axis theorem, Akenine-Möller), with the box
 /// grown by `eps` so that references are conservative.

@@ -49,6 +49,38 @@ bool triangleBoxOverlap(glm::vec3 a, glm::vec3 b, glm::vec3 c, glm::vec3 boxLo, 
   return true;
 }
 
+GridTopLevel gridTopLevel(const Scene& scene, const GridConfig& cfg) {
+  GridTopLevel out;
+  const Bounds b = scene.bounds();
+  const glm::vec3 ext = b.hi - b.lo;
+  // Padding relative to the extent and to the coordinates' magnitude: a flat scene (one axis
+  // of zero extent) or a tiny one far from the origin still gets a box of positive volume
+  // whose sides survive float rounding (1e-6 alone vanishes next to 1e6).
+  const float magnitude = std::max({1.0f, glm::length(b.lo), glm::length(b.hi)});
+  const float pad = std::max(1e-4f * glm::length(ext), 1e-5f * magnitude);
+  out.lo = b.lo - glm::vec3(pad);
+  out.hi = b.hi + glm::vec3(pad);
+  const glm::vec3 d = out.hi - out.lo;
+  const float volume = d.x * d.y * d.z;
+  const float density = std::cbrt(cfg.lambda1 * float(scene.triangleCount()) / volume);  // Cleary et al.
+  for (int i = 0; i < 3; ++i) out.top[i] = std::clamp(int(d[i] * density), 1, 512);
+  return out;
+}
+
+std::array<uint8_t, 3> topCellDepth(const GridConfig& cfg, glm::vec3 topSize, size_t refs) {
+  std::array<uint8_t, 3> depth{0, 0, 0};
+  if (refs == 0) return depth;
+  const float topVolume = topSize.x * topSize.y * topSize.z;
+  const float dens = std::cbrt(cfg.lambda2 * float(refs) / topVolume);
+  uint8_t deepest = 0;
+  for (int i = 0; i < 3; ++i) {
+    depth[size_t(i)] = uint8_t(std::clamp(int(std::ceil(std::log2(std::max(topSize[i] * dens, 1.0f)))), 0, cfg.maxDepth));
+    deepest = std::max(deepest, depth[size_t(i)]);
+  }
+  if (cfg.oneDepthPerCell) depth = {deepest, deepest, deepest};
+  return depth;
+}
+
 /// Everything the build needs beside the grid itself.
 struct GridBuilder {
   IrregularGrid& g;
@@ -73,20 +105,11 @@ struct GridBuilder {
   }
 
   void initialGrid() {
-    const Bounds b = scene.bounds();
-    const glm::vec3 ext = b.hi - b.lo;
-    // Padding relative to the extent and to the coordinates' magnitude: a flat scene (one axis
-    // of zero extent) or a tiny one far from the origin still gets a box of positive volume
-    // whose sides survive float rounding (1e-6 alone vanishes next to 1e6).
-    const float magnitude = std::max({1.0f, glm::length(b.lo), glm::length(b.hi)});
-    const float pad = std::max(1e-4f * glm::length(ext), 1e-5f * magnitude);
-    g.lo_ = b.lo - glm::vec3(pad);
-    g.hi_ = b.hi + glm::vec3(pad);
+    const GridTopLevel level = gridTopLevel(scene, cfg);
+    g.lo_ = level.lo, g.hi_ = level.hi;
     const glm::vec3 d = g.hi_ - g.lo_;
-    const float volume = d.x * d.y * d.z;
-    const float density = std::cbrt(cfg.lambda1 * float(scene.triangleCount()) / volume);  // Cleary et al.
-    for (int i = 0; i < 3; ++i) g.top_[i] = std::clamp(int(d[i] * density), 1, 512);
-    const glm::vec3 topSize = d / glm::vec3(g.top_[0], g.top_[1], g.top_[2]);
+    for (int i = 0; i < 3; ++i) g.top_[i] = level.top[i];
+    const glm::vec3 topSize = level.topSize();
     const size_t numTop = size_t(g.top_[0]) * size_t(g.top_[1]) * size_t(g.top_[2]);
     // Per top cell: its reference list, depth, leaf offset and traversal entry.
     checkAllocation(cat("the irregular grid's top level (", numTop, " cells)"),
@@ -123,18 +146,10 @@ struct GridBuilder {
     // per axis (irregular_grid.h), or the longest axis's for all three (oneDepthPerCell: the
     // paper's D = ⌈log2 max(R_x, R_y, R_z)⌉, which is the largest of the per-axis depths).
     g.topDepth_.assign(numTop, {0, 0, 0});
-    const float topVolume = topSize.x * topSize.y * topSize.z;
     g.depth_ = 0;
     for (size_t c = 0; c < numTop; ++c) {
-      if (topRefs[c].empty()) continue;
-      const float dens = std::cbrt(cfg.lambda2 * float(topRefs[c].size()) / topVolume);
-      int deepest = 0;
-      for (int i = 0; i < 3; ++i) {
-        g.topDepth_[c][size_t(i)] = uint8_t(std::clamp(int(std::ceil(std::log2(std::max(topSize[i] * dens, 1.0f)))), 0, cfg.maxDepth));
-        deepest = std::max(deepest, int(g.topDepth_[c][size_t(i)]));
-      }
-      if (cfg.oneDepthPerCell) g.topDepth_[c] = {uint8_t(deepest), uint8_t(deepest), uint8_t(deepest)};
-      g.depth_ = std::max(g.depth_, deepest);
+      g.topDepth_[c] = topCellDepth(cfg, topSize, topRefs[c].size());
+      g.depth_ = std::max({g.depth_, int(g.topDepth_[c][0]), int(g.topDepth_[c][1]), int(g.topDepth_[c][2])});
     }
     for (int i = 0; i < 3; ++i) g.virt_[i] = g.top_[i] << g.depth_;
     g.voxel_ = d / glm::vec3(g.virt_[0], g.virt_[1], g.virt_[2]);
@@ -451,11 +466,10 @@ void IrregularGrid::packForTraversal() {
   // Lay the cells out: record, blocks, padding to the next 64-byte line.
   std::vector<uint64_t> unitOf(cells_.size());
   uint64_t units = 0;
+  static_assert(kLanes == 4 && sizeof(TriangleBlock) / kUnit == 5, "cellUnits' layout");
   for (size_t c = 0; c < cells_.size(); ++c) {
-    const GridCell& g = cells_[c];
     unitOf[c] = units;
-    units += 1 + (g.refEnd - g.refBegin + kLanes - 1) / kLanes * (sizeof(TriangleBlock) / kUnit);
-    units += units % 2;
+    units += cellUnits(cells_[c].refEnd - cells_[c].refBegin);  // (each cell starts on an even unit)
   }
   if (units > 0xFFFFFFFFull) inputError("irregular grid: ", units * kUnit, " bytes of cells and triangle blocks exceed the 32-bit cell index");
   checkAllocation(cat("the irregular grid's triangle blocks (", units * kUnit, " bytes)"), units * kUnit + leaf_.size() * sizeof(uint32_t));
