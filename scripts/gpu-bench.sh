@@ -10,7 +10,9 @@
 #     on the default scene and two fetched real scenes;
 #   - per-pixel lists against depth peeling for k = 1…8 at 1280×720 (Hofmann et al. 2017, Fig. 8);
 #   - the irregular grid walked on the GPU (geobench --device gpu at the first size): MRays/s of
-#     primary, AO and diffuse rays against plain Embree on the CPU and the grid on the CPU;
+#     primary, AO and diffuse rays against plain Embree on the CPU and the grid on the CPU, for
+#     the CPU's structure uploaded (grid_gpu) and for the grid built on the GPU (grid_gpu_build:
+#     its build's GPU milliseconds, cells, references and memory beside the CPU build's);
 #   - the resident frame (bench --experiment frame): GPU_BENCH_FRAMES (default 30) frames of HSSR
 #     reflections along an orbit at each size, wall against GPU milliseconds per frame, and what
 #     each frame moved over the bus and waited for.
@@ -87,7 +89,8 @@ done
         ;;
     esac
   done
-  # The grid on the GPU (the CPU's structure, uploaded) against Embree and the grid on the CPU.
+  # The grid on the GPU (the CPU's structure uploaded, and the grid built on the GPU) against
+  # Embree and the grid on the CPU.
   for f in "${geo[@]}"; do
     echo
     echo "## $(basename "$(dirname "$f")")"
@@ -97,10 +100,18 @@ import json, sys
 g = json.load(open(sys.argv[1]))["geobench"]
 print("| tracer | build ms | MiB | MRays/s primary | ao | diffuse | agreement with plain Embree (worst) |")
 print("|---|---|---|---|---|---|---|")
-for t in ("embree", "grid", "grid_gpu"):
+for t in ("embree", "grid", "grid_gpu", "grid_gpu_build"):
     r = g[t]
     worst = min(r["agreement_" + s] for s in ("primary", "ao", "diffuse"))
     print(f"| {t} | {r['build_ms']:.1f} | {r['memory_bytes'] / 1048576:.1f} | {r['mrays_primary']:.2f} | {r['mrays_ao']:.2f} | {r['mrays_diffuse']:.2f} | {worst:.6f} |")
+b = g["grid_gpu_build"]
+print()
+print("| grid build | ms | cells | references | MiB |")
+print("|---|---|---|---|---|")
+print(f"| GPU (steps 1, 2, packing; GPU ms) | {b['build_ms']:.1f} | {b['cells']} | {b['references']} | {b['memory_bytes'] / 1048576:.1f} |")
+for key, label in (("cpu_twin", "CPU, the same steps"), ("cpu_full_build", "CPU, merged and expanded")):
+    c = b[key]
+    print(f"| {label} | {c['build_ms']:.1f} | {c['cells']} | {c['references']} | {c['memory_bytes'] / 1048576:.1f} |")
 PY
   done
 } > "$out/gpu-bench.md"

@@ -1145,12 +1145,26 @@ TEST(CliGpu, GeobenchWalksTheGridOnTheGpuAsOnTheCpu) {
   if (!gpuBuilt()) GTEST_SKIP() << "built without the GPU back end";
   test::TempDir dir;
   ASSERT_NO_FATAL_FAILURE(expectRuns("geobench " + kDefault + " --device gpu --width 96 --height 54 --repeat 1 --quiet -o " + (dir / "g")));
-  const auto g = readJson(dir / "g/geobench.json")["geobench"]["grid_gpu"];
+  const auto j = readJson(dir / "g/geobench.json")["geobench"];
+  const auto& g = j["grid_gpu"];
   for (const char* set : {"primary", "ao", "diffuse"}) {
     EXPECT_EQ(g[std::string("agreement_cpu_grid_") + set].get<double>(), 1.0) << set;  // the CPU grid's answers
     EXPECT_GT(g[std::string("mrays_") + set].get<double>(), 0.0) << set;
   }
   EXPECT_EQ(g["build"], "cpu");
+  // The grid built on the GPU: its CPU twin's cells and references, and the answers of an exact
+  // structure (Embree's, as the CPU grid's are).
+  const auto& b = j["grid_gpu_build"];
+  EXPECT_EQ(b["build"], "gpu");
+  EXPECT_EQ(b["cells"], b["cpu_twin"]["cells"]);
+  EXPECT_EQ(b["references"], b["cpu_twin"]["references"]);
+  EXPECT_TRUE(b["cpu_twin"]["same_cells"].get<bool>());
+  EXPECT_GT(b["cells"].get<double>(), b["cpu_full_build"]["cells"].get<double>()) << "nothing merged on the GPU";
+  EXPECT_GT(b["build_ms"].get<double>(), 0.0);
+  for (const char* set : {"primary", "ao", "diffuse"}) {
+    EXPECT_EQ(b[std::string("agreement_") + set].get<double>(), j["grid"][std::string("agreement_") + set].get<double>()) << set;
+    EXPECT_GT(b[std::string("mrays_") + set].get<double>(), 0.0) << set;
+  }
 }
 
 TEST(CliGpu, NoDeviceOrNoGpuVersionIsOneLineStatusTwo) {

@@ -253,6 +253,48 @@ int runGeobench(const GeobenchOptions& o) {
       gg[std::string("agreement_") + name] = agreement(traceAll(*set, embreeQ(*set)), answers);
       gg[std::string("agreement_cpu_grid_") + name] = agreement(traceAllGrid(*set, grid), answers);
     }
+    // The grid built on the GPU: steps 1 and 2 and the packing there (gpu/gpu_grid_build.h),
+    // merging and expansion nowhere; its twin is the CPU build with those two off. Medians of
+    // --repeat builds after a warm-up, then its walks over the same rays.
+    nlohmann::json& gb = g["grid_gpu_build"];
+    GridConfig twinConfig = o.tracers.grid;
+    twinConfig.merge = false, twinConfig.expansionPasses = 0;
+    std::unique_ptr<IrregularGrid> twin;
+    const double twinMs = medianMs(o.repeat, [&] { twin = std::make_unique<IrregularGrid>(scene, twinConfig); });
+    GpuGridBuildStats bs;
+    BuiltTracer gpuBuilt = buildGpuGridOnGpu(frame, o.tracers.grid, &grid, *gpu, bs);  // warm-up
+    std::vector<double> buildGpu, buildWall;
+    for (int r = 0; r < o.repeat; ++r) {
+      gpuBuilt = buildGpuGridOnGpu(frame, o.tracers.grid, &grid, *gpu, bs);
+      buildGpu.push_back(bs.gpuMs), buildWall.push_back(bs.wallMs);
+    }
+    gb["build"] = "gpu";
+    gb["steps_on_gpu"] = "initial grid, refinement, packing (merging and expansion: not applied)";
+    gb["build_ms"] = median(buildGpu);
+    gb["build_wall_ms"] = median(buildWall);
+    gb["build_ms_by_step"] = {{"top_cells", bs.topMs}, {"leaves", bs.leavesMs}, {"packing", bs.packMs}};
+    gb["cells"] = bs.cells;
+    gb["references"] = bs.refs;
+    gb["memory_bytes"] = bs.memoryBytes;
+    gb["cpu_twin"] = {{"build_ms", twinMs}, {"cells", twin->cells().size()}, {"references", twin->refs().size()},
+                      {"memory_bytes", twin->memoryBytes()}, {"same_cells", twin->cells().size() == bs.cells && twin->refs().size() == bs.refs}};
+    gb["cpu_full_build"] = {{"build_ms", gridBuild}, {"cells", grid.cells().size()}, {"references", grid.refs().size()},
+                            {"memory_bytes", grid.memoryBytes()}};
+    for (const auto& [name, set] : sets) {
+      std::vector<IrregularGrid::Query> q(set->o.size());
+      for (size_t i = 0; i < q.size(); ++i) q[i] = {set->o[i], set->d[i], set->tnear, set->tfar};
+      std::vector<GeoHit> hits(q.size());
+      traceGpuGrid(*gpuBuilt.tracer, q, set->anyHit, hits);  // warm-up
+      std::vector<double> ms;
+      for (int r = 0; r < o.repeat; ++r) ms.push_back(traceGpuGrid(*gpuBuilt.tracer, q, set->anyHit, hits));
+      std::vector<float> answers(q.size());
+      for (size_t i = 0; i < q.size(); ++i) answers[i] = set->anyHit ? (hits[i].hit() ? 1.0f : 0.0f) : hits[i].hit() ? hits[i].t : -1.0f;
+      const double n = double(set->o.size()), med = median(ms);
+      gb[std::string("gpu_ms_") + name] = med;
+      gb[std::string("mrays_") + name] = med > 0.0 ? n / med * 1e-3 : 0.0;
+      gb[std::string("agreement_") + name] = agreement(traceAll(*set, embreeQ(*set)), answers);
+      gb[std::string("agreement_cpu_grid_") + name] = agreement(traceAllGrid(*set, grid), answers);
+    }
     stats["gpu"] = gpuStats(*gpu);
   }
 
@@ -294,12 +336,12 @@ int runGeobench(const GeobenchOptions& o) {
   if (!o.run.quiet) {
     std::cout << "geobench: " << scene.name << " (" << scene.triangleCount() << " triangles), " << cam.width() << "x"
               << cam.height() << " primary rays\n"
-              << std::left << std::setw(8) << "tracer" << std::right << std::setw(10) << "build ms" << std::setw(10) << "MiB ";
+              << std::left << std::setw(15) << "tracer" << std::right << std::setw(10) << "build ms" << std::setw(10) << "MiB ";
     for (const auto& [name, set] : sets) std::cout << std::setw(14) << (std::string("MR/s ") + name) << std::setw(10) << "agree";
     std::cout << "\n" << std::fixed;
-    for (const char* t : {"embree", "grid", "grid_gpu"}) {
+    for (const char* t : {"embree", "grid", "grid_gpu", "grid_gpu_build"}) {
       if (!g.contains(t)) continue;
-      std::cout << std::left << std::setw(8) << t << std::right << std::setw(10) << std::setprecision(1) << g[t]["build_ms"].get<double>()
+      std::cout << std::left << std::setw(15) << t << std::right << std::setw(10) << std::setprecision(1) << g[t]["build_ms"].get<double>()
                 << std::setw(10) << std::setprecision(1) << double(g[t]["memory_bytes"].get<size_t>()) / 1048576.0;
       for (const auto& [name, set] : sets)
         std::cout << std::setw(14) << std::setprecision(2) << g[t][std::string("mrays_") + name].get<double>() << std::setw(10)

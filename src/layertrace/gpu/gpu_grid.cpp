@@ -30,28 +30,42 @@ constexpr uint32_t kMiss = 0xFFFFFFFFu;
 }  // namespace
 
 GpuGridTracer::GpuGridTracer(GpuContext& gpu, const Scene& scene, const Camera& camera, const IrregularGrid& grid)
-    : gpu_(gpu), hits_(scene, camera), grid_(grid) {
+    : gpu_(gpu), hits_(scene, camera), cpu_(&grid), layout_(GpuGridLayout::of(grid)) {
   const IrregularGrid::Packed p = grid.packed();
   if (p.walk.size() / 4 > size_t(UINT32_MAX) - 64 || p.leaves.size() > size_t(UINT32_MAX))
     inputError("the irregular grid: ", p.walk.size(), " bytes of cells exceed the GPU traversal's 32-bit word index");
   gpu_.makeCurrent();
-  topCells_ = GpuBuffer(std::max<size_t>(p.topCells.size(), 16), p.topCells.data());
-  leaves_ = GpuBuffer(std::max<size_t>(p.leaves.size_bytes(), 16), p.leaves.data());
-  walk_ = GpuBuffer(std::max<size_t>(p.walk.size(), 16), p.walk.data());
-  if (grid.hasCutOuts()) {
-    std::vector<uint32_t> bits((scene.triangleCount() + 31) / 32, 0u);
-    for (uint32_t t = 0; t < scene.triangleCount(); ++t)
-      if (scene.cutOut(t)) bits[t / 32] |= 1u << (t % 32);
-    cutOuts_ = GpuBuffer(std::max<size_t>(bits.size() * sizeof(uint32_t), 16), bits.data());
-  }
+  ownTopCells_ = GpuBuffer(std::max<size_t>(p.topCells.size(), 16), p.topCells.data());
+  ownLeaves_ = GpuBuffer(std::max<size_t>(p.leaves.size_bytes(), 16), p.leaves.data());
+  ownWalk_ = GpuBuffer(std::max<size_t>(p.walk.size(), 16), p.walk.data());
+  if (grid.hasCutOuts()) markCutOuts(scene);
   timer_ = std::make_unique<GpuTimer>();
+}
+
+GpuGridTracer::GpuGridTracer(GpuContext& gpu, const Scene& scene, const Camera& camera, std::unique_ptr<GpuGridBuild> built,
+                             const IrregularGrid* cutOuts)
+    : gpu_(gpu), hits_(scene, camera), cpu_(cutOuts), built_(std::move(built)), layout_(built_->layout()) {
+  if (scene.anyCutOut() && !cpu_) inputError("the grid built on the GPU: the scene's alpha-tested triangles need a CPU grid beside it");
+  if (built_->walk().bytes() / 4 > size_t(UINT32_MAX) - 64)
+    inputError("the irregular grid: ", built_->walk().bytes(), " bytes of cells exceed the GPU traversal's 32-bit word index");
+  topCells_ = &built_->topCells(), leaves_ = &built_->leaves(), walk_ = &built_->walk();
+  gpu_.makeCurrent();
+  if (scene.anyCutOut()) markCutOuts(scene);
+  timer_ = std::make_unique<GpuTimer>();
+}
+
+void GpuGridTracer::markCutOuts(const Scene& scene) {
+  std::vector<uint32_t> bits((scene.triangleCount() + 31) / 32, 0u);
+  for (uint32_t t = 0; t < scene.triangleCount(); ++t)
+    if (scene.cutOut(t)) bits[t / 32] |= 1u << (t % 32);
+  cutOuts_ = GpuBuffer(std::max<size_t>(bits.size() * sizeof(uint32_t), 16), bits.data());
 }
 
 GpuGridTracer::~GpuGridTracer() {
   gpu_.makeCurrent();  // the buffers go with the context current
 }
 
-size_t GpuGridTracer::memoryBytes() const { return topCells_.bytes() + leaves_.bytes() + walk_.bytes(); }
+size_t GpuGridTracer::memoryBytes() const { return topCells_->bytes() + leaves_->bytes() + walk_->bytes(); }
 
 void GpuGridTracer::queryRays(std::span<const Ray> rays, std::span<const float> from, bool anyHit, std::span<GeoHit> hits,
                               std::span<RayCounters> counters) const {
@@ -93,21 +107,19 @@ void GpuGridTracer::query(std::span<const IrregularGrid::Query> queries, bool an
   const GpuProgram& prog = gpu_.computeProgram("grid_march.comp", shader_source::grid_march_comp);
   in.bindStorage(0);
   out.bindStorage(1);
-  topCells_.bindStorage(2);
-  leaves_.bindStorage(3);
-  walk_.bindStorage(4);
+  topCells_->bindStorage(2);
+  leaves_->bindStorage(3);
+  walk_->bindStorage(4);
   if (cutOuts_.id()) cutOuts_.bindStorage(5);
-  const glm::vec3 lo = grid_.origin(), hi = grid_.boxMax(), voxel = grid_.voxelSize(), invVoxel = grid_.inverseVoxelSize();
-  const int top[3] = {grid_.topResolution(0), grid_.topResolution(1), grid_.topResolution(2)};
-  const int virt[3] = {grid_.virtualResolution(0), grid_.virtualResolution(1), grid_.virtualResolution(2)};
+  const GpuGridLayout& L = layout_;
   prog.set("uQueryCount", int(queries.size()));
-  prog.setVec3("uLo", &lo.x);
-  prog.setVec3("uHi", &hi.x);
-  prog.setVec3("uVoxel", &voxel.x);
-  prog.setVec3("uInvVoxel", &invVoxel.x);
-  prog.setIvec3("uTop", top);
-  prog.setIvec3("uVirt", virt);
-  prog.set("uDepth", grid_.depth());
+  prog.setVec3("uLo", &L.lo.x);
+  prog.setVec3("uHi", &L.hi.x);
+  prog.setVec3("uVoxel", &L.voxel.x);
+  prog.setVec3("uInvVoxel", &L.invVoxel.x);
+  prog.setIvec3("uTop", L.top);
+  prog.setIvec3("uVirt", L.virt);
+  prog.set("uDepth", L.depth);
   prog.set("uAnyHit", int(anyHit));
   prog.set("uCutOuts", int(cutOuts_.id() != 0));
   timer_->begin();
@@ -128,8 +140,8 @@ void GpuGridTracer::query(std::span<const IrregularGrid::Query> queries, bool an
       // traversal, the same walk with the texture test).
       const IrregularGrid::Query& q = queries[i];
       n = {};
-      if (anyHit) g.triangle = grid_.occluded(q.origin, q.dir, q.tnear, q.tfar, &n) ? 0u : kMiss;
-      else g = grid_.intersect(q.origin, q.dir, q.tnear, q.tfar, &n);
+      if (anyHit) g.triangle = cpu_->occluded(q.origin, q.dir, q.tnear, q.tfar, &n) ? 0u : kMiss;
+      else g = cpu_->intersect(q.origin, q.dir, q.tnear, q.tfar, &n);
       undecided.fetch_add(1, std::memory_order_relaxed);
     } else if (a.triangle != kMiss) {
       g.t = a.t, g.triangle = a.triangle, g.ng = {a.ng[0], a.ng[1], a.ng[2]};

@@ -3,7 +3,8 @@
 // structure, uploaded once. Its answers are the CPU grid's bit for bit on an IEEE device
 // (llvmpipe; tested), and so Embree's within the watertightness tolerance geobench documents.
 //
-// The build stays on the CPU (grid/irregular_grid.h); the paper builds on the GPU too.
+// The structure is the CPU's (grid/irregular_grid.h), uploaded, or one built on the GPU
+// (gpu/gpu_grid_build.h: steps 1 and 2 without merging and expansion).
 #pragma once
 
 #include <memory>
@@ -11,6 +12,7 @@
 
 #include "layertrace/geometry/geometric_tracer.h"
 #include "layertrace/gpu/gpu_context.h"
+#include "layertrace/gpu/gpu_grid_build.h"
 #include "layertrace/gpu/gpu_ray_batch.h"
 #include "layertrace/grid/irregular_grid.h"
 #include "layertrace/scene/camera.h"
@@ -28,6 +30,11 @@ class GpuGridTracer final : public GpuBatchTracer, public GeoHitQueries {
   /// candidate hit on such a triangle stops there, flagged, and the CPU grid answers it (its
   /// one-ray traversal, which tests the texel): the answers stay the CPU grid's.
   GpuGridTracer(GpuContext& gpu, const Scene& scene, const Camera& camera, const IrregularGrid& grid);
+  /// Walks a grid built on the GPU (kept by the tracer). A ray that meets an alpha-tested
+  /// candidate is answered by `cutOuts`, a CPU grid of the same scene (any configuration: both
+  /// answers are exact), which a scene with such triangles must give (InputError otherwise).
+  GpuGridTracer(GpuContext& gpu, const Scene& scene, const Camera& camera, std::unique_ptr<GpuGridBuild> built,
+                const IrregularGrid* cutOuts);
   ~GpuGridTracer() override;
   GpuGridTracer(const GpuGridTracer&) = delete;
   GpuGridTracer& operator=(const GpuGridTracer&) = delete;
@@ -50,6 +57,8 @@ class GpuGridTracer final : public GpuBatchTracer, public GeoHitQueries {
 
   /// Bytes on the GPU: top cells, leaves, cell records and triangle blocks.
   size_t memoryBytes() const;
+  /// The GPU's build, when the structure was built there (else null).
+  const GpuGridBuild* gpuBuild() const { return built_.get(); }
   /// GPU time of every batch so far (timer queries), milliseconds.
   double totalTraceMs() const { return totalTraceMs_; }
   /// Rays so far that the CPU grid answered (a candidate on an alpha-tested triangle).
@@ -61,10 +70,18 @@ class GpuGridTracer final : public GpuBatchTracer, public GeoHitQueries {
   void queryRays(std::span<const Ray> rays, std::span<const float> from, bool anyHit, std::span<GeoHit> hits,
                  std::span<RayCounters> counters) const;
 
+  /// The alpha-tested triangles as bits, for a scene that has them.
+  void markCutOuts(const Scene& scene);
+
   GpuContext& gpu_;
   GeometricHits hits_;
-  const IrregularGrid& grid_;
-  GpuBuffer topCells_, leaves_, walk_, cutOuts_;
+  const IrregularGrid* cpu_;  ///< answers the rays an alpha-tested candidate stopped
+  std::unique_ptr<GpuGridBuild> built_;
+  GpuGridLayout layout_;
+  GpuBuffer ownTopCells_, ownLeaves_, ownWalk_, cutOuts_;  ///< the CPU's structure, uploaded
+  const GpuBuffer* topCells_ = &ownTopCells_;
+  const GpuBuffer* leaves_ = &ownLeaves_;
+  const GpuBuffer* walk_ = &ownWalk_;
   mutable GpuRayBatch batch_;  ///< the answers (the queries are world-space: queries_)
   std::unique_ptr<GpuTimer> timer_;
   mutable double totalTraceMs_ = 0.0, lastTraceMs_ = 0.0;

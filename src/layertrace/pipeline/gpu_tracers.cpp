@@ -11,6 +11,7 @@
 #include "layertrace/gpu/gpu_context.h"
 #include "layertrace/gpu/gpu_frame.h"
 #include "layertrace/gpu/gpu_grid.h"
+#include "layertrace/gpu/gpu_grid_build.h"
 #include "layertrace/gpu/gpu_ldc.h"
 #include "layertrace/gpu/gpu_quadtree.h"
 #include "layertrace/gpu/gpu_screen_tracer.h"
@@ -190,6 +191,17 @@ double gpuTraceMs(const Tracer& tracer) {
   return g ? g->totalTraceMs() : 0.0;
 }
 
+BuiltTracer buildGpuGridOnGpu(const Frame& frame, const GridConfig& config, const IrregularGrid* cutOuts, GpuContext& gpu,
+                              GpuGridBuildStats& stats) {
+  auto built = std::make_unique<GpuGridBuild>(gpu, frame.scene, config);
+  stats = {built->cells(), built->refs(), built->memoryBytes(), built->gpuMs(), built->wallMs(), built->topMs(), built->leavesMs(), built->packMs()};
+  BuiltTracer b;
+  b.buildMs = built->wallMs();
+  b.memoryBytes = built->memoryBytes();
+  b.tracer = std::make_unique<GpuGridTracer>(gpu, frame.scene, frame.camera, std::move(built), cutOuts);
+  return b;
+}
+
 double traceGpuGrid(const Tracer& tracer, std::span<const IrregularGrid::Query> queries, bool anyHit, std::span<GeoHit> hits) {
   const auto* g = dynamic_cast<const GpuGridTracer*>(&tracer);
   if (!g) throw InternalError("traceGpuGrid: not a GPU grid");
@@ -220,6 +232,10 @@ BuiltTracer buildGpuTracer(const std::string&, const Frame&, const TracerOptions
 }
 bool setGpuPersistentThreads(Tracer&, bool) { return false; }
 double gpuTraceMs(const Tracer&) { return 0.0; }
+BuiltTracer buildGpuGridOnGpu(const Frame&, const GridConfig&, const IrregularGrid*, GpuContext&, GpuGridBuildStats&) {
+  openGpu();
+  return {};
+}
 double traceGpuGrid(const Tracer&, std::span<const IrregularGrid::Query>, bool, std::span<GeoHit>) {
   openGpu();
   return 0.0;

@@ -66,6 +66,19 @@ bool setGpuPersistentThreads(Tracer& tracer, bool on);
 /// GPU time of the dispatches of all batches a GPU tracer traced so far (GL timer queries),
 /// milliseconds; 0 for a CPU tracer.
 double gpuTraceMs(const Tracer& tracer);
+/// What the GPU's build of the irregular grid made and cost (gpu/gpu_grid_build.h).
+struct GpuGridBuildStats {
+  size_t cells = 0, refs = 0, memoryBytes = 0;
+  double gpuMs = 0.0, wallMs = 0.0;            ///< timer queries summed; host wall time, read-backs included
+  double topMs = 0.0, leavesMs = 0.0, packMs = 0.0;  ///< by step (timer queries)
+};
+/// The irregular grid of `frame`'s scene built on the GPU for `config` (steps 1 and 2; merging
+/// and expansion are not applied), as a tracer the GPU walks (buildGpuTracer "grid"'s), with
+/// `cutOuts` (a CPU grid of the scene, or null where it has no alpha-tested triangles)
+/// answering the rays an alpha-tested candidate stops. `stats` receives the build's figures.
+BuiltTracer buildGpuGridOnGpu(const Frame& frame, const GridConfig& config, const IrregularGrid* cutOuts, GpuContext& gpu,
+                              GpuGridBuildStats& stats);
+
 /// World-space queries through the GPU grid `tracer` (buildGpuTracer "grid"), answered as
 /// IrregularGrid::intersect / occluded answer them; returns the dispatch's GPU milliseconds.
 /// InternalError where `tracer` is no GPU grid.
