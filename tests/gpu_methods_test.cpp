@@ -303,6 +303,36 @@ TEST_F(GpuMethods, GridBuiltOnTheGpuEqualsTheCpusByteForByte) {
   EXPECT_TRUE(gpuGridEqualsTheCpus(*gpu_, f.scene, shallow)) << "depth cap 1";
 }
 
+// The grid built on the GPU (--grid-gpu-build) walks as its CPU twin (the same build without
+// merging and expansion): the same answers and counters, through alpha-tested triangles too,
+// where the CPU grid beside it decides.
+TEST_F(GpuMethods, GridBuiltOnTheGpuAnswersAsItsCpuTwinRayForRay) {
+  TracerOptions o;
+  o.grid.merge = false, o.grid.expansionPasses = 0, o.grid.gpuBuild = true;
+  const Frame f = defaultFrame(160, 90);
+  const std::vector<Ray> rays = test::sampleRays(f, 6000, test::testSeed() + 68);
+  const RayAgreement a = compareRays(*gpu_, f, "grid", o, rays, true);
+  EXPECT_LE(a.differ, allowed(a.rays));
+  EXPECT_GT(a.cpuHits, a.rays / 2);
+  test::TempDir dir;
+  FrameOptions go;
+  go.scenePath = test::writeGrateObj(dir);
+  go.eye = glm::dvec3(0.35, 0.45, 1.5), go.target = glm::dvec3(0.0, 0.2, -3.0);
+  go.width = 64, go.height = 48;
+  const Frame grate = buildFrame(go);
+  std::vector<Ray> through;
+  for (int y = 0; y < grate.camera.height(); ++y)
+    for (int x = 0; x < grate.camera.width(); ++x)
+      through.push_back(test::freeRay(grate.camera.rayOrigin({float(x) + 0.5f, float(y) + 0.5f}),
+                                      glm::normalize(grate.camera.rayThrough({float(x) + 0.5f, float(y) + 0.5f})), 100.0f));
+  EXPECT_LE(compareRays(*gpu_, grate, "grid", o, through, true).differ, allowed(2 * through.size())) << "the grate";
+  const BuiltTracer onGpu = buildGpuTracer("grid", grate, o, *gpu_);
+  ASSERT_NE(dynamic_cast<const GpuGridTracer&>(*onGpu.tracer).gpuBuild(), nullptr);
+  std::vector<TraceHit> hits(through.size());
+  onGpu.tracer->traceBatch(through, hits, {});
+  EXPECT_GT(dynamic_cast<const GpuGridTracer&>(*onGpu.tracer).cpuAnswered(), 0u) << "the grate was met";
+}
+
 // The resident frame's own capture, layer arrays and pyramid answer the CPU's rays as the CPU
 // tracers do over the CPU's capture: the fragment, its point, normal, material and triangle, and
 // every counter (compare --device gpu asks the frame this way).

@@ -13,6 +13,8 @@ std::span<const Param<GridConfig>> gridParams() {
        &GridConfig::oneDepthPerCell, "true"},
       {"--grid-partial-expansion", "--partial-expansion",
        "also expand into neighbours whose swept part holds only shared primitives", &GridConfig::partialExpansion, "false"},
+      {"--grid-gpu-build", "", "--device gpu: build the grid on the GPU (its first two steps: no merging or expansion)",
+       &GridConfig::gpuBuild, "true"},
   };
   return params;
 }

@@ -68,6 +68,9 @@ struct GridConfig {
   /// swept part of B is referenced by A. On by default: 5–10 % faster traversal on the real
   /// scenes for ~10–30 % more build time, the same agreement with Embree (docs/methods/grid.md).
   bool partialExpansion = true;
+  /// --device gpu: build the grid on the GPU (gpu/gpu_grid_build.h: steps 1 and 2, no merging
+  /// or expansion) instead of uploading the CPU's. No effect on the CPU's own grid.
+  bool gpuBuild = false;
 };
 
 /// Bytes of a walk unit (IrregularGrid::Packed: the leaves address the walk in these).

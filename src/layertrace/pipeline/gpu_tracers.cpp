@@ -123,6 +123,15 @@ BuiltTracer buildGpuTracer(const std::string& name, const Frame& frame, const Tr
     onGpu.geo = "grid";
     return buildHybrid(frame, options, onGpu);
   }
+  if (name == "grid" && options.grid.gpuBuild) {
+    // Built on the GPU; a scene with alpha-tested triangles gets a CPU grid beside it for the
+    // rays that meet one (the texture test).
+    std::unique_ptr<IrregularGrid> cutOuts = frame.scene.anyCutOut() ? std::make_unique<IrregularGrid>(frame.scene, options.grid) : nullptr;
+    GpuGridBuildStats stats;
+    b = buildGpuGridOnGpu(frame, options.grid, cutOuts.get(), gpu, stats);
+    b.grid = std::move(cutOuts);
+    return b;
+  }
   if (name == "grid") {
     // The grid built by the CPU, its packed traversal structure uploaded once, walked there.
     BuiltTracer cpu = buildTracer("grid", frame, options);
