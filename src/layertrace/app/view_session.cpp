@@ -41,7 +41,9 @@ struct ViewCache {
   /// --device gpu, a tracer of the resident frame and the plain picture: the frame stays on the
   /// device (gpu/gpu_frame.h) and is made again only when `residentKey` (the tracer, its
   /// parameters and the capture's) changes.
+#if LAYERTRACE_HAS_GPU
   std::unique_ptr<GpuFrame> resident;
+#endif
   std::string residentKey;
 };
 
@@ -66,11 +68,13 @@ void validateViewOptions(const ViewOptions& o) {
 ViewSession::~ViewSession() { closeGpu(); }
 
 void ViewSession::closeGpu() {
+#if LAYERTRACE_HAS_GPU
   if (gpu_ && cache_->resident) {
     makeGpuCurrent(*gpu_);  // its buffers go with the context current
     cache_->resident.reset();
     releaseGpu(*gpu_);
   }
+#endif
   gpu_.reset();
 }
 
@@ -99,7 +103,9 @@ size_t ViewSession::cachedStructures() const { return cache_->geometric.size(); 
 
 std::string ViewSession::presentOnGpu(void* eglDisplay, void* eglContext) {
   if (!gpu_) return "not --device gpu";
+#if LAYERTRACE_HAS_GPU
   LT_CHECK(!cache_->resident, "presentOnGpu after the first frame");
+#endif
   try {
     gpu_ = openGpuSharing(eglDisplay, eglContext);
   } catch (const InputError& e) {

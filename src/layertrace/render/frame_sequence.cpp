@@ -30,13 +30,6 @@ void viewFrame(const FrameOptions& options, const CameraDesc& start, int i, Fram
   setFrameView(options, orbitCamera(start, i), frame);
 }
 
-Image imageOf(const Camera& camera, const std::vector<glm::vec3>& rows) {
-  Image img(camera.width(), camera.height());
-  for (int y = 0; y < img.height; ++y)
-    for (int x = 0; x < img.width; ++x) img.set(x, y, rows[size_t(y) * size_t(img.width) + size_t(x)]);
-  return img;
-}
-
 std::vector<FrameSample> runOnCpu(const FrameOptions& options, Frame& frame, const FrameSequenceConfig& c) {
   std::vector<FrameSample> out;
   const CameraDesc start = frame.camera.desc();
@@ -62,6 +55,13 @@ std::vector<FrameSample> runOnCpu(const FrameOptions& options, Frame& frame, con
 }
 
 #if LAYERTRACE_HAS_GPU
+Image imageOf(const Camera& camera, const std::vector<glm::vec3>& rows) {
+  Image img(camera.width(), camera.height());
+  for (int y = 0; y < img.height; ++y)
+    for (int x = 0; x < img.width; ++x) img.set(x, y, rows[size_t(y) * size_t(img.width) + size_t(x)]);
+  return img;
+}
+
 /// The resident frame's configuration for the tracer `name` (isGpuFrameTracer).
 GpuFrameConfig residentConfig(const FrameOptions& options, const std::string& name, const TracerOptions& to) {
   GpuFrameConfig fc;
