@@ -126,6 +126,25 @@ RayAgreement compareResident(GpuContext& gpu, const FrameOptions& fo, const Fram
 
 Frame defaultFrame(int W, int H) { return buildFrame(test::defaultSceneOptions(W, H)); }
 
+/// A view through the alpha-tested grate of test::writeGrateObj (written into `dir`).
+Frame grateFrame(const test::TempDir& dir, int W, int H) {
+  FrameOptions o;
+  o.scenePath = test::writeGrateObj(dir);
+  o.eye = glm::dvec3(0.35, 0.45, 1.5), o.target = glm::dvec3(0.0, 0.2, -3.0);
+  o.width = W, o.height = H;
+  return buildFrame(o);
+}
+
+/// A ray from the eye through every pixel centre (free rays: nothing is skipped at their start).
+std::vector<Ray> eyeRays(const Frame& f) {
+  std::vector<Ray> rays;
+  for (int y = 0; y < f.camera.height(); ++y)
+    for (int x = 0; x < f.camera.width(); ++x)
+      rays.push_back(test::freeRay(f.camera.rayOrigin({float(x) + 0.5f, float(y) + 0.5f}),
+                                   glm::normalize(f.camera.rayThrough({float(x) + 0.5f, float(y) + 0.5f})), 100.0f));
+  return rays;
+}
+
 /// Rays from outside the view toward it (view synthesis), `count` of them.
 std::vector<Ray> raysFromOutside(const Frame& f, int count) {
   std::vector<Ray> rays;
@@ -242,16 +261,8 @@ TEST_F(GpuMethods, GridAnswersAsTheCpuGridRayForRay) {
 // (the GPU reads no texture), so the answers are the CPU grid's through the grate's holes too.
 TEST_F(GpuMethods, GridAnswersThroughAlphaTestedTrianglesAsTheCpu) {
   test::TempDir dir;
-  FrameOptions o;
-  o.scenePath = test::writeGrateObj(dir);
-  o.eye = glm::dvec3(0.35, 0.45, 1.5), o.target = glm::dvec3(0.0, 0.2, -3.0);
-  o.width = 96, o.height = 72;
-  const Frame f = buildFrame(o);
-  std::vector<Ray> rays;
-  for (int y = 0; y < f.camera.height(); ++y)
-    for (int x = 0; x < f.camera.width(); ++x)
-      rays.push_back(test::freeRay(f.camera.rayOrigin({float(x) + 0.5f, float(y) + 0.5f}),
-                                   glm::normalize(f.camera.rayThrough({float(x) + 0.5f, float(y) + 0.5f})), 100.0f));
+  const Frame f = grateFrame(dir, 96, 72);
+  const std::vector<Ray> rays = eyeRays(f);
   const RayAgreement a = compareRays(*gpu_, f, "grid", TracerOptions{}, rays, true);
   EXPECT_LE(a.differ, allowed(a.rays));
   const BuiltTracer onGpu = buildGpuTracer("grid", f, TracerOptions{}, *gpu_);
@@ -315,16 +326,8 @@ TEST_F(GpuMethods, GridBuiltOnTheGpuAnswersAsItsCpuTwinRayForRay) {
   EXPECT_LE(a.differ, allowed(a.rays));
   EXPECT_GT(a.cpuHits, a.rays / 2);
   test::TempDir dir;
-  FrameOptions go;
-  go.scenePath = test::writeGrateObj(dir);
-  go.eye = glm::dvec3(0.35, 0.45, 1.5), go.target = glm::dvec3(0.0, 0.2, -3.0);
-  go.width = 64, go.height = 48;
-  const Frame grate = buildFrame(go);
-  std::vector<Ray> through;
-  for (int y = 0; y < grate.camera.height(); ++y)
-    for (int x = 0; x < grate.camera.width(); ++x)
-      through.push_back(test::freeRay(grate.camera.rayOrigin({float(x) + 0.5f, float(y) + 0.5f}),
-                                      glm::normalize(grate.camera.rayThrough({float(x) + 0.5f, float(y) + 0.5f})), 100.0f));
+  const Frame grate = grateFrame(dir, 64, 48);
+  const std::vector<Ray> through = eyeRays(grate);
   EXPECT_LE(compareRays(*gpu_, grate, "grid", o, through, true).differ, allowed(2 * through.size())) << "the grate";
   const BuiltTracer onGpu = buildGpuTracer("grid", grate, o, *gpu_);
   ASSERT_NE(dynamic_cast<const GpuGridTracer&>(*onGpu.tracer).gpuBuild(), nullptr);

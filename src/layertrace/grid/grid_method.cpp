@@ -14,7 +14,7 @@ std::span<const Param<GridConfig>> gridParams() {
       {"--grid-partial-expansion", "--partial-expansion",
        "also expand into neighbours whose swept part holds only shared primitives", &GridConfig::partialExpansion, "false"},
       {"--grid-gpu-build", "", "--device gpu: build the grid on the GPU (its first two steps: no merging or expansion)",
-       &GridConfig::gpuBuild, "true"},
+       &GridConfig::gpuBuild},
   };
   return params;
 }
