@@ -39,16 +39,18 @@ float tame(float t) {
   return moved;
 }
 
+// i mod n in [0, n) for any i (n > 0). GLSL leaves % undefined for a negative operand, and
+// llvmpipe computes it as if both were unsigned (−1 % 20 gives 15, not −1): only non-negative
+// operands reach % here.
+int floorMod(int i, int n) { return i >= 0 ? i % n : n - 1 - (-(i + 1)) % n; }
+
 int wrapIndex(int i, int n, uint mode) {
   if (mode == 1u) return clamp(i, 0, n - 1);  // Clamp
   if (mode == 2u) {                           // Mirror
-    const int period = 2 * n;
-    int m = i % period;
-    if (m < 0) m += period;
+    const int period = 2 * n, m = floorMod(i, period);
     return m < n ? m : period - 1 - m;
   }
-  int m = i % n;  // Repeat
-  return m < 0 ? m + n : m;
+  return floorMod(i, n);  // Repeat
 }
 
 uvec4 levelOf(int texture, int level) {

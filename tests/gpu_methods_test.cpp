@@ -66,15 +66,13 @@ NodeAgreement compareQuadtrees(GpuContext& gpu, const Frame& f, const QuadtreeCo
 
 struct RayAgreement {
   size_t rays = 0, differ = 0, cpuHits = 0;
-  size_t albedoDiffer = 0;  ///< of the hits otherwise the same, those whose albedo and specular differ
 };
 
 /// `rays` through the CPU tracer `name` (one by one, counted: the reference path) and its GPU
 /// version (one batch), as closest-hit and, with `anyHit`, also as any-hit queries: the hit, its
 /// point, normal, material and triangle bit for bit, and every counter (summed over the queries).
-/// With `exactAlbedo` false, a hit whose albedo alone differs counts in albedoDiffer only.
 RayAgreement compareAnswers(GpuContext& gpu, const std::string& name, const Tracer& cpu, const Tracer& onGpu, const std::vector<Ray>& rays,
-                            bool anyHit = false, bool exactAlbedo = true) {
+                            bool anyHit = false) {
   RayAgreement a;
   for (const Query q : {Query::Closest, Query::Any}) {
     if (q == Query::Any && !anyHit) break;
@@ -91,10 +89,9 @@ RayAgreement compareAnswers(GpuContext& gpu, const std::string& name, const Trac
       const RayCounters& gc = counters[i];
       a.cpuHits += h.hit;
       const bool sameHit = h.hit == g.hit && h.x == g.x && h.y == g.y && h.layer == g.layer && h.triangle == g.triangle &&
-                           (h.albedoSpec == g.albedoSpec || !exactAlbedo) && std::memcmp(&h.point, &g.point, sizeof(h.point)) == 0 &&
+                           h.albedoSpec == g.albedoSpec && std::memcmp(&h.point, &g.point, sizeof(h.point)) == 0 &&
                            std::memcmp(&h.normal, &g.normal, sizeof(h.normal)) == 0;
       const bool sameCounters = std::memcmp(&c, &gc, sizeof(RayCounters)) == 0;
-      a.albedoDiffer += sameHit && h.albedoSpec != g.albedoSpec;
       if (!sameHit || !sameCounters) {
         if (a.differ++ < 5 && gpu.software())
           ADD_FAILURE() << name << " ray " << i << ": CPU " << h.hit << " (" << h.x << ", " << h.y << ", " << h.layer << ") it "
@@ -115,13 +112,12 @@ RayAgreement compareRays(GpuContext& gpu, const Frame& f, const std::string& nam
 
 /// `rays` through the CPU tracer `name` and through the resident GPU frame of the same view
 /// (its own capture, layer arrays and pyramid on the device: `compare --device gpu`).
-RayAgreement compareResident(GpuContext& gpu, const FrameOptions& fo, const Frame& f, const std::string& name, const std::vector<Ray>& rays,
-                             bool exactAlbedo = true) {
+RayAgreement compareResident(GpuContext& gpu, const FrameOptions& fo, const Frame& f, const std::string& name, const std::vector<Ray>& rays) {
   const BuiltTracer cpu = buildTracer(name, f, TracerOptions{});
   const std::unique_ptr<GpuFrame> resident = makeResidentFrame(gpu, fo, f, name, TracerOptions{});
   resident->build(f.camera, layerConfig(fo, f));
   const GpuFrameTracer onGpu(*resident, name.c_str());
-  return compareAnswers(gpu, name, *cpu.tracer, onGpu, rays, false, exactAlbedo);
+  return compareAnswers(gpu, name, *cpu.tracer, onGpu, rays);
 }
 
 Frame defaultFrame(int W, int H) { return buildFrame(test::defaultSceneOptions(W, H)); }
@@ -405,14 +401,11 @@ TEST_F(GpuMethodsRealScene, EveryGpuTracerOnAFetchedSceneEqualsTheCpu) {
     EXPECT_LE(a.differ, allowed(a.rays)) << name;
     EXPECT_GT(a.cpuHits, a.rays / 10) << name;
   }
-  // The resident frame's own capture. Its textured colours are those of the GPU capture, which
-  // on this scene differ from the CPU's for about 1 % of the view's fragments (2 % of these
-  // rays' hits; some by more than 32 codes of a channel, while the cut-out grate's are exact):
-  // the albedo is held to twice that share here, everything else to the bit.
+  // The resident frame's own capture: its textures (a 256 × 640 one, whose mip levels are not
+  // all powers of two, read at negative coordinates) give the CPU's colours too.
   for (const char* name : {"hssr", "ssr-layers"}) {
-    const RayAgreement a = compareResident(*gpu_, o, f, name, rays, false);
+    const RayAgreement a = compareResident(*gpu_, o, f, name, rays);
     EXPECT_LE(a.differ, allowed(a.rays)) << name;
-    EXPECT_LE(a.albedoDiffer, a.cpuHits / 25) << name;
     EXPECT_GT(a.cpuHits, a.rays / 10) << name;
   }
 }

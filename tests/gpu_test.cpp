@@ -237,6 +237,21 @@ TEST_F(Gpu, CutOutGrateEqualsTheCpuCapture) {
   EXPECT_GT(solid.lists.generated, cut.lists.generated + uint64_t(o.width * o.height / 20));
 }
 
+// A texture whose side is no power of two, read across its edges (bilinear taps at −1) and
+// through its holes: the wrapped texels are the CPU's (GLSL leaves % undefined for negative
+// operands; llvmpipe computes −1 % 12 as 3).
+TEST_F(Gpu, TexturesOfAnySideWrapAsOnTheCpu) {
+  test::TempDir dir;
+  FrameOptions o = grateView(dir, 96, 72, 2);
+  o.scenePath = test::writeGrateObj(dir, 12);
+  const LayerAgreement a = compareCaptures(*gpu_, o, "lists");
+  EXPECT_EQ(a.matchFraction(), 1.0);
+  EXPECT_GT(a.filled, uint64_t(o.width * o.height));
+  if (gpu_->software()) {
+    EXPECT_EQ(a.sameBits, a.filled);
+  }
+}
+
 /// Every fragment of pixel `p`'s list: (depth bits, triangle, normal, albedo and specular),
 /// sorted (the GPU links a pixel's fragments in atomic order).
 std::vector<std::array<uint32_t, 4>> listOf(const FragmentLists& l, size_t p) {
