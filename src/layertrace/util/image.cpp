@@ -18,13 +18,7 @@
 #include <ImfInputFile.h>
 #include <ImfOutputFile.h>
 
-#define STB_IMAGE_WRITE_IMPLEMENTATION
-#define STB_IMAGE_IMPLEMENTATION
-#define STBI_ONLY_PNG
-#define STBI_ONLY_JPEG  // model textures (decodeRgba8)
-#define STBI_ONLY_TGA
-#define STBI_ONLY_BMP
-#include <stb_image.h>
+#include <stb_image.h>  // (the implementation: stb_image_impl.cpp)
 #include <stb_image_write.h>
 
 #include "layertrace/util/error.h"
