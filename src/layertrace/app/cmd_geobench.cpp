@@ -232,27 +232,31 @@ int runGeobench(const GeobenchOptions& o) {
   // and with the CPU grid.
   if (o.run.device == "gpu") {
     const std::shared_ptr<GpuContext> gpu = openGpu();
+    // A GPU grid's walks over every ray set: GPU ms (median of --repeat after a warm-up that
+    // compiles), MRays/s, agreement with plain Embree and with the CPU grid.
+    auto walkOnGpu = [&](const Tracer& tracer, nlohmann::json& out) {
+      for (const auto& [name, set] : sets) {
+        std::vector<IrregularGrid::Query> q(set->o.size());
+        for (size_t i = 0; i < q.size(); ++i) q[i] = {set->o[i], set->d[i], set->tnear, set->tfar};
+        std::vector<GeoHit> hits(q.size());
+        traceGpuGrid(tracer, q, set->anyHit, hits);
+        std::vector<double> ms;
+        for (int r = 0; r < o.repeat; ++r) ms.push_back(traceGpuGrid(tracer, q, set->anyHit, hits));
+        std::vector<float> answers(q.size());
+        for (size_t i = 0; i < q.size(); ++i) answers[i] = set->anyHit ? (hits[i].hit() ? 1.0f : 0.0f) : hits[i].hit() ? hits[i].t : -1.0f;
+        const double n = double(set->o.size()), med = median(ms);
+        out[std::string("gpu_ms_") + name] = med;
+        out[std::string("mrays_") + name] = med > 0.0 ? n / med * 1e-3 : 0.0;
+        out[std::string("agreement_") + name] = agreement(traceAll(*set, embreeQ(*set)), answers);
+        out[std::string("agreement_cpu_grid_") + name] = agreement(traceAllGrid(*set, grid), answers);
+      }
+    };
     const BuiltTracer onGpu = buildGpuTracer("grid", frame, to, *gpu);
     nlohmann::json& gg = g["grid_gpu"];
     gg["memory_bytes"] = onGpu.memoryBytes;
     gg["build"] = "cpu";  // the structure is the CPU's, uploaded once
     gg["build_ms"] = gridBuild;
-    for (const auto& [name, set] : sets) {
-      std::vector<IrregularGrid::Query> q(set->o.size());
-      for (size_t i = 0; i < q.size(); ++i) q[i] = {set->o[i], set->d[i], set->tnear, set->tfar};
-      std::vector<GeoHit> hits(q.size());
-      traceGpuGrid(*onGpu.tracer, q, set->anyHit, hits);  // warm-up (the first dispatch compiles)
-      std::vector<double> ms;
-      for (int r = 0; r < o.repeat; ++r) ms.push_back(traceGpuGrid(*onGpu.tracer, q, set->anyHit, hits));
-      std::sort(ms.begin(), ms.end());
-      std::vector<float> answers(q.size());
-      for (size_t i = 0; i < q.size(); ++i) answers[i] = set->anyHit ? (hits[i].hit() ? 1.0f : 0.0f) : hits[i].hit() ? hits[i].t : -1.0f;
-      const double n = double(set->o.size()), med = ms[ms.size() / 2];
-      gg[std::string("gpu_ms_") + name] = med;
-      gg[std::string("mrays_") + name] = med > 0.0 ? n / med * 1e-3 : 0.0;
-      gg[std::string("agreement_") + name] = agreement(traceAll(*set, embreeQ(*set)), answers);
-      gg[std::string("agreement_cpu_grid_") + name] = agreement(traceAllGrid(*set, grid), answers);
-    }
+    walkOnGpu(*onGpu.tracer, gg);
     // The grid built on the GPU: steps 1 and 2 and the packing there (gpu/gpu_grid_build.h),
     // merging and expansion nowhere; its twin is the CPU build with those two off. Medians of
     // --repeat builds after a warm-up, then its walks over the same rays.
@@ -280,21 +284,7 @@ int runGeobench(const GeobenchOptions& o) {
                       {"memory_bytes", twin->memoryBytes()}, {"same_cells", twin->cells().size() == bs.cells && twin->refs().size() == bs.refs}};
     gb["cpu_full_build"] = {{"build_ms", gridBuild}, {"cells", grid.cells().size()}, {"references", grid.refs().size()},
                             {"memory_bytes", grid.memoryBytes()}};
-    for (const auto& [name, set] : sets) {
-      std::vector<IrregularGrid::Query> q(set->o.size());
-      for (size_t i = 0; i < q.size(); ++i) q[i] = {set->o[i], set->d[i], set->tnear, set->tfar};
-      std::vector<GeoHit> hits(q.size());
-      traceGpuGrid(*gpuBuilt.tracer, q, set->anyHit, hits);  // warm-up
-      std::vector<double> ms;
-      for (int r = 0; r < o.repeat; ++r) ms.push_back(traceGpuGrid(*gpuBuilt.tracer, q, set->anyHit, hits));
-      std::vector<float> answers(q.size());
-      for (size_t i = 0; i < q.size(); ++i) answers[i] = set->anyHit ? (hits[i].hit() ? 1.0f : 0.0f) : hits[i].hit() ? hits[i].t : -1.0f;
-      const double n = double(set->o.size()), med = median(ms);
-      gb[std::string("gpu_ms_") + name] = med;
-      gb[std::string("mrays_") + name] = med > 0.0 ? n / med * 1e-3 : 0.0;
-      gb[std::string("agreement_") + name] = agreement(traceAll(*set, embreeQ(*set)), answers);
-      gb[std::string("agreement_cpu_grid_") + name] = agreement(traceAllGrid(*set, grid), answers);
-    }
+    walkOnGpu(*gpuBuilt.tracer, gb);
     stats["gpu"] = gpuStats(*gpu);
   }
 
