@@ -34,6 +34,16 @@ vec3 crossStd(vec3 x, vec3 y) {
   return c;
 }
 
+// glm's mat4 · vec4 (Camera::toCamera, toWorld, dirTo*): (m0 x + m1 y) + (m2 z + m3 w).
+vec3 transformPoint(mat4 m, vec3 p) {
+  precise vec4 r = (m[0] * p.x + m[1] * p.y) + (m[2] * p.z + m[3]);
+  return r.xyz;
+}
+vec3 transformDirection(mat4 m, vec3 d) {
+  precise vec4 r = (m[0] * d.x + m[1] * d.y) + (m[2] * d.z + m[3] * 0.0);
+  return r.xyz;
+}
+
 // raster/fragment.cpp decodeOctahedral.
 float fromSnorm16(uint bits) {
   return max(float(bitfieldExtract(int(bits), 0, 16)) / 32767.0, -1.0);

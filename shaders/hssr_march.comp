@@ -33,6 +33,7 @@ uint ltCount(uvec4 m) { return uint(bitCount(m.x) + bitCount(m.y) + bitCount(m.z
 layout(local_size_x = 64) in;
 
 #include "ray_io.glsl"
+#include "screen_segment.glsl"
 #include "screen_common.glsl"
 
 // Coarse cells of levels 1.. (hssr/interval_pyramid.h CoarseCell): two vec4 per cell, κ of the

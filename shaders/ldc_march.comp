@@ -33,16 +33,6 @@ uniform bool uAnyHit;
 
 uint cIterations = 0u, cIntervals = 0u, cPixels = 0u, cLevel0 = 0u, cLevel1 = 0u;
 
-// glm's mat4 · vec4 (Camera::toCamera, toWorld, dirTo*): (m0 x + m1 y) + (m2 z + m3 w).
-vec3 transformPoint(mat4 m, vec3 p) {
-  precise vec4 r = (m[0] * p.x + m[1] * p.y) + (m[2] * p.z + m[3]);
-  return r.xyz;
-}
-vec3 transformDirection(mat4 m, vec3 d) {
-  precise vec4 r = (m[0] * d.x + m[1] * d.y) + (m[2] * d.z + m[3] * 0.0);
-  return r.xyz;
-}
-
 // ViewRay: x(t) = px + dx t, y(t) = py + dy t (texels), depth(t) = pz + dz t; ix, iy = 1/dx, 1/dy.
 struct ViewRay {
   float px, py, dx, dy, pz, dz, ix, iy;

@@ -8,6 +8,7 @@
 // segment (the exact ray–plane point) and the quad-tree's own counters.
 layout(local_size_x = 64) in;
 #include "ray_io.glsl"
+#include "screen_segment.glsl"
 #include "screen_common.glsl"
 #include "glm_float.glsl"
 #include "quadtree_common.glsl"

@@ -6,6 +6,7 @@
 layout(local_size_x = 64) in;
 
 #include "ray_io.glsl"
+#include "screen_segment.glsl"
 #include "screen_common.glsl"
 
 uniform float uStride, uJitter;

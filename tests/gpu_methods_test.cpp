@@ -23,6 +23,7 @@
 #include "layertrace/gpu/gpu_frame.h"
 #include "layertrace/gpu/gpu_grid.h"
 #include "layertrace/gpu/gpu_grid_build.h"
+#include "layertrace/gpu/gpu_hybrid.h"
 #include "layertrace/gpu/gpu_quadtree.h"
 #endif
 
@@ -347,19 +348,26 @@ TEST_F(GpuMethods, TheResidentFrameAnswersAsTheCpuRayForRay) {
   }
 }
 
-// The hybrid with both halves on the GPU answers as the CPU hybrid whose geometric half is the
-// grid: the same decisions over the same answers.
-TEST_F(GpuMethods, HybridAnswersAsTheCpuHybridRayForRay) {
-  const Frame f = defaultFrame(200, 120);
-  const std::vector<Ray> rays = test::sampleRays(f, 8000, test::testSeed() + 66);
-  for (const char* screen : {"hssr", "quadtree", "ldc"}) {
-    SCOPED_TRACE(screen);
-    TracerOptions cpuOptions;
-    cpuOptions.hybrid.screen = screen, cpuOptions.hybrid.geo = "grid";
-    TracerOptions gpuOptions = cpuOptions;
-    gpuOptions.hybrid.geo = "embree";  // ignored on the GPU: its geometric half is the grid
-    const BuiltTracer cpu = buildTracer("hybrid", f, cpuOptions), onGpu = buildGpuTracer("hybrid", f, gpuOptions, *gpu_);
-    for (const Query q : {Query::Closest, Query::Any}) {
+/// The hybrid `screen` with both halves on the GPU (its decisions there too with hssr and hiz)
+/// against the CPU hybrid whose geometric half is the grid, closest and any hits: the same
+/// decisions over the same answers, ray for ray, counters and statistics included.
+void expectHybridAsTheCpus(GpuContext& gpu, const Frame& f, const std::string& screen, const std::vector<Ray>& rays, size_t allowed,
+                           double minHits) {
+  SCOPED_TRACE(screen);
+  TracerOptions cpuOptions;
+  cpuOptions.hybrid.screen = screen, cpuOptions.hybrid.geo = "grid";
+  TracerOptions gpuOptions = cpuOptions;
+  gpuOptions.hybrid.geo = "embree";  // ignored on the GPU: its geometric half is the grid
+  const BuiltTracer cpu = buildTracer("hybrid", f, cpuOptions), onGpu = buildGpuTracer("hybrid", f, gpuOptions, gpu);
+  const auto* decidedOnGpu = dynamic_cast<const GpuHybridTracer*>(onGpu.tracer.get());
+  EXPECT_EQ(decidedOnGpu != nullptr, screen == "hssr" || screen == "hiz") << "decisions on the GPU";
+  auto& cpuHybrid = dynamic_cast<HybridTracer&>(*cpu.tracer);
+  auto& gpuHybrid = dynamic_cast<HybridTracer&>(*onGpu.tracer);
+  for (const Query q : {Query::Closest, Query::Any}) {
+    SCOPED_TRACE(q == Query::Any ? "any hit" : "closest hit");
+    cpuHybrid.resetStats();
+    gpuHybrid.resetStats();
+    {
       std::vector<TraceHit> want(rays.size()), got(rays.size());
       std::vector<RayCounters> wantC(rays.size()), gotC(rays.size());
       cpu.tracer->query(q, rays, want, wantC);
@@ -371,15 +379,38 @@ TEST_F(GpuMethods, HybridAnswersAsTheCpuHybridRayForRay) {
                              std::memcmp(&want[i].point, &got[i].point, sizeof(want[i].point)) == 0 &&
                              std::memcmp(&want[i].normal, &got[i].normal, sizeof(want[i].normal)) == 0;
         const bool sameCounters = std::memcmp(&wantC[i], &gotC[i], sizeof(RayCounters)) == 0;
-        if ((!sameHit || !sameCounters) && differ++ < 3 && gpu_->software())
-          ADD_FAILURE() << "ray " << i << (sameHit ? ": counters differ" : ": hits differ") << ", iterations " << wantC[i].iterations << " / "
+        if ((!sameHit || !sameCounters) && differ++ < 3 && gpu.software())
+          ADD_FAILURE() << "ray " << i << (sameHit ? ": counters differ" : ": hits differ") << ", hit " << want[i].hit << " / " << got[i].hit
+                        << ", triangle " << want[i].triangle << " / " << got[i].triangle << ", iterations " << wantC[i].iterations << " / "
                         << gotC[i].iterations << ", intervals " << wantC[i].intervals << " / " << gotC[i].intervals << ", fragments "
-                        << wantC[i].fragments << " / " << gotC[i].fragments << ", pixels " << wantC[i].pixels << " / " << gotC[i].pixels;
+                        << wantC[i].fragments << " / " << gotC[i].fragments << ", give-ups " << wantC[i].giveUps << " / " << gotC[i].giveUps;
       }
-      EXPECT_LE(differ, allowed(rays.size())) << (q == Query::Any ? "any hit" : "closest hit");
-      EXPECT_GT(hits, rays.size() / 2);
+      EXPECT_LE(differ, allowed);
+      EXPECT_GT(double(hits), minHits * double(rays.size()));
+    }
+    // Who answered: the same screen hits, certain misses, windows, rejections and remainders.
+    const HybridStats a = cpuHybrid.stats(), b = gpuHybrid.stats();
+    EXPECT_EQ(a.rays, b.rays);
+    if (allowed == 0) {
+      EXPECT_EQ(a.screenHits, b.screenHits);
+      EXPECT_EQ(a.certainMisses, b.certainMisses);
+      EXPECT_EQ(a.geoRays, b.geoRays);
+      EXPECT_EQ(a.windowQueries, b.windowQueries);
+      EXPECT_EQ(a.rejectedHits, b.rejectedHits);
+      EXPECT_NEAR(a.geoLengthSum, b.geoLengthSum, 1e-9 * double(rays.size()));
+    }
+    EXPECT_GT(double(a.screenHits), 0.5 * minHits * double(a.rays));
+    if (decidedOnGpu) {
+      EXPECT_GT(decidedOnGpu->gpuDecided(), 0u);
     }
   }
+}
+
+TEST_F(GpuMethods, HybridAnswersAsTheCpuHybridRayForRay) {
+  const Frame f = defaultFrame(200, 120);
+  const std::vector<Ray> rays = test::sampleRays(f, 8000, test::testSeed() + 66);
+  for (const char* screen : {"hssr", "hiz", "quadtree", "ldc"})
+    expectHybridAsTheCpus(*gpu_, f, screen, rays, allowed(rays.size()), 0.5);
 }
 
 // A fetched real scene (real label: `make test` fetches the scenes first).
@@ -401,6 +432,7 @@ TEST_F(GpuMethodsRealScene, EveryGpuTracerOnAFetchedSceneEqualsTheCpu) {
     EXPECT_LE(a.differ, allowed(a.rays)) << name;
     EXPECT_GT(a.cpuHits, a.rays / 10) << name;
   }
+  expectHybridAsTheCpus(*gpu_, f, "hssr", rays, allowed(rays.size()), 0.1);
   // The resident frame's own capture: its textures (a 256 × 640 one, whose mip levels are not
   // all powers of two, read at negative coordinates) give the CPU's colours too.
   for (const char* name : {"hssr", "ssr-layers"}) {

@@ -5,6 +5,8 @@
 #include <filesystem>
 #include <iostream>
 #include <sstream>
+#include <string>
+#include <string_view>
 
 #include "layertrace/app/commands.h"
 #include "layertrace/eval/image_metrics.h"
@@ -90,8 +92,11 @@ nlohmann::json hybridStats(const BuiltTracer& built, const TracerOptions& o) {
   if (!hybrid) return nullptr;
   const HybridStats h = hybrid->stats();
   const double rays = h.rays ? double(h.rays) : 1.0;
+  // On the GPU the geometric half is the grid whatever --hybrid-geo says.
+  const auto* geo = dynamic_cast<const Tracer*>(&hybrid->geometry());
+  const std::string geoName = geo && std::string_view(geo->name()) == "grid" ? "grid" : o.hybrid.geo;
   return {{"screen", o.hybrid.screen},
-          {"geo", o.hybrid.geo},
+          {"geo", geoName},
           {"rays", h.rays},
           {"screen_fraction", h.screenFraction()},
           {"geo_fraction", h.geoFraction()},

@@ -92,7 +92,6 @@ void GpuGridTracer::query(std::span<const IrregularGrid::Query> queries, bool an
   lastTraceMs_ = 0.0;
   if (queries.empty()) return;
   gpu_.makeCurrent();
-  GpuDebugGroup group("grid march");
   PoolVector<QueryRecord> records(queries.size());
   parallelFor(size_t(0), queries.size(), [&](size_t i) {
     const IrregularGrid::Query& q = queries[i];
@@ -104,26 +103,8 @@ void GpuGridTracer::query(std::span<const IrregularGrid::Query> queries, bool an
   const GpuBuffer& in = batch_.answers(1, queryBytes);
   const GpuBuffer& out = batch_.answers(0, answerBytes);
   in.write(records.data(), queryBytes);
-  const GpuProgram& prog = gpu_.computeProgram("grid_march.comp", shader_source::grid_march_comp);
-  in.bindStorage(0);
-  out.bindStorage(1);
-  topCells_->bindStorage(2);
-  leaves_->bindStorage(3);
-  walk_->bindStorage(4);
-  if (cutOuts_.id()) cutOuts_.bindStorage(5);
-  const GpuGridLayout& L = layout_;
-  prog.set("uQueryCount", int(queries.size()));
-  prog.setVec3("uLo", &L.lo.x);
-  prog.setVec3("uHi", &L.hi.x);
-  prog.setVec3("uVoxel", &L.voxel.x);
-  prog.setVec3("uInvVoxel", &L.invVoxel.x);
-  prog.setIvec3("uTop", L.top);
-  prog.setIvec3("uVirt", L.virt);
-  prog.set("uDepth", L.depth);
-  prog.set("uAnyHit", int(anyHit));
-  prog.set("uCutOuts", int(cutOuts_.id() != 0));
   timer_->begin();
-  gpu_.dispatch(prog, queries.size());
+  walkResident(in, out, queries.size(), anyHit);
   timer_->end();
   PoolVector<AnswerRecord> answers(queries.size());
   out.read(answers.data(), answerBytes);
@@ -150,6 +131,30 @@ void GpuGridTracer::query(std::span<const IrregularGrid::Query> queries, bool an
     if (!counts.empty()) counts[i] = n;
   });
   cpuAnswered_ += undecided.load();
+}
+
+void GpuGridTracer::walkResident(const GpuBuffer& queries, const GpuBuffer& answers, size_t n, bool anyHit) const {
+  if (n == 0) return;
+  GpuDebugGroup group("grid march");
+  const GpuProgram& prog = gpu_.computeProgram("grid_march.comp", shader_source::grid_march_comp);
+  queries.bindStorage(0);
+  answers.bindStorage(1);
+  topCells_->bindStorage(2);
+  leaves_->bindStorage(3);
+  walk_->bindStorage(4);
+  if (cutOuts_.id()) cutOuts_.bindStorage(5);
+  const GpuGridLayout& L = layout_;
+  prog.set("uQueryCount", int(n));
+  prog.setVec3("uLo", &L.lo.x);
+  prog.setVec3("uHi", &L.hi.x);
+  prog.setVec3("uVoxel", &L.voxel.x);
+  prog.setVec3("uInvVoxel", &L.invVoxel.x);
+  prog.setIvec3("uTop", L.top);
+  prog.setIvec3("uVirt", L.virt);
+  prog.set("uDepth", L.depth);
+  prog.set("uAnyHit", int(anyHit));
+  prog.set("uCutOuts", int(cutOuts_.id() != 0));
+  gpu_.dispatch(prog, n);
 }
 
 void GpuGridTracer::traceBatch(std::span<const Ray> rays, std::span<TraceHit> hits, std::span<RayCounters> counters) const {

@@ -52,6 +52,12 @@ class GpuGridTracer final : public GpuBatchTracer, public GeoHitQueries {
   /// in `counts` when it is not empty. The timer of the dispatch adds to totalTraceMs().
   void query(std::span<const IrregularGrid::Query> queries, bool anyHit, std::span<GeoHit> hits,
              std::span<TraversalCounts> counts = {}) const;
+  /// Walks `n` world-space queries already on the device (`queries`: shaders/grid_march.comp's
+  /// two vec4 each, (origin, tnear), (direction, tfar); a tnear past the tfar walks nothing)
+  /// into `answers` (its two uvec4 each), without a transfer or a timer: the hybrid's passes on
+  /// the GPU (gpu_hybrid.h). An answer flagged undecided (2: an alpha-tested candidate) is the
+  /// caller's to settle.
+  void walkResident(const GpuBuffer& queries, const GpuBuffer& answers, size_t n, bool anyHit) const;
   /// GPU time of the last query's dispatch (timer query), milliseconds.
   double lastTraceMs() const { return lastTraceMs_; }
 

@@ -17,11 +17,11 @@ struct RayRecord {
 };
 static_assert(sizeof(RayRecord) == 32);
 
-/// `buffer` with room for `bytes`: kept, or replaced by one of at least twice its size.
+}  // namespace
+
 void reserve(GpuBuffer& buffer, size_t bytes) {
   if (buffer.bytes() < bytes) buffer = GpuBuffer(std::max(bytes, 2 * buffer.bytes()));
 }
-}  // namespace
 
 void GpuRayBatch::upload(std::span<const Ray> rays) {
   PoolVector<RayRecord> records(rays.size());

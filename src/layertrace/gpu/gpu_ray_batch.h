@@ -38,6 +38,10 @@ class GpuBatchTracer : public Tracer {
   }
 };
 
+/// `buffer` with room for `bytes`: kept, or replaced by one of at least twice its size (its
+/// contents are not kept).
+void reserve(GpuBuffer& buffer, size_t bytes);
+
 class GpuRayBatch {
  public:
   static constexpr int kAnswerBuffers = 2;

@@ -302,6 +302,20 @@ HybridStats HybridTracer::stats() const {
   return h;
 }
 
+void HybridTracer::addStats(const HybridStats& h) const {
+  Sums& s = sums_.local();
+  s.rays += h.rays;
+  s.screenHits += h.screenHits;
+  s.certainMisses += h.certainMisses;
+  s.geoRays += h.geoRays;
+  s.rejectedHits += h.rejectedHits;
+  s.windowQueries += h.windowQueries;
+  s.geoLengthSum += h.geoLengthSum;
+  s.screenMs += h.screenMs;
+  s.windowMs += h.windowMs;
+  s.geoMs += h.geoMs;
+}
+
 void HybridTracer::resetStats() {
   for (Sums& s : sums_) s = Sums{};
 }

@@ -108,6 +108,19 @@ class HybridTracer : public Tracer {
   HybridStats stats() const;
   void resetStats();
 
+ protected:
+  /// Adds the sums of a run made elsewhere (the GPU's passes: gpu/gpu_hybrid.h) to stats().
+  void addStats(const HybridStats& s) const;
+  /// The ray's length inside the scene's bounds (the denominator of geo_length_mean).
+  float lengthInScene(glm::vec3 worldOrigin, glm::vec3 worldDir, float maxDistance) const;
+  const Camera& camera() const { return camera_; }
+  const LayerArrays& layers() const { return layers_; }
+  const KnownSpace& known() const { return known_; }
+  const GeometricHits& geometricHits() const { return hits_; }
+  float offsetUnit() const { return offsetUnit_; }
+  float worldMargin() const { return worldMargin_; }
+  bool uncertainEmptySpace() const { return uncertainEmptySpace_; }
+
  private:
   struct Scratch;
   void run(Query q, std::span<const Ray> rays, std::span<TraceHit> hits, std::span<RayCounters> counters) const;
@@ -127,8 +140,6 @@ class HybridTracer : public Tracer {
   /// The nearest intersection with the triangles of the first `layers` layers of pixel (x, y),
   /// t in (tmin, tmax].
   GeoHit pixelHit(glm::vec3 worldOrigin, glm::vec3 worldDir, int x, int y, int layers, float tmin, float tmax) const;
-  /// The ray's length inside the scene's bounds (the denominator of geo_length_mean).
-  float lengthInScene(glm::vec3 worldOrigin, glm::vec3 worldDir, float maxDistance) const;
 
   const Scene& scene_;
   float offsetUnit_;  ///< GeometricHits::offsetUnit(scene_): the geometric tracers' origin offset

@@ -85,6 +85,11 @@ class KnownSpace {
   void boundaries(std::span<const Ray> rays, std::span<Boundary> out, std::span<ScreenSegment> segments = {}) const;
 
   size_t memoryBytes() const { return pyramid_.memoryBytes(); }
+  /// Whether boundaries march rule 3 (false: rules 1–2 only, the screen tracer marches the
+  /// solid intervals).
+  bool marchesUnknownDepths() const { return pyramid_.levelCount() > 0; }
+  /// Rule 2's depth beyond which nothing was captured (+∞ when the far plane covers the scene).
+  float farLimit() const { return farLimit_; }
   double buildMs() const { return buildMs_; }
 
  private:

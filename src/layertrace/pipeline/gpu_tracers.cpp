@@ -12,6 +12,7 @@
 #include "layertrace/gpu/gpu_frame.h"
 #include "layertrace/gpu/gpu_grid.h"
 #include "layertrace/gpu/gpu_grid_build.h"
+#include "layertrace/gpu/gpu_hybrid.h"
 #include "layertrace/gpu/gpu_ldc.h"
 #include "layertrace/gpu/gpu_quadtree.h"
 #include "layertrace/gpu/gpu_screen_tracer.h"
@@ -108,8 +109,9 @@ BuiltTracer buildGpuTracer(const std::string& name, const Frame& frame, const Tr
   }
   if (name == "hybrid") {
     // Both halves on the GPU: the screen march over the hybrid's solid intervals (its pyramid
-    // built there), the GPU grid for the rest; the hybrid's decisions between them stay the
-    // CPU's (known_space.h), so the answers are the CPU hybrid's with --hybrid-geo grid.
+    // built there), the GPU grid for the rest. With hssr or hiz the decisions between them run
+    // there too (gpu_hybrid.h); the quad-tree and the layered depth cube keep the CPU's
+    // (known_space.h). Either way the answers are the CPU hybrid's with --hybrid-geo grid.
     HybridBuilders onGpu;
     onGpu.pyramidScreen = [&](IntervalLayers solid, const PyramidConfig& pc, const HssrConfig& hc) {
       BuiltTracer screen;
@@ -121,7 +123,15 @@ BuiltTracer buildGpuTracer(const std::string& name, const Frame& frame, const Tr
     };
     onGpu.part = [&](const std::string& part) { return buildGpuTracer(part, frame, options, gpu); };
     onGpu.geo = "grid";
-    return buildHybrid(frame, options, onGpu);
+    b = buildHybrid(frame, options, onGpu);
+    const auto* grid = dynamic_cast<const GpuGridTracer*>(b.parts[1].tracer.get());
+    if (grid && GpuHybridTracer::canRunOnGpu(*b.parts[0].tracer, *b.known)) {
+      auto h = std::make_unique<GpuHybridTracer>(gpu, frame.scene, frame.camera, frame.layers, *b.known,
+                                                 dynamic_cast<const GpuScreenTracer&>(*b.parts[0].tracer), *grid);
+      b.memoryBytes += h->memoryBytes();
+      b.tracer = std::move(h);
+    }
+    return b;
   }
   if (name == "grid" && options.grid.gpuBuild) {
     // Built on the GPU; a scene with alpha-tested triangles gets a CPU grid beside it for the
@@ -190,6 +200,7 @@ void makeGpuCurrent(const GpuContext& gpu) { gpu.makeCurrent(); }
 void releaseGpu(const GpuContext& gpu) { gpu.release(); }
 
 double gpuTraceMs(const Tracer& tracer) {
+  if (const auto* h = dynamic_cast<const GpuHybridTracer*>(&tracer)) return h->totalTraceMs();
   if (const auto* h = dynamic_cast<const HybridTracer*>(&tracer))  // both halves' dispatches
     return gpuTraceMs(h->screen()) + (dynamic_cast<const Tracer*>(&h->geometry()) ? gpuTraceMs(dynamic_cast<const Tracer&>(h->geometry())) : 0.0);
   if (const auto* q = dynamic_cast<const GpuQuadtreeTracer*>(&tracer)) return q->totalTraceMs();

@@ -1,0 +1,75 @@
+#version 450
+// The hybrid tracer's first pass on the GPU (gpu/gpu_hybrid.h): per ray, where the layers'
+// knowledge ends (known_space.h rules 1–2; the march over the solid intervals meets rule 3),
+// the geometric window over the origin's pixel (rule 6) and the segment the screen march traces,
+// as HybridTracer::run computes them before its march.
+layout(local_size_x = 64) in;
+#include "ray_io.glsl"
+#include "glm_float.glsl"
+#include "screen_segment.glsl"
+#include "hybrid_common.glsl"
+
+layout(std430, binding = 0) readonly buffer Rays { GpuRay rays[]; };
+layout(std430, binding = 1) writeonly buffer ScreenRays { GpuRay screenRays[]; };
+layout(std430, binding = 2) writeonly buffer States { HybridState states[]; };
+
+uniform int uRayCount, uFirst;
+uniform mat4 uViewInverse;  // camera space → world (Camera::viewInverse)
+uniform float uOffsetUnit;  // GeometricHits::offsetUnit of the scene
+uniform float uFarLimit;    // depth beyond which nothing was captured (+∞: the far plane covers the scene)
+
+void main() {
+  const uint id = gl_GlobalInvocationID.x + uint(uFirst);
+  if (id >= uint(uRayCount)) return;
+  const GpuRay r = rays[id];
+  const vec3 o = r.originMax.xyz, d = r.dirSurface.xyz;
+  const float maxDistance = r.originMax.w;
+  const bool onSurface = r.dirSurface.w != 0.0;
+  HybridState st;
+  st.origin = vec4(transformPoint(uViewInverse, o), 0.0);
+  st.dir = vec4(transformDirection(uViewInverse, d), 0.0);
+  // GeometricHits::originOffset: 1e-4 of the unit or of the origin's distance from the eye.
+  precise float offset = uintBitsToFloat(0x38D1B717u) * maxStd(uOffsetUnit, sqrt(dotStd(o, o)));
+  st.origin.w = offset;
+  // KnownSpace::boundaries and finish, without the rule-3 march.
+  const Segment seg = makeSegment(r);
+  float knownUntil = 0.0, geoFrom = 0.0;
+  if (seg.valid && !seg.startOutside) {
+    float s = 1.0;
+    bool leaves = seg.clippedEnd;
+    if (uFarLimit < kInf) {
+      const float sFar = paramAtDepth(seg, uFarLimit);
+      if (maxStd(depthAt(seg, 0.0), depthAt(seg, s)) > uFarLimit && sFar >= 0.0 && sFar < s) s = sFar, leaves = true;
+    }
+    if (!leaves) {
+      knownUntil = geoFrom = maxDistance;
+    } else {
+      knownUntil = rayParamAt(o, d, maxDistance, seg, s);
+      precise float before = s - pixelParam(seg, 1.0);
+      geoFrom = minStd(knownUntil, rayParamAt(o, d, maxDistance, seg, maxStd(0.0, before)));
+    }
+  }
+  // Rule 6: the origin's pixel, up to two pixels past it, is the origin window's.
+  float windowEnd = -1.0;
+  int x, y;
+  if (onSurface && pixelOf(o, x, y))
+    windowEnd = maxStd(seg.valid ? paramAfter(o, d, maxDistance, seg, pixelParams(seg, x, y).y, pixelParam(seg, kPixelMargin)) : maxDistance, 0.0);
+  const float end = minStd(maxDistance, knownUntil);
+  GpuRay sr = r;
+  sr.originMax.w = end;
+  if (windowEnd > 0.0) {  // HybridTracer::segment(ray, min(windowEnd, end), end)
+    const float from = minStd(windowEnd, end);
+    precise vec3 start = o + d * from;
+    precise float length = end - from;
+    sr.originMax = vec4(start, maxStd(length, 0.0));
+    sr.dirSurface.w = onSurface && from == 0.0 ? 1.0 : 0.0;
+  }
+  screenRays[id] = sr;
+  st.dir.w = knownUntil >= maxDistance ? kInf : geoFrom;
+  st.best = vec4(0.0);
+  st.span = windowEnd;
+  st.bestTriangle = kMiss;
+  st.flags = 0u;
+  st.geoIterations = 0u;
+  states[id] = st;
+}

@@ -1,0 +1,87 @@
+// The hybrid tracer with its decisions on the GPU (shaders/hybrid_*.comp): the screen march over
+// the solid intervals (HSSR or Hi-Z), the exact checks, the geometric windows and the remainders
+// on the GPU grid, one batch of rays without a transfer between the passes. The CPU's rays go up
+// once; their answers (triangle, t, normal, who answered) come back once. The GLSL twin of
+// hybrid/hybrid_tracer.cpp's run: the same decisions in the same floats, so its answers, counters
+// and statistics are the CPU hybrid's (with the grid as its geometric half) ray for ray on an
+// IEEE device (tested on llvmpipe).
+//
+// One batch is five passes and three marches:
+//   prepare — per ray, where knowledge ends (known_space.h rules 1–2), the origin's window and
+//             the screen segment (hybrid_prepare.comp);
+//   march   — the screen tracer's march over the solid intervals (GpuScreenTracer::marchResident);
+//   check   — the exact crossing of the hit pixel's layers, the two windows as grid queries
+//             (hybrid_check.comp);
+//   walk    — the grid over the windows (GpuGridTracer::walkResident);
+//   combine — the window hits, certain misses, and the remainders as grid queries
+//             (hybrid_combine.comp);
+//   walk    — the grid over the remainders;
+//   resolve — each ray's answer (hybrid_resolve.comp).
+// Every pass runs over every ray of the batch: a ray that asks no window or remainder walks an
+// empty query. Choice: no compaction between the passes, so no host wait and no scan; the empty
+// walks cost one invocation each.
+//
+// A ray whose query meets an alpha-tested candidate (the grid on the GPU reads no texture) is
+// decided again on the CPU (HybridTracer's own run, whose grid queries the CPU grid settles).
+// The layered depth cube and the quad-tree as the screen half, and the known space's rule-3
+// march, keep the CPU's decisions (HybridTracer) between the GPU's marches.
+#pragma once
+
+#include <cstdint>
+#include <span>
+
+#include "layertrace/gpu/gpu_context.h"
+#include "layertrace/gpu/gpu_grid.h"
+#include "layertrace/gpu/gpu_ray_batch.h"
+#include "layertrace/gpu/gpu_screen_tracer.h"
+#include "layertrace/hybrid/hybrid_tracer.h"
+
+namespace lt {
+
+class GpuHybridTracer final : public HybridTracer {
+ public:
+  /// The hybrid of `screen` (a GpuScreenTracer over the solid intervals: hssr or hiz) and `grid`
+  /// over `layers` and `known` (frustum rules only: canRunOnGpu). Uploads the layers' triangle ids
+  /// and the scene's triangles for the exact checks. All are borrowed and must outlive the tracer.
+  GpuHybridTracer(GpuContext& gpu, const Scene& scene, const Camera& camera, const LayerArrays& layers, const KnownSpace& known,
+                  const GpuScreenTracer& screen, const GpuGridTracer& grid);
+  ~GpuHybridTracer() override;
+  GpuHybridTracer(const GpuHybridTracer&) = delete;
+  GpuHybridTracer& operator=(const GpuHybridTracer&) = delete;
+
+  /// Whether the decisions of a hybrid over `screen` and `known` can run on the GPU: a screen
+  /// march over a pyramid (hssr, hiz) and a known space without the rule-3 march.
+  static bool canRunOnGpu(const Tracer& screen, const KnownSpace& known);
+
+  TraceHit trace(const Ray& ray, RayCounters& counters) const override;
+  void traceBatch(std::span<const Ray> rays, std::span<TraceHit> hits, std::span<RayCounters> counters) const override;
+  void occludedBatch(std::span<const Ray> rays, std::span<TraceHit> hits, std::span<RayCounters> counters) const override;
+
+  /// GPU time of every batch so far (timer queries of all passes and marches, and of the
+  /// marches of rays decided on the CPU), milliseconds.
+  double totalTraceMs() const;
+  /// Rays so far decided on the CPU (an alpha-tested candidate).
+  uint64_t cpuDecided() const { return cpuDecided_; }
+  /// Rays so far decided on the GPU.
+  uint64_t gpuDecided() const { return gpuDecided_; }
+  /// Bytes on the GPU beyond the halves': the layers' triangle ids and counts, the scene's
+  /// triangles, and the batch's buffers.
+  size_t memoryBytes() const;
+
+ private:
+  void runOnGpu(Query q, std::span<const Ray> rays, std::span<TraceHit> hits, std::span<RayCounters> counters) const;
+  void setCamera(const GpuProgram& program) const;
+
+  GpuContext& gpu_;
+  const Scene& scene_;
+  const GpuScreenTracer& screenOnGpu_;
+  const GpuGridTracer& grid_;
+  GpuBuffer layerTriangles_, layerCounts_, positions_, triangles_;
+  mutable GpuRayBatch batch_;  ///< the CPU's rays
+  mutable GpuBuffer screenRays_, screenHits_, states_, windows_, windowAnswers_, remainders_, remainderAnswers_, answers_;
+  mutable GpuTimeline timeline_;
+  mutable double totalTraceMs_ = 0.0;
+  mutable uint64_t cpuDecided_ = 0, gpuDecided_ = 0;
+};
+
+}  // namespace lt
