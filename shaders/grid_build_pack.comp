@@ -1,58 +1,40 @@
 #version 450
-// The irregular grid's build on the GPU, last step (gpu/gpu_grid_build.h): the leaves as the
-// traversal reads them (IrregularGrid::packForTraversal). The first run sorts each leaf's
-// references by triangle (the CPU's order) and gives its size in walk units; after their prefix
-// sum, the second writes its 32-byte record (box in virtual voxels, reference count, id) and its
-// blocks of four triangles (vertex coordinates lane by lane, then the ids; spare lanes repeat the
-// last triangle), and points the voxel map's leaf at it. One invocation per leaf.
+// The irregular grid's build on the GPU, last step (gpu/gpu_grid_build.h): the cells as the
+// traversal reads them (IrregularGrid::packForTraversal), one invocation per cell. The first
+// run gives each live cell's size in walk units (0 for a cell merged away); after their prefix
+// sum, the second writes its 32-byte record (expanded box in virtual voxels, reference count,
+// id among the live cells) and its blocks of four triangles (vertex coordinates lane by lane,
+// then the ids; spare lanes repeat the last triangle).
 layout(local_size_x = 64) in;
 #include "glm_float.glsl"
 #include "grid_build_common.glsl"
-layout(std430, binding = 2) readonly buffer TopInfo { uvec2 topInfo[]; };  // first leaf; depths x | y << 8 | z << 16
-layout(std430, binding = 3) readonly buffer Offsets { uint offsets[]; };   // per leaf: its first reference
-layout(std430, binding = 4) buffer Refs { uint refs[]; };
-layout(std430, binding = 5) buffer Units { uint units[]; };                // first run: sizes; second: first unit
+layout(std430, binding = 2) readonly buffer Expanded { ivec4 expanded[]; };  // per cell: [lo, hi)
+layout(std430, binding = 3) readonly buffer CellRefs { uvec2 cellRefs[]; };   // first reference, count
+layout(std430, binding = 4) readonly buffer Refs { uint refs[]; };
+layout(std430, binding = 5) buffer Units { uint units[]; };                   // first run: sizes; second: first unit
 layout(std430, binding = 6) writeonly buffer Walk { uint walk[]; };
-layout(std430, binding = 7) writeonly buffer Leaves { uint leaves[]; };
+// The exclusive prefix sum of the cells' liveness: a live cell's id after merging.
+layout(std430, binding = 7) readonly buffer Ids { uint ids[]; };
 
-uniform int uFirst, uLeaves, uTopCells;
-uniform ivec3 uTop;
-uniform int uDepth;
+uniform int uFirst, uCells;
 uniform bool uWrite;
 
 void main() {
-  const uint l = gl_GlobalInvocationID.x + uint(uFirst);
-  if (l >= uint(uLeaves)) return;
-  const uint begin = offsets[l], n = offsets[l + 1u] - begin;
+  const uint c = gl_GlobalInvocationID.x + uint(uFirst);
+  if (c >= uint(uCells)) return;
+  const bool live = ids[c + 1u] != ids[c];
+  const uint begin = cellRefs[c].x, n = cellRefs[c].y;
   if (!uWrite) {
-    for (uint i = 1u; i < n; ++i) {  // insertion sort: a leaf holds a few references
-      const uint key = refs[begin + i];
-      uint j = i;
-      for (; j > 0u && refs[begin + j - 1u] > key; --j) refs[begin + j] = refs[begin + j - 1u];
-      refs[begin + j] = key;
-    }
-    const uint size = 1u + (n + 3u) / 4u * 5u;
-    units[l] = size + size % 2u;
+    const uint size = 1u + (n + 3u) / 4u * 5u;  // grid/irregular_grid.h cellUnits
+    units[c] = live ? size + size % 2u : 0u;
     return;
   }
-  // The leaf's top cell: the last whose first leaf is at or before l.
-  uint lo = 0u, hi = uint(uTopCells);
-  while (hi - lo > 1u) {
-    const uint mid = (lo + hi) / 2u;
-    if (topInfo[mid].x <= l) lo = mid;
-    else hi = mid;
-  }
-  const uint c = lo, k = l - topInfo[c].x;
-  const uvec2 info = topInfo[c];
-  const ivec3 d = ivec3(info.y & 255u, (info.y >> 8) & 255u, (info.y >> 16) & 255u);
-  const ivec3 tc = ivec3(int(c % uint(uTop.x)), int(c / uint(uTop.x) % uint(uTop.y)), int(c / (uint(uTop.x) * uint(uTop.y))));
-  const ivec3 n3 = ivec3(1) << d, span = ivec3(1) << (ivec3(uDepth) - d);
-  const ivec3 off = ivec3(int(k % uint(n3.x)), int(k / uint(n3.x) % uint(n3.y)), int(k / uint(n3.x * n3.y)));
-  const ivec3 vlo = (tc << uDepth) + off * span, vhi = vlo + span;
-  const uint unit = units[l], w = unit * 8u;
-  walk[w] = uint(vlo.x), walk[w + 1u] = uint(vlo.y), walk[w + 2u] = uint(vlo.z);
-  walk[w + 3u] = uint(vhi.x), walk[w + 4u] = uint(vhi.y), walk[w + 5u] = uint(vhi.z);
-  walk[w + 6u] = n, walk[w + 7u] = l;
+  if (!live) return;
+  const ivec3 lo = expanded[2u * c].xyz, hi = expanded[2u * c + 1u].xyz;
+  const uint w = units[c] * 8u;
+  walk[w] = uint(lo.x), walk[w + 1u] = uint(lo.y), walk[w + 2u] = uint(lo.z);
+  walk[w + 3u] = uint(hi.x), walk[w + 4u] = uint(hi.y), walk[w + 5u] = uint(hi.z);
+  walk[w + 6u] = n, walk[w + 7u] = ids[c];
   for (uint b = 0u; b < (n + 3u) / 4u; ++b) {
     const uint bw = w + 8u + b * 40u;
     for (uint lane = 0u; lane < 4u; ++lane) {
@@ -64,5 +46,4 @@ void main() {
       walk[bw + 36u + lane] = t;
     }
   }
-  leaves[l] = unit;
 }

@@ -271,13 +271,17 @@ TEST_F(GpuMethods, GridAnswersThroughAlphaTestedTrianglesAsTheCpu) {
 /// The GPU's grid build against the CPU's with merging and expansion off (what the GPU builds):
 /// the packed structure byte for byte — top cells, the voxel map's leaves, every cell record and
 /// triangle block — and the layout the traversal reads. Returns whether all of it is equal.
-bool gpuGridEqualsTheCpus(GpuContext& gpu, const Scene& scene, GridConfig config) {
-  config.merge = false, config.expansionPasses = 0;
+bool gpuGridEqualsTheCpus(GpuContext& gpu, const Scene& scene, const GridConfig& config) {
   const IrregularGrid cpu(scene, config);
   const GpuGridBuild onGpu(gpu, scene, config);
   const IrregularGrid::Packed p = cpu.packed();
+  EXPECT_EQ(onGpu.cellsInitial(), cpu.stats().cellsInitial);
   EXPECT_EQ(onGpu.cells(), cpu.cells().size());
   EXPECT_EQ(onGpu.refs(), cpu.refs().size());
+  EXPECT_EQ(onGpu.expandedFaces(), cpu.stats().expandedFaces);
+  if (config.merge) {
+    EXPECT_LT(onGpu.cells(), onGpu.cellsInitial()) << "merged";
+  }
   const GpuGridLayout want = GpuGridLayout::of(cpu), got = onGpu.layout();
   EXPECT_EQ(std::memcmp(&want, &got, sizeof want), 0) << "the layout (box, voxel, resolutions, depth)";
   auto same = [](const GpuBuffer& b, const void* data, size_t bytes, const char* what) {
@@ -296,27 +300,29 @@ bool gpuGridEqualsTheCpus(GpuContext& gpu, const Scene& scene, GridConfig config
   return top && leaves && walk && onGpu.cells() == cpu.cells().size();
 }
 
-// Pérard-Gayot et al. 2017, steps 1 and 2 and the packing on the GPU: the CPU's cells, references
-// and packed bytes, for the default configuration, the paper's depth rule and a shallow cap.
+// Pérard-Gayot et al. 2017, all four steps and the packing on the GPU: the CPU's cells,
+// references and packed bytes, for the default configuration (merging, three passes of partial
+// expansion), the paper's depth rule, whole-neighbour expansion, a shallow cap, one expansion
+// pass, and the initial grid alone.
 TEST_F(GpuMethods, GridBuiltOnTheGpuEqualsTheCpusByteForByte) {
   if (!gpu_->software()) GTEST_SKIP() << "an IEEE device only (the division of a GPU may round its own way)";
   const Frame f = defaultFrame(64, 36);
-  for (const bool oneDepth : {false, true}) {
-    GridConfig c;
-    c.oneDepthPerCell = oneDepth;
-    EXPECT_TRUE(gpuGridEqualsTheCpus(*gpu_, f.scene, c)) << "one depth per cell " << oneDepth;
-  }
-  GridConfig shallow;
+  GridConfig oneDepth, whole, shallow, onePass, initial;
+  oneDepth.oneDepthPerCell = true;
+  whole.partialExpansion = false;
   shallow.maxDepth = 1, shallow.lambda1 = 0.05f;
-  EXPECT_TRUE(gpuGridEqualsTheCpus(*gpu_, f.scene, shallow)) << "depth cap 1";
+  onePass.expansionPasses = 1;
+  initial.merge = false, initial.expansionPasses = 0;
+  for (const auto& [c, what] : {std::pair{GridConfig{}, "default"}, {oneDepth, "one depth per cell"}, {whole, "whole neighbours"},
+                                {shallow, "depth cap 1"}, {onePass, "one expansion pass"}, {initial, "no merging, no expansion"}})
+    EXPECT_TRUE(gpuGridEqualsTheCpus(*gpu_, f.scene, c)) << what;
 }
 
-// The grid built on the GPU (--grid-gpu-build) walks as its CPU twin (the same build without
-// merging and expansion): the same answers and counters, through alpha-tested triangles too,
-// where the CPU grid beside it decides.
+// The grid built on the GPU (--grid-gpu-build) walks as its CPU twin: the same answers and
+// counters, through alpha-tested triangles too, where the CPU grid beside it decides.
 TEST_F(GpuMethods, GridBuiltOnTheGpuAnswersAsItsCpuTwinRayForRay) {
   TracerOptions o;
-  o.grid.merge = false, o.grid.expansionPasses = 0, o.grid.gpuBuild = true;
+  o.grid.gpuBuild = true;
   const Frame f = defaultFrame(160, 90);
   const std::vector<Ray> rays = test::sampleRays(f, 6000, test::testSeed() + 68);
   const RayAgreement a = compareRays(*gpu_, f, "grid", o, rays, true);

@@ -15,7 +15,7 @@
 namespace lt {
 
 namespace {
-enum Stage { kTop, kLeaves, kPack, kStages };
+enum Stage { kTop, kLeaves, kMerge, kExpand, kPack, kStages };
 
 /// The exclusive prefix sum of `n` counts in `buffer`, in place, the total at [n]
 /// (shaders/pyramid_scan.comp: one work group).
@@ -144,35 +144,144 @@ GpuGridBuild::GpuGridBuild(GpuContext& gpu, const Scene& scene, const GridConfig
   gpu_.dispatch(leavesPass, topRefs);
   timeline.end(kLeaves);
 
-  // The packing: each leaf sorted and sized, the sizes summed, then written.
+  // Step 3, merging: every leaf a cell with its references sorted, then passes along x, y and z
+  // (gpu_grid_build.h).
+  timeline.begin(kMerge);
+  const size_t cells = size_t(leaves);
+  checkAllocation(cat("the irregular grid's cells (", cells, ")"), uint64_t(cells) * 100 + uint64_t(refs_) * 4);
+  const GpuBuffer boxes(cells * 32), cellRefs(cells * 8), owners(cells * 4), fates(cells * 4), scratch(cells * 16);
+  const GpuBuffer ids((cells + 1) * sizeof(uint32_t));  // the prefix sums of the new counts, then of the liveness
+  const GpuProgram& merge = gpu_.computeProgram("grid_build_merge.comp", shader_source::grid_build_merge_comp);
+  const GpuProgram& rank = gpu_.computeProgram("grid_build_rank.comp", shader_source::grid_build_rank_comp);
+  const GpuProgram& join = gpu_.computeProgram("grid_build_join.comp", shader_source::grid_build_join_comp);
+  const int virt[3] = {L.virt[0], L.virt[1], L.virt[2]};
+  merge.setIvec3("uTop", topDims);
+  merge.set("uDepth", D);
+  merge.setIvec3("uVirt", virt);
+  merge.set("uTopCells", int(numTop));
+  merge.setVec3("uVoxel", &L.voxel.x);
+  merge.set("uTraversalCost", config.traversalCost);
+  const GpuBuffer* cellList = &refs;  // the live cells' references: `refs` or, after merging, `otherList`
+  const GpuBuffer otherList(config.merge ? std::max<size_t>(refs_ * 4, 16) : 16);
+  auto bindCells = [&] {
+    leafOffsets.bindStorage(0), fates.bindStorage(1), info.bindStorage(2), boxes.bindStorage(3), cellRefs.bindStorage(4);
+    cellList->bindStorage(5), owners.bindStorage(6), scratch.bindStorage(7);
+  };
+  auto runMerge = [&](int mode, size_t n) {
+    bindCells();
+    merge.set("uMode", mode);
+    merge.set("uCells", int(n));
+    gpu_.dispatch(merge, n);
+  };
+  runMerge(0, cells);
+  timeline.end(kMerge);
+  if (config.merge) {
+    timeline.begin(kMerge);
+    const GpuBuffer rankA(cells * 8), rankB(cells * 8), status(16);
+    const GpuBuffer* spare = &otherList;
+    size_t count = cells;
+    for (int round = 0; round < 64; ++round) {
+      status.fill(0u);
+      for (int axis = 0; axis < 3; ++axis) {
+        merge.set("uAxis", axis);
+        runMerge(2, cells);  // no candidates, no preds
+        runMerge(1, cells);  // the candidates, their preds
+        // The ranks along the chains: a round per doubling of the links' span.
+        const GpuBuffer* in = &rankA;
+        const GpuBuffer* out = &rankB;
+        auto runRank = [&](int mode) {
+          in->bindStorage(0), out->bindStorage(1), status.bindStorage(2), ids.bindStorage(3), cellRefs.bindStorage(4);
+          fates.bindStorage(5), scratch.bindStorage(7);
+          rank.set("uMode", mode);
+          rank.set("uCells", int(cells));
+          gpu_.dispatch(rank, cells);
+          if (mode < 2) std::swap(in, out);  // the ranks just written are read next
+        };
+        runRank(0);
+        for (int span = 1; span < virt[axis]; span *= 2) runRank(1);
+        runRank(2);  // reads the ranks from `in`, as the join below does
+        scan(gpu_, ids, cells);
+        ids.bindStorage(0), spare->bindStorage(1), in->bindStorage(2), boxes.bindStorage(3), cellRefs.bindStorage(4);
+        cellList->bindStorage(5), fates.bindStorage(6), scratch.bindStorage(7);
+        join.set("uCells", int(cells));
+        join.set("uAxis", axis);
+        gpu_.dispatch(join, cells);
+        std::swap(cellList, spare);
+        runMerge(3, cells);  // the voxel map follows the cells merged away
+      }
+      ++mergeRounds_;
+      const uint32_t merged = wordAt(status, 0);
+      refs_ = wordAt(ids, cells);
+      const size_t after = count - merged;
+      const bool done = float(after) >= config.alpha * float(count);  // the CPU build's rule
+      count = after;
+      if (done) break;
+    }
+    timeline.end(kMerge);
+  }
+  // The live cells' ids: the prefix sum of their liveness.
+  timeline.begin(kMerge);
+  ids.bindStorage(3), fates.bindStorage(5), scratch.bindStorage(7);
+  rank.set("uMode", 3);
+  rank.set("uCells", int(cells));
+  gpu_.dispatch(rank, cells);
+  scan(gpu_, ids, cells);
+  timeline.end(kMerge);
+
+  // Step 4, expansion: each live cell's faces over the neighbours beyond them, the CPU's passes.
+  timeline.begin(kExpand);
+  const GpuBuffer expanded(cells * 32 + 16);
+  const GpuProgram& expand = gpu_.computeProgram("grid_build_expand.comp", shader_source::grid_build_expand_comp);
+  positions.bindStorage(0), indices.bindStorage(1), info.bindStorage(2), boxes.bindStorage(3), cellRefs.bindStorage(4);
+  cellList->bindStorage(5), owners.bindStorage(6), expanded.bindStorage(7);
+  expanded.fill(0u);
+  expand.setVec3("uLo", &L.lo.x);
+  expand.setVec3("uVoxel", &L.voxel.x);
+  expand.setIvec3("uTop", topDims);
+  expand.set("uDepth", D);
+  expand.setIvec3("uVirt", virt);
+  expand.set("uPartial", int(config.partialExpansion));
+  expand.set("uCells", int(cells));
+  expand.set("uMode", 0);
+  gpu_.dispatch(expand, cells);
+  expand.set("uMode", 1);
+  for (int p = 0; p < config.expansionPasses; ++p) gpu_.dispatch(expand, cells);
+  timeline.end(kExpand);
+
+  // The packing: each live cell sized, the sizes summed, then written; the leaves pointed at
+  // their cells.
   timeline.begin(kPack);
-  const GpuBuffer units((leaves + 1) * sizeof(uint32_t));
-  info.bindStorage(2), leafOffsets.bindStorage(3), refs.bindStorage(4), units.bindStorage(5);
-  pack.set("uLeaves", int(leaves));
-  pack.set("uTopCells", int(numTop));
-  pack.setIvec3("uTop", topDims);
-  pack.set("uDepth", D);
+  const GpuBuffer units((cells + 1) * sizeof(uint32_t));
+  positions.bindStorage(0), indices.bindStorage(1), expanded.bindStorage(2), cellRefs.bindStorage(3), cellList->bindStorage(4);
+  units.bindStorage(5), ids.bindStorage(7);
+  pack.set("uCells", int(cells));
   pack.set("uWrite", 0);
-  gpu_.dispatch(pack, leaves);
-  scan(gpu_, units, leaves);
+  gpu_.dispatch(pack, cells);
+  scan(gpu_, units, cells);
   timeline.end(kPack);
-  const uint64_t totalUnits = wordAt(units, leaves);
+  const uint64_t totalUnits = wordAt(units, cells);
   checkAllocation(cat("the irregular grid's triangle blocks (", totalUnits * kGridWalkUnit, " bytes)"),
                   totalUnits * kGridWalkUnit + leaves * 4);
   timeline.begin(kPack);
   walk_ = GpuBuffer(std::max<size_t>(totalUnits * kGridWalkUnit, 16));
   walk_.fill(0u);
   leaves_ = GpuBuffer(std::max<size_t>(leaves * 4, 16));
-  positions.bindStorage(0), indices.bindStorage(1), info.bindStorage(2), leafOffsets.bindStorage(3), refs.bindStorage(4);
-  units.bindStorage(5), walk_.bindStorage(6), leaves_.bindStorage(7);
+  positions.bindStorage(0), indices.bindStorage(1), expanded.bindStorage(2), cellRefs.bindStorage(3), cellList->bindStorage(4);
+  units.bindStorage(5), walk_.bindStorage(6), ids.bindStorage(7);
   pack.set("uWrite", 1);
-  gpu_.dispatch(pack, leaves);
+  gpu_.dispatch(pack, cells);
+  const GpuProgram& leafMap = gpu_.computeProgram("grid_build_leafmap.comp", shader_source::grid_build_leafmap_comp);
+  owners.bindStorage(0), units.bindStorage(1), leaves_.bindStorage(2);
+  leafMap.set("uLeaves", int(leaves));
+  gpu_.dispatch(leafMap, leaves);
   timeline.end(kPack);
   topCells_ = GpuBuffer(std::max<size_t>(numTop * sizeof(IrregularGrid::TopCell), 16), topRecords.data());
+  cellsInitial_ = cells;
+  cells_ = wordAt(ids, cells);
+  expandedFaces_ = wordAt(expanded, 2 * cells * 4);
   glUseProgram(0);
-  cells_ = size_t(leaves);
   const std::vector<double> ms = timeline.collect(kStages);
-  topMs_ = ms[kTop], leavesMs_ = ms[kLeaves], packMs_ = ms[kPack];
+  topMs_ = ms[kTop], leavesMs_ = ms[kLeaves], mergeMs_ = ms[kMerge], expandMs_ = ms[kExpand], packMs_ = ms[kPack];
   wallMs_ = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
 }
 
