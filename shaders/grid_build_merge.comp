@@ -8,18 +8,20 @@
 //    The partner's pred is set to the cell: each cell is the partner of at most one cell (its one
 //    lower neighbour of the same extent), so the candidates form disjoint chains along the axis;
 //  - clear (before candidates): no candidate, no pred;
-//  - owners (one invocation per leaf, after the pass joined its pairs): the voxel map follows
-//    the cells that died.
+//  - owners (one invocation per leaf, after a round's passes): the voxel map follows the cells
+//    that died.
+// Candidates and clear run over the live cells only.
 layout(local_size_x = 64) in;
 #include "grid_build_cells.glsl"
-// Per leaf (init): its first reference; [leaves] holds their total.
-layout(std430, binding = 0) readonly buffer LeafOffsets { uint leafOffsets[]; };
+// Init: per leaf its first reference, [leaves] their total. Otherwise: the live cells, in
+// increasing id (the invocations of candidates and clear run over these).
+layout(std430, binding = 0) readonly buffer Words { uint words[]; };
 // Per cell: kNone while it lives, else the cell that absorbed it.
 layout(std430, binding = 1) buffer Fates { uint fates[]; };
 // Per cell: (candidate, pred, union size, unused); kNone where none.
 layout(std430, binding = 7) buffer Scratch { uvec4 scratch[]; };
 
-uniform int uFirst, uCells, uTopCells;  // uCells: cells (leaves in the owners mode)
+uniform int uFirst, uCells, uTopCells;  // uCells: the invocations (cells, live cells or leaves)
 uniform int uMode;  // 0: init, 1: candidates, 2: clear, 3: owners
 uniform int uAxis;
 uniform vec3 uVoxel;
@@ -35,7 +37,7 @@ float area(ivec3 lo, ivec3 hi) {
 }
 
 void init(uint c) {
-  const uint begin = leafOffsets[c], n = leafOffsets[c + 1u] - begin;
+  const uint begin = words[c], n = words[c + 1u] - begin;
   for (uint i = 1u; i < n; ++i) {  // insertion sort: a leaf holds a few references
     const uint key = refs[begin + i];
     uint j = i;
@@ -72,7 +74,8 @@ uint candidate(uint a, out uint unionSize) {
   if (ahi[axis] >= uVirt[axis]) return kNone;
   ivec3 probe;
   probe[axis] = ahi[axis], probe[u] = alo[u], probe[w] = alo[w];
-  const uint b = cellAt(probe);
+  uint b = cellAt(probe);
+  while (fates[b] != kNone) b = fates[b];  // (the voxel map follows once per round)
   if (b == a) return kNone;
   const ivec3 blo = boxLo(b), bhi = boxHi(b);
   if (blo[axis] != ahi[axis] || blo[u] != alo[u] || bhi[u] != ahi[u] || blo[w] != alo[w] || bhi[w] != ahi[w]) return kNone;
@@ -95,22 +98,24 @@ uint candidate(uint a, out uint unionSize) {
 }
 
 void main() {
-  const uint c = gl_GlobalInvocationID.x + uint(uFirst);
-  if (c >= uint(uCells)) return;
+  const uint id = gl_GlobalInvocationID.x + uint(uFirst);
+  if (id >= uint(uCells)) return;
   if (uMode == 0) {
-    init(c);
+    init(id);
     return;
   }
+  if (uMode == 3) {  // id: a leaf
+    uint o = owners[id];
+    while (fates[o] != kNone) o = fates[o];
+    owners[id] = o;
+    return;
+  }
+  const uint c = words[id];
   if (uMode == 2) {
     scratch[c] = uvec4(kNone, kNone, 0u, 0u);
     return;
   }
-  if (uMode == 3) {
-    const uint fate = fates[owners[c]];
-    if (fate != kNone) owners[c] = fate;
-    return;
-  }
-  if (fates[c] != kNone) return;
+  if (fates[c] != kNone) return;  // merged away earlier in this round
   uint unionSize;
   const uint b = candidate(c, unionSize);
   scratch[c].x = b;

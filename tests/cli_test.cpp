@@ -1152,17 +1152,19 @@ TEST(CliGpu, GeobenchWalksTheGridOnTheGpuAsOnTheCpu) {
     EXPECT_GT(g[std::string("mrays_") + set].get<double>(), 0.0) << set;
   }
   EXPECT_EQ(g["build"], "cpu");
-  // The grid built on the GPU: its CPU twin's cells and references, and the answers of an exact
-  // structure (Embree's, as the CPU grid's are).
+  // The grid built on the GPU, merged and expanded: the CPU build's cells, references and moved
+  // faces, and its answers (Embree's, as the CPU grid's are).
   const auto& b = j["grid_gpu_build"];
   EXPECT_EQ(b["build"], "gpu");
   EXPECT_EQ(b["cells"], b["cpu_twin"]["cells"]);
   EXPECT_EQ(b["references"], b["cpu_twin"]["references"]);
   EXPECT_TRUE(b["cpu_twin"]["same_cells"].get<bool>());
-  EXPECT_GT(b["cells"].get<double>(), b["cpu_full_build"]["cells"].get<double>()) << "nothing merged on the GPU";
+  EXPECT_LT(b["cells"].get<double>(), b["cells_initial"].get<double>()) << "nothing merged on the GPU";
+  EXPECT_GT(b["expanded_faces"].get<double>(), 0.0);
   EXPECT_GT(b["build_ms"].get<double>(), 0.0);
   for (const char* set : {"primary", "ao", "diffuse"}) {
     EXPECT_EQ(b[std::string("agreement_") + set].get<double>(), j["grid"][std::string("agreement_") + set].get<double>()) << set;
+    EXPECT_EQ(b[std::string("agreement_cpu_grid_") + set].get<double>(), 1.0) << set;
     EXPECT_GT(b[std::string("mrays_") + set].get<double>(), 0.0) << set;
   }
 }

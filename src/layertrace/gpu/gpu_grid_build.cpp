@@ -177,41 +177,52 @@ GpuGridBuild::GpuGridBuild(GpuContext& gpu, const Scene& scene, const GridConfig
   timeline.end(kMerge);
   if (config.merge) {
     timeline.begin(kMerge);
-    const GpuBuffer rankA(cells * 8), rankB(cells * 8), status(16);
+    const GpuBuffer live(cells * 4), rankA(cells * 8), rankB(cells * 8), status(16);
     const GpuBuffer* spare = &otherList;
+    const GpuBuffer* in = &rankA;
+    const GpuBuffer* out = &rankB;
+    auto runRank = [&](int mode, size_t n) {
+      in->bindStorage(0), out->bindStorage(1), status.bindStorage(2), ids.bindStorage(3), cellRefs.bindStorage(4);
+      fates.bindStorage(5), live.bindStorage(6), scratch.bindStorage(7);
+      rank.set("uMode", mode);
+      rank.set("uCells", int(n));
+      gpu_.dispatch(rank, n);
+      if (mode == 0 || mode == 1) std::swap(in, out);  // the ranks just written are read next
+    };
+    auto runOnLive = [&](int mode, size_t n) {  // merge.comp's clear and candidates over the live cells
+      bindCells();
+      live.bindStorage(0);
+      merge.set("uMode", mode);
+      merge.set("uCells", int(n));
+      gpu_.dispatch(merge, n);
+    };
     size_t count = cells;
     for (int round = 0; round < 64; ++round) {
+      // The live cells in increasing id: the passes of this round run over them.
+      runRank(3, cells);
+      scan(gpu_, ids, cells);
+      runRank(4, cells);
       status.fill(0u);
       for (int axis = 0; axis < 3; ++axis) {
         merge.set("uAxis", axis);
-        runMerge(2, cells);  // no candidates, no preds
-        runMerge(1, cells);  // the candidates, their preds
+        runOnLive(2, count);  // no candidates, no preds
+        runOnLive(1, count);  // the candidates, their preds
         // The ranks along the chains: a round per doubling of the links' span.
-        const GpuBuffer* in = &rankA;
-        const GpuBuffer* out = &rankB;
-        auto runRank = [&](int mode) {
-          in->bindStorage(0), out->bindStorage(1), status.bindStorage(2), ids.bindStorage(3), cellRefs.bindStorage(4);
-          fates.bindStorage(5), scratch.bindStorage(7);
-          rank.set("uMode", mode);
-          rank.set("uCells", int(cells));
-          gpu_.dispatch(rank, cells);
-          if (mode < 2) std::swap(in, out);  // the ranks just written are read next
-        };
-        runRank(0);
-        for (int span = 1; span < virt[axis]; span *= 2) runRank(1);
-        runRank(2);  // reads the ranks from `in`, as the join below does
-        scan(gpu_, ids, cells);
+        runRank(0, count);
+        for (int span = 1; span < virt[axis]; span *= 2) runRank(1, count);
+        runRank(2, count);  // the choice and the new counts, in the live list's order
+        scan(gpu_, ids, count);
         ids.bindStorage(0), spare->bindStorage(1), in->bindStorage(2), boxes.bindStorage(3), cellRefs.bindStorage(4);
-        cellList->bindStorage(5), fates.bindStorage(6), scratch.bindStorage(7);
-        join.set("uCells", int(cells));
+        cellList->bindStorage(5), live.bindStorage(6), scratch.bindStorage(7);
+        join.set("uCells", int(count));
         join.set("uAxis", axis);
-        gpu_.dispatch(join, cells);
+        gpu_.dispatch(join, count);
         std::swap(cellList, spare);
-        runMerge(3, cells);  // the voxel map follows the cells merged away
       }
+      runMerge(3, leaves);  // the voxel map follows the cells merged away
       ++mergeRounds_;
       const uint32_t merged = wordAt(status, 0);
-      refs_ = wordAt(ids, cells);
+      refs_ = wordAt(ids, count);  // the last pass's total (its prefix sum ran over `count` cells)
       const size_t after = count - merged;
       const bool done = float(after) >= config.alpha * float(count);  // the CPU build's rule
       count = after;

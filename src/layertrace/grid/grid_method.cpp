@@ -13,7 +13,7 @@ std::span<const Param<GridConfig>> gridParams() {
        &GridConfig::oneDepthPerCell, "true"},
       {"--grid-partial-expansion", "--partial-expansion",
        "also expand into neighbours whose swept part holds only shared primitives", &GridConfig::partialExpansion, "false"},
-      {"--grid-gpu-build", "", "--device gpu: build the grid on the GPU (its first two steps: no merging or expansion)",
+      {"--grid-gpu-build", "", "--device gpu: build the grid on the GPU (all four steps as compute passes: the CPU build's cells)",
        &GridConfig::gpuBuild},
   };
   return params;

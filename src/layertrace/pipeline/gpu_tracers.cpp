@@ -214,7 +214,11 @@ double gpuTraceMs(const Tracer& tracer) {
 BuiltTracer buildGpuGridOnGpu(const Frame& frame, const GridConfig& config, const IrregularGrid* cutOuts, GpuContext& gpu,
                               GpuGridBuildStats& stats) {
   auto built = std::make_unique<GpuGridBuild>(gpu, frame.scene, config);
-  stats = {built->cells(), built->refs(), built->memoryBytes(), built->gpuMs(), built->wallMs(), built->topMs(), built->leavesMs(), built->packMs()};
+  stats.cells = built->cells(), stats.cellsInitial = built->cellsInitial(), stats.refs = built->refs();
+  stats.memoryBytes = built->memoryBytes(), stats.mergeRounds = built->mergeRounds(), stats.expandedFaces = built->expandedFaces();
+  stats.gpuMs = built->gpuMs(), stats.wallMs = built->wallMs();
+  stats.topMs = built->topMs(), stats.leavesMs = built->leavesMs(), stats.mergeMs = built->mergeMs(), stats.expandMs = built->expandMs();
+  stats.packMs = built->packMs();
   BuiltTracer b;
   b.buildMs = built->wallMs();
   b.memoryBytes = built->memoryBytes();

@@ -68,12 +68,14 @@ bool setGpuPersistentThreads(Tracer& tracer, bool on);
 double gpuTraceMs(const Tracer& tracer);
 /// What the GPU's build of the irregular grid made and cost (gpu/gpu_grid_build.h).
 struct GpuGridBuildStats {
-  size_t cells = 0, refs = 0, memoryBytes = 0;
+  size_t cells = 0, cellsInitial = 0, refs = 0, memoryBytes = 0;
+  int mergeRounds = 0;
+  uint64_t expandedFaces = 0;
   double gpuMs = 0.0, wallMs = 0.0;            ///< timer queries summed; host wall time, read-backs included
-  double topMs = 0.0, leavesMs = 0.0, packMs = 0.0;  ///< by step (timer queries)
+  double topMs = 0.0, leavesMs = 0.0, mergeMs = 0.0, expandMs = 0.0, packMs = 0.0;  ///< by step (timer queries)
 };
-/// The irregular grid of `frame`'s scene built on the GPU for `config` (steps 1 and 2; merging
-/// and expansion are not applied), as a tracer the GPU walks (buildGpuTracer "grid"'s), with
+/// The irregular grid of `frame`'s scene built on the GPU for `config` (all four steps: the
+/// CPU's cells), as a tracer the GPU walks (buildGpuTracer "grid"'s), with
 /// `cutOuts` (a CPU grid of the scene, or null where it has no alpha-tested triangles)
 /// answering the rays an alpha-tested candidate stops. `stats` receives the build's figures.
 BuiltTracer buildGpuGridOnGpu(const Frame& frame, const GridConfig& config, const IrregularGrid* cutOuts, GpuContext& gpu,
