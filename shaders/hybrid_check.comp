@@ -11,7 +11,9 @@ layout(local_size_x = 64) in;
 #include "hybrid_common.glsl"
 
 layout(std430, binding = 0) readonly buffer Rays { GpuRay rays[]; };
-layout(std430, binding = 1) readonly buffer ScreenHits { GpuHit screenHits[]; };
+// The screen march's answers: GpuHit records (16 words a ray), or with a world-space screen half
+// shaders/ldc_march.comp's (8 words: the hit's distance, its sample or kMiss, …).
+layout(std430, binding = 1) readonly buffer ScreenHits { uint screenWords[]; };
 layout(std430, binding = 2) buffer States { HybridState states[]; };
 // Per ray two queries of grid_march.comp, two vec4 each: (origin, tnear), (direction, tfar).
 layout(std430, binding = 3) writeonly buffer Windows { vec4 windows[]; };
@@ -74,28 +76,44 @@ void main() {
   if (id >= uint(uRayCount)) return;
   const GpuRay r = rays[id];
   HybridState st = states[id];
-  const GpuHit h = screenHits[id];
   const vec3 o = r.originMax.xyz, d = r.dirSurface.xyz;
+  const bool world = uWorldMargin > 0.0;
+  const bool screenHit = world ? screenWords[8u * id + 1u] != kMiss : int(screenWords[16u * id + 2u]) >= 0;
   const float maxDistance = r.originMax.w;
   // Neither window asked: an empty query (tnear +∞ past tfar 0) the walk leaves at once.
   windows[4u * id] = windows[4u * id + 2u] = vec4(st.origin.xyz, kInf);
   windows[4u * id + 1u] = windows[4u * id + 3u] = vec4(st.dir.xyz, 0.0);
   const bool originWindow = st.span > 0.0;
-  if (h.layer < 0) {
+  if (!screenHit || world) {
     if (originWindow) ask(2u * id, st, 0.0, st.span), st.flags |= kFlagOriginWindow;
+    if (!screenHit) {
+      states[id] = st;
+      return;
+    }
+  }
+  st.flags |= kFlagScreenHit;
+  st.dir.w = 0.0;  // no crossing (or no certified hit): geometry answers the ray from its origin
+  if (world) {
+    // The hit's point on its sample's plane (GpuLdcTracer: origin + t · direction), certified by
+    // geometry over the margin either side of it.
+    precise vec3 p = o + d * uintBitsToFloat(screenWords[8u * id]);
+    precise vec3 v = p - o;
+    const float tScreen = dotStd(v, d);
+    precise float before = tScreen - uWorldMargin, past = tScreen + uWorldMargin;
+    ask(2u * id + 1u, st, uUncertain ? 0.0 : maxStd(0.0, before), minStd(past, maxDistance));
+    st.flags |= kFlagHitWindow;
     states[id] = st;
     return;
   }
-  st.flags |= kFlagScreenHit;
   // Rule 3's check: the ray against the triangles of the hit pixel's layers up to the hit one.
+  const int hx = int(screenWords[16u * id]), hy = int(screenWords[16u * id + 1u]), layer = int(screenWords[16u * id + 2u]);
   const Segment seg = makeSegment(r);
-  const vec2 span = rayParamsAroundPixel(o, d, maxDistance, seg, h.x, h.y, kPixelMargin);
-  const vec2 v = pixelHit(st.origin.xyz, st.dir.xyz, h.x, h.y, h.layer + 1, st.origin.w, span.y);
-  st.dir.w = 0.0;  // no crossing: geometry answers the ray from its origin
+  const vec2 span = rayParamsAroundPixel(o, d, maxDistance, seg, hx, hy, kPixelMargin);
+  const vec2 v = pixelHit(st.origin.xyz, st.dir.xyz, hx, hy, layer + 1, st.origin.w, span.y);
   if (floatBitsToUint(v.y) != kMiss) {
     if (originWindow) ask(2u * id, st, 0.0, st.span), st.flags |= kFlagOriginWindow;
     precise float past = v.x * kWindowStretch;
-    ask(2u * id + 1u, st, minStd(v.x, span.x), minStd(maxStd(span.y, past), maxDistance));
+    ask(2u * id + 1u, st, uUncertain ? 0.0 : minStd(v.x, span.x), minStd(maxStd(span.y, past), maxDistance));
     st.flags |= kFlagHitWindow;
   }
   states[id] = st;

@@ -52,6 +52,7 @@ void main() {
   const float end = hit ? st.best.w : maxDistance;
   // A closest-hit miss in known space is certified by geometry from the origin.
   if (!uAnyHit && !hit && !(from < end)) from = 0.0;
+  if (uUncertain && !hit) from = 0.0;  // no part of the ray is known to be empty
   st.dir.w = from;
   st.span = end;
   remainders[2u * id] = vec4(st.origin.xyz, kInf);

@@ -30,6 +30,12 @@ const uint kFlagWindowHit = 64u;    // a window found the ray's answer
 #define kWindowStretch uintBitsToFloat(0x3F800054u)
 
 uniform float uPixelScale;  // Camera::pixelFootprint(1)
+// > 0: the screen half answers in world space (the layered depth cube: HybridTracer's
+// worldMargin): it knows all space, its hits are certified by windows this far either side.
+uniform float uWorldMargin;
+// The screen half's "nothing here" is not certain (HybridTracer's uncertainEmptySpace): a ray
+// without a certified hit goes to geometry from its origin, and a hit's window starts there.
+uniform bool uUncertain;
 
 // Camera::rayThrough.
 vec3 rayThrough(vec2 pixel) {

@@ -31,10 +31,12 @@ void main() {
   // GeometricHits::originOffset: 1e-4 of the unit or of the origin's distance from the eye.
   precise float offset = uintBitsToFloat(0x38D1B717u) * maxStd(uOffsetUnit, sqrt(dotStd(o, o)));
   st.origin.w = offset;
-  // KnownSpace::boundaries and finish, without the rule-3 march.
+  // KnownSpace::boundaries and finish, without the rule-3 march (a world-space screen half
+  // knows all space: no boundary).
+  const bool world = uWorldMargin > 0.0;
   const Segment seg = makeSegment(r);
   float knownUntil = 0.0, geoFrom = 0.0;
-  if (seg.valid && !seg.startOutside) {
+  if (!world && seg.valid && !seg.startOutside) {
     float s = 1.0;
     bool leaves = seg.clippedEnd;
     if (uFarLimit < kInf) {
@@ -49,15 +51,22 @@ void main() {
       geoFrom = minStd(knownUntil, rayParamAt(o, d, maxDistance, seg, maxStd(0.0, before)));
     }
   }
-  // Rule 6: the origin's pixel, up to two pixels past it, is the origin window's.
+  // Rule 6: the origin's pixel, up to two pixels past it, is the origin window's (a world
+  // tracer's: at least the margin, past the texel it skips).
   float windowEnd = -1.0;
   int x, y;
   if (onSurface && pixelOf(o, x, y))
-    windowEnd = maxStd(seg.valid ? paramAfter(o, d, maxDistance, seg, pixelParams(seg, x, y).y, pixelParam(seg, kPixelMargin)) : maxDistance, 0.0);
+    windowEnd = maxStd(seg.valid ? paramAfter(o, d, maxDistance, seg, pixelParams(seg, x, y).y, pixelParam(seg, kPixelMargin)) : maxDistance,
+                       uWorldMargin);
+  else if (world && onSurface)
+    windowEnd = uWorldMargin;
   const float end = minStd(maxDistance, knownUntil);
   GpuRay sr = r;
-  sr.originMax.w = end;
-  if (windowEnd > 0.0) {  // HybridTracer::segment(ray, min(windowEnd, end), end)
+  if (world) {
+    // the whole ray
+  } else if (windowEnd <= 0.0) {
+    sr.originMax.w = end;
+  } else {  // HybridTracer::segment(ray, min(windowEnd, end), end)
     const float from = minStd(windowEnd, end);
     precise vec3 start = o + d * from;
     precise float length = end - from;
@@ -65,7 +74,7 @@ void main() {
     sr.dirSurface.w = onSurface && from == 0.0 ? 1.0 : 0.0;
   }
   screenRays[id] = sr;
-  st.dir.w = knownUntil >= maxDistance ? kInf : geoFrom;
+  st.dir.w = world || knownUntil >= maxDistance ? kInf : geoFrom;
   st.best = vec4(0.0);
   st.span = windowEnd;
   st.bestTriangle = kMiss;

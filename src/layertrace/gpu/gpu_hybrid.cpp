@@ -48,14 +48,22 @@ enum Stage { kScreen = 0, kWindows = 1, kRemainders = 2, kStages = 3 };
 }  // namespace
 
 bool GpuHybridTracer::canRunOnGpu(const Tracer& screen, const KnownSpace& known) {
+  if (dynamic_cast<const GpuLdcTracer*>(&screen)) return true;
   const auto* s = dynamic_cast<const GpuScreenTracer*>(&screen);
   return s && s->pyramid() && !known.marchesUnknownDepths();
 }
 
 GpuHybridTracer::GpuHybridTracer(GpuContext& gpu, const Scene& scene, const Camera& camera, const LayerArrays& layers,
-                                 const KnownSpace& known, const GpuScreenTracer& screen, const GpuGridTracer& grid)
-    : HybridTracer(scene, camera, layers, known, screen, grid), gpu_(gpu), scene_(scene), screenOnGpu_(screen), grid_(grid) {
-  LT_CHECK(canRunOnGpu(screen, known), "the GPU hybrid needs a pyramid march and the frustum rules");
+                                 const KnownSpace& known, const Tracer& screen, const GpuGridTracer& grid, float worldMargin,
+                                 bool uncertainEmptySpace)
+    : HybridTracer(scene, camera, layers, known, screen, grid, worldMargin, uncertainEmptySpace),
+      gpu_(gpu),
+      scene_(scene),
+      pyramidScreen_(dynamic_cast<const GpuScreenTracer*>(&screen)),
+      ldcScreen_(dynamic_cast<const GpuLdcTracer*>(&screen)),
+      grid_(grid) {
+  LT_CHECK(canRunOnGpu(screen, known), "the GPU hybrid needs a pyramid march with the frustum rules, or the layered depth cube");
+  LT_CHECK((ldcScreen_ != nullptr) == (worldMargin > 0.0f), "a world-space screen half is the layered depth cube");
   if (scene.positions.size() * 3 > size_t(UINT32_MAX) || scene.triangles.size() * 3 > size_t(UINT32_MAX) ||
       layers.triangle.size() > size_t(UINT32_MAX))
     inputError("the hybrid on the GPU: ", scene.triangles.size(), " triangles exceed its 32-bit indices");
@@ -79,7 +87,7 @@ size_t GpuHybridTracer::memoryBytes() const {
 }
 
 double GpuHybridTracer::totalTraceMs() const {
-  return totalTraceMs_ + screenOnGpu_.totalTraceMs() + grid_.totalTraceMs();
+  return totalTraceMs_ + (ldcScreen_ ? ldcScreen_->totalTraceMs() : pyramidScreen_->totalTraceMs()) + grid_.totalTraceMs();
 }
 
 TraceHit GpuHybridTracer::trace(const Ray& ray, RayCounters& counters) const {
@@ -104,6 +112,8 @@ void GpuHybridTracer::setCamera(const GpuProgram& p) const {
   p.set("uOrtho", int(c.orthographic()));
   p.set("uFocal", c.focal());
   p.set("uPixelScale", c.pixelFootprint(1.0f));
+  p.set("uWorldMargin", worldMargin());
+  p.set("uUncertain", int(uncertainEmptySpace()));
 }
 
 void GpuHybridTracer::runOnGpu(Query q, std::span<const Ray> rays, std::span<TraceHit> hits, std::span<RayCounters> counters) const {
@@ -116,7 +126,8 @@ void GpuHybridTracer::runOnGpu(Query q, std::span<const Ray> rays, std::span<Tra
     GpuDebugGroup group("hybrid");
     batch_.upload(rays);
     reserve(screenRays_, n * 32);
-    reserve(screenHits_, n * sizeof(GpuMarchRecord));
+    const size_t screenRecord = ldcScreen_ ? sizeof(GpuLdcAnswer) : sizeof(GpuMarchRecord);
+    reserve(screenHits_, n * screenRecord);
     reserve(states_, n * sizeof(StateRecord));
     reserve(windows_, 2 * n * kQueryBytes);
     reserve(windowAnswers_, 2 * n * kWalkAnswerBytes);
@@ -135,7 +146,8 @@ void GpuHybridTracer::runOnGpu(Query q, std::span<const Ray> rays, std::span<Tra
     prepare.set("uOffsetUnit", offsetUnit());
     prepare.set("uFarLimit", known().farLimit());
     gpu_.dispatch(prepare, n);
-    screenOnGpu_.marchResident(screenRays_, screenHits_, n, nullptr, !counters.empty());
+    if (ldcScreen_) ldcScreen_->marchResident(screenRays_, screenHits_, n, any);
+    else pyramidScreen_->marchResident(screenRays_, screenHits_, n, nullptr, !counters.empty());
     const GpuProgram& check = gpu_.computeProgram("hybrid_check.comp", shader_source::hybrid_check_comp);
     batch_.rays().bindStorage(0);
     screenHits_.bindStorage(1);
@@ -162,6 +174,7 @@ void GpuHybridTracer::runOnGpu(Query q, std::span<const Ray> rays, std::span<Tra
     states_.bindStorage(1);
     windowAnswers_.bindStorage(2);
     remainders_.bindStorage(3);
+    setCamera(combine);
     combine.set("uRayCount", int(n));
     combine.set("uAnyHit", int(any));
     gpu_.dispatch(combine, n);
@@ -183,8 +196,10 @@ void GpuHybridTracer::runOnGpu(Query q, std::span<const Ray> rays, std::span<Tra
   }
   PoolVector<AnswerRecord> answers(n);
   answers_.read(answers.data(), n * sizeof(AnswerRecord));
-  PoolVector<GpuMarchRecord> marched(counters.empty() ? 0 : n);
-  if (!counters.empty()) screenHits_.read(marched.data(), n * sizeof(GpuMarchRecord));
+  PoolVector<GpuMarchRecord> marched(counters.empty() || ldcScreen_ ? 0 : n);
+  PoolVector<GpuLdcAnswer> marchedLdc(counters.empty() || !ldcScreen_ ? 0 : n);
+  if (!marched.empty()) screenHits_.read(marched.data(), n * sizeof(GpuMarchRecord));
+  if (!marchedLdc.empty()) screenHits_.read(marchedLdc.data(), n * sizeof(GpuLdcAnswer));
   const std::vector<double> ms = timeline_.collect(kStages);
   glUseProgram(0);
   totalTraceMs_ += ms[kScreen] + ms[kWindows] + ms[kRemainders];
@@ -213,7 +228,8 @@ void GpuHybridTracer::runOnGpu(Query q, std::span<const Ray> rays, std::span<Tra
       ++sums.certainMisses;
     }
     if (!counters.empty()) {
-      addCounters(marched[i], counters[i]);
+      if (ldcScreen_) marchedLdc[i].addCounters(counters[i]);
+      else addCounters(marched[i], counters[i]);
       counters[i].addIterations(a.geoIterations);
       counters[i].giveUps += (a.flags >> 8) & 0xFFu;
     }

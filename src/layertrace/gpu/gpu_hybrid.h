@@ -21,10 +21,14 @@
 // empty query. Choice: no compaction between the passes, so no host wait and no scan; the empty
 // walks cost one invocation each.
 //
+// The screen half is the march over the solid intervals (hssr, hiz) or the layered depth cube
+// (a world-space tracer: no known space, each hit certified by a window of the cube's margin
+// either side, a ray without a certified hit answered by geometry from its origin). The
+// quad-tree as the screen half needs the known space's rule-3 march, which is not written for
+// the GPU: it keeps the CPU's decisions (HybridTracer) between the GPU's marches.
+//
 // A ray whose query meets an alpha-tested candidate (the grid on the GPU reads no texture) is
 // decided again on the CPU (HybridTracer's own run, whose grid queries the CPU grid settles).
-// The layered depth cube and the quad-tree as the screen half, and the known space's rule-3
-// march, keep the CPU's decisions (HybridTracer) between the GPU's marches.
 #pragma once
 
 #include <cstdint>
@@ -32,6 +36,7 @@
 
 #include "layertrace/gpu/gpu_context.h"
 #include "layertrace/gpu/gpu_grid.h"
+#include "layertrace/gpu/gpu_ldc.h"
 #include "layertrace/gpu/gpu_ray_batch.h"
 #include "layertrace/gpu/gpu_screen_tracer.h"
 #include "layertrace/hybrid/hybrid_tracer.h"
@@ -40,17 +45,19 @@ namespace lt {
 
 class GpuHybridTracer final : public HybridTracer {
  public:
-  /// The hybrid of `screen` (a GpuScreenTracer over the solid intervals: hssr or hiz) and `grid`
-  /// over `layers` and `known` (frustum rules only: canRunOnGpu). Uploads the layers' triangle ids
-  /// and the scene's triangles for the exact checks. All are borrowed and must outlive the tracer.
+  /// The hybrid of `screen` (canRunOnGpu: a GpuScreenTracer over the solid intervals, or a
+  /// GpuLdcTracer) and `grid` over `layers` and `known`, with HybridTracer's `worldMargin` and
+  /// `uncertainEmptySpace`. Uploads the layers' triangle ids and the scene's triangles for the
+  /// exact checks. All are borrowed and must outlive the tracer.
   GpuHybridTracer(GpuContext& gpu, const Scene& scene, const Camera& camera, const LayerArrays& layers, const KnownSpace& known,
-                  const GpuScreenTracer& screen, const GpuGridTracer& grid);
+                  const Tracer& screen, const GpuGridTracer& grid, float worldMargin = 0.0f, bool uncertainEmptySpace = false);
   ~GpuHybridTracer() override;
   GpuHybridTracer(const GpuHybridTracer&) = delete;
   GpuHybridTracer& operator=(const GpuHybridTracer&) = delete;
 
   /// Whether the decisions of a hybrid over `screen` and `known` can run on the GPU: a screen
-  /// march over a pyramid (hssr, hiz) and a known space without the rule-3 march.
+  /// march over a pyramid (hssr, hiz) with a known space without the rule-3 march, or the
+  /// layered depth cube.
   static bool canRunOnGpu(const Tracer& screen, const KnownSpace& known);
 
   TraceHit trace(const Ray& ray, RayCounters& counters) const override;
@@ -74,7 +81,8 @@ class GpuHybridTracer final : public HybridTracer {
 
   GpuContext& gpu_;
   const Scene& scene_;
-  const GpuScreenTracer& screenOnGpu_;
+  const GpuScreenTracer* pyramidScreen_;  ///< the march over the solid intervals, or
+  const GpuLdcTracer* ldcScreen_;         ///< the layered depth cube
   const GpuGridTracer& grid_;
   GpuBuffer layerTriangles_, layerCounts_, positions_, triangles_;
   mutable GpuRayBatch batch_;  ///< the CPU's rays

@@ -13,14 +13,7 @@
 namespace lt {
 
 namespace {
-/// shaders/ldc_march.comp's answer, std430: two uvec4 per ray.
-struct AnswerRecord {
-  float t;
-  uint32_t sample, view, iterations;
-  uint32_t intervals, pixels, level0, level1;
-};
-static_assert(sizeof(AnswerRecord) == 32 && sizeof(FragmentNode) == 16 && sizeof(glm::vec2) == 8);
-constexpr uint32_t kMiss = 0xFFFFFFFFu;
+static_assert(sizeof(FragmentNode) == 16 && sizeof(glm::vec2) == 8);
 }  // namespace
 
 GpuLdcTracer::GpuLdcTracer(GpuContext& gpu, const Camera& camera, const LayeredDepthCube& ldc) : gpu_(gpu), camera_(camera), ldc_(ldc) {
@@ -62,16 +55,12 @@ void GpuLdcTracer::occludedBatch(std::span<const Ray> rays, std::span<TraceHit> 
   march(rays, hits, counters, true);
 }
 
-void GpuLdcTracer::march(std::span<const Ray> rays, std::span<TraceHit> hits, std::span<RayCounters> counters, bool anyHit) const {
-  if (rays.empty()) return;
-  gpu_.makeCurrent();
+void GpuLdcTracer::marchResident(const GpuBuffer& rays, const GpuBuffer& answers, size_t n, bool anyHit) const {
+  if (n == 0) return;
   GpuDebugGroup group("ldc march");
-  batch_.upload(rays);
-  const size_t bytes = rays.size() * sizeof(AnswerRecord);
-  const GpuBuffer& out = batch_.answers(0, bytes);
   const GpuProgram& p = gpu_.computeProgram("ldc_march.comp", shader_source::ldc_march_comp);
-  batch_.rays().bindStorage(0);
-  out.bindStorage(1);
+  rays.bindStorage(0);
+  answers.bindStorage(1);
   offsets_.bindStorage(2);
   samples_.bindStorage(3);
   blocks_.bindStorage(4);
@@ -84,7 +73,7 @@ void GpuLdcTracer::march(std::span<const Ray> rays, std::span<TraceHit> hits, st
     size[a][0] = v.width, size[a][1] = v.height;
     blocks[a][0] = v.blocksX, blocks[a][1] = v.blocksY;
   }
-  p.set("uRayCount", int(rays.size()));
+  p.set("uRayCount", int(n));
   p.setMatrix("uCameraInverse", &camera_.viewInverse()[0][0]);
   p.setMatrix("uView", &views[0][0], 3);
   p.setIvec2("uSize", &size[0][0], 3);
@@ -99,18 +88,27 @@ void GpuLdcTracer::march(std::span<const Ray> rays, std::span<TraceHit> hits, st
   p.set("uBlock", ldc_.config.block);
   p.set("uSlots", ldc_.config.blockIntervals);
   p.set("uAnyHit", int(anyHit));
+  gpu_.dispatch(p, n);
+}
+
+void GpuLdcTracer::march(std::span<const Ray> rays, std::span<TraceHit> hits, std::span<RayCounters> counters, bool anyHit) const {
+  if (rays.empty()) return;
+  gpu_.makeCurrent();
+  batch_.upload(rays);
+  const size_t bytes = rays.size() * sizeof(GpuLdcAnswer);
+  const GpuBuffer& out = batch_.answers(0, bytes);
   timer_->begin();
-  gpu_.dispatch(p, rays.size());
+  marchResident(batch_.rays(), out, rays.size(), anyHit);
   timer_->end();
-  PoolVector<AnswerRecord> answers(rays.size());
+  PoolVector<GpuLdcAnswer> answers(rays.size());
   out.read(answers.data(), bytes);
   totalTraceMs_ += timer_->ms();
   glUseProgram(0);
   parallelFor(size_t(0), rays.size(), [&](size_t i) {
-    const AnswerRecord& a = answers[i];
+    const GpuLdcAnswer& a = answers[i];
     TraceHit& hit = hits[i];
     hit = TraceHit{};
-    if (a.sample != kMiss) {
+    if (a.hit()) {
       // LdcTracer::traceAny's answer from the hit sample.
       const LdcView& v = ldc_.views[a.view];
       const uint32_t sample = a.sample - uint32_t(sampleBase_[a.view]);
@@ -123,10 +121,7 @@ void GpuLdcTracer::march(std::span<const Ray> rays, std::span<TraceHit> hits, st
       hit.triangle = v.triangle[sample];
       if (!camera_.pixelOf(hit.point, hit.x, hit.y)) hit.x = hit.y = -1;
     }
-    if (counters.empty()) return;
-    RayCounters& c = counters[i];
-    c.iterations += a.iterations, c.intervals += a.intervals, c.pixels += a.pixels;
-    c.levelIterations[0] += a.level0, c.levelIterations[1] += a.level1;
+    if (!counters.empty()) a.addCounters(counters[i]);
   });
 }
 

@@ -16,6 +16,21 @@
 
 namespace lt {
 
+/// shaders/ldc_march.comp's answer, std430 (two uvec4 a ray): the distance to the hit sample,
+/// the sample (its index over the three views; 0xFFFFFFFF: a miss), its view, and the counters.
+struct GpuLdcAnswer {
+  float t;
+  uint32_t sample, view, iterations;
+  uint32_t intervals, pixels, level0, level1;
+  bool hit() const { return sample != 0xFFFFFFFFu; }
+  /// Adds the march's counters to `c` (LdcTracer's: iterations, intervals, pixels, levels 0 and 1).
+  void addCounters(RayCounters& c) const {
+    c.iterations += iterations, c.intervals += intervals, c.pixels += pixels;
+    c.levelIterations[0] += level0, c.levelIterations[1] += level1;
+  }
+};
+static_assert(sizeof(GpuLdcAnswer) == 32);
+
 class GpuLdcTracer final : public GpuBatchTracer {
  public:
   /// Uploads `ldc` (its offsets, samples and block intervals). The context and the cube must
@@ -31,6 +46,10 @@ class GpuLdcTracer final : public GpuBatchTracer {
   void traceBatch(std::span<const Ray> rays, std::span<TraceHit> hits, std::span<RayCounters> counters) const override;
   void occludedBatch(std::span<const Ray> rays, std::span<TraceHit> hits, std::span<RayCounters> counters) const override;
 
+  /// Marches `n` camera-space rays already on the device (`rays`: shaders/ray_io.glsl GpuRay)
+  /// into `answers` (GpuLdcAnswer each), without a transfer or a timer: the hybrid's passes on
+  /// the GPU (gpu_hybrid.h).
+  void marchResident(const GpuBuffer& rays, const GpuBuffer& answers, size_t n, bool anyHit) const;
   /// Bytes on the GPU: offsets, samples and block intervals.
   size_t memoryBytes() const;
   /// GPU time of every batch so far (timer queries), milliseconds.

@@ -101,6 +101,8 @@ class HybridTracer : public Tracer {
   const char* name() const override { return "hybrid"; }
   const Tracer& screen() const { return screen_; }       ///< the image-space half
   const GeoHitQueries& geometry() const { return geo_; }  ///< the geometric half
+  float worldMargin() const { return worldMargin_; }      ///< see the constructor
+  bool uncertainEmptySpace() const { return uncertainEmptySpace_; }
   TraceHit trace(const Ray& ray, RayCounters& counters) const override;
   void traceBatch(std::span<const Ray> rays, std::span<TraceHit> hits, std::span<RayCounters> counters) const override;
   void occludedBatch(std::span<const Ray> rays, std::span<TraceHit> hits, std::span<RayCounters> counters) const override;
@@ -118,8 +120,6 @@ class HybridTracer : public Tracer {
   const KnownSpace& known() const { return known_; }
   const GeometricHits& geometricHits() const { return hits_; }
   float offsetUnit() const { return offsetUnit_; }
-  float worldMargin() const { return worldMargin_; }
-  bool uncertainEmptySpace() const { return uncertainEmptySpace_; }
 
  private:
   struct Scratch;

@@ -109,8 +109,8 @@ BuiltTracer buildGpuTracer(const std::string& name, const Frame& frame, const Tr
   }
   if (name == "hybrid") {
     // Both halves on the GPU: the screen march over the hybrid's solid intervals (its pyramid
-    // built there), the GPU grid for the rest. With hssr or hiz the decisions between them run
-    // there too (gpu_hybrid.h); the quad-tree and the layered depth cube keep the CPU's
+    // built there), the GPU grid for the rest. With hssr, hiz or the layered depth cube the
+    // decisions between them run there too (gpu_hybrid.h); the quad-tree keeps the CPU's
     // (known_space.h). Either way the answers are the CPU hybrid's with --hybrid-geo grid.
     HybridBuilders onGpu;
     onGpu.pyramidScreen = [&](IntervalLayers solid, const PyramidConfig& pc, const HssrConfig& hc) {
@@ -126,8 +126,9 @@ BuiltTracer buildGpuTracer(const std::string& name, const Frame& frame, const Tr
     b = buildHybrid(frame, options, onGpu);
     const auto* grid = dynamic_cast<const GpuGridTracer*>(b.parts[1].tracer.get());
     if (grid && GpuHybridTracer::canRunOnGpu(*b.parts[0].tracer, *b.known)) {
-      auto h = std::make_unique<GpuHybridTracer>(gpu, frame.scene, frame.camera, frame.layers, *b.known,
-                                                 dynamic_cast<const GpuScreenTracer&>(*b.parts[0].tracer), *grid);
+      const auto& rules = dynamic_cast<const HybridTracer&>(*b.tracer);  // its margin and certainty, as built for the CPU
+      auto h = std::make_unique<GpuHybridTracer>(gpu, frame.scene, frame.camera, frame.layers, *b.known, *b.parts[0].tracer, *grid,
+                                                 rules.worldMargin(), rules.uncertainEmptySpace());
       b.memoryBytes += h->memoryBytes();
       b.tracer = std::move(h);
     }
