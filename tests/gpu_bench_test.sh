@@ -21,8 +21,10 @@ for t in quadtree ldc grid hybrid; do
 done
 geo=$(grep -c '^| grid_gpu |' "$md")
 [ "$geo" -eq 3 ] || { echo "FAIL: $geo GPU grid rows (want one per scene)"; exit 1; }
-built=$(grep -c '^| GPU (steps 1, 2, packing; GPU ms) |' "$md")
+built=$(grep -c '^| GPU (GPU ms; ' "$md")
 [ "$built" -eq 3 ] || { echo "FAIL: $built GPU grid builds (want one per scene)"; exit 1; }
+same=$(grep -c '^| CPU (same cells: True) |' "$md")
+[ "$same" -eq 3 ] || { echo "FAIL: the GPU built other cells than the CPU in $((3 - same)) scenes"; exit 1; }
 err=$(__EGL_VENDOR_LIBRARY_FILENAMES=/nonexistent.json "$src/scripts/gpu-bench.sh" "$work/none" 2>&1 >/dev/null)
 status=$?
 [ $status -eq 2 ] || { echo "FAIL: without a device the status is $status"; exit 1; }

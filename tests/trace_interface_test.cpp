@@ -302,10 +302,11 @@ TEST(TraceInterface, SourceTreeKeepsTheLayering) {
   // siblings and never include each other (ssr/ and hssr/, geometry/ and screen/).
   const std::map<std::string, int> rank = {
       {"util", 0},     {"scene", 1},    {"raster", 2}, {"trace", 3},  {"screen", 4}, {"geometry", 4}, {"ssr", 5},
-      {"hssr", 5},     {"quadtree", 5}, {"ldc", 5},    {"grid", 5},   {"hiz", 6},    {"hybrid", 7},   {"gpu", 7},      {"pipeline", 8},
-      {"render", 9},   {"eval", 10},    {"api", 11},   {"app", 12}};
+      {"hssr", 5},     {"quadtree", 5}, {"ldc", 5},    {"grid", 5},   {"hiz", 6},    {"hybrid", 7},   {"gpu", 8},      {"pipeline", 9},
+      {"render", 10},  {"eval", 11},    {"api", 12},   {"app", 13}};
   // Image space answers from stored fragments only; geometry answers from triangles only. gpu/
-  // holds the GPU twins of both kinds (above both, as hybrid/ composes both).
+  // holds the GPU twins of both kinds and of the hybrid (above both, and above hybrid/, which
+  // composes both).
   const std::set<std::string> imageSpace = {"screen", "ssr", "hssr", "hiz", "quadtree", "ldc"}, geometric = {"geometry", "grid"};
   const std::string include = "#include \"layertrace/";
   const std::filesystem::path root = std::filesystem::path(test::sourceDir()) / "src/layertrace";
