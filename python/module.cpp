@@ -237,12 +237,12 @@ class Layers {
       });
     }
     py::dict out;
-    out["hit"] = py::array_t<bool>({py::ssize_t(n)}, reinterpret_cast<const bool*>(hit.data()));
-    out["t"] = py::array_t<float>({py::ssize_t(n)}, t.data());
+    out["hit"] = py::array_t<bool>(py::ssize_t(n), reinterpret_cast<const bool*>(hit.data()));
+    out["t"] = py::array_t<float>(py::ssize_t(n), t.data());
     out["pixel"] = py::array_t<int32_t>({py::ssize_t(n), py::ssize_t(2)}, px.data());
-    out["layer"] = py::array_t<int32_t>({py::ssize_t(n)}, layer.data());
-    out["triangle"] = py::array_t<int64_t>({py::ssize_t(n)}, triangle.data());
-    out["iterations"] = py::array_t<uint32_t>({py::ssize_t(n)}, iterations.data());
+    out["layer"] = py::array_t<int32_t>(py::ssize_t(n), layer.data());
+    out["triangle"] = py::array_t<int64_t>(py::ssize_t(n), triangle.data());
+    out["iterations"] = py::array_t<uint32_t>(py::ssize_t(n), iterations.data());
     return out;
   }
 

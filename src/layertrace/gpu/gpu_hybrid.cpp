@@ -35,8 +35,8 @@ struct AnswerRecord {
 };
 static_assert(sizeof(AnswerRecord) == 48);
 
-/// shaders/hybrid_common.glsl kFlag*.
-constexpr uint32_t kScreenHit = 1u, kOriginWindow = 2u, kHitWindow = 4u, kRemainder = 8u, kUndecided = 16u, kRejected = 32u,
+/// shaders/hybrid_common.glsl kFlag* (of them, what the host reads).
+constexpr uint32_t kOriginWindow = 2u, kHitWindow = 4u, kRemainder = 8u, kUndecided = 16u, kRejected = 32u,
                    kWindowHit = 64u;
 constexpr uint32_t kMiss = 0xFFFFFFFFu;
 /// grid_march.comp's query and answer: two vec4 / uvec4 each.
