@@ -106,12 +106,19 @@ vec4 mSp;
 float mSStart, mS, mCornerLeft, mSLast, mZLast;
 int mCx, mCy, mOx, mOy, mL, mMisses, mGuard, mSafety;
 ivec3 mHit;  // the level-0 hit (x, y, interval), or interval -1, once the march has answered
+float mHitS;  // the screen parameter at which the segment entered the hit pixel (MarchHit::s)
+#ifdef LT_HIT_PARAM
+// Per ray the hit's MarchHit::s (0 for a miss): the hybrid's known-space march (gpu_hybrid.h)
+// reads where knowledge ends.
+layout(std430, binding = 6) writeonly buffer HitParams { float hitParams[]; };
+#endif
 
 // Begins the march of a segment (hssr_detail::MarchStart); true when it answers at once.
 bool marchBegin(Segment seg) {
   const int W = uWidth, H = uHeight;
   mSeg = seg;
   mHit = kNone;
+  mHitS = 0.0;
   gP0 = seg.p0;
   gD = seg.p1 - seg.p0;
   gInvDx = gD.x != 0.0 ? 1.0 / gD.x : kInf;
@@ -182,6 +189,7 @@ bool marchStep() {
       const int i = firstMet(pixelBase(mCx, mCy), uK, min(za, zb), max(za, zb), mIncreasing);
       if (i >= 0) {
         mHit = ivec3(mCx, mCy, i);
+        mHitS = s0;
         done = true;
       }
     } else {
@@ -288,6 +296,9 @@ void traceRay(uint id) {
   ivec3 h = kNone;
   if (seg.valid) h = march(seg);
   writeHit(id, h.x, h.y, h.z);
+#ifdef LT_HIT_PARAM
+  hitParams[id] = h.z >= 0 ? mHitS : 0.0;
+#endif
 }
 
 #if defined(LT_SUBGROUP_ARB) || defined(LT_SUBGROUP_KHR)

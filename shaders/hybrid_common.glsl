@@ -23,6 +23,7 @@ const uint kFlagRemainder = 8u;     // the geometric tracer continues the ray
 const uint kFlagUndecided = 16u;    // a query met an alpha-tested candidate: the CPU decides the ray
 const uint kFlagRejected = 32u;     // a screen hit without a crossing, or whose window found nothing
 const uint kFlagWindowHit = 64u;    // a window found the ray's answer
+const uint kFlagKnownMarch = 128u;  // rule 3's march ran (its counters count)
 
 // hybrid_tracer.cpp kPixelMargin.
 #define kPixelMargin 2.0

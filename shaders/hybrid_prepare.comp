@@ -1,8 +1,9 @@
 #version 450
 // The hybrid tracer's first pass on the GPU (gpu/gpu_hybrid.h): per ray, where the layers'
-// knowledge ends (known_space.h rules 1–2; the march over the solid intervals meets rule 3),
-// the geometric window over the origin's pixel (rule 6) and the segment the screen march traces,
-// as HybridTracer::run computes them before its march.
+// knowledge ends (known_space.h rules 1–2, and rule 3 from the known space's march run before
+// this pass, unless the screen march over the solid intervals meets rule 3 itself), the
+// geometric window over the origin's pixel (rule 6) and the segment the screen march traces, as
+// HybridTracer::run computes them before its march.
 layout(local_size_x = 64) in;
 #include "ray_io.glsl"
 #include "glm_float.glsl"
@@ -12,11 +13,16 @@ layout(local_size_x = 64) in;
 layout(std430, binding = 0) readonly buffer Rays { GpuRay rays[]; };
 layout(std430, binding = 1) writeonly buffer ScreenRays { GpuRay screenRays[]; };
 layout(std430, binding = 2) writeonly buffer States { HybridState states[]; };
+// Rule 3's march over [u, ∞) (uKnownMarch): its GpuHit records (16 words a ray) and the screen
+// parameter of each hit (KnownSpace::finish's m.s).
+layout(std430, binding = 3) readonly buffer KnownHits { uint knownWords[]; };
+layout(std430, binding = 4) readonly buffer KnownParams { float knownParams[]; };
 
 uniform int uRayCount, uFirst;
 uniform mat4 uViewInverse;  // camera space → world (Camera::viewInverse)
 uniform float uOffsetUnit;  // GeometricHits::offsetUnit of the scene
 uniform float uFarLimit;    // depth beyond which nothing was captured (+∞: the far plane covers the scene)
+uniform bool uKnownMarch;   // rule 3 comes from the known space's march (KnownHits)
 
 void main() {
   const uint id = gl_GlobalInvocationID.x + uint(uFirst);
@@ -36,9 +42,14 @@ void main() {
   const bool world = uWorldMargin > 0.0;
   const Segment seg = makeSegment(r);
   float knownUntil = 0.0, geoFrom = 0.0;
+  uint flags = 0u;
   if (!world && seg.valid && !seg.startOutside) {
     float s = 1.0;
     bool leaves = seg.clippedEnd;
+    if (uKnownMarch) {
+      flags |= kFlagKnownMarch;
+      if (int(knownWords[16u * id + 2u]) >= 0) s = knownParams[id], leaves = true;
+    }
     if (uFarLimit < kInf) {
       const float sFar = paramAtDepth(seg, uFarLimit);
       if (maxStd(depthAt(seg, 0.0), depthAt(seg, s)) > uFarLimit && sFar >= 0.0 && sFar < s) s = sFar, leaves = true;
@@ -78,7 +89,7 @@ void main() {
   st.best = vec4(0.0);
   st.span = windowEnd;
   st.bestTriangle = kMiss;
-  st.flags = 0u;
+  st.flags = flags;
   st.geoIterations = 0u;
   states[id] = st;
 }

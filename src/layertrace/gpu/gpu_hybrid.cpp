@@ -37,7 +37,7 @@ static_assert(sizeof(AnswerRecord) == 48);
 
 /// shaders/hybrid_common.glsl kFlag* (of them, what the host reads).
 constexpr uint32_t kOriginWindow = 2u, kHitWindow = 4u, kRemainder = 8u, kUndecided = 16u, kRejected = 32u,
-                   kWindowHit = 64u;
+                   kWindowHit = 64u, kKnownMarch = 128u;
 constexpr uint32_t kMiss = 0xFFFFFFFFu;
 /// grid_march.comp's query and answer: two vec4 / uvec4 each.
 constexpr size_t kQueryBytes = 32, kWalkAnswerBytes = 32;
@@ -48,7 +48,7 @@ enum Stage { kScreen = 0, kWindows = 1, kRemainders = 2, kStages = 3 };
 }  // namespace
 
 bool GpuHybridTracer::canRunOnGpu(const Tracer& screen, const KnownSpace& known) {
-  if (dynamic_cast<const GpuLdcTracer*>(&screen)) return true;
+  if (dynamic_cast<const GpuLdcTracer*>(&screen) || dynamic_cast<const GpuQuadtreeTracer*>(&screen)) return true;
   const auto* s = dynamic_cast<const GpuScreenTracer*>(&screen);
   return s && s->pyramid() && !known.marchesUnknownDepths();
 }
@@ -60,9 +60,10 @@ GpuHybridTracer::GpuHybridTracer(GpuContext& gpu, const Scene& scene, const Came
       gpu_(gpu),
       scene_(scene),
       pyramidScreen_(dynamic_cast<const GpuScreenTracer*>(&screen)),
+      quadtreeScreen_(dynamic_cast<const GpuQuadtreeTracer*>(&screen)),
       ldcScreen_(dynamic_cast<const GpuLdcTracer*>(&screen)),
       grid_(grid) {
-  LT_CHECK(canRunOnGpu(screen, known), "the GPU hybrid needs a pyramid march with the frustum rules, or the layered depth cube");
+  LT_CHECK(canRunOnGpu(screen, known), "the GPU hybrid needs a pyramid march with the frustum rules, the quad-tree or the cube");
   LT_CHECK((ldcScreen_ != nullptr) == (worldMargin > 0.0f), "a world-space screen half is the layered depth cube");
   if (scene.positions.size() * 3 > size_t(UINT32_MAX) || scene.triangles.size() * 3 > size_t(UINT32_MAX) ||
       layers.triangle.size() > size_t(UINT32_MAX))
@@ -73,6 +74,15 @@ GpuHybridTracer::GpuHybridTracer(GpuContext& gpu, const Scene& scene, const Came
   layerCounts_ = GpuBuffer(std::max<size_t>(counts.size() * sizeof(uint32_t), 16), counts.data());
   positions_ = GpuBuffer(std::max<size_t>(scene.positions.size() * sizeof(glm::vec3), 16), scene.positions.data());
   triangles_ = GpuBuffer(std::max<size_t>(scene.triangles.size() * sizeof(glm::uvec3), 16), scene.triangles.data());
+  if (known.marchesUnknownDepths() && !ldcScreen_) {
+    // Rule 3: KnownSpace's march, HSSR with n_up = 1 over its pyramid of [u, ∞) (τ = ∞), the
+    // pyramid built on the GPU from the same level 0.
+    const IntervalPyramid& p = known.pyramid();
+    HssrConfig march;
+    march.nUp = 1, march.maxLevels = p.levelCount(), march.parentAscent = true;
+    knownMarch_ = std::make_unique<GpuScreenTracer>(gpu, camera, layers, *p.base,
+                                                    PyramidConfig{p.levelCount(), std::numeric_limits<float>::infinity()}, march);
+  }
   static_assert(sizeof(glm::vec3) == 12 && sizeof(glm::uvec3) == 12, "tightly packed triples");
 }
 
@@ -83,11 +93,15 @@ GpuHybridTracer::~GpuHybridTracer() {
 size_t GpuHybridTracer::memoryBytes() const {
   return layerTriangles_.bytes() + layerCounts_.bytes() + positions_.bytes() + triangles_.bytes() + screenRays_.bytes() +
          screenHits_.bytes() + states_.bytes() + windows_.bytes() + windowAnswers_.bytes() + remainders_.bytes() +
-         remainderAnswers_.bytes() + answers_.bytes();
+         remainderAnswers_.bytes() + answers_.bytes() + knownHits_.bytes() + knownParams_.bytes() + screenExtra_.bytes() +
+         (knownMarch_ ? knownMarch_->memoryBytes() : 0);
 }
 
 double GpuHybridTracer::totalTraceMs() const {
-  return totalTraceMs_ + (ldcScreen_ ? ldcScreen_->totalTraceMs() : pyramidScreen_->totalTraceMs()) + grid_.totalTraceMs();
+  const double screen = ldcScreen_        ? ldcScreen_->totalTraceMs()
+                        : quadtreeScreen_ ? quadtreeScreen_->totalTraceMs()
+                                          : pyramidScreen_->totalTraceMs();
+  return totalTraceMs_ + screen + grid_.totalTraceMs();
 }
 
 TraceHit GpuHybridTracer::trace(const Ray& ray, RayCounters& counters) const {
@@ -136,18 +150,31 @@ void GpuHybridTracer::runOnGpu(Query q, std::span<const Ray> rays, std::span<Tra
     reserve(answers_, n * sizeof(AnswerRecord));
 
     timeline_.begin(kScreen);
+    if (knownMarch_) {
+      reserve(knownHits_, n * sizeof(GpuMarchRecord));
+      reserve(knownParams_, n * sizeof(float));
+      knownMarch_->marchResidentWithParams(batch_.rays(), knownHits_, knownParams_, n);
+    }
     const GpuProgram& prepare = gpu_.computeProgram("hybrid_prepare.comp", shader_source::hybrid_prepare_comp);
     batch_.rays().bindStorage(0);
     screenRays_.bindStorage(1);
     states_.bindStorage(2);
+    if (knownMarch_) knownHits_.bindStorage(3), knownParams_.bindStorage(4);
+    prepare.set("uKnownMarch", int(knownMarch_ != nullptr));
     setCamera(prepare);
     prepare.set("uRayCount", int(n));
     prepare.setMatrix("uViewInverse", &camera().viewInverse()[0][0]);
     prepare.set("uOffsetUnit", offsetUnit());
     prepare.set("uFarLimit", known().farLimit());
     gpu_.dispatch(prepare, n);
-    if (ldcScreen_) ldcScreen_->marchResident(screenRays_, screenHits_, n, any);
-    else pyramidScreen_->marchResident(screenRays_, screenHits_, n, nullptr, !counters.empty());
+    if (ldcScreen_) {
+      ldcScreen_->marchResident(screenRays_, screenHits_, n, any);
+    } else if (quadtreeScreen_) {
+      reserve(screenExtra_, n * sizeof(GpuQuadtreeExtra));
+      quadtreeScreen_->marchResident(screenRays_, screenHits_, screenExtra_, n, !counters.empty());
+    } else {
+      pyramidScreen_->marchResident(screenRays_, screenHits_, n, nullptr, !counters.empty());
+    }
     const GpuProgram& check = gpu_.computeProgram("hybrid_check.comp", shader_source::hybrid_check_comp);
     batch_.rays().bindStorage(0);
     screenHits_.bindStorage(1);
@@ -196,10 +223,16 @@ void GpuHybridTracer::runOnGpu(Query q, std::span<const Ray> rays, std::span<Tra
   }
   PoolVector<AnswerRecord> answers(n);
   answers_.read(answers.data(), n * sizeof(AnswerRecord));
-  PoolVector<GpuMarchRecord> marched(counters.empty() || ldcScreen_ ? 0 : n);
-  PoolVector<GpuLdcAnswer> marchedLdc(counters.empty() || !ldcScreen_ ? 0 : n);
+  // The counters of the marches, where asked: the screen march's, the quad-tree's extra ones,
+  // rule 3's.
+  const bool counted = !counters.empty();
+  PoolVector<GpuMarchRecord> marched(counted && !ldcScreen_ ? n : 0), known(counted && knownMarch_ ? n : 0);
+  PoolVector<GpuLdcAnswer> marchedLdc(counted && ldcScreen_ ? n : 0);
+  PoolVector<GpuQuadtreeExtra> extra(counted && quadtreeScreen_ ? n : 0);
   if (!marched.empty()) screenHits_.read(marched.data(), n * sizeof(GpuMarchRecord));
   if (!marchedLdc.empty()) screenHits_.read(marchedLdc.data(), n * sizeof(GpuLdcAnswer));
+  if (!extra.empty()) screenExtra_.read(extra.data(), n * sizeof(GpuQuadtreeExtra));
+  if (!known.empty()) knownHits_.read(known.data(), n * sizeof(GpuMarchRecord));
   const std::vector<double> ms = timeline_.collect(kStages);
   glUseProgram(0);
   totalTraceMs_ += ms[kScreen] + ms[kWindows] + ms[kRemainders];
@@ -229,7 +262,9 @@ void GpuHybridTracer::runOnGpu(Query q, std::span<const Ray> rays, std::span<Tra
     }
     if (!counters.empty()) {
       if (ldcScreen_) marchedLdc[i].addCounters(counters[i]);
+      else if (quadtreeScreen_) extra[i].addCounters(marched[i], counters[i]);
       else addCounters(marched[i], counters[i]);
+      if (a.flags & kKnownMarch) addCounters(known[i], counters[i]);
       counters[i].addIterations(a.geoIterations);
       counters[i].giveUps += (a.flags >> 8) & 0xFFu;
     }

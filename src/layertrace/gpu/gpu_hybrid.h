@@ -6,10 +6,13 @@
 // and statistics are the CPU hybrid's (with the grid as its geometric half) ray for ray on an
 // IEEE device (tested on llvmpipe).
 //
-// One batch is five passes and three marches:
-//   prepare — per ray, where knowledge ends (known_space.h rules 1–2), the origin's window and
-//             the screen segment (hybrid_prepare.comp);
-//   march   — the screen tracer's march over the solid intervals (GpuScreenTracer::marchResident);
+// One batch is five passes and three marches (four with the known space's march):
+//   known   — with the quad-tree: the march over the known space's pyramid (rule 3);
+//   prepare — per ray, where knowledge ends (known_space.h rules 1–2, and 3 from the known
+//             march; the march over the solid intervals meets rule 3 itself), the origin's
+//             window and the screen segment (hybrid_prepare.comp);
+//   march   — the screen half's march (GpuScreenTracer, GpuQuadtreeTracer or GpuLdcTracer
+//             marchResident);
 //   check   — the exact crossing of the hit pixel's layers, the two windows as grid queries
 //             (hybrid_check.comp);
 //   walk    — the grid over the windows (GpuGridTracer::walkResident);
@@ -21,22 +24,24 @@
 // empty query. Choice: no compaction between the passes, so no host wait and no scan; the empty
 // walks cost one invocation each.
 //
-// The screen half is the march over the solid intervals (hssr, hiz) or the layered depth cube
-// (a world-space tracer: no known space, each hit certified by a window of the cube's margin
-// either side, a ray without a certified hit answered by geometry from its origin). The
-// quad-tree as the screen half needs the known space's rule-3 march, which is not written for
-// the GPU: it keeps the CPU's decisions (HybridTracer) between the GPU's marches.
+// The screen half is the march over the solid intervals (hssr, hiz), the quad-tree or the
+// layered depth cube (a world-space tracer: no known space, each hit certified by a window of the
+// cube's margin either side). With the quad-tree, whose empty space is not certain either, a
+// march over the known space's pyramid of [u, ∞) runs first (known_space.h rule 3: HSSR's march
+// with n_up = 1, its entry parameter written beside each hit).
 //
 // A ray whose query meets an alpha-tested candidate (the grid on the GPU reads no texture) is
 // decided again on the CPU (HybridTracer's own run, whose grid queries the CPU grid settles).
 #pragma once
 
 #include <cstdint>
+#include <memory>
 #include <span>
 
 #include "layertrace/gpu/gpu_context.h"
 #include "layertrace/gpu/gpu_grid.h"
 #include "layertrace/gpu/gpu_ldc.h"
+#include "layertrace/gpu/gpu_quadtree.h"
 #include "layertrace/gpu/gpu_ray_batch.h"
 #include "layertrace/gpu/gpu_screen_tracer.h"
 #include "layertrace/hybrid/hybrid_tracer.h"
@@ -45,10 +50,11 @@ namespace lt {
 
 class GpuHybridTracer final : public HybridTracer {
  public:
-  /// The hybrid of `screen` (canRunOnGpu: a GpuScreenTracer over the solid intervals, or a
-  /// GpuLdcTracer) and `grid` over `layers` and `known`, with HybridTracer's `worldMargin` and
-  /// `uncertainEmptySpace`. Uploads the layers' triangle ids and the scene's triangles for the
-  /// exact checks. All are borrowed and must outlive the tracer.
+  /// The hybrid of `screen` (canRunOnGpu: a GpuScreenTracer over the solid intervals, a
+  /// GpuQuadtreeTracer or a GpuLdcTracer) and `grid` over `layers` and `known`, with
+  /// HybridTracer's `worldMargin` and `uncertainEmptySpace`. Uploads the layers' triangle ids and
+  /// the scene's triangles for the exact checks, and the known space's pyramid where it marches
+  /// rule 3. All are borrowed and must outlive the tracer.
   GpuHybridTracer(GpuContext& gpu, const Scene& scene, const Camera& camera, const LayerArrays& layers, const KnownSpace& known,
                   const Tracer& screen, const GpuGridTracer& grid, float worldMargin = 0.0f, bool uncertainEmptySpace = false);
   ~GpuHybridTracer() override;
@@ -56,8 +62,7 @@ class GpuHybridTracer final : public HybridTracer {
   GpuHybridTracer& operator=(const GpuHybridTracer&) = delete;
 
   /// Whether the decisions of a hybrid over `screen` and `known` can run on the GPU: a screen
-  /// march over a pyramid (hssr, hiz) with a known space without the rule-3 march, or the
-  /// layered depth cube.
+  /// march over a pyramid (hssr, hiz) or the quad-tree, or the layered depth cube.
   static bool canRunOnGpu(const Tracer& screen, const KnownSpace& known);
 
   TraceHit trace(const Ray& ray, RayCounters& counters) const override;
@@ -81,12 +86,15 @@ class GpuHybridTracer final : public HybridTracer {
 
   GpuContext& gpu_;
   const Scene& scene_;
-  const GpuScreenTracer* pyramidScreen_;  ///< the march over the solid intervals, or
-  const GpuLdcTracer* ldcScreen_;         ///< the layered depth cube
+  const GpuScreenTracer* pyramidScreen_;     ///< the march over the solid intervals, or
+  const GpuQuadtreeTracer* quadtreeScreen_;  ///< the quad-tree, or
+  const GpuLdcTracer* ldcScreen_;            ///< the layered depth cube
+  std::unique_ptr<GpuScreenTracer> knownMarch_;  ///< rule 3's march, where the known space has one
   const GpuGridTracer& grid_;
   GpuBuffer layerTriangles_, layerCounts_, positions_, triangles_;
   mutable GpuRayBatch batch_;  ///< the CPU's rays
   mutable GpuBuffer screenRays_, screenHits_, states_, windows_, windowAnswers_, remainders_, remainderAnswers_, answers_;
+  mutable GpuBuffer knownHits_, knownParams_, screenExtra_;  ///< rule 3's march; the quad-tree's extra answers
   mutable GpuTimeline timeline_;
   mutable double totalTraceMs_ = 0.0;
   mutable uint64_t cpuDecided_ = 0, gpuDecided_ = 0;

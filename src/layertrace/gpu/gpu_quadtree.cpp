@@ -15,16 +15,7 @@
 
 namespace lt {
 
-namespace {
-
-/// The march's extra answer, std430 (beside its GpuMarchRecord).
-struct ExtraRecord {
-  float s;
-  uint32_t planes, boxes, occlusions;
-};
-static_assert(sizeof(ExtraRecord) == 16 && sizeof(QuadNode) == 16);
-
-}  // namespace
+static_assert(sizeof(QuadNode) == 16);
 
 GpuQuadtreeTracer::GpuQuadtreeTracer(GpuContext& gpu, const Camera& camera, const LayerArrays& layers, const QuadtreeConfig& config)
     : gpu_(gpu), camera_(camera), layers_(layers) {
@@ -133,25 +124,18 @@ std::vector<QuadNode> GpuQuadtreeTracer::readNodes() const {
 
 size_t GpuQuadtreeTracer::memoryBytes() const { return nodes_.bytes() + depths_.bytes() + counts_.bytes(); }
 
-void GpuQuadtreeTracer::traceBatch(std::span<const Ray> rays, std::span<TraceHit> hits, std::span<RayCounters> counters) const {
-  if (rays.empty()) return;
-  const float scale = summary().depthScale;
-  gpu_.makeCurrent();
+void GpuQuadtreeTracer::marchResident(const GpuBuffer& rays, const GpuBuffer& hits, const GpuBuffer& extra, size_t n, bool counters) const {
+  if (n == 0) return;
   GpuDebugGroup group("quadtree march");
-  batch_.upload(rays);
-  const size_t hitBytes = rays.size() * sizeof(GpuMarchRecord), extraBytes = rays.size() * sizeof(ExtraRecord);
-  const GpuBuffer& hitsOut = batch_.answers(0, hitBytes);
-  const GpuBuffer& extraOut = batch_.answers(1, extraBytes);
-  const bool counted = !counters.empty();
-  const GpuProgram& p = counted ? gpu_.computeProgram("quadtree_march.comp", shader_source::quadtree_march_comp)
-                                : gpu_.computeProgram("quadtree_march.comp", shader_source::quadtree_march_comp, "#define LT_NO_COUNTERS 1\n");
-  batch_.rays().bindStorage(0);
-  hitsOut.bindStorage(1);
+  const GpuProgram& p = counters ? gpu_.computeProgram("quadtree_march.comp", shader_source::quadtree_march_comp)
+                                 : gpu_.computeProgram("quadtree_march.comp", shader_source::quadtree_march_comp, "#define LT_NO_COUNTERS 1\n");
+  rays.bindStorage(0);
+  hits.bindStorage(1);
   nodes_.bindStorage(4);
   scale_.bindStorage(5);
-  extraOut.bindStorage(6);
+  extra.bindStorage(6);
   setLevels(p);
-  p.set("uRayCount", int(rays.size()));
+  p.set("uRayCount", int(n));
   p.set("uWidth", camera_.width());
   p.set("uHeight", camera_.height());
   p.set("uK", summary_.k);
@@ -160,11 +144,23 @@ void GpuQuadtreeTracer::traceBatch(std::span<const Ray> rays, std::span<TraceHit
   p.set("uFocal", camera_.focal());
   p.set("uRootStart", int(summary_.config.rootStart));
   p.set("uBackfaceHits", int(summary_.config.backfaceHits));
+  gpu_.dispatch(p, n);
+}
+
+void GpuQuadtreeTracer::traceBatch(std::span<const Ray> rays, std::span<TraceHit> hits, std::span<RayCounters> counters) const {
+  if (rays.empty()) return;
+  const float scale = summary().depthScale;
+  gpu_.makeCurrent();
+  batch_.upload(rays);
+  const size_t hitBytes = rays.size() * sizeof(GpuMarchRecord), extraBytes = rays.size() * sizeof(GpuQuadtreeExtra);
+  const GpuBuffer& hitsOut = batch_.answers(0, hitBytes);
+  const GpuBuffer& extraOut = batch_.answers(1, extraBytes);
+  const bool counted = !counters.empty();
   timer_->begin();
-  gpu_.dispatch(p, rays.size());
+  marchResident(batch_.rays(), hitsOut, extraOut, rays.size(), counted);
   timer_->end();
   PoolVector<GpuMarchRecord> answers(rays.size());
-  PoolVector<ExtraRecord> extra(rays.size());
+  PoolVector<GpuQuadtreeExtra> extra(rays.size());
   hitsOut.read(answers.data(), hitBytes);
   extraOut.read(extra.data(), extraBytes);
   totalTraceMs_ += timer_->ms();
@@ -184,11 +180,7 @@ void GpuQuadtreeTracer::traceBatch(std::span<const Ray> rays, std::span<TraceHit
       const float w = scale * seg.k0 + s * (scale * (seg.k1 - seg.k0));
       hits[i].point = camera_.rayThrough(at) * (scale / w);
     }
-    if (!counted) return;
-    RayCounters& c = counters[i];
-    c.iterations += a.iterations, c.pixels += a.pixels, c.giveUps += a.giveUps;
-    for (int l = 0; l < RayCounters::kLevels; ++l) c.levelIterations[l] += a.levelIterations[l];
-    c.planeNodes += extra[i].planes, c.boxNodes += extra[i].boxes, c.occlusions += extra[i].occlusions;
+    if (counted) extra[i].addCounters(a, counters[i]);
   });
 }
 

@@ -26,6 +26,20 @@
 
 namespace lt {
 
+/// shaders/quadtree_march.comp's answer beside its GpuMarchRecord, std430: the hit's screen
+/// parameter and the counters of the plane and box nodes and the occlusion tests.
+struct GpuQuadtreeExtra {
+  float s;
+  uint32_t planes, boxes, occlusions;
+  /// Adds the march's counters (of `march` and these) to `c` as QuadtreeTracer counts them.
+  void addCounters(const GpuMarchRecord& march, RayCounters& c) const {
+    c.iterations += march.iterations, c.pixels += march.pixels, c.giveUps += march.giveUps;
+    for (int l = 0; l < RayCounters::kLevels; ++l) c.levelIterations[l] += march.levelIterations[l];
+    c.planeNodes += planes, c.boxNodes += boxes, c.occlusions += occlusions;
+  }
+};
+static_assert(sizeof(GpuQuadtreeExtra) == 16);
+
 class GpuQuadtreeTracer final : public GpuBatchTracer {
  public:
   /// Uploads each slot's depth and the per-pixel counts of `layers` and builds the quad-trees on
@@ -41,6 +55,11 @@ class GpuQuadtreeTracer final : public GpuBatchTracer {
   /// parameter on the screen segment, as the CPU tracer computes it) and the counters.
   void traceBatch(std::span<const Ray> rays, std::span<TraceHit> hits, std::span<RayCounters> counters) const override;
 
+  /// Marches `n` camera-space rays already on the device (`rays`: shaders/ray_io.glsl GpuRay)
+  /// into `hits` (GpuMarchRecord each) and `extra` (GpuQuadtreeExtra each), without a transfer
+  /// or a timer: the hybrid's passes on the GPU (gpu_hybrid.h). Without `counters` the march's
+  /// counter-free variant runs.
+  void marchResident(const GpuBuffer& rays, const GpuBuffer& hits, const GpuBuffer& extra, size_t n, bool counters) const;
   /// The trees' shape, depth scale, nodes of each kind per level and GPU build time (the kind
   /// counts and the scale are read back on the first call); `nodes` stays empty.
   const Quadtree& summary() const;

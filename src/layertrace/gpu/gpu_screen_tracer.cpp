@@ -217,6 +217,21 @@ void GpuScreenTracer::marchResident(const GpuBuffer& rays, const GpuBuffer& hits
   }
 }
 
+void GpuScreenTracer::marchResidentWithParams(const GpuBuffer& rays, const GpuBuffer& hits, const GpuBuffer& params, size_t n) const {
+  LT_CHECK(pyramid_ != nullptr, name_);
+  if (n == 0) return;
+  GpuDebugGroup group("hssr march");
+  if (!paramsProgram_) paramsProgram_ = &gpu_.computeProgram("hssr_march.comp", shader_source::hssr_march_comp, "#define LT_HIT_PARAM 1\n");
+  rays.bindStorage(0);
+  hits.bindStorage(1);
+  level0_->bindStorage(2);
+  counts_->bindStorage(3);
+  pyramid_->cells.bindStorage(4);
+  params.bindStorage(6);
+  setUniforms(*paramsProgram_, n, false);
+  gpu_.dispatch(*paramsProgram_, n);
+}
+
 const GpuEffects& GpuScreenTracer::effects(const Scene& scene, std::span<const PointLight> lights) const {
   auto same = [](const PointLight& a, const PointLight& b) { return a.position == b.position && a.intensity == b.intensity; };
   if (!effects_ || effectsScene_ != &scene || !std::equal(lights.begin(), lights.end(), effectsLights_.begin(), effectsLights_.end(), same)) {

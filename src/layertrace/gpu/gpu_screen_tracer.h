@@ -88,6 +88,11 @@ class GpuScreenTracer final : public GpuBatchTracer {
   /// Without `counters` the march's counter-free variant runs (LT_NO_COUNTERS: the same
   /// answers, every counter 0), as the timed runs read no counter.
   void marchResident(const GpuBuffer& rays, const GpuBuffer& hits, size_t n, const GpuBuffer* groups = nullptr, bool counters = true) const;
+  /// marchResident with counters and one invocation per ray, also writing per ray the screen
+  /// parameter at which its segment entered the hit pixel (hssr_march.h MarchHit::s; 0 for a
+  /// miss) into `params` (a float each): the hybrid's known-space march (gpu_hybrid.h). A
+  /// march over a pyramid only.
+  void marchResidentWithParams(const GpuBuffer& rays, const GpuBuffer& hits, const GpuBuffer& params, size_t n) const;
   /// Persistent threads: work groups launched (16 per multiprocessor of a 132-SM GPU; choice:
   /// the queue balances the load, so more groups than the GPU holds at once only add idle
   /// launches).
@@ -133,6 +138,7 @@ class GpuScreenTracer final : public GpuBatchTracer {
   const GpuProgram* program_ = nullptr;
   const GpuProgram* timedProgram_ = nullptr;  ///< the counter-free variant (LT_NO_COUNTERS)
   mutable const GpuProgram* reloadPrograms_[2] = {};  ///< subgroup reloading: without, with counters
+  mutable const GpuProgram* paramsProgram_ = nullptr;  ///< marchResidentWithParams' (LT_HIT_PARAM)
   std::string_view subgroupDefine_;  ///< LT_SUBGROUP_ARB or _KHR, empty without the operations
   bool subgroupOff_ = false;
   GpuBuffer ownLevel0_, ownCounts_;

@@ -90,6 +90,8 @@ class KnownSpace {
   bool marchesUnknownDepths() const { return pyramid_.levelCount() > 0; }
   /// Rule 2's depth beyond which nothing was captured (+∞ when the far plane covers the scene).
   float farLimit() const { return farLimit_; }
+  /// Rule 3's pyramid over [u, ∞) (empty when marchesUnknownDepths() is false).
+  const IntervalPyramid& pyramid() const { return pyramid_; }
   double buildMs() const { return buildMs_; }
 
  private:

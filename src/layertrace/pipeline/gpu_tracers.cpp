@@ -109,9 +109,8 @@ BuiltTracer buildGpuTracer(const std::string& name, const Frame& frame, const Tr
   }
   if (name == "hybrid") {
     // Both halves on the GPU: the screen march over the hybrid's solid intervals (its pyramid
-    // built there), the GPU grid for the rest. With hssr, hiz or the layered depth cube the
-    // decisions between them run there too (gpu_hybrid.h); the quad-tree keeps the CPU's
-    // (known_space.h). Either way the answers are the CPU hybrid's with --hybrid-geo grid.
+    // built there), the GPU grid for the rest, and the decisions between them (gpu_hybrid.h):
+    // the answers are the CPU hybrid's with --hybrid-geo grid.
     HybridBuilders onGpu;
     onGpu.pyramidScreen = [&](IntervalLayers solid, const PyramidConfig& pc, const HssrConfig& hc) {
       BuiltTracer screen;
