@@ -19,7 +19,8 @@
 # Without an OpenGL 4.5 device it prints one line and exits with status 2.
 #   scripts/gpu-bench.sh [OUT_DIR]        (default: gpu-bench-out)
 # GPU_BENCH_SIZES="W1xH1 …" replaces the three sizes (the first one also sizes the peel runs),
-# e.g. for a smoke test on a machine without a GPU.
+# e.g. for a smoke test on a machine without a GPU; GPU_BENCH_REPEAT (default 5) the timed
+# repeats of stages, geobench and peel.
 set -uo pipefail
 here=$(cd "$(dirname "$0")/.." && pwd)
 out=${1:-gpu-bench-out}
@@ -37,6 +38,7 @@ if [ $? -ne 0 ]; then
   exit 2
 fi
 sizes=${GPU_BENCH_SIZES:-"1280x720 1920x1080 3840x2160"}
+repeat=${GPU_BENCH_REPEAT:-5}
 first=${sizes%% *}
 start=$SECONDS
 runs=()
@@ -44,7 +46,7 @@ geo=()
 for scene in default fzk-haus am-thornish; do
   for size in $sizes; do
     dir="$out/$scene-$size"
-    "$bin" bench "$here/scenes/$scene.json" --experiment stages --device gpu --repeat 5 --layers 4 \
+    "$bin" bench "$here/scenes/$scene.json" --experiment stages --device gpu --repeat "$repeat" --layers 4 \
         --width "${size%x*}" --height "${size#*x}" --quiet -o "$dir" || { echo "gpu-bench: $scene $size failed" >&2; exit 1; }
     runs+=("$dir/stages.json")
     dir="$out/$scene-frame-$size"
@@ -53,11 +55,11 @@ for scene in default fzk-haus am-thornish; do
     runs+=("$dir/frame.json")
   done
   dir="$out/$scene-geobench"
-  "$bin" geobench "$here/scenes/$scene.json" --device gpu --repeat 5 --width "${first%x*}" --height "${first#*x}" --quiet -o "$dir" ||
+  "$bin" geobench "$here/scenes/$scene.json" --device gpu --repeat "$repeat" --width "${first%x*}" --height "${first#*x}" --quiet -o "$dir" ||
       { echo "gpu-bench: $scene geobench failed" >&2; exit 1; }
   geo+=("$dir/geobench.json")
   dir="$out/$scene-peel"
-  "$bin" bench "$here/scenes/$scene.json" --experiment peel --device gpu --repeat 5 --width "${first%x*}" --height "${first#*x}" --quiet -o "$dir" ||
+  "$bin" bench "$here/scenes/$scene.json" --experiment peel --device gpu --repeat "$repeat" --width "${first%x*}" --height "${first#*x}" --quiet -o "$dir" ||
       { echo "gpu-bench: $scene peel failed" >&2; exit 1; }
   runs+=("$dir/peel.json")
 done

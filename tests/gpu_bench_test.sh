@@ -5,7 +5,7 @@
 set -uo pipefail
 bin=$1 src=$2 work=$3
 rm -rf "$work"
-export LAYERTRACE_BIN=$bin GPU_BENCH_SIZES=64x36 GPU_BENCH_FRAMES=3
+export LAYERTRACE_BIN=$bin GPU_BENCH_SIZES=64x36 GPU_BENCH_FRAMES=3 GPU_BENCH_REPEAT=1
 "$src/scripts/gpu-bench.sh" "$work/out" || { echo "FAIL: gpu-bench.sh exited $?"; exit 1; }
 md="$work/out/gpu-bench.md"
 rows=$(grep -c '^| gpu | hssr |' "$md")
