@@ -419,8 +419,9 @@ TEST(Warp, RaysFromAnotherEyeMatchTheOracle) {
     const BuiltTracer t = buildTracer(name, f, TracerOptions{});
     // Sideways, and forwards: an eye in front of the first camera's near plane and on its
     // screen, whose rays start in free space inside the view.
-    for (const auto& [fraction, forward] : {std::pair{0.05f, 0.0f}, std::pair{0.2f, 0.0f}, std::pair{-0.3f, 0.0f}, std::pair{0.0f, 0.3f},
-                                           std::pair{0.02f, 0.2f}}) {
+    std::vector<std::pair<float, float>> eyes = {{0.05f, 0.0f}, {0.2f, 0.0f}, {-0.3f, 0.0f}, {0.0f, 0.3f}, {0.02f, 0.2f}};
+    if (test::sanitized()) eyes = {eyes[1], eyes[4]};  // one sideways, one forwards
+    for (const auto& [fraction, forward] : eyes) {
       size_t mismatches = 0, rays = 0, hits = 0;
       class Check : public RayObserver {
        public:

@@ -83,6 +83,7 @@ void expectLanesEqualMarch(const Frame& f, const std::vector<Ray>& rays) {
 }
 
 TEST(SsrLanes, EqualTheOneRayMarch) {
+  LT_SKIP_SINGLE_THREADED_UNDER_TSAN();
   FrameOptions o;
   o.scenePath = test::sourceDir() + "/scenes/default.json";
   o.width = 317, o.height = 179;

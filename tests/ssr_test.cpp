@@ -200,6 +200,7 @@ size_t sanitizedRays(size_t n) { return std::getenv("LAYERTRACE_SANITIZED") ? n 
 /// within one step of the hit pixel (half a stride plus half a pixel: a step's depth range spans
 /// a stride along the major axis) overlaps the hit fragment's interval.
 TEST(ScreenTracers, SsrLayersReportsNoFalsePositives) {
+  LT_SKIP_SINGLE_THREADED_UNDER_TSAN();
   FrameOptions o;
   o.scenePath = test::sourceDir() + "/scenes/default.json";
   o.width = 320, o.height = 180;
@@ -240,6 +241,7 @@ TEST(ScreenTracers, SsrLayersReportsNoFalsePositives) {
 /// Hofmann et al. 2017, Figure 10: the non-conservative DDA of SSR skips hits the conservative one
 /// finds. Measured and reported here (not hidden); bounded so a broken SSR would fail.
 TEST(ScreenTracers, SsrSkipRateAgainstTheExhaustiveOracleIsMeasured) {
+  LT_SKIP_SINGLE_THREADED_UNDER_TSAN();
   FrameOptions o;
   o.scenePath = test::sourceDir() + "/scenes/default.json";
   o.width = 320, o.height = 180;

@@ -31,6 +31,23 @@ namespace lt::test {
 /// kind: the sanitizers look for memory and thread errors, which the first rays and tiles
 /// already exercise, not for rare rays, which the Release suite's full workloads look for.
 inline bool sanitized() { return std::getenv("LAYERTRACE_SANITIZED") != nullptr; }
+/// Whether this is the ThreadSanitizer build (CMake's LAYERTRACE_TSAN; GCC and Clang name it
+/// differently).
+#if defined(__SANITIZE_THREAD__)
+inline constexpr bool kThreadSanitized = true;
+#elif defined(__has_feature)
+#if __has_feature(thread_sanitizer)
+inline constexpr bool kThreadSanitized = true;
+#else
+inline constexpr bool kThreadSanitized = false;
+#endif
+#else
+inline constexpr bool kThreadSanitized = false;
+#endif
+/// A test whose rays run on the calling thread only skips itself under ThreadSanitizer: there is
+/// no second thread for it to watch, and it runs 10× slower there. AddressSanitizer still runs it.
+#define LT_SKIP_SINGLE_THREADED_UNDER_TSAN() \
+  if (::lt::test::kThreadSanitized) GTEST_SKIP() << "one thread only: nothing for ThreadSanitizer to check"
 /// `n` in the Release suite, a quarter of it (at least 1) under the sanitizers.
 inline size_t sanitizedCount(size_t n) { return sanitized() ? std::max<size_t>(n / 4, 1) : n; }
 
