@@ -8,17 +8,27 @@
 // rays i·R … i·R + R − 1, R the effect's most rays per pixel. A slot without a ray has a negative
 // length, and the march answers it with a miss at once. Include after ray_io.glsl.
 
+// A surface by value, as a tracer answers with it (trace/tracer.h TraceHit): the camera-space
+// point, the shading normal as given (not yet turned to the viewer), the triangle and the packed
+// albedo and specular. A fragment's is fragmentRecord; a geometric tracer writes its own.
+struct SurfaceRecord {
+  vec4 point;   // xyz
+  vec4 normal;  // xyz
+  uint triangle, albedoSpec, pad0, pad1;
+};
 // The effect's ray: as emitted, with the triangle it leaves (Ray::originTriangle) and whether it
-// still waits for an answer under the origin rule (Tracer::query).
+// still waits for an answer under the origin rule (Tracer::query); once answered with a hit, the
+// surface it met (effect_resolve.comp).
 struct EffectRay {
   vec4 originMax;
   vec4 dirSurface;
   uint originTriangle, pending, pad0, pad1;
+  SurfaceRecord hit;
 };
-// One pixel's path between waves (effects.cpp PathState). The surface the next ray leaves is
-// kept as its fragment and recomputed from the layer arrays when needed.
+// One pixel's path between waves (effects.cpp PathState).
 struct PathState {
-  ivec4 surface;  // x, y, layer of the surface; w: 1 while the path is active
+  SurfaceRecord surface;  // the surface the path is on
+  SurfaceRecord back;     // refraction: the transmissive back surface
   vec4 incoming;  // xyz: the direction arriving at the surface; w: the rays of the last wave (as float)
   vec4 dir;       // the direction of the ray in flight, as computed (unnormalised)
   vec4 colour;    // reflection: the accumulated colour
@@ -26,7 +36,7 @@ struct PathState {
   vec4 view;      // the view direction at the front surface
   vec4 refracted; // refraction: xyz the refracted direction in flight, w the Fresnel weight
   vec4 reflected; // refraction: the colour the reflection ray brought back
-  ivec4 back;     // refraction: the transmissive back surface's fragment
+  uvec4 flags;    // x: 1 while the path is active
 };
 struct PixelOut {
   vec4 result;
@@ -79,3 +89,13 @@ vec3 fragmentPoint(int x, int y, uvec4 f) {
   return p;
 }
 
+// A fragment as a surface (screen/fragment_hit.h fragmentHit).
+SurfaceRecord fragmentRecord(int x, int y, uvec4 f) {
+  SurfaceRecord r;
+  r.point = vec4(fragmentPoint(x, y, f), 0.0);
+  r.normal = vec4(decodeOctahedral(f.y), 0.0);
+  r.triangle = f.w;
+  r.albedoSpec = f.z;
+  r.pad0 = r.pad1 = 0u;
+  return r;
+}

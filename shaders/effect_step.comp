@@ -67,21 +67,21 @@ float powStd(float x, float e) {
 }
 
 // effects.cpp Renderer::surfaceOf.
-Surface surfaceOf(ivec3 frag, vec3 incoming) {
-  const uvec4 f = fragmentAt(frag.x, frag.y, frag.z);
+Surface surfaceOf(SurfaceRecord r, vec3 incoming) {
   Surface s;
-  s.p = fragmentPoint(frag.x, frag.y, f);
-  s.triangle = f.w;
-  const vec3 normal = decodeOctahedral(f.y);
+  s.p = r.point.xyz;
+  s.triangle = r.triangle;
+  const vec3 normal = r.normal.xyz;
   s.n = dotStd(normal, incoming) > 0.0 ? -normal : normal;
   s.ng = s.n;
-  const TriangleInfo t = triangles[min(f.w, uTriangleCount)];
-  if (f.w < uTriangleCount) {
+  const TriangleInfo t = triangles[min(r.triangle, uTriangleCount)];
+  if (r.triangle < uTriangleCount) {
     if (t.normalMirror.xyz != vec3(0.0)) s.ng = t.normalMirror.xyz;
     if (dotStd(s.ng, incoming) > 0.0) s.ng = -s.ng;
   }
-  s.albedo = vec3(uSrgb[f.z & 0xFFu], uSrgb[(f.z >> 8) & 0xFFu], uSrgb[(f.z >> 16) & 0xFFu]);
-  s.specular = float(f.z >> 24) / 255.0;
+  const uint a = r.albedoSpec;
+  s.albedo = vec3(uSrgb[a & 0xFFu], uSrgb[(a >> 8) & 0xFFu], uSrgb[(a >> 16) & 0xFFu]);
+  s.specular = float(a >> 24) / 255.0;
   s.mirror = t.normalMirror.w;
   s.shininess = t.material.x;
   s.transmission = t.material.y;
@@ -180,7 +180,7 @@ float nextUniform() {
 void finish(inout PathState st, vec3 result, vec3 traced) {
   pixels[gSlot].result = vec4(result, 0.0);
   pixels[gSlot].traced = vec4(traced, 0.0);
-  st.surface.w = 0;
+  st.flags.x = 0u;
 }
 
 // effects.cpp Renderer::reflectFrom: blend in the surface's own light, continue the mirror path.
@@ -227,7 +227,7 @@ uint emit(uint i, inout PathState st, ivec2 px) {
     st.incoming.w = 1.0;
     return 1u;
   }
-  const Surface s = surfaceOf(st.surface.xyz, st.incoming.xyz);
+  const Surface s = surfaceOf(st.surface, st.incoming.xyz);
   if (uEffect == kReflection) {
     reflectFrom(first, st, s);
     n = 1u;
@@ -249,7 +249,7 @@ uint emit(uint i, inout PathState st, ivec2 px) {
     }
   } else if (uEffect == kRefraction) {
     // Wave 1: leaving the transmissive back surface.
-    emitRay(first, surfaceOf(st.back.xyz, st.refracted.xyz), st.refracted.xyz, uMaxDistance);
+    emitRay(first, surfaceOf(st.back, st.refracted.xyz), st.refracted.xyz, uMaxDistance);
     noRay(first + 1u);
     n = 1u;
   } else if (uEffect == kShadow) {
@@ -284,7 +284,7 @@ uint emit(uint i, inout PathState st, ivec2 px) {
 // Refraction's end (effects.cpp, Effect::Refraction): the front surface's own light, and through
 // it the Fresnel blend of what the reflection and the refraction brought back.
 void finishRefraction(inout PathState st, vec3 through) {
-  const Surface s = surfaceOf(st.surface.xyz, st.view.xyz);
+  const Surface s = surfaceOf(st.surface, st.view.xyz);
   const float tr = s.transmission, fresnel = st.refracted.w;
   precise vec3 c = (1.0 - tr) * local(s, st.view.xyz) + tr * ((1.0 - fresnel) * s.albedo * through + fresnel * st.reflected.xyz);
   finish(st, c, through);
@@ -292,9 +292,6 @@ void finishRefraction(inout PathState st, vec3 through) {
 
 bool hit(GpuHit h) {
   return h.layer >= 0;
-}
-ivec3 fragmentOf(GpuHit h) {
-  return ivec3(h.x, h.y, h.layer);
 }
 
 // Takes the answers to the path's rays of wave uWave − 1 (those with a non-negative length).
@@ -321,7 +318,7 @@ void consume(uint i, inout PathState st) {
   const GpuHit h0 = answers[first];
   if (uEffect == kWarp) {
     if (!hit(h0)) tally[t + 7u] = 1u;  // a hole
-    const vec3 c = hit(h0) ? local(surfaceOf(fragmentOf(h0), st.dir.xyz), st.dir.xyz) : uEnvironment;
+    const vec3 c = hit(h0) ? local(surfaceOf(effectRays[first].hit, st.dir.xyz), st.dir.xyz) : uEnvironment;
     finish(st, c, c);
   } else if (uEffect == kReflection) {
     if (!hit(h0)) {
@@ -329,36 +326,36 @@ void consume(uint i, inout PathState st) {
       finish(st, c, uEnvironment);
       return;
     }
-    st.surface.xyz = fragmentOf(h0);
+    st.surface = effectRays[first].hit;
     st.incoming.xyz = st.dir.xyz;
     if (wave + 1 == uWaves) {
-      const vec3 traced = local(surfaceOf(st.surface.xyz, st.incoming.xyz), st.incoming.xyz);
+      const vec3 traced = local(surfaceOf(st.surface, st.incoming.xyz), st.incoming.xyz);
       precise vec3 c = st.colour.xyz + st.weight.xyz * traced;
       finish(st, c, traced);
     }
   } else if (uEffect == kRefraction && wave == 0) {
-    precise vec3 reflected = st.colour.xyz + st.weight.xyz * (hit(h0) ? local(surfaceOf(fragmentOf(h0), st.dir.xyz), st.dir.xyz) : uEnvironment);
+    precise vec3 reflected = st.colour.xyz + st.weight.xyz * (hit(h0) ? local(surfaceOf(effectRays[first].hit, st.dir.xyz), st.dir.xyz) : uEnvironment);
     st.reflected.xyz = reflected;
     vec3 through = uEnvironment;
     const GpuHit h1 = answers[first + 1u];
     if (effectRays[first + 1u].originMax.w >= 0.0 && hit(h1)) {
       const vec3 dir = st.refracted.xyz;
-      const Surface back = surfaceOf(fragmentOf(h1), dir);
+      const Surface back = surfaceOf(effectRays[first + 1u].hit, dir);
       vec3 leaving = refractStd(normalizeStd(dir), back.n, back.transmission > 0.0 ? back.ior : 1.0);
       if (dotStd(leaving, leaving) == 0.0) leaving = reflectStd(normalizeStd(dir), back.n);  // total internal reflection
       if (back.transmission <= 0.0) {
         through = local(back, dir);  // the refracted ray met an opaque surface
       } else {
         st.refracted.xyz = leaving;
-        st.back = ivec4(fragmentOf(h1), 0);
+        st.back = effectRays[first + 1u].hit;
         return;  // wave 1 leaves the back surface
       }
     }
     finishRefraction(st, through);
   } else if (uEffect == kRefraction) {
-    finishRefraction(st, hit(h0) ? local(surfaceOf(fragmentOf(h0), st.refracted.xyz), st.refracted.xyz) : uEnvironment);
+    finishRefraction(st, hit(h0) ? local(surfaceOf(effectRays[first].hit, st.refracted.xyz), st.refracted.xyz) : uEnvironment);
   } else if (uEffect == kShadow) {
-    const Surface s = surfaceOf(st.surface.xyz, st.incoming.xyz);
+    const Surface s = surfaceOf(st.surface, st.incoming.xyz);
     precise vec3 c = 0.05 * s.albedo;
     for (int l = 0; l < uLights; ++l)
       if (effectRays[first + uint(l)].originMax.w >= 0.0 && !hit(answers[first + uint(l)])) c += light(s, st.view.xyz, l);
@@ -379,7 +376,9 @@ void main() {
   if (uWave == 0) {
     // effects.cpp Renderer::begin: the front surface; pixels without fragments show the
     // environment and trace nothing (view synthesis: every pixel of the second camera traces).
-    st.surface = ivec4(px, 0, 0);
+    st.surface = SurfaceRecord(vec4(0.0), vec4(0.0), kNoTriangle, 0u, 0u, 0u);
+    st.back = st.surface;
+    st.flags = uvec4(0u);
     st.incoming = vec4(0.0);
     st.dir = vec4(0.0);
     st.colour = vec4(0.0);
@@ -387,9 +386,8 @@ void main() {
     st.view = vec4(0.0);
     st.refracted = vec4(0.0);
     st.reflected = vec4(0.0);
-    st.back = ivec4(0);
     if (inside && uEffect == kWarp) {
-      st.surface.w = 1;
+      st.flags.x = 1u;
     } else if (inside) {
       const uvec4 f = fragmentAt(px.x, px.y, 0);
       if (f.x == kEmptySlot) {
@@ -398,8 +396,9 @@ void main() {
       } else {
         st.view.xyz = normalizeStd(fragmentPoint(px.x, px.y, f));
         st.incoming.xyz = st.view.xyz;
-        st.surface.w = 1;
-        const Surface s = surfaceOf(st.surface.xyz, st.view.xyz);
+        st.flags.x = 1u;
+        st.surface = fragmentRecord(px.x, px.y, f);
+        const Surface s = surfaceOf(st.surface, st.view.xyz);
         if (uEffect == kShade || (uEffect == kRefraction && s.transmission <= 0.0)) {
           const vec3 c = local(s, st.view.xyz);
           finish(st, c, c);
@@ -408,9 +407,9 @@ void main() {
     }
   } else {
     st = states[i];
-    if (st.surface.w != 0 && st.incoming.w > 0.0) consume(i, st);
+    if (st.flags.x != 0u && st.incoming.w > 0.0) consume(i, st);
   }
-  if (st.surface.w != 0 && uWave < uWaves) {
+  if (st.flags.x != 0u && uWave < uWaves) {
     emit(i, st, px);
   } else {
     st.incoming.w = 0.0;

@@ -20,7 +20,7 @@ namespace lt {
 namespace {
 
 /// shaders/effect_common.glsl sizes (std430).
-constexpr size_t kRayBytes = 32, kHitBytes = 64, kEffectRayBytes = 48, kStateBytes = 144, kOutBytes = 32;
+constexpr size_t kRayBytes = 32, kHitBytes = 64, kEffectRayBytes = 96, kStateBytes = 224, kOutBytes = 32, kRecordBytes = 48;
 /// shaders/effect_step.comp's tally: 16 words, the histogram, then 16 words per pixel slot.
 constexpr size_t kHistogramFirst = 16, kHistogramBins = 65537, kPixelTallyFirst = kHistogramFirst + kHistogramBins;
 static_assert(kOriginSkips == 4, "effect_resolve.comp continues a ray past its own triangle 4 times");
@@ -143,7 +143,7 @@ void GpuEffects::setUniforms() const {
 size_t GpuEffects::memoryBytes() const {
   size_t b = 0;
   for (const GpuBuffer* buf : std::initializer_list<const GpuBuffer*>{fragments_, triangles_, &rays_, &hits_, &effectRays_, &answers_, &states_, &out_,
-                                                                      &tally_, &pending_, &groups_, &sums_})
+                                                                      &tally_, &pending_, &groups_, &sums_, &records_})
     b += buf->bytes();
   return b;
 }
@@ -171,9 +171,22 @@ void GpuEffects::collectTimes(double& traceMs, double& shadeMs) const {
   traceMs = ms[0], shadeMs = ms[1];
 }
 
-GpuEffectOutput GpuEffects::run(const GpuScreenTracer& tracer, const GpuEffectParams& p, const GpuEffectReadback& readback) const {
+const GpuEffects& GpuEffectTracer::effectsFor(GpuContext& gpu, const Scene& scene, const LayerArrays& layers, std::span<const PointLight> lights) const {
+  auto same = [](const PointLight& a, const PointLight& b) { return a.position == b.position && a.intensity == b.intensity; };
+  if (!effects_ || effectsScene_ != &scene || effectsLayers_ != &layers ||
+      !std::equal(lights.begin(), lights.end(), effectsLights_.begin(), effectsLights_.end(), same)) {
+    effects_.reset();  // (its buffers go before the new ones are made)
+    effects_ = std::make_unique<GpuEffects>(gpu, scene, effectCamera(), layers, lights);
+    effectsScene_ = &scene, effectsLayers_ = &layers;
+    effectsLights_.assign(lights.begin(), lights.end());
+  }
+  return *effects_;
+}
+
+GpuEffectOutput GpuEffects::run(const GpuEffectTracer& tracer, const GpuEffectParams& p, const GpuEffectReadback& readback) const {
   LT_CHECK(p.bounces >= 1 && p.bounces <= 16 && p.aoSamples >= 1 && p.aoSamples <= 4096, p.bounces, p.aoSamples);
-  LT_CHECK(camera_.width() == tracer.camera().width() && camera_.height() == tracer.camera().height(), camera_.width(), tracer.camera().width());
+  const Camera& traced = tracer.effectCamera();
+  LT_CHECK(camera_.width() == traced.width() && camera_.height() == traced.height(), camera_.width(), traced.width());
   gpu_.makeCurrent();
   GpuDebugGroup group("effect");
   const int W = camera_.width(), H = camera_.height();
@@ -191,6 +204,8 @@ GpuEffectOutput GpuEffects::run(const GpuScreenTracer& tracer, const GpuEffectPa
   // One dispatch of 64-invocation groups covers a chunk's rays (indirect dispatches are one).
   LT_CHECK(raySlots <= size_t(65535) * 64, raySlots, p.chunkBytes);
   resize(pixelSlots, chunkSlots, raySlots);
+  const GpuEffectTracer::Surfaces surfaces = tracer.surfaces();
+  if (surfaces != GpuEffectTracer::Surfaces::Fragments && records_.bytes() < raySlots * kRecordBytes) records_ = GpuBuffer(raySlots * kRecordBytes);
   tally_.fill(0u);
   setUniforms();
 
@@ -210,6 +225,7 @@ GpuEffectOutput GpuEffects::run(const GpuScreenTracer& tracer, const GpuEffectPa
   step.set("uExcludeOriginTriangle", int(p.excludeOriginTriangle));
   step.set("uRaysPerPixel", R);
   resolve.set("uRaysPerPixel", R);
+  resolve.set("uSurfaces", int(surfaces));
   if (p.kind == GpuEffectKind::Warp) {
     LT_CHECK(p.warp.camera.width() == W && p.warp.camera.height() == H, p.warp.camera.width(), W);
     step.setMatrix("uView", &camera_.view()[0][0]);  // (read by view synthesis only)
@@ -255,10 +271,12 @@ GpuEffectOutput GpuEffects::run(const GpuScreenTracer& tracer, const GpuEffectPa
       GpuDebugGroup g("origin rule");
       for (int round = 0; round <= kOriginSkips; ++round) {
         timeline_.begin(kTrace);
-        tracer.marchResident(rays_, hits_, rayItems, round == 0 ? nullptr : &groups_, p.countRays);
+        tracer.answerWave(GpuEffectWave{rays_, hits_, records_, rayItems, round == 0 ? nullptr : &groups_, p.countRays,
+                                        p.kind == GpuEffectKind::Shadow});
         pending_.fill(0u);
         bindRays();
         hits_.bindStorage(1);
+        if (surfaces != GpuEffectTracer::Surfaces::Fragments) records_.bindStorage(3);
         pending_.bindStorage(6);
         resolve.set("uItems", int(rayItems));
         resolve.set("uRound", round);

@@ -1,8 +1,10 @@
 // The secondary effects on the GPU: ray generation, the origin rule and shading as compute
 // passes (shaders/effect_step.comp, effect_resolve.comp) around a GPU tracer's march, so that
 // no ray leaves the device between bounces. They are the GLSL twins of render/effects.cpp (the
-// same rays, the same Blinn-Phong shading) and work with every GpuScreenTracer: SSR, SSR over
-// all layers, the Hi-Z march, HSSR and the exhaustive march.
+// same rays, the same Blinn-Phong shading) and work with every GpuEffectTracer: the screen
+// tracers (SSR, SSR over all layers, the Hi-Z march, HSSR, the exhaustive march), whose answers
+// name a fragment of the layers, and the quad-tree, the layered depth cube and the irregular grid,
+// which answer with the surface they met (a SurfaceRecord: point, normal, triangle, material).
 //
 // What the passes read is uploaded once per frame: the layer arrays (depth, normal, albedo and
 // specular, scene triangle per slot) and per scene triangle its camera-space geometric normal
@@ -26,7 +28,45 @@
 
 namespace lt {
 
-class GpuScreenTracer;
+class GpuEffects;
+
+/// One wave of effect rays for a tracer to answer on the device (GpuEffectTracer::answerWave).
+struct GpuEffectWave {
+  const GpuBuffer& rays;     ///< n shaders/ray_io.glsl GpuRay (camera space; a negative length: no ray)
+  const GpuBuffer& hits;     ///< n GpuHit to write: layer ≥ 0 for a hit, and the ray's counters
+  const GpuBuffer& records;  ///< n shaders/effect_common.glsl SurfaceRecord to write, for tracers that write them
+  size_t n = 0;
+  /// The origin rule's later rounds: the work groups in this buffer (indirect dispatch, sized
+  /// on the device; null in round 0). A tracer may ignore it and answer all n rays.
+  const GpuBuffer* groups = nullptr;
+  bool counters = true;  ///< count per ray (else a counter-free variant may run)
+  bool anyHit = false;   ///< the wave's rays are any-hit queries (shadows; Tracer::occludedBatch)
+};
+
+/// A GPU tracer the effect passes run around (GpuEffects::run): it answers a wave of rays on the
+/// device, without a transfer or a host wait.
+class GpuEffectTracer {
+ public:
+  /// How the answers name the surface they met (shaders/effect_resolve.comp uSurfaces).
+  enum class Surfaces : int {
+    Fragments = 0,          ///< the hit fragment (x, y, layer) of the frame's layers: screen tracers
+    Records = 1,            ///< a SurfaceRecord per hit: point, normal, triangle, material (geometric hits)
+    FragmentsAtPoints = 2,  ///< the hit fragment, at the point of the record (the quad-tree's exact ray–plane point)
+  };
+  virtual ~GpuEffectTracer() = default;
+  virtual Surfaces surfaces() const = 0;
+  virtual const Camera& effectCamera() const = 0;
+  virtual void answerWave(const GpuEffectWave& wave) const = 0;
+  /// The passes for `layers` captured with the tracer's camera from `scene`, made on the first
+  /// call and kept while the scene, the layers and the lights stay the same.
+  const GpuEffects& effectsFor(GpuContext& gpu, const Scene& scene, const LayerArrays& layers, std::span<const PointLight> lights) const;
+
+ private:
+  mutable std::unique_ptr<GpuEffects> effects_;
+  mutable const Scene* effectsScene_ = nullptr;
+  mutable const LayerArrays* effectsLayers_ = nullptr;
+  mutable std::vector<PointLight> effectsLights_;
+};
 
 enum class GpuEffectKind : int { Shade = 0, Reflection = 1, AO = 2, Shadow = 3, Refraction = 4, Warp = 5 };
 
@@ -54,9 +94,9 @@ struct GpuEffectParams {
   /// the origin pixel's rule alone keeps a ray off its own surface.
   bool excludeOriginTriangle = true;
   GpuWarp warp;  ///< GpuEffectKind::Warp
-  /// The frame's pixels run in chunks of whole 8×8 tiles whose per-ray buffers (208 bytes a ray
+  /// The frame's pixels run in chunks of whole 8×8 tiles whose per-ray buffers (256 bytes a ray
   /// slot) stay under this many bytes (at least one tile a chunk), so that a large frame with
-  /// many rays per pixel fits the GPU. Choice: 512 MiB, 2.5 M ray slots, more rays than any GPU
+  /// many rays per pixel fits the GPU. Choice: 512 MiB, 2 M ray slots, more rays than any GPU
   /// runs at once.
   size_t chunkBytes = size_t(512) << 20;
 };
@@ -116,11 +156,12 @@ class GpuEffects {
   /// (shaders/effect_common.glsl Fragments, k a pixel) and its per-triangle records (Triangles).
   void setFrame(const Camera& camera, const GpuBuffer& fragments, const GpuBuffer& triangles, int k);
 
-  /// Renders one effect with `tracer`, which must trace the same layers with the same camera.
+  /// Renders one effect with `tracer`, which must trace the same layers with the same camera (or,
+  /// for a tracer of the scene, the camera's size).
   /// No host wait between passes: the origin rule's rounds run as indirect dispatches sized on
   /// the device. With a readback, the GPU times are read after it; without one, call
   /// collectTimes after the frame's own read-back.
-  GpuEffectOutput run(const GpuScreenTracer& tracer, const GpuEffectParams& params, const GpuEffectReadback& readback = {}) const;
+  GpuEffectOutput run(const GpuEffectTracer& tracer, const GpuEffectParams& params, const GpuEffectReadback& readback = {}) const;
   /// GPU milliseconds of the runs since the last collection: trace (marches and the origin
   /// rule), shade (ray generation and shading).
   void collectTimes(double& traceMs, double& shadeMs) const;
@@ -154,6 +195,7 @@ class GpuEffects {
   const GpuBuffer* fragments_ = &ownFragments_;
   const GpuBuffer* triangles_ = &ownTriangles_;
   mutable GpuBuffer rays_, hits_, effectRays_, answers_, states_, out_, tally_, pending_, groups_, sums_;
+  mutable GpuBuffer records_;  ///< the tracer's SurfaceRecord per ray slot (GpuEffectTracer::Surfaces)
   mutable GpuTimeline timeline_;
 };
 

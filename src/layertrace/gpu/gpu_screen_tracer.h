@@ -33,7 +33,7 @@ struct GpuMarchHit {
   bool hit() const { return layer >= 0; }
 };
 
-class GpuScreenTracer final : public GpuBatchTracer {
+class GpuScreenTracer final : public GpuBatchTracer, public GpuEffectTracer {
  public:
   /// HSSR over a pyramid built here on the GPU from `level0` (gpu_pyramid.h): the whole
   /// structure of the CPU's tracer, made on the device. Hi-Z: hizConfig with τ = ∞; the
@@ -122,6 +122,10 @@ class GpuScreenTracer final : public GpuBatchTracer {
   const GpuPyramid* pyramid() const { return pyramid_.get(); }
   GpuPyramid* pyramid() { return pyramid_.get(); }
   const Camera& camera() const { return camera_; }
+  /// The effect passes' waves (gpu_effects.h): marchResident, answering with fragments.
+  Surfaces surfaces() const override { return Surfaces::Fragments; }
+  const Camera& effectCamera() const override { return camera_; }
+  void answerWave(const GpuEffectWave& w) const override { marchResident(w.rays, w.hits, w.n, w.groups, w.counters); }
 
  private:
   void upload(const IntervalLayers& level0);
