@@ -8,14 +8,6 @@
 // rays i·R … i·R + R − 1, R the effect's most rays per pixel. A slot without a ray has a negative
 // length, and the march answers it with a miss at once. Include after ray_io.glsl.
 
-// A surface by value, as a tracer answers with it (trace/tracer.h TraceHit): the camera-space
-// point, the shading normal as given (not yet turned to the viewer), the triangle and the packed
-// albedo and specular. A fragment's is fragmentRecord; a geometric tracer writes its own.
-struct SurfaceRecord {
-  vec4 point;   // xyz
-  vec4 normal;  // xyz
-  uint triangle, albedoSpec, pad0, pad1;
-};
 // The effect's ray: as emitted, with the triangle it leaves (Ray::originTriangle) and whether it
 // still waits for an answer under the origin rule (Tracer::query); once answered with a hit, the
 // surface it met (effect_resolve.comp).

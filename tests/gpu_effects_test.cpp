@@ -88,6 +88,9 @@ void expectSameEffect(GpuContext& gpu, const Frame& f, const std::string& name, 
     EXPECT_TRUE(got.holes == want.holes);
     EXPECT_EQ(got.iterationsP99, want.iterationsP99);
     for (int l = 0; l < RayCounters::kLevels; ++l) EXPECT_EQ(got.levelIterations[l], want.levelIterations[l]) << "level " << l;
+    EXPECT_EQ(got.planeNodeSum, want.planeNodeSum);
+    EXPECT_EQ(got.boxNodeSum, want.boxNodeSum);
+    EXPECT_EQ(got.occlusionSum, want.occlusionSum);
   }
   // Colours: GLSL's pow is not libm's (a few ulp), so the shaded colour differs in its last
   // bits; a pixel whose ray changed answer differs by a whole surface (AO: by one sample).
@@ -105,7 +108,7 @@ TEST_F(GpuEffect, EveryEffectOfEveryGpuTracerEqualsTheCpu) {
   Frame f = defaultFrame(203, 117);
   // A second light behind the first: shadow rays per pixel with slots left empty.
   f.lights.push_back({f.camera.desc().eye + glm::vec3(0.0f, 3.0f, -2.0f), glm::vec3(4.0f)});
-  for (const char* name : {"ssr", "ssr-layers", "hiz", "hssr"}) {
+  for (const char* name : {"ssr", "ssr-layers", "hiz", "hssr", "quadtree", "ldc"}) {
     EffectConfig ec;
     ec.effect = Effect::Reflection;
     ec.bounces = 3;
@@ -121,6 +124,17 @@ TEST_F(GpuEffect, EveryEffectOfEveryGpuTracerEqualsTheCpu) {
     ec.warpEye = f.scene.toWorld(f.camera.desc().eye + glm::vec3(0.4f, 0.1f, 0.0f));
     expectSameEffect(*gpu_, f, "hssr", ec);
   }
+  // The tracers that answer with the surface they met (the quad-tree: the hit fragment at its
+  // exact plane point; the cube: its sample), every effect with rays.
+  for (const char* name : {"quadtree", "ldc"})
+    for (Effect effect : {Effect::AO, Effect::Shadow, Effect::Refraction, Effect::Warp}) {
+      EffectConfig ec;
+      ec.effect = effect;
+      ec.aoSamples = 3;
+      ec.seed = test::testSeed();
+      ec.warpEye = f.scene.toWorld(f.camera.desc().eye + glm::vec3(0.4f, 0.1f, 0.0f));
+      expectSameEffect(*gpu_, f, name, ec);
+    }
   // The glass sphere's refraction through every tracer.
   EffectConfig refraction;
   refraction.effect = Effect::Refraction;
@@ -243,7 +257,7 @@ TEST_F(GpuRealScene, CaptureTracersAndEffectsEqualTheCpu) {
   const LayerAgreement capture = compareLayerArrays(onGpu.layers, f.layers, 1e-5f);
   EXPECT_GE(capture.matchFraction(), 0.9999);
   EXPECT_EQ(capture.countsDiffer, 0u);
-  for (const char* name : {"ssr", "ssr-layers", "hiz", "hssr"}) {
+  for (const char* name : {"ssr", "ssr-layers", "hiz", "hssr", "quadtree", "ldc"}) {
     EffectConfig ec;
     ec.effect = Effect::Reflection;
     ec.bounces = 2;

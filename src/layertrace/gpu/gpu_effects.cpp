@@ -171,12 +171,12 @@ void GpuEffects::collectTimes(double& traceMs, double& shadeMs) const {
   traceMs = ms[0], shadeMs = ms[1];
 }
 
-const GpuEffects& GpuEffectTracer::effectsFor(GpuContext& gpu, const Scene& scene, const LayerArrays& layers, std::span<const PointLight> lights) const {
+const GpuEffects& GpuEffectTracer::effects(const Scene& scene, const LayerArrays& layers, std::span<const PointLight> lights) const {
   auto same = [](const PointLight& a, const PointLight& b) { return a.position == b.position && a.intensity == b.intensity; };
   if (!effects_ || effectsScene_ != &scene || effectsLayers_ != &layers ||
       !std::equal(lights.begin(), lights.end(), effectsLights_.begin(), effectsLights_.end(), same)) {
     effects_.reset();  // (its buffers go before the new ones are made)
-    effects_ = std::make_unique<GpuEffects>(gpu, scene, effectCamera(), layers, lights);
+    effects_ = std::make_unique<GpuEffects>(context(), scene, effectCamera(), layers, lights);
     effectsScene_ = &scene, effectsLayers_ = &layers;
     effectsLights_.assign(lights.begin(), lights.end());
   }
@@ -207,6 +207,7 @@ GpuEffectOutput GpuEffects::run(const GpuEffectTracer& tracer, const GpuEffectPa
   const GpuEffectTracer::Surfaces surfaces = tracer.surfaces();
   if (surfaces != GpuEffectTracer::Surfaces::Fragments && records_.bytes() < raySlots * kRecordBytes) records_ = GpuBuffer(raySlots * kRecordBytes);
   tally_.fill(0u);
+  tracer.beginEffect();
   setUniforms();
 
   const int nWaves = waves(p);
@@ -272,7 +273,7 @@ GpuEffectOutput GpuEffects::run(const GpuEffectTracer& tracer, const GpuEffectPa
       for (int round = 0; round <= kOriginSkips; ++round) {
         timeline_.begin(kTrace);
         tracer.answerWave(GpuEffectWave{rays_, hits_, records_, rayItems, round == 0 ? nullptr : &groups_, p.countRays,
-                                        p.kind == GpuEffectKind::Shadow});
+                                        p.kind == GpuEffectKind::Shadow || p.kind == GpuEffectKind::AO});
         pending_.fill(0u);
         bindRays();
         hits_.bindStorage(1);

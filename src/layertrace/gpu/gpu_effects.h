@@ -40,7 +40,13 @@ struct GpuEffectWave {
   /// on the device; null in round 0). A tracer may ignore it and answer all n rays.
   const GpuBuffer* groups = nullptr;
   bool counters = true;  ///< count per ray (else a counter-free variant may run)
-  bool anyHit = false;   ///< the wave's rays are any-hit queries (shadows; Tracer::occludedBatch)
+  bool anyHit = false;   ///< the wave's rays are any-hit queries (AO and shadows, as the CPU renderer asks them: Tracer::occludedBatch)
+};
+
+/// Counters a tracer keeps beside the effect's per-pixel tally, summed over every ray of a run
+/// (GpuEffectTracer::effectSums): the quad-tree's node visits (RayCounters' of the same names).
+struct GpuTracerSums {
+  uint64_t planeNodes = 0, boxNodes = 0, occlusions = 0;
 };
 
 /// A GPU tracer the effect passes run around (GpuEffects::run): it answers a wave of rays on the
@@ -56,10 +62,17 @@ class GpuEffectTracer {
   virtual ~GpuEffectTracer() = default;
   virtual Surfaces surfaces() const = 0;
   virtual const Camera& effectCamera() const = 0;
+  virtual GpuContext& context() const = 0;
   virtual void answerWave(const GpuEffectWave& wave) const = 0;
-  /// The passes for `layers` captured with the tracer's camera from `scene`, made on the first
-  /// call and kept while the scene, the layers and the lights stay the same.
-  const GpuEffects& effectsFor(GpuContext& gpu, const Scene& scene, const LayerArrays& layers, std::span<const PointLight> lights) const;
+  /// Called by GpuEffects::run before its first wave: the tracer's own sums start from zero.
+  virtual void beginEffect() const {}
+  /// The tracer's own sums over the last run's rays (read from the device: a host wait).
+  virtual GpuTracerSums effectSums() const { return {}; }
+  /// The passes for `layers` captured with the tracer's camera from `scene` and `lights`:
+  /// uploaded on the first call and kept while the scene, the layers and the lights stay the
+  /// same, so that repeated renders of the frame (the timed repeats of render and bench) upload
+  /// and compile once.
+  const GpuEffects& effects(const Scene& scene, const LayerArrays& layers, std::span<const PointLight> lights) const;
 
  private:
   mutable std::unique_ptr<GpuEffects> effects_;

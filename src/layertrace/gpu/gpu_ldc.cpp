@@ -28,16 +28,19 @@ GpuLdcTracer::GpuLdcTracer(GpuContext& gpu, const Camera& camera, const LayeredD
   std::vector<uint32_t> allOffsets;
   std::vector<FragmentNode> allSamples;
   std::vector<glm::vec2> allBlocks;
-  allOffsets.reserve(offsets), allSamples.reserve(samples), allBlocks.reserve(blocks);
+  std::vector<uint32_t> allTriangles;
+  allOffsets.reserve(offsets), allSamples.reserve(samples), allBlocks.reserve(blocks), allTriangles.reserve(samples);
   for (const LdcView& v : ldc.views) {
     allOffsets.insert(allOffsets.end(), v.offset.begin(), v.offset.end());
     allSamples.insert(allSamples.end(), v.samples.begin(), v.samples.end());
+    allTriangles.insert(allTriangles.end(), v.triangle.begin(), v.triangle.end());
     allBlocks.insert(allBlocks.end(), v.blockIntervals.begin(), v.blockIntervals.end());
   }
   gpu_.makeCurrent();
   offsets_ = GpuBuffer(std::max<size_t>(allOffsets.size(), 1) * sizeof(uint32_t), allOffsets.data());
   samples_ = GpuBuffer(std::max<size_t>(allSamples.size(), 1) * sizeof(FragmentNode), allSamples.data());
   blocks_ = GpuBuffer(std::max<size_t>(allBlocks.size(), 1) * sizeof(glm::vec2), allBlocks.data());
+  sampleTriangles_ = GpuBuffer(std::max<size_t>(allTriangles.size(), 1) * sizeof(uint32_t), allTriangles.data());
   timer_ = std::make_unique<GpuTimer>();
 }
 
@@ -45,7 +48,7 @@ GpuLdcTracer::~GpuLdcTracer() {
   gpu_.makeCurrent();  // the buffers go with the context current
 }
 
-size_t GpuLdcTracer::memoryBytes() const { return offsets_.bytes() + samples_.bytes() + blocks_.bytes(); }
+size_t GpuLdcTracer::memoryBytes() const { return offsets_.bytes() + samples_.bytes() + blocks_.bytes() + sampleTriangles_.bytes(); }
 
 void GpuLdcTracer::traceBatch(std::span<const Ray> rays, std::span<TraceHit> hits, std::span<RayCounters> counters) const {
   march(rays, hits, counters, false);
@@ -89,6 +92,26 @@ void GpuLdcTracer::marchResident(const GpuBuffer& rays, const GpuBuffer& answers
   p.set("uSlots", ldc_.config.blockIntervals);
   p.set("uAnyHit", int(anyHit));
   gpu_.dispatch(p, n);
+}
+
+void GpuLdcTracer::answerWave(const GpuEffectWave& w) const {
+  if (w.n == 0) return;
+  reserve(waveAnswers_, w.n * sizeof(GpuLdcAnswer));
+  marchResident(w.rays, waveAnswers_, w.n, w.anyHit);
+  GpuDebugGroup group("ldc surfaces");
+  const GpuProgram& p = gpu_.computeProgram("ldc_surface.comp", shader_source::ldc_surface_comp);
+  w.rays.bindStorage(0);
+  waveAnswers_.bindStorage(1);
+  samples_.bindStorage(2);
+  sampleTriangles_.bindStorage(3);
+  w.hits.bindStorage(4);
+  w.records.bindStorage(5);
+  float inverses[3][16];
+  for (int a = 0; a < 3; ++a) std::memcpy(inverses[a], &ldc_.views[size_t(a)].camera.viewInverse()[0][0], sizeof(inverses[a]));
+  p.set("uRayCount", int(w.n));
+  p.setMatrix("uCameraView", &camera_.view()[0][0]);
+  p.setMatrix("uViewInverse", &inverses[0][0], 3);
+  gpu_.dispatch(p, w.n);
 }
 
 void GpuLdcTracer::march(std::span<const Ray> rays, std::span<TraceHit> hits, std::span<RayCounters> counters, bool anyHit) const {

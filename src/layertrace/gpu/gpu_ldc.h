@@ -9,6 +9,7 @@
 #include <span>
 
 #include "layertrace/gpu/gpu_context.h"
+#include "layertrace/gpu/gpu_effects.h"
 #include "layertrace/gpu/gpu_ray_batch.h"
 #include "layertrace/ldc/ldc.h"
 #include "layertrace/scene/camera.h"
@@ -31,7 +32,7 @@ struct GpuLdcAnswer {
 };
 static_assert(sizeof(GpuLdcAnswer) == 32);
 
-class GpuLdcTracer final : public GpuBatchTracer {
+class GpuLdcTracer final : public GpuBatchTracer, public GpuEffectTracer {
  public:
   /// Uploads `ldc` (its offsets, samples and block intervals). The context and the cube must
   /// outlive the tracer. InputError where the cube exceeds the shaders' 32-bit indices.
@@ -50,7 +51,13 @@ class GpuLdcTracer final : public GpuBatchTracer {
   /// into `answers` (GpuLdcAnswer each), without a transfer or a timer: the hybrid's passes on
   /// the GPU (gpu_hybrid.h).
   void marchResident(const GpuBuffer& rays, const GpuBuffer& answers, size_t n, bool anyHit) const;
-  /// Bytes on the GPU: offsets, samples and block intervals.
+  /// The effect passes' waves (gpu_effects.h): marchResident (any hit for shadow rays), then
+  /// each hit's surface as LdcTracer gives it (shaders/ldc_surface.comp).
+  Surfaces surfaces() const override { return Surfaces::Records; }
+  const Camera& effectCamera() const override { return camera_; }
+  GpuContext& context() const override { return gpu_; }
+  void answerWave(const GpuEffectWave& wave) const override;
+  /// Bytes on the GPU: offsets, samples, their triangles and block intervals.
   size_t memoryBytes() const;
   /// GPU time of every batch so far (timer queries), milliseconds.
   double totalTraceMs() const { return totalTraceMs_; }
@@ -61,7 +68,8 @@ class GpuLdcTracer final : public GpuBatchTracer {
   GpuContext& gpu_;
   Camera camera_;
   const LayeredDepthCube& ldc_;
-  GpuBuffer offsets_, samples_, blocks_;
+  GpuBuffer offsets_, samples_, blocks_, sampleTriangles_;
+  mutable GpuBuffer waveAnswers_;  ///< answerWave's GpuLdcAnswer per ray
   int offsetBase_[3] = {}, sampleBase_[3] = {}, blockBase_[3] = {};
   mutable GpuRayBatch batch_;  ///< the CPU's rays and their answers
   std::unique_ptr<GpuTimer> timer_;

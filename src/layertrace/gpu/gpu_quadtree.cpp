@@ -42,6 +42,7 @@ GpuQuadtreeTracer::GpuQuadtreeTracer(GpuContext& gpu, const Camera& camera, cons
   counts_ = GpuBuffer(std::max<size_t>(pixels, 1) * sizeof(uint32_t), counts.data());
   nodes_ = GpuBuffer(std::max<size_t>(nodes, 1) * sizeof(QuadNode));
   scale_ = GpuBuffer(sizeof(float));
+  nodeSums_ = GpuBuffer(6 * sizeof(uint32_t));
   kinds_ = GpuBuffer(size_t(t.levelCount()) * 3 * sizeof(uint32_t));
   kinds_.fill(0u);
   timer_ = std::make_unique<GpuTimer>();
@@ -145,6 +146,41 @@ void GpuQuadtreeTracer::marchResident(const GpuBuffer& rays, const GpuBuffer& hi
   p.set("uRootStart", int(summary_.config.rootStart));
   p.set("uBackfaceHits", int(summary_.config.backfaceHits));
   gpu_.dispatch(p, n);
+}
+
+void GpuQuadtreeTracer::answerWave(const GpuEffectWave& w) const {
+  if (w.n == 0) return;
+  reserve(waveExtra_, w.n * sizeof(GpuQuadtreeExtra));
+  marchResident(w.rays, w.hits, waveExtra_, w.n, w.counters);
+  GpuDebugGroup group("quadtree hit points");
+  const GpuProgram& p = gpu_.computeProgram("quadtree_point.comp", shader_source::quadtree_point_comp);
+  w.rays.bindStorage(0);
+  w.hits.bindStorage(1);
+  waveExtra_.bindStorage(2);
+  scale_.bindStorage(3);
+  w.records.bindStorage(4);
+  nodeSums_.bindStorage(5);
+  p.set("uRayCount", int(w.n));
+  p.set("uWidth", camera_.width());
+  p.set("uHeight", camera_.height());
+  p.set("uNear", camera_.near());
+  p.set("uOrtho", camera_.orthographic());
+  p.set("uFocal", camera_.focal());
+  p.set("uPixelScale", camera_.pixelFootprint(1.0f));
+  gpu_.dispatch(p, w.n);
+}
+
+void GpuQuadtreeTracer::beginEffect() const {
+  gpu_.makeCurrent();
+  nodeSums_.fill(0u);
+}
+
+GpuTracerSums GpuQuadtreeTracer::effectSums() const {
+  gpu_.makeCurrent();
+  uint32_t words[6];
+  nodeSums_.read(words, sizeof(words));
+  auto word64 = [&](int i) { return uint64_t(words[2 * i]) | uint64_t(words[2 * i + 1]) << 32; };
+  return GpuTracerSums{word64(0), word64(1), word64(2)};
 }
 
 void GpuQuadtreeTracer::traceBatch(std::span<const Ray> rays, std::span<TraceHit> hits, std::span<RayCounters> counters) const {

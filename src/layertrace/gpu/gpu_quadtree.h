@@ -18,6 +18,7 @@
 #include <vector>
 
 #include "layertrace/gpu/gpu_context.h"
+#include "layertrace/gpu/gpu_effects.h"
 #include "layertrace/gpu/gpu_ray_batch.h"
 #include "layertrace/quadtree/quadtree.h"
 #include "layertrace/raster/layer_arrays.h"
@@ -40,7 +41,7 @@ struct GpuQuadtreeExtra {
 };
 static_assert(sizeof(GpuQuadtreeExtra) == 16);
 
-class GpuQuadtreeTracer final : public GpuBatchTracer {
+class GpuQuadtreeTracer final : public GpuBatchTracer, public GpuEffectTracer {
  public:
   /// Uploads each slot's depth and the per-pixel counts of `layers` and builds the quad-trees on
   /// the GPU. The context and the layers must outlive the tracer. InputError for a bad config
@@ -60,6 +61,16 @@ class GpuQuadtreeTracer final : public GpuBatchTracer {
   /// or a timer: the hybrid's passes on the GPU (gpu_hybrid.h). Without `counters` the march's
   /// counter-free variant runs.
   void marchResident(const GpuBuffer& rays, const GpuBuffer& hits, const GpuBuffer& extra, size_t n, bool counters) const;
+  /// The effect passes' waves (gpu_effects.h): marchResident, then the exact ray–plane point of
+  /// each hit (shaders/quadtree_point.comp), so the passes shade the hit fragment at that point
+  /// as the CPU renderer does. The plane, box and occlusion counters are summed over the run
+  /// on the device (effectSums), beside the effect's per-pixel tally.
+  Surfaces surfaces() const override { return Surfaces::FragmentsAtPoints; }
+  const Camera& effectCamera() const override { return camera_; }
+  GpuContext& context() const override { return gpu_; }
+  void answerWave(const GpuEffectWave& wave) const override;
+  void beginEffect() const override;
+  GpuTracerSums effectSums() const override;
   /// The trees' shape, depth scale, nodes of each kind per level and GPU build time (the kind
   /// counts and the scale are read back on the first call); `nodes` stays empty.
   const Quadtree& summary() const;
@@ -81,6 +92,8 @@ class GpuQuadtreeTracer final : public GpuBatchTracer {
   mutable Quadtree summary_;  ///< levels and config at construction; scale and counts on first summary()
   mutable bool summaryRead_ = false;
   GpuBuffer depths_, counts_, nodes_, scale_, kinds_;
+  mutable GpuBuffer waveExtra_;  ///< answerWave's GpuQuadtreeExtra per ray
+  GpuBuffer nodeSums_;           ///< the effect run's plane, box and occlusion sums (low, high words each)
   mutable GpuRayBatch batch_;  ///< the CPU's rays and their answers
   std::unique_ptr<GpuTimer> timer_;
   mutable double totalTraceMs_ = 0.0;

@@ -232,18 +232,6 @@ void GpuScreenTracer::marchResidentWithParams(const GpuBuffer& rays, const GpuBu
   gpu_.dispatch(*paramsProgram_, n);
 }
 
-const GpuEffects& GpuScreenTracer::effects(const Scene& scene, std::span<const PointLight> lights) const {
-  auto same = [](const PointLight& a, const PointLight& b) { return a.position == b.position && a.intensity == b.intensity; };
-  if (!effects_ || effectsScene_ != &scene || !std::equal(lights.begin(), lights.end(), effectsLights_.begin(), effectsLights_.end(), same)) {
-    effects_.reset();  // (its buffers go before the new ones are made)
-    LT_CHECK(layers_ != nullptr, name_);
-    effects_ = std::make_unique<GpuEffects>(gpu_, scene, camera_, *layers_, lights);
-    effectsScene_ = &scene;
-    effectsLights_.assign(lights.begin(), lights.end());
-  }
-  return *effects_;
-}
-
 void GpuScreenTracer::traceBatch(std::span<const Ray> rays, std::span<TraceHit> hits, std::span<RayCounters> counters) const {
   LT_CHECK(layers_ != nullptr, name_);  // a resident tracer has no CPU layers to answer from: march()
   thread_local std::vector<GpuMarchHit> reused;  // from batch to batch

@@ -14,7 +14,6 @@
 #include "layertrace/screen/fragment_hit.h"
 #if LAYERTRACE_HAS_GPU
 #include "layertrace/gpu/gpu_effects.h"
-#include "layertrace/gpu/gpu_screen_tracer.h"
 #include "layertrace/render/gpu_effect_params.h"
 #endif
 #include "layertrace/util/timing.h"
@@ -667,10 +666,10 @@ namespace {
 
 /// The effect on the GPU (EffectConfig::shadeOnDevice), with the Renderer's parameters.
 std::optional<EffectResult> renderOnGpu(const Frame& f, const Tracer& tracer, const EffectConfig& c) {
-  const auto* gpuTracer = dynamic_cast<const GpuScreenTracer*>(&tracer);
+  const auto* gpuTracer = dynamic_cast<const GpuEffectTracer*>(&tracer);
   if (!gpuTracer || !GpuEffects::supports(int(f.lights.size()))) return std::nullopt;
   const GpuEffectParams p = gpuEffectParams(f, c);
-  const GpuEffects& effects = gpuTracer->effects(f.scene, f.lights);
+  const GpuEffects& effects = gpuTracer->effects(f.scene, f.layers, f.lights);
   const GpuEffectOutput out = effects.run(*gpuTracer, p);
 
   EffectResult res;
@@ -703,6 +702,8 @@ std::optional<EffectResult> renderOnGpu(const Frame& f, const Tracer& tracer, co
     for (int l = 0; l < RayCounters::kLevels; ++l) res.levelIterations[l] += a.level[l];
   }
   if (c.countRays) res.iterationsP99 = percentile99(out.histogram, res.rays);
+  const GpuTracerSums sums = gpuTracer->effectSums();
+  res.planeNodeSum = sums.planeNodes, res.boxNodeSum = sums.boxNodes, res.occlusionSum = sums.occlusions;
   res.onDevice = true;
   res.deviceBytes = effects.memoryBytes();
   res.traceMs = out.traceMs;
