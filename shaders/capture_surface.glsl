@@ -123,16 +123,12 @@ uint linearToSrgb8(float v) {
   return lo;
 }
 
-// raster_setup.h fragmentAlbedoSpec: surfaceColor with the pixel's footprint at that depth.
-uint fragmentAlbedoSpec(TriangleSetup ts, uint material, uint triangle, vec3 origin, vec3 dir, float depth) {
+// surface.cpp surfaceColor, packed (packSurfaceColor): the albedo and specular of `material` on
+// `triangle` (vertices t) at barycentrics b (the weights of t.y and t.z) for a texel footprint.
+uint surfaceAlbedoSpec(uint material, uint triangle, uvec3 t, vec2 b, float footprint) {
   const uint m = uMaterials + material * kMaterialWords;
-  const vec2 b = fragmentBarycentrics(ts, origin, dir, depth);
-  const float nl = length(ts.plane.xyz), dl = length(dir);
-  const float cosine = nl > 0.0 && dl > 0.0 ? dot3(ts.plane.xyz, dir) / (nl * dl) : 1.0;
-  const float footprint = (uOrtho ? uPixelScale : depth * uPixelScale) / max(abs(cosine), 1.0 / 64.0);
   vec3 albedo = vec3(word(m), word(m + 1u), word(m + 2u));
   float specular = word(m + 3u);
-  const uvec3 t = ts.info.xyz;
   const uint wrapU = surface[m + 7u] & 0xFFu, wrapV = surface[m + 7u] >> 8;
   const int base = int(surface[m + 4u]), spec = int(surface[m + 5u]), light = int(surface[m + 6u]);
   if (uHaveTexcoords && (base >= 0 || spec >= 0)) {
@@ -149,6 +145,15 @@ uint fragmentAlbedoSpec(TriangleSetup ts, uint material, uint triangle, vec3 ori
   specular = clamp(specular, 0.0, 1.0);
   const uint s8 = uint(roundHalfAway(specular * 255.0));
   return linearToSrgb8(albedo.x) | (linearToSrgb8(albedo.y) << 8) | (linearToSrgb8(albedo.z) << 16) | (s8 << 24);
+}
+
+// raster_setup.h fragmentAlbedoSpec: surfaceColor with the pixel's footprint at that depth.
+uint fragmentAlbedoSpec(TriangleSetup ts, uint material, uint triangle, vec3 origin, vec3 dir, float depth) {
+  const vec2 b = fragmentBarycentrics(ts, origin, dir, depth);
+  const float nl = length(ts.plane.xyz), dl = length(dir);
+  const float cosine = nl > 0.0 && dl > 0.0 ? dot3(ts.plane.xyz, dir) / (nl * dl) : 1.0;
+  const float footprint = (uOrtho ? uPixelScale : depth * uPixelScale) / max(abs(cosine), 1.0 / 64.0);
+  return surfaceAlbedoSpec(material, triangle, ts.info.xyz, b, footprint);
 }
 
 // The fragment's surface: false when its material's alpha test cuts it away; otherwise its

@@ -1111,10 +1111,10 @@ TEST(CliGpu, BenchReportsEveryStageOnBothDevicesAndListsAgainstPeeling) {
     for (const auto& row : j["rows"]) {
       EXPECT_GT(row["trace_ms"].get<double>(), 0.0) << row;
       EXPECT_GT(row["memory_bytes"].get<double>(), 0.0) << row;
-      // The default effect (reflection) runs on the device with the GPU screen tracers; the
-      // answers of the others (hit points of their own) are shaded on the CPU.
+      // The default effect (reflection) runs on the device with every GPU tracer but the
+      // hybrid, whose answers are shaded on the CPU.
       const std::string name = row["tracer"];
-      const bool deviceEffect = device == "gpu" && (name.starts_with("ssr") || name == "hiz" || name == "hssr");
+      const bool deviceEffect = device == "gpu" && name != "hybrid" && name != "embree";
       EXPECT_EQ(row["shade_device"], deviceEffect ? "gpu" : "cpu") << row;
       EXPECT_EQ(row["effect_bytes"].get<double>() > 0.0, deviceEffect) << row;
       iterations[row["tracer"].get<std::string>() + row["stride"].dump()] = row["iterations_mean"].get<double>();

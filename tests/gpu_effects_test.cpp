@@ -14,6 +14,7 @@
 #include "layertrace/pipeline/gpu_tracers.h"
 #include "layertrace/pipeline/tracer_registry.h"
 #include "layertrace/render/effects.h"
+#include "layertrace/scene/surface.h"
 #include "test_util.h"
 
 #if LAYERTRACE_HAS_GPU
@@ -108,7 +109,7 @@ TEST_F(GpuEffect, EveryEffectOfEveryGpuTracerEqualsTheCpu) {
   Frame f = defaultFrame(203, 117);
   // A second light behind the first: shadow rays per pixel with slots left empty.
   f.lights.push_back({f.camera.desc().eye + glm::vec3(0.0f, 3.0f, -2.0f), glm::vec3(4.0f)});
-  for (const char* name : {"ssr", "ssr-layers", "hiz", "hssr", "quadtree", "ldc"}) {
+  for (const char* name : {"ssr", "ssr-layers", "hiz", "hssr", "quadtree", "ldc", "grid"}) {
     EffectConfig ec;
     ec.effect = Effect::Reflection;
     ec.bounces = 3;
@@ -126,7 +127,7 @@ TEST_F(GpuEffect, EveryEffectOfEveryGpuTracerEqualsTheCpu) {
   }
   // The tracers that answer with the surface they met (the quad-tree: the hit fragment at its
   // exact plane point; the cube: its sample), every effect with rays.
-  for (const char* name : {"quadtree", "ldc"})
+  for (const char* name : {"quadtree", "ldc", "grid"})
     for (Effect effect : {Effect::AO, Effect::Shadow, Effect::Refraction, Effect::Warp}) {
       EffectConfig ec;
       ec.effect = effect;
@@ -267,6 +268,25 @@ TEST_F(GpuRealScene, CaptureTracersAndEffectsEqualTheCpu) {
   ao.effect = Effect::AO;
   ao.aoSamples = 2;
   expectSameEffect(*gpu_, f, "hssr", ao);
+}
+
+// The grid's hits shaded on the device: the textured duck seen in the mirror floor (its texels
+// sampled at the hit's footprint, shaders/geometry_hit.comp) and its AO.
+TEST_F(GpuRealScene, GridShadesTexturedHitsAsTheCpu) {
+  ASSERT_TRUE(test::haveFetchedScenes()) << "run scripts/fetch-scenes.sh";
+  FrameOptions o = test::realSceneOptions("duck.json", "front");
+  o.width = 240, o.height = 160;
+  const Frame f = buildFrame(o);
+  ASSERT_TRUE(std::any_of(f.scene.materials.begin(), f.scene.materials.end(),
+                          [&](const Material& m) { return surfaceFlags(f.scene, m) & kSurfaceSampled; }))
+      << "the duck is textured";
+  for (Effect effect : {Effect::Reflection, Effect::AO, Effect::Shadow}) {
+    EffectConfig ec;
+    ec.effect = effect;
+    ec.bounces = 2;
+    ec.aoSamples = 2;
+    expectSameEffect(*gpu_, f, "grid", ec);
+  }
 }
 
 #endif  // LAYERTRACE_HAS_GPU

@@ -121,13 +121,13 @@ TEST(ViewSession, GpuDeviceGivesTheCpuPictures) {
     q.tracer = tracer;
     const ViewResult a = cpu.render(q), b = gpu.render(q);
     ASSERT_TRUE(b.error.empty()) << b.error;
-    // hssr and ssr-layers: resident frames; quadtree, ldc, grid and hybrid: traced on the GPU,
-    // shaded on the CPU; embree: no GPU version, on the CPU.
+    // hssr and ssr-layers: resident frames; quadtree, ldc and grid: traced and shaded on the
+    // GPU; hybrid: traced on the GPU, shaded on the CPU; embree: no GPU version, on the CPU.
     const std::string name = tracer;
     EXPECT_EQ(b.device, name == "embree" ? "cpu" : "gpu");
     EXPECT_EQ(a.device, "cpu");
-    // The default effect (reflection) is generated and shaded on the GPU with a GPU screen tracer.
-    EXPECT_EQ(b.shading, name == "hssr" || name == "ssr-layers" ? "gpu" : "cpu");
+    // The default effect (reflection) is generated and shaded on the GPU but with the hybrid.
+    EXPECT_EQ(b.shading, name == "hybrid" || name == "embree" ? "cpu" : "gpu");
     ASSERT_EQ(a.traced.data.size(), b.traced.data.size());
     // The rays and their answers are the CPU's; the shading is GLSL's, whose pow is not libm's:
     // colours agree to 1e-4 relative, not to the bit.

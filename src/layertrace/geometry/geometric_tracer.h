@@ -38,6 +38,7 @@ class GeometricHits {
     return h;
   }
   const Camera& camera() const { return camera_; }
+  const Scene& scene() const { return scene_; }
 
  private:
   const Scene& scene_;

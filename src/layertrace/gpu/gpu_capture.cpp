@@ -6,6 +6,7 @@
 #include <epoxy/gl.h>
 #include <glm/gtc/type_ptr.hpp>
 
+#include "layertrace/gpu/gpu_scene_tables.h"
 #include "layertrace/gpu/shader_sources.h"
 #include "layertrace/raster/fragment.h"
 #include "layertrace/raster/rasterizer.h"
@@ -29,53 +30,6 @@ void setCamera(const GpuProgram& p, const Camera& c) {
   p.set("uOrtho", c.orthographic());
 }
 
-/// What shaders/capture_surface.glsl reads of the scene's textured materials: one array of
-/// 32-bit words in sections (their offsets, in words, are the shader's uniforms) and the texels.
-struct SurfaceTables {
-  std::vector<uint32_t> words, texels;
-  uint32_t texcoords = 0, lightmapCoords = 0, uvScale = 0, materials = 0, textures = 0, levels = 0, decode = 0, thresholds = 0;
-
-  explicit SurfaceTables(const Scene& scene) {
-    auto f = [](float v) { return std::bit_cast<uint32_t>(v); };
-    auto section = [&](uint32_t& at) { at = uint32_t(words.size()); };
-    section(texcoords);
-    for (const glm::vec2& c : scene.texcoords) words.insert(words.end(), {f(c.x), f(c.y)});
-    section(lightmapCoords);
-    for (const glm::vec2& c : scene.lightmapCoords) words.insert(words.end(), {f(c.x), f(c.y)});
-    section(uvScale);
-    for (size_t t = 0; t < scene.triangles.size() && !scene.texcoords.empty(); ++t)
-      words.push_back(f(t < scene.triUvScaleLog2.size() ? scene.triUvScaleLog2[t] : 0.0f));  // surfaceColor's rule
-    section(materials);  // capture_surface.glsl kMaterialWords per material
-    for (const Material& m : scene.materials)
-      words.insert(words.end(), {f(m.albedo.x), f(m.albedo.y), f(m.albedo.z), f(m.specular), uint32_t(m.baseTexture), uint32_t(m.specularTexture),
-                                 uint32_t(m.lightmap), uint32_t(m.wrapU) | uint32_t(m.wrapV) << 8, f(m.alphaCutoff), surfaceFlags(scene, m)});
-    section(textures);  // per texture: its first level (an index into the levels), its level count, texelsLog2
-    uint32_t level = 0;
-    for (const auto& t : scene.textures) {
-      words.insert(words.end(), {level, uint32_t(t->levels.size()), f(t->texelsLog2)});
-      level += uint32_t(t->levels.size());
-    }
-    section(levels);  // per level: width, height, first texel
-    for (const auto& t : scene.textures) {
-      const auto base = uint32_t(texels.size());
-      for (const Texture::Level& l : t->levels) words.insert(words.end(), {uint32_t(l.width), uint32_t(l.height), base + uint32_t(l.offset)});
-      texels.insert(texels.end(), t->texels.begin(), t->texels.end());
-    }
-    section(decode);
-    for (uint32_t c = 0; c < 256; ++c) words.push_back(f(srgb8ToLinear(c)));
-    section(thresholds);
-    for (uint32_t c = 0; c < 255; ++c) words.push_back(f(srgb8Threshold(c)));
-  }
-
-  void setUniforms(const GpuProgram& p, const Scene& scene) const {
-    p.set("uTexcoords", texcoords), p.set("uLightmapCoords", lightmapCoords), p.set("uUvScale", uvScale);
-    p.set("uMaterials", materials), p.set("uTextures", textures), p.set("uLevels", levels);
-    p.set("uDecode", decode), p.set("uThresholds", thresholds);
-    p.set("uHaveTexcoords", int(!scene.texcoords.empty()));
-    p.set("uHaveLightmapCoords", int(!scene.lightmapCoords.empty()));
-  }
-};
-
 /// The CPU's projection with y negated: OpenGL's window rows grow upwards, the CPU's pixel
 /// rows (Camera::project) downwards, so row 0 of both is the top of the view.
 glm::mat4 projectionRowsDown(const Camera& camera) {
@@ -86,50 +40,14 @@ glm::mat4 projectionRowsDown(const Camera& camera) {
 
 }  // namespace
 
-struct GpuCapture::SceneBuffers {
-  explicit SceneBuffers(const Scene& scene) : surface(scene) {}
-  SurfaceTables surface;
-  GpuBuffer positions, normals, indices, triMaterial, materialTable, surfaceWords, surfaceTexels;
-};
-
-namespace {
-
-/// Why the surface tables of `scene` do not fit `gpu`'s storage buffers, or empty.
-std::string surfaceLimit(const SurfaceTables& surface) {
-  GLint64 largestBlock = 0;
-  glGetInteger64v(GL_MAX_SHADER_STORAGE_BLOCK_SIZE, &largestBlock);
-  for (const size_t bytes : {surface.words.size() * 4, surface.texels.size() * 4})
-    if (int64_t(bytes) > largestBlock)
-      return cat("--device gpu: the scene's textures take ", bytes, " bytes, more than the GPU's largest storage buffer of ", largestBlock,
-                 " bytes (use --textures off)");
-  return {};
-}
-
-}  // namespace
-
-std::string GpuCapture::limit(GpuContext& gpu, const Scene& scene) {
-  gpu.makeCurrent();
-  return surfaceLimit(SurfaceTables(scene));
-}
+std::string GpuCapture::limit(GpuContext& gpu, const Scene& scene) { return GpuSceneTables::limit(gpu, scene); }
 
 GpuCapture::GpuCapture(GpuContext& gpu, const Scene& scene) : gpu_(gpu), scene_(scene) {
   const size_t V = scene.positions.size(), T = scene.triangles.size();
   if (T > size_t(0x7FFFFFFF) / 3) inputError("scene ", scene.name, ": ", T, " triangles exceed one GPU draw");
   gpu.makeCurrent();
-  GpuDebugGroup group("scene upload");
-  sceneBuffers_ = std::make_unique<SceneBuffers>(scene);
-  SceneBuffers& b = *sceneBuffers_;
-  if (const std::string why = surfaceLimit(b.surface); !why.empty()) throw InputError(why);
-  // The scene, as the CPU holds it (packed materials as the CPU rasterizer packs them).
-  std::vector<uint32_t> materials;
-  for (const Material& m : scene.materials) materials.push_back(packAlbedoSpec(m.albedo, m.specular));
-  b.positions = GpuBuffer(V * sizeof(glm::vec3), scene.positions.data());
-  b.normals = GpuBuffer(V * sizeof(glm::vec3), scene.normals.data());
-  b.indices = GpuBuffer(T * sizeof(glm::uvec3), scene.triangles.data());
-  b.triMaterial = GpuBuffer(T * sizeof(uint32_t), scene.triMaterial.data());
-  b.materialTable = GpuBuffer(materials.size() * 4, materials.data());
-  b.surfaceWords = GpuBuffer(b.surface.words.size() * 4, b.surface.words.data());
-  b.surfaceTexels = GpuBuffer(b.surface.texels.size() * 4, b.surface.texels.data());
+  sceneBuffers_ = std::make_unique<GpuSceneTables>(gpu, scene);
+  const GpuSceneTables& b = *sceneBuffers_;
   camPos_ = GpuBuffer(V * 16);
   camNormals_ = GpuBuffer(V * 16);
   setups_ = GpuBuffer(T * kSetupBytes);
@@ -150,10 +68,8 @@ GpuCapture::~GpuCapture() {
 }
 
 size_t GpuCapture::memoryBytes() const {
-  size_t bytes = 0;
-  const SceneBuffers& b = *sceneBuffers_;
-  for (const GpuBuffer* g : {&b.positions, &b.normals, &b.indices, &b.triMaterial, &b.materialTable, &b.surfaceWords, &b.surfaceTexels, &camPos_,
-                             &camNormals_, &setups_, &complexity_, &slots_, &counts_, &slotTriangle_, &nodes_, &nodeTriangle_, &fullNodes_, &heads_,
+  size_t bytes = sceneBuffers_->memoryBytes();
+  for (const GpuBuffer* g : {&camPos_, &camNormals_, &setups_, &complexity_, &slots_, &counts_, &slotTriangle_, &nodes_, &nodeTriangle_, &fullNodes_, &heads_,
                              &peelDepth_, &peelTriangle_})
     bytes += g->bytes();
   return bytes;
@@ -222,11 +138,8 @@ void GpuCapture::submit(const Camera& camera, const GpuCaptureConfig& config) {
   const size_t pixels = size_t(W) * size_t(H), V = scene_.positions.size(), T = scene_.triangles.size();
   gpu_.makeCurrent();
   GpuDebugGroup group("capture");
-  const SceneBuffers& b = *sceneBuffers_;
-  const auto bindSurface = [&](const GpuProgram& p) {
-    b.surfaceWords.bindStorage(8), b.surfaceTexels.bindStorage(9);
-    b.surface.setUniforms(p, scene_);
-  };
+  const GpuSceneTables& b = *sceneBuffers_;
+  const auto bindSurface = [&](const GpuProgram& p) { b.bindSurface(p); };
   prepareView(W, H, k);
   if (W != fboWidth_ || H != fboHeight_) {
     glNamedFramebufferParameteri(fbo_, GL_FRAMEBUFFER_DEFAULT_WIDTH, W);

@@ -16,6 +16,7 @@
 #include <vector>
 
 #include "layertrace/gpu/gpu_context.h"
+#include "layertrace/gpu/gpu_scene_tables.h"
 #include "layertrace/raster/fragment_lists.h"
 #include "layertrace/raster/layer_arrays.h"
 #include "layertrace/scene/camera.h"
@@ -110,12 +111,11 @@ class GpuCapture {
   void download(const GpuCaptureConfig& config, uint64_t generated, GpuCaptureResult& out) const;
 
  private:
-  struct SceneBuffers;
   /// The per-view buffers for a width × height view with k layers (allocated when these change).
   void prepareView(int width, int height, int k);
   GpuContext& gpu_;
   const Scene& scene_;
-  std::unique_ptr<SceneBuffers> sceneBuffers_;
+  std::unique_ptr<GpuSceneTables> sceneBuffers_;
   GpuBuffer camPos_, camNormals_, setups_;
   GpuBuffer complexity_, slots_, counts_, slotTriangle_;
   GpuBuffer nodes_, nodeTriangle_, heads_, counter_;  ///< the pool's thin nodes (depth, next), their triangles

@@ -64,6 +64,9 @@ class GpuEffectTracer {
   virtual const Camera& effectCamera() const = 0;
   virtual GpuContext& context() const = 0;
   virtual void answerWave(const GpuEffectWave& wave) const = 0;
+  /// Whether the tracer can answer every wave on the device (otherwise the renderer shades on
+  /// the CPU, asking the tracer batch by batch).
+  virtual bool effectsOnDevice() const { return true; }
   /// Called by GpuEffects::run before its first wave: the tracer's own sums start from zero.
   virtual void beginEffect() const {}
   /// The tracer's own sums over the last run's rays (read from the device: a host wait).

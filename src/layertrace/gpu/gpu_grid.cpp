@@ -6,7 +6,9 @@
 
 #include <epoxy/gl.h>
 
+#include "layertrace/gpu/gpu_scene_tables.h"
 #include "layertrace/gpu/shader_sources.h"
+#include "layertrace/raster/fragment.h"
 #include "layertrace/util/default_init.h"
 #include "layertrace/util/error.h"
 #include "layertrace/util/parallel.h"
@@ -52,6 +54,65 @@ GpuGridTracer::GpuGridTracer(GpuContext& gpu, const Scene& scene, const Camera& 
   gpu_.makeCurrent();
   if (scene.anyCutOut()) markCutOuts(scene);
   timer_ = std::make_unique<GpuTimer>();
+}
+
+/// What answerWave reads of the scene, and its per-ray buffers (kept from wave to wave).
+struct GpuGridTracer::EffectTables {
+  EffectTables(GpuContext& gpu, const Scene& scene) : tables(gpu, scene) {
+    std::vector<uint32_t> words(scene.triMaterial.begin(), scene.triMaterial.end());
+    for (const Material& m : scene.materials) words.push_back(packAlbedoSpec(m.albedo, m.specular));
+    materials = GpuBuffer(std::max<size_t>(words.size(), 1) * sizeof(uint32_t), words.data());
+  }
+  GpuSceneTables tables;
+  GpuBuffer materials;  ///< shaders/geometry_hit.comp Materials: per triangle its material, then per material its packed colour
+  GpuBuffer queries, answers;
+};
+
+bool GpuGridTracer::effectsOnDevice() const {
+  if (!effectsOnDevice_) effectsOnDevice_ = !cutOuts_.id() && GpuSceneTables::limit(gpu_, hits_.scene()).empty();
+  return *effectsOnDevice_;
+}
+
+void GpuGridTracer::answerWave(const GpuEffectWave& w) const {
+  LT_CHECK(effectsOnDevice(), "grid effect waves with alpha-tested triangles");
+  if (w.n == 0) return;
+  const Scene& scene = hits_.scene();
+  const Camera& camera = hits_.camera();
+  if (!effectTables_) effectTables_ = std::make_unique<EffectTables>(gpu_, scene);
+  EffectTables& e = *effectTables_;
+  reserve(e.queries, w.n * sizeof(QueryRecord));
+  reserve(e.answers, w.n * sizeof(AnswerRecord));
+  {
+    GpuDebugGroup group("grid queries");
+    const GpuProgram& p = gpu_.computeProgram("grid_queries.comp", shader_source::grid_queries_comp);
+    w.rays.bindStorage(0);
+    e.queries.bindStorage(1);
+    p.set("uRayCount", int(w.n));
+    p.setMatrix("uViewInverse", &camera.viewInverse()[0][0]);
+    p.set("uOffsetUnit", GeometricHits::offsetUnit(scene));
+    gpu_.dispatch(p, w.n);
+  }
+  walkResident(e.queries, e.answers, w.n, w.anyHit);
+  GpuDebugGroup group("grid hit surfaces");
+  const GpuProgram& p = gpu_.computeProgram("geometry_hit.comp", shader_source::geometry_hit_comp);
+  w.rays.bindStorage(0);
+  e.answers.bindStorage(1);
+  w.hits.bindStorage(2);
+  w.records.bindStorage(3);
+  e.tables.positions.bindStorage(4);
+  e.tables.normals.bindStorage(5);
+  e.tables.indices.bindStorage(6);
+  e.materials.bindStorage(7);
+  e.tables.bindSurface(p);
+  p.set("uRayCount", int(w.n));
+  p.setMatrix("uView", &camera.view()[0][0]);
+  p.setMatrix("uViewInverse", &camera.viewInverse()[0][0]);
+  p.set("uMaterialTable", uint32_t(scene.triMaterial.size()));
+  p.set("uAnyHit", int(w.anyHit));
+  p.set("uNear", camera.near());
+  p.set("uOrtho", camera.orthographic());
+  p.set("uPixelScale", camera.pixelFootprint(1.0f));
+  gpu_.dispatch(p, w.n);
 }
 
 void GpuGridTracer::markCutOuts(const Scene& scene) {

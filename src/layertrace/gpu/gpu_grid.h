@@ -8,10 +8,12 @@
 #pragma once
 
 #include <memory>
+#include <optional>
 #include <span>
 
 #include "layertrace/geometry/geometric_tracer.h"
 #include "layertrace/gpu/gpu_context.h"
+#include "layertrace/gpu/gpu_effects.h"
 #include "layertrace/gpu/gpu_grid_build.h"
 #include "layertrace/gpu/gpu_ray_batch.h"
 #include "layertrace/grid/irregular_grid.h"
@@ -21,7 +23,7 @@
 
 namespace lt {
 
-class GpuGridTracer final : public GpuBatchTracer, public GeoHitQueries {
+class GpuGridTracer final : public GpuBatchTracer, public GeoHitQueries, public GpuEffectTracer {
  public:
   /// Uploads `grid`'s packed structure. The context, the scene and the grid must outlive the
   /// tracer. InputError for a structure beyond the shaders' 32-bit word indices.
@@ -58,6 +60,17 @@ class GpuGridTracer final : public GpuBatchTracer, public GeoHitQueries {
   /// the GPU (gpu_hybrid.h). An answer flagged undecided (2: an alpha-tested candidate) is the
   /// caller's to settle.
   void walkResident(const GpuBuffer& queries, const GpuBuffer& answers, size_t n, bool anyHit) const;
+  /// The effect passes' waves (gpu_effects.h): the rays' world-space queries
+  /// (shaders/grid_queries.comp), the walk (any hit for AO and shadow rays), then each closest
+  /// hit's surface as GeometricHits::makeHit gives it (shaders/geometry_hit.comp: the
+  /// interpolated normal, the material, the texture). The scene's tables are uploaded on the
+  /// first wave. A scene with alpha-tested triangles is shaded on the CPU (effectsOnDevice):
+  /// there a candidate hit needs the CPU grid's texel test.
+  Surfaces surfaces() const override { return Surfaces::Records; }
+  const Camera& effectCamera() const override { return hits_.camera(); }
+  GpuContext& context() const override { return gpu_; }
+  bool effectsOnDevice() const override;
+  void answerWave(const GpuEffectWave& wave) const override;
   /// GPU time of the last query's dispatch (timer query), milliseconds.
   double lastTraceMs() const { return lastTraceMs_; }
 
@@ -79,8 +92,12 @@ class GpuGridTracer final : public GpuBatchTracer, public GeoHitQueries {
   /// The alpha-tested triangles as bits, for a scene that has them.
   void markCutOuts(const Scene& scene);
 
+  struct EffectTables;
+
   GpuContext& gpu_;
   GeometricHits hits_;
+  mutable std::unique_ptr<EffectTables> effectTables_;  ///< answerWave's scene tables and per-ray buffers
+  mutable std::optional<bool> effectsOnDevice_;
   const IrregularGrid* cpu_;  ///< answers the rays an alpha-tested candidate stopped
   std::unique_ptr<GpuGridBuild> built_;
   GpuGridLayout layout_;

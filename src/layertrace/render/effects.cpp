@@ -667,7 +667,7 @@ namespace {
 /// The effect on the GPU (EffectConfig::shadeOnDevice), with the Renderer's parameters.
 std::optional<EffectResult> renderOnGpu(const Frame& f, const Tracer& tracer, const EffectConfig& c) {
   const auto* gpuTracer = dynamic_cast<const GpuEffectTracer*>(&tracer);
-  if (!gpuTracer || !GpuEffects::supports(int(f.lights.size()))) return std::nullopt;
+  if (!gpuTracer || !gpuTracer->effectsOnDevice() || !GpuEffects::supports(int(f.lights.size()))) return std::nullopt;
   const GpuEffectParams p = gpuEffectParams(f, c);
   const GpuEffects& effects = gpuTracer->effects(f.scene, f.layers, f.lights);
   const GpuEffectOutput out = effects.run(*gpuTracer, p);
