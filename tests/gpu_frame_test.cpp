@@ -253,6 +253,56 @@ TEST_F(GpuFrameTest, AnOverflowingPoolGrowsAndTheFrameRunsAgainWithTheSameAnswer
   }
 }
 
+// The layered depth cube and the irregular grid trace the resident frame with their structure of
+// the scene, built once beside it: every view's picture and counters are those of the
+// downloaded path with the same tracer, and the frames after the first wait once and allocate,
+// link and upload nothing.
+TEST_F(GpuFrameTest, TracersOfTheSceneTraceResidentFramesAsTheDownloadedPath) {
+  const int W = 131, H = 75;
+  FrameOptions fo = defaultSceneOptions(W, H);
+  Frame frame;
+  loadFrameScene(fo, frame);
+  const CameraDesc start = frame.camera.desc();
+  for (const char* name : {"ldc", "grid"}) {
+    SCOPED_TRACE(name);
+    const BuiltTracer built = buildGpuTracer(name, frame, TracerOptions{}, *gpu_);
+    auto* tracer = dynamic_cast<GpuEffectTracer*>(built.tracer.get());
+    ASSERT_TRUE(tracer && tracer->effectsOnDevice());
+    GpuFrameConfig fc = hssrConfig(fo, frame);
+    fc.sceneTracer = tracer;
+    GpuFrame resident(*gpu_, frame.scene, frame.lights, fc);
+    for (const Effect effect : {Effect::Reflection, Effect::AO}) {
+      EffectConfig ec;
+      ec.effect = effect;
+      ec.bounces = 2;
+      ec.aoSamples = 2;
+      for (int i : {0, 1}) {
+        SCOPED_TRACE(i);
+        setFrameView(fo, orbitCamera(start, i, 45.0f), frame);
+        const GpuEffectParams p = gpuEffectParams(frame, ec);
+        const GpuActivity before = gpuActivity();
+        const GpuFrameResult got = resident.render(frame.camera, layerConfig(fo, frame), p, GpuPicture::Linear);
+        const GpuActivity a = gpuActivity() - before;
+        if (i == 1) {  // (not the first frame: that one uploads the scene and links the programs)
+          EXPECT_EQ(a.programLinks, 0u);
+          EXPECT_EQ(a.bufferAllocations, 0u);
+          EXPECT_LE(a.uploadBytes, 64u * 1024u);
+        }
+        // (a tracer built for this view: the resident one follows the views by setEffectCamera)
+        GpuCaptureResult cap;
+        captureOnGpu(*gpu_, frame.scene, frame.camera, fc.capture, cap);
+        const BuiltTracer fresh = buildGpuTracer(name, frame, TracerOptions{}, *gpu_);
+        GpuEffects effects(*gpu_, frame.scene, frame.camera, cap.layers, frame.lights);
+        GpuEffectReadback all;
+        all.sums = true;
+        const Reference want{effects.run(dynamic_cast<const GpuEffectTracer&>(*fresh.tracer), p, all), cap.generated};
+        ASSERT_GT(want.out.sums[0], uint64_t(W * H / 4));
+        expectSameFrame(got, want, size_t(W) * size_t(H));
+      }
+    }
+  }
+}
+
 TEST_F(GpuFrameTest, TheFramesAfterTheFirstLinkAllocateAndUploadNothingAndWaitOnce) {
   const std::vector<FrameSample> s = defaultSceneFrames(160, 90, 4, gpu_.get());
   ASSERT_EQ(s.size(), 4u);

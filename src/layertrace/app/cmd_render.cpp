@@ -232,9 +232,13 @@ RenderOutput renderFrame(const RenderOptions& o) {
     frame.raster = RasterStats{frame.rasterMs, rr.overflowLost, rr.attempts, frame.scene.triangleCount()};
     frame.capturePipeline = fo.depthPeeling ? "gpu-peel" : "gpu-lists";
     frame.geometryPasses = fo.depthPeeling ? 2 * fo.layers : 1;
-    built.buildMs = rr.layersMs + rr.pyramidMs;
-    built.memoryBytes = rr.hierarchyBytes;
-    built.levelIntervals = rr.levelIntervals;
+    if (rr.structure) {
+      built = std::move(*rr.structure);  // a tracer of the scene: its structure and statistics
+    } else {
+      built.buildMs = rr.layersMs + rr.pyramidMs;
+      built.memoryBytes = rr.hierarchyBytes;
+      built.levelIntervals = rr.levelIntervals;
+    }
     frame.gpuMemoryBytes = rr.captureBytes;
     r = std::move(rr.effect);
     gpuMs = countedMs = r.traceMs;

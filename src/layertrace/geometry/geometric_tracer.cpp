@@ -11,7 +11,7 @@
 
 namespace lt {
 
-GeometricHits::GeometricHits(const Scene& scene, const Camera& camera) : scene_(scene), camera_(camera), unit_(offsetUnit(scene)) {
+GeometricHits::GeometricHits(const Scene& scene, const Camera& camera) : scene_(scene), camera_(&camera), unit_(offsetUnit(scene)) {
   for (const Material& m : scene.materials) packed_.push_back(packAlbedoSpec(m.albedo, m.specular));
 }
 
@@ -26,7 +26,7 @@ TraceHit GeometricHits::makeHit(const Ray& ray, const GeoHit& g) const {
   h.hit = true;
   h.point = ray.origin + ray.dir * g.t;
   const glm::uvec3 t = scene_.triangles[g.triangle];
-  const glm::vec3 pw = camera_.toWorld(h.point);
+  const glm::vec3 pw = camera_->toWorld(h.point);
   // Barycentric interpolation of the vertex normals at the hit.
   const glm::vec3 a = scene_.positions[t.x], b = scene_.positions[t.y], cc = scene_.positions[t.z];
   const glm::vec3 n = glm::cross(b - a, cc - a);
@@ -38,25 +38,25 @@ TraceHit GeometricHits::makeHit(const Ray& ray, const GeoHit& g) const {
     const glm::vec3 s = scene_.normals[t.x] * u + scene_.normals[t.y] * v + scene_.normals[t.z] * (1.0f - u - v);
     if (glm::length(s) > 0.0f) normal = glm::normalize(s);
   }
-  h.normal = glm::normalize(camera_.dirToCamera(normal));
+  h.normal = glm::normalize(camera_->dirToCamera(normal));
   h.albedoSpec = packed_[scene_.triMaterial[g.triangle]];
   if (surfaceTextured(scene_, g.triangle)) {
     // The texture's level of detail as the capture chooses it for a fragment at this point: the
     // frame camera's pixel footprint at the point's depth over the cosine between the geometric
     // normal and the camera's view ray (raster::fragmentAlbedoSpec), so that the reference and
     // the layers sample the same texels.
-    const float depth = std::max(-h.point.z, camera_.near());
-    const glm::vec3 view = camera_.orthographic() ? glm::vec3(0.0f, 0.0f, -1.0f) : h.point;
-    const glm::vec3 nc = camera_.dirToCamera(n);
+    const float depth = std::max(-h.point.z, camera_->near());
+    const glm::vec3 view = camera_->orthographic() ? glm::vec3(0.0f, 0.0f, -1.0f) : h.point;
+    const glm::vec3 nc = camera_->dirToCamera(n);
     const float nl = glm::length(nc), vl = glm::length(view);
     const float cosine = nl > 0.0f && vl > 0.0f ? glm::dot(nc, view) / (nl * vl) : 1.0f;
     h.albedoSpec = packSurfaceColor(surfaceColor(scene_, g.triangle, std::clamp(v, 0.0f, 1.0f), std::clamp(1.0f - u - v, 0.0f, 1.0f),
-                                                 textureFootprint(camera_.pixelFootprint(depth), cosine)));
+                                                 textureFootprint(camera_->pixelFootprint(depth), cosine)));
   }
   h.triangle = g.triangle;
   if (h.point.z < 0.0f) {
-    const glm::vec2 p = camera_.project(h.point);
-    if (p.x >= 0 && p.y >= 0 && p.x < float(camera_.width()) && p.y < float(camera_.height())) h.x = int(p.x), h.y = int(p.y);
+    const glm::vec2 p = camera_->project(h.point);
+    if (p.x >= 0 && p.y >= 0 && p.x < float(camera_->width()) && p.y < float(camera_->height())) h.x = int(p.x), h.y = int(p.y);
   }
   return h;
 }

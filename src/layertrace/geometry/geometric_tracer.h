@@ -37,12 +37,15 @@ class GeometricHits {
     h.hit = hit;
     return h;
   }
-  const Camera& camera() const { return camera_; }
+  const Camera& camera() const { return *camera_; }
   const Scene& scene() const { return scene_; }
+  /// Makes the hits of rays in `camera`'s space (which must outlive this object): a structure of
+  /// the scene traced frame after frame (gpu/gpu_frame.h).
+  void setCamera(const Camera& camera) { camera_ = &camera; }
 
  private:
   const Scene& scene_;
-  const Camera& camera_;
+  const Camera* camera_;
   float unit_ = 1.0f;  ///< offsetUnit(scene_)
   std::vector<uint32_t> packed_;  ///< per material: albedo + specular as stored in fragments
 };

@@ -183,6 +183,8 @@ const GpuEffects& GpuEffectTracer::effects(const Scene& scene, const LayerArrays
   return *effects_;
 }
 
+void GpuEffectTracer::setEffectCamera(const Camera&) { throw InternalError("setEffectCamera: the tracer's structure belongs to its frame"); }
+
 GpuEffectOutput GpuEffects::run(const GpuEffectTracer& tracer, const GpuEffectParams& p, const GpuEffectReadback& readback) const {
   LT_CHECK(p.bounces >= 1 && p.bounces <= 16 && p.aoSamples >= 1 && p.aoSamples <= 4096, p.bounces, p.aoSamples);
   const Camera& traced = tracer.effectCamera();

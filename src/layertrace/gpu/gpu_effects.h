@@ -67,6 +67,9 @@ class GpuEffectTracer {
   /// Whether the tracer can answer every wave on the device (otherwise the renderer shades on
   /// the CPU, asking the tracer batch by batch).
   virtual bool effectsOnDevice() const { return true; }
+  /// A tracer of the scene (its structure independent of the view: the cube, the grid) traced
+  /// frame after frame (gpu_frame.h): the next frame's camera, whose space its rays are in.
+  virtual void setEffectCamera(const Camera& camera);
   /// Called by GpuEffects::run before its first wave: the tracer's own sums start from zero.
   virtual void beginEffect() const {}
   /// The tracer's own sums over the last run's rays (read from the device: a host wait).

@@ -35,14 +35,17 @@ GpuFrame::GpuFrame(GpuContext& gpu, const Scene& scene, std::span<const PointLig
   if (config.capture.keepLists) inputError("a resident GPU frame keeps no fragment lists (layers --verify reads them)");
   validateHssrConfig(config.march);
   LT_CHECK(lights.size() <= size_t(GpuEffects::kMaxLights), lights.size());
+  LT_CHECK(!config.sceneTracer || config.sceneTracer->effectsOnDevice(), "a tracer of the scene that answers on the device");
 }
 
 void GpuFrame::create() {
   const Scene& scene = scene_;
   capture_ = std::make_unique<GpuCapture>(gpu_, scene);
-  tracer_ = config_.ssr ? std::make_unique<GpuScreenTracer>(gpu_, config_.ssrMarch)
-                        : std::make_unique<GpuScreenTracer>(gpu_, config_.pyramid, config_.march);
-  if (persistent_) tracer_->setPersistentThreads(*persistent_);
+  if (!config_.sceneTracer) {
+    tracer_ = config_.ssr ? std::make_unique<GpuScreenTracer>(gpu_, config_.ssrMarch)
+                          : std::make_unique<GpuScreenTracer>(gpu_, config_.pyramid, config_.march);
+    if (persistent_) tracer_->setPersistentThreads(*persistent_);
+  }
   effects_ = std::make_unique<GpuEffects>(gpu_, scene, lights_);
   layersPass_ = &gpu_.computeProgram("frame_layers.comp", shader_source::frame_layers_comp);
   trianglesPass_ = &gpu_.computeProgram("frame_triangles.comp", shader_source::frame_triangles_comp);
@@ -67,8 +70,18 @@ size_t GpuFrame::memoryBytes() const {
   if (!capture_) return 0;
   size_t bytes = capture_->memoryBytes() + effects_->memoryBytes() + materials_.bytes() + level0_.bytes() + status_.bytes() + reduced_.bytes() +
                  picture_.bytes();
-  if (tracer_->pyramid()) bytes += tracer_->pyramid()->memoryBytes();
+  if (tracer_ && tracer_->pyramid()) bytes += tracer_->pyramid()->memoryBytes();
   return bytes;  // (effects_ counts fragments_ and triangles_)
+}
+
+const GpuEffectTracer& GpuFrame::effectTracer() const {
+  if (tracer_) return *tracer_;
+  return *config_.sceneTracer;
+}
+
+const GpuScreenTracer& GpuFrame::ownMarch() const {
+  LT_CHECK(tracer_ != nullptr, "a frame traced by a tracer of the scene has no march of its own");
+  return *tracer_;
 }
 
 void GpuFrame::submit(const Camera& camera, const GpuEffectParams* effect, GpuPicture picture, GpuFrameResult& out) {
@@ -106,7 +119,8 @@ void GpuFrame::submit(const Camera& camera, const GpuEffectParams* effect, GpuPi
   }
 
   timeline_.begin(kPyramid);
-  tracer_->rebuild(camera, level0_, capture_->counts(), k);
+  if (tracer_) tracer_->rebuild(camera, level0_, capture_->counts(), k);
+  else config_.sceneTracer->setEffectCamera(camera);
   timeline_.end(kPyramid);
 
   effects_->setFrame(camera, fragments_, triangles_, k);
@@ -114,7 +128,7 @@ void GpuFrame::submit(const Camera& camera, const GpuEffectParams* effect, GpuPi
     GpuEffectReadback readback{};
     readback.image = picture == GpuPicture::Linear;
     readback.tally = readback.histogram = readback.sums = false;
-    const GpuEffectOutput eo = effects_->run(*tracer_, *effect, readback);
+    const GpuEffectOutput eo = effects_->run(effectTracer(), *effect, readback);
     if (readback.image) {
       out.image = eo.image;
       out.traceMs = eo.traceMs, out.shadeMs = eo.shadeMs;
@@ -143,7 +157,7 @@ void GpuFrame::submit(const Camera& camera, const GpuEffectParams* effect, GpuPi
   glCopyNamedBufferSubData(capture_->counter().id(), status_.id(), 0, kFragmentsWord * 4, 4);
   static_assert(kKeptWord == kComplexityWord + 1);
   glCopyNamedBufferSubData(reduced_.id(), status_.id(), 0, kComplexityWord * 4, 8);
-  if (tracer_->pyramid())
+  if (tracer_ && tracer_->pyramid())
     glCopyNamedBufferSubData(tracer_->pyramid()->status.id(), status_.id(), 0, kLevelsWord * 4, GpuPyramid::kStatusWords * 4);
   else
     glClearNamedBufferSubData(status_.id(), GL_R32UI, kLevelsWord * 4, GpuPyramid::kStatusWords * 4, GL_RED_INTEGER, GL_UNSIGNED_INT, nullptr);
@@ -189,7 +203,7 @@ GpuFrameResult GpuFrame::run(const Camera& camera, const LayerConfig& layers, co
       capture_->growPool(std::max<uint64_t>(out.fragments, 2 * capture_->poolCapacity()));
       again = true;
     }
-    if (tracer_->pyramid() && !tracer_->pyramid()->fits(status + kLevelsWord)) again = true;
+    if (tracer_ && tracer_->pyramid() && !tracer_->pyramid()->fits(status + kLevelsWord)) again = true;
     if (again) {
       LT_CHECK(out.attempts < 4, out.attempts, out.fragments);
       continue;
@@ -197,7 +211,7 @@ GpuFrameResult GpuFrame::run(const Camera& camera, const LayerConfig& layers, co
     const size_t pixels = size_t(camera.width()) * size_t(camera.height());
     if (readPicture && picture == GpuPicture::Srgb8) out.srgb8.resize(pixels), picture_.read(out.srgb8.data(), pixels * 4);
     if (readPicture && picture == GpuPicture::Float32) out.float32.resize(pixels), picture_.read(out.float32.data(), pixels * 16);
-    out.levelIntervals.assign(status + kLevelsWord, status + kLevelsWord + (tracer_->pyramid() ? tracer_->pyramid()->levels : 1));
+    out.levelIntervals.assign(status + kLevelsWord, status + kLevelsWord + (tracer_ && tracer_->pyramid() ? tracer_->pyramid()->levels : 1));
     for (size_t i = 0; i < 16; ++i) out.sums[i] = uint64_t(status[kSumsWord + 2 * i]) | uint64_t(status[kSumsWord + 2 * i + 1]) << 32;
     out.iterationsP99 = effect && effect->countRays ? status[kSumsWord + kPercentileWord] : 0;
     out.maxComplexity = status[kComplexityWord];
@@ -214,7 +228,7 @@ void GpuFrame::retrace(const GpuEffectParams& effect, double& traceMs, double& s
   GpuEffectReadback readback{};
   readback.image = readback.tally = readback.histogram = false;
   readback.sums = true;  // the one wait, after which the timer queries are read
-  const GpuEffectOutput eo = effects_->run(*tracer_, effect, readback);
+  const GpuEffectOutput eo = effects_->run(effectTracer(), effect, readback);
   traceMs = eo.traceMs, shadeMs = eo.shadeMs;
 }
 
@@ -222,7 +236,7 @@ void GpuFrame::trace(const GpuBuffer& rays, const GpuBuffer& hits, size_t n) con
   LT_CHECK(capture_ != nullptr);
   gpu_.makeCurrent();
   GpuDebugGroup group("trace");
-  tracer_->marchResident(rays, hits, n, nullptr, true);
+  ownMarch().marchResident(rays, hits, n, nullptr, true);
 }
 
 double GpuFrame::march(std::span<const Ray> rays, std::span<TraceHit> hits, std::span<RayCounters> counters) const {
@@ -235,7 +249,7 @@ double GpuFrame::march(std::span<const Ray> rays, std::span<TraceHit> hits, std:
   const GpuBuffer& answers = batch_.answers(0, n * sizeof(GpuMarchRecord));
   const GpuBuffer& gathered = batch_.answers(1, n * sizeof(glm::uvec4));
   timer_->begin();
-  tracer_->marchResident(batch_.rays(), answers, n, nullptr, !counters.empty());
+  ownMarch().marchResident(batch_.rays(), answers, n, nullptr, !counters.empty());
   timer_->end();
   answers.bindStorage(0), fragments_.bindStorage(1), gathered.bindStorage(2);
   gatherPass_->set("uCount", int(n));
@@ -279,7 +293,7 @@ size_t GpuFrame::effectBytes() const { return effects_ ? effects_->memoryBytes()
 
 size_t GpuFrame::hierarchyBytes() const {
   if (!capture_) return 0;
-  return level0_.bytes() + capture_->counts().bytes() + (tracer_->pyramid() ? tracer_->pyramid()->memoryBytes() : 0);
+  return level0_.bytes() + capture_->counts().bytes() + (tracer_ && tracer_->pyramid() ? tracer_->pyramid()->memoryBytes() : 0);
 }
 
 }  // namespace lt

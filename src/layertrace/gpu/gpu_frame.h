@@ -1,5 +1,7 @@
 // A frame that stays on the GPU, as a renderer runs it 60 times a second: capture → sort →
-// layer arrays → interval pyramid → march → effect passes → picture, every pass on the device.
+// layer arrays → interval pyramid → march → effect passes → picture, every pass on the device
+// (or, with a tracer of the scene such as the layered depth cube or the irregular grid, whose
+// structure was built once: capture → sort → layer arrays → its traversal → effect passes).
 // The scene is uploaded once (GpuCapture), programs are the context's (linked once), buffers are
 // allocated on the first frame and kept, growing only when a frame overflows them. A frame
 // sends the camera and the parameters as uniforms and reads back one block of counters at its
@@ -36,6 +38,14 @@ struct GpuFrameConfig {
   HssrConfig march;          ///< the march over it (hssr, hiz, exhaustive)
   bool ssr = false;          ///< SSR's march instead (McGuire and Mara 2014): no pyramid
   SsrConfig ssrMarch;        ///< with ssr: its stride, steps and layers (ssr or ssr-layers)
+  /// A tracer of the scene, whose structure does not depend on the view and was built once
+  /// beside the frame (the layered depth cube, the irregular grid: gpu_ldc.h, gpu_grid.h): the
+  /// effect's waves are traced with it, in each frame's camera, instead of a march over the
+  /// frame's own layers (no pyramid is built). It must answer on the device
+  /// (GpuEffectTracer::effectsOnDevice) and outlive the frame; `sceneTracerOwner`, when set,
+  /// keeps it (and what it reads) alive as long as the frame.
+  GpuEffectTracer* sceneTracer = nullptr;
+  std::shared_ptr<const void> sceneTracerOwner;
   GpuEffectParams effect;
 };
 
@@ -144,6 +154,10 @@ class GpuFrame {
  private:
   /// The first frame's uploads and programs.
   void create();
+  /// The tracer of the effect's waves: the frame's own march, or the scene's tracer.
+  const GpuEffectTracer& effectTracer() const;
+  /// The frame's own march over its layers (not with a tracer of the scene).
+  const GpuScreenTracer& ownMarch() const;
   /// Issues one attempt of the frame, up to the copy of its counters into status_.
   void submit(const Camera& camera, const GpuEffectParams* effect, GpuPicture picture, GpuFrameResult& out);
   GpuFrameResult run(const Camera& camera, const LayerConfig& layers, const GpuEffectParams* effect, GpuPicture picture, bool readPicture);

@@ -68,6 +68,11 @@ struct GpuGridTracer::EffectTables {
   GpuBuffer queries, answers;
 };
 
+void GpuGridTracer::setEffectCamera(const Camera& camera) {
+  frameCamera_ = camera;
+  hits_.setCamera(frameCamera_);
+}
+
 bool GpuGridTracer::effectsOnDevice() const {
   if (!effectsOnDevice_) effectsOnDevice_ = !cutOuts_.id() && GpuSceneTables::limit(gpu_, hits_.scene()).empty();
   return *effectsOnDevice_;

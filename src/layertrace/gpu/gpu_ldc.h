@@ -56,6 +56,7 @@ class GpuLdcTracer final : public GpuBatchTracer, public GpuEffectTracer {
   Surfaces surfaces() const override { return Surfaces::Records; }
   const Camera& effectCamera() const override { return camera_; }
   GpuContext& context() const override { return gpu_; }
+  void setEffectCamera(const Camera& camera) override { camera_ = camera; }
   void answerWave(const GpuEffectWave& wave) const override;
   /// Bytes on the GPU: offsets, samples, their triangles and block intervals.
   size_t memoryBytes() const;

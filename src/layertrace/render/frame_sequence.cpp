@@ -69,6 +69,7 @@ GpuFrameConfig residentConfig(const FrameOptions& options, const std::string& na
   fc.capture.poolCapacity = options.pool;
   fc.capture.growOnOverflow = options.pool == 0;
   fc.capture.frontFacesOnly = options.frontFacesOnly;
+  if (isResidentSceneTracer(name)) return fc;  // (its structure: attachSceneTracer)
   if (name == "ssr" || name == "ssr-layers") {
     fc.ssr = true;
     fc.ssrMarch = to.ssr;
@@ -81,6 +82,15 @@ GpuFrameConfig residentConfig(const FrameOptions& options, const std::string& na
   fc.pyramid = hiz ? PyramidConfig{to.pyramid.levels, std::numeric_limits<float>::infinity()} : to.pyramid;
   if (name == "exhaustive") fc.pyramid.levels = 1;
   return fc;
+}
+
+/// The structure of the scene tracer `name` (isResidentSceneTracer), built by the CPU and
+/// uploaded once, as the tracer of `fc`'s effect waves.
+BuiltTracer attachSceneTracer(GpuContext& gpu, const Frame& frame, const std::string& name, const TracerOptions& tracers, GpuFrameConfig& fc) {
+  BuiltTracer b = buildGpuTracer(name, frame, tracers, gpu);
+  fc.sceneTracer = dynamic_cast<GpuEffectTracer*>(b.tracer.get());
+  LT_CHECK(fc.sceneTracer && fc.sceneTracer->effectsOnDevice(), name);
+  return b;
 }
 
 std::vector<FrameSample> runOnGpu(const FrameOptions& options, Frame& frame, const FrameSequenceConfig& c, GpuContext& gpu) {
@@ -127,9 +137,13 @@ bool isGpuFrameTracer(const std::string& name) {
   return name == "hssr" || name == "hiz" || name == "exhaustive" || name == "ssr" || name == "ssr-layers";
 }
 
+bool isResidentSceneTracer(const std::string& tracer) { return tracer == "ldc" || tracer == "grid"; }
+
 bool rendersResident(const std::string& tracer, const Frame& frame, const EffectConfig& effect) {
 #if LAYERTRACE_HAS_GPU
-  return isGpuFrameTracer(tracer) && GpuEffects::supports(int(frame.lights.size())) && effect.effect != Effect::Warp;
+  // (the grid's hits on alpha-tested triangles need the CPU grid's texel test: GpuGridTracer)
+  const bool sceneTracer = isResidentSceneTracer(tracer) && !(tracer == "grid" && frame.scene.anyCutOut());
+  return (isGpuFrameTracer(tracer) || sceneTracer) && GpuEffects::supports(int(frame.lights.size())) && effect.effect != Effect::Warp;
 #else
   (void)tracer, (void)frame, (void)effect;
   return false;
@@ -139,13 +153,15 @@ bool rendersResident(const std::string& tracer, const Frame& frame, const Effect
 std::unique_ptr<GpuFrame> makeResidentFrame(GpuContext& gpu, const FrameOptions& options, const Frame& frame, const std::string& tracer,
                                             const TracerOptions& tracers, const Scene* geometry) {
 #if LAYERTRACE_HAS_GPU
-  if (!isGpuFrameTracer(tracer))
-    inputError("tracer \"", tracer, "\": the resident GPU frame traces with hssr, hiz, exhaustive, ssr or ssr-layers");
+  const bool sceneTracer = isResidentSceneTracer(tracer) && !geometry;
+  if (!isGpuFrameTracer(tracer) && !sceneTracer)
+    inputError("tracer \"", tracer, "\": the resident GPU frame traces with hssr, hiz, exhaustive, ssr, ssr-layers, ldc or grid");
   if (!GpuEffects::supports(int(frame.lights.size())))
     inputError("--device gpu: ", frame.lights.size(), " lights, more than the GPU frame's ", GpuEffects::kMaxLights);
   validateTracerOptions(tracers);
   GpuFrameConfig fc = residentConfig(options, tracer, tracers);
   fc.capture.layers = layerConfig(options, frame);
+  if (sceneTracer) fc.sceneTracerOwner = std::make_shared<BuiltTracer>(attachSceneTracer(gpu, frame, tracer, tracers, fc));
   return std::make_unique<GpuFrame>(gpu, geometry ? *geometry : frame.scene, frame.lights, fc);
 #else
   (void)gpu, (void)options, (void)frame, (void)tracer, (void)tracers, (void)geometry;
@@ -165,6 +181,8 @@ ResidentRender renderResident(const FrameOptions& options, Frame& frame, const s
   fc.capture.layers = layerConfig(options, frame);
   const nlohmann::json before = gpuActivityReading();
   const auto t0 = std::chrono::steady_clock::now();
+  // (a tracer of the scene: its structure's build and upload are counted with the frame)
+  if (isResidentSceneTracer(tracer)) out.structure = attachSceneTracer(gpu, frame, tracer, tracers, fc);
   GpuFrame resident(gpu, frame.scene, frame.lights, fc);
   const GpuEffectParams params = gpuEffectParams(frame, effect);
   const GpuFrameResult r = resident.render(frame.camera, fc.capture.layers, params, srgb8 ? GpuPicture::Srgb8 : GpuPicture::Float32);

@@ -8,6 +8,7 @@
 #include <cstdint>
 #include <functional>
 #include <memory>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -70,6 +71,9 @@ struct ResidentRender {
   int attempts = 1;           ///< runs of the frame (2 or more: a buffer grew)
   double timedTraceMs = 0.0, timedShadeMs = 0.0;  ///< medians of the --repeat runs without counters
   nlohmann::json frameAccount;  ///< the counted frame's gpu.frame (the scene's upload and the links included)
+  /// A tracer of the scene (isResidentSceneTracer): its structure, built on the CPU and uploaded
+  /// once beside the frame, with its statistics.
+  std::optional<BuiltTracer> structure;
 };
 
 class GpuFrame;
@@ -85,6 +89,9 @@ std::unique_ptr<GpuFrame> makeResidentFrame(GpuContext& gpu, const FrameOptions&
 /// tracer, lights the GPU passes hold, and an effect that needs nothing per pixel on the host
 /// (view synthesis counts its holes per pixel).
 bool rendersResident(const std::string& tracer, const Frame& frame, const EffectConfig& effect);
+/// Whether `tracer` traces the resident frame with a structure of the scene built once beside it
+/// (ldc, grid) rather than a march over the frame's own layers.
+bool isResidentSceneTracer(const std::string& tracer);
 /// Renders the loaded `frame` (loadFrameScene) as one resident GPU frame, then runs the effect
 /// `repeat` times more without counters for the timings. The picture comes back as 32-bit floats,
 /// or with `srgb8` as the 8-bit sRGB codes a PNG holds (encoded on the device, to the bit).
