@@ -7,7 +7,15 @@
 layout(local_size_x = 64) in;
 #include "glm_float.glsl"
 #include "quadtree_common.glsl"
-layout(std430, binding = 0) readonly buffer Depths { float depths[]; };  // k per pixel
+// Each slot's depth, k per pixel: the CPU's layers uploaded, or (LT_LEVEL0) a resident frame's
+// level 0, whose intervals begin at the depth (gpu/gpu_frame.h).
+#ifdef LT_LEVEL0
+layout(std430, binding = 0) readonly buffer Level0 { vec2 level0[]; };
+float depthOf(uint slot) { return level0[slot].x; }
+#else
+layout(std430, binding = 0) readonly buffer Depths { float depths[]; };
+float depthOf(uint slot) { return depths[slot]; }
+#endif
 layout(std430, binding = 1) readonly buffer Counts { uint counts[]; };
 layout(std430, binding = 2) buffer Nodes { QuadNode nodes[]; };
 layout(std430, binding = 3) readonly buffer Scale { float depthScale; };
@@ -24,7 +32,7 @@ bool present(int x, int y, int layer) {
 
 // w = depthScale / depth of a pixel the layer holds.
 float wAt(int x, int y, int layer) {
-  precise float w = depthScale / depths[(uint(y) * uint(uLevelWidth[0]) + uint(x)) * uint(uK) + uint(layer)];
+  precise float w = depthScale / depthOf((uint(y) * uint(uLevelWidth[0]) + uint(x)) * uint(uK) + uint(layer));
   return w;
 }
 

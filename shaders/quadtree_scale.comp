@@ -5,7 +5,15 @@
 // bits), then the scale at which λ_h = 10⁻³ is the w slope of a surface seen at 85°. The
 // median is the element std::nth_element puts at n / 2: the same value.
 layout(local_size_x = 256) in;
+// Each slot's depth, k per pixel: the CPU's layers uploaded, or (LT_LEVEL0) a resident frame's
+// level 0, whose intervals begin at the depth (gpu/gpu_frame.h).
+#ifdef LT_LEVEL0
+layout(std430, binding = 0) readonly buffer Level0 { vec2 level0[]; };
+float depthOf(uint slot) { return level0[slot].x; }
+#else
 layout(std430, binding = 0) readonly buffer Depths { float depths[]; };
+float depthOf(uint slot) { return depths[slot]; }
+#endif
 layout(std430, binding = 1) readonly buffer Counts { uint counts[]; };
 layout(std430, binding = 3) writeonly buffer Scale { float depthScale; };
 uniform int uPixels, uStride, uK;
@@ -49,7 +57,7 @@ void main() {
     for (uint i = t; i < samples; i += 256u) {
       const uint p = i * uint(uStride);
       if (counts[p] == 0u) continue;
-      const uint bits = orderedBits(depths[p * uint(uK)]);
+      const uint bits = orderedBits(depthOf(p * uint(uK)));
       if ((bits & high) == sPrefix) atomicAdd(sHistogram[(bits >> uint(shift)) & 255u], 1u);
     }
     barrier();

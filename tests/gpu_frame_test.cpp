@@ -21,6 +21,7 @@
 #include "layertrace/gpu/gpu_capture.h"
 #include "layertrace/gpu/gpu_context.h"
 #include "layertrace/gpu/gpu_frame.h"
+#include "layertrace/gpu/gpu_quadtree.h"
 #include "layertrace/render/gpu_effect_params.h"
 #include "layertrace/screen/interval_layers.h"
 #endif
@@ -253,23 +254,28 @@ TEST_F(GpuFrameTest, AnOverflowingPoolGrowsAndTheFrameRunsAgainWithTheSameAnswer
   }
 }
 
-// The layered depth cube and the irregular grid trace the resident frame with their structure of
-// the scene, built once beside it: every view's picture and counters are those of the
-// downloaded path with the same tracer, and the frames after the first wait once and allocate,
-// link and upload nothing.
-TEST_F(GpuFrameTest, TracersOfTheSceneTraceResidentFramesAsTheDownloadedPath) {
+// The quad-tree (built on the device from each frame's level 0), the layered depth cube and the
+// irregular grid (their structures of the scene built once beside the frame) trace the resident
+// frame: every view's picture and counters are those of the downloaded path with a tracer built
+// for that view (reflections; AO, whose rays are any-hit walks), and a frame after the first
+// allocates, links and uploads nothing.
+TEST_F(GpuFrameTest, TheQuadtreeAndTheTracersOfTheSceneTraceResidentFramesAsTheDownloadedPath) {
   const int W = 131, H = 75;
   FrameOptions fo = defaultSceneOptions(W, H);
   Frame frame;
   loadFrameScene(fo, frame);
   const CameraDesc start = frame.camera.desc();
-  for (const char* name : {"ldc", "grid"}) {
+  for (const std::string name : {"quadtree", "ldc", "grid"}) {
     SCOPED_TRACE(name);
-    const BuiltTracer built = buildGpuTracer(name, frame, TracerOptions{}, *gpu_);
-    auto* tracer = dynamic_cast<GpuEffectTracer*>(built.tracer.get());
-    ASSERT_TRUE(tracer && tracer->effectsOnDevice());
     GpuFrameConfig fc = hssrConfig(fo, frame);
-    fc.sceneTracer = tracer;
+    BuiltTracer built;
+    if (name == "quadtree") {
+      fc.quadtree = QuadtreeConfig{};
+    } else {
+      built = buildGpuTracer(name, frame, TracerOptions{}, *gpu_);
+      fc.sceneTracer = dynamic_cast<GpuEffectTracer*>(built.tracer.get());
+      ASSERT_TRUE(fc.sceneTracer && fc.sceneTracer->effectsOnDevice());
+    }
     GpuFrame resident(*gpu_, frame.scene, frame.lights, fc);
     for (const Effect effect : {Effect::Reflection, Effect::AO}) {
       EffectConfig ec;
@@ -288,16 +294,28 @@ TEST_F(GpuFrameTest, TracersOfTheSceneTraceResidentFramesAsTheDownloadedPath) {
           EXPECT_EQ(a.bufferAllocations, 0u);
           EXPECT_LE(a.uploadBytes, 64u * 1024u);
         }
-        // (a tracer built for this view: the resident one follows the views by setEffectCamera)
+        // (a tracer built for this view: the resident ones follow the views by rebuild and
+        // setEffectCamera)
         GpuCaptureResult cap;
         captureOnGpu(*gpu_, frame.scene, frame.camera, fc.capture, cap);
-        const BuiltTracer fresh = buildGpuTracer(name, frame, TracerOptions{}, *gpu_);
+        std::unique_ptr<GpuQuadtreeTracer> tree;
+        BuiltTracer fresh;
+        if (name == "quadtree") tree = std::make_unique<GpuQuadtreeTracer>(*gpu_, frame.camera, cap.layers, QuadtreeConfig{});
+        else fresh = buildGpuTracer(name, frame, TracerOptions{}, *gpu_);
+        const GpuEffectTracer& tracer = tree ? *tree : dynamic_cast<const GpuEffectTracer&>(*fresh.tracer);
         GpuEffects effects(*gpu_, frame.scene, frame.camera, cap.layers, frame.lights);
         GpuEffectReadback all;
         all.sums = true;
-        const Reference want{effects.run(dynamic_cast<const GpuEffectTracer&>(*fresh.tracer), p, all), cap.generated};
+        const Reference want{effects.run(tracer, p, all), cap.generated};
         ASSERT_GT(want.out.sums[0], uint64_t(W * H / 4));
         expectSameFrame(got, want, size_t(W) * size_t(H));
+        const GpuTracerSums nodes = tracer.effectSums();
+        EXPECT_EQ(got.tracerSums.planeNodes, nodes.planeNodes);
+        EXPECT_EQ(got.tracerSums.boxNodes, nodes.boxNodes);
+        EXPECT_EQ(got.tracerSums.occlusions, nodes.occlusions);
+        if (tree) {
+          EXPECT_GT(nodes.planeNodes, 0u);
+        }
       }
     }
   }

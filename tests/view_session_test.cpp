@@ -121,8 +121,8 @@ TEST(ViewSession, GpuDeviceGivesTheCpuPictures) {
     q.tracer = tracer;
     const ViewResult a = cpu.render(q), b = gpu.render(q);
     ASSERT_TRUE(b.error.empty()) << b.error;
-    // hssr and ssr-layers: resident frames; quadtree, ldc and grid: traced and shaded on the
-    // GPU; hybrid: traced on the GPU, shaded on the CPU; embree: no GPU version, on the CPU.
+    // hssr, ssr-layers, quadtree, ldc and grid: resident frames; hybrid: traced on the GPU,
+    // shaded on the CPU; embree: no GPU version, on the CPU.
     const std::string name = tracer;
     EXPECT_EQ(b.device, name == "embree" ? "cpu" : "gpu");
     EXPECT_EQ(a.device, "cpu");

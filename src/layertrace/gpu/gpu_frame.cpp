@@ -25,6 +25,8 @@ namespace {
 /// per-level totals, the effect's sums and percentile (gpu_effects.h kSumsWords).
 constexpr size_t kFragmentsWord = 0, kComplexityWord = 1, kKeptWord = 2, kLevelsWord = 3, kSumsWord = kLevelsWord + GpuPyramid::kStatusWords,
                  kStatusWords = kSumsWord + kSumsWords;
+/// With the quad-tree, its six node-counter words follow (read only then).
+constexpr size_t kNodeSumsWord = kStatusWords, kNodeSumsWords = 6;
 
 enum Stage { kCapture, kLayers, kPyramid, kStages };
 
@@ -41,7 +43,9 @@ GpuFrame::GpuFrame(GpuContext& gpu, const Scene& scene, std::span<const PointLig
 void GpuFrame::create() {
   const Scene& scene = scene_;
   capture_ = std::make_unique<GpuCapture>(gpu_, scene);
-  if (!config_.sceneTracer) {
+  if (config_.quadtree) {
+    quadtree_ = std::make_unique<GpuQuadtreeTracer>(gpu_, *config_.quadtree);
+  } else if (!config_.sceneTracer) {
     tracer_ = config_.ssr ? std::make_unique<GpuScreenTracer>(gpu_, config_.ssrMarch)
                           : std::make_unique<GpuScreenTracer>(gpu_, config_.pyramid, config_.march);
     if (persistent_) tracer_->setPersistentThreads(*persistent_);
@@ -57,13 +61,13 @@ void GpuFrame::create() {
   if (materials.empty()) materials.emplace_back(0.0f);
   materials_ = GpuBuffer(materials.size() * sizeof(glm::vec4), materials.data());
   triangles_ = GpuBuffer((scene.triangles.size() + 1) * 32);
-  status_ = GpuBuffer(kStatusWords * sizeof(uint32_t));
+  status_ = GpuBuffer((kStatusWords + kNodeSumsWords) * sizeof(uint32_t));
   reduced_ = GpuBuffer(2 * sizeof(uint32_t));
 }
 
 GpuFrame::~GpuFrame() {
   gpu_.makeCurrent();
-  effects_.reset(), tracer_.reset(), capture_.reset();  // before the buffers they read
+  effects_.reset(), tracer_.reset(), quadtree_.reset(), capture_.reset();  // before the buffers they read
 }
 
 size_t GpuFrame::memoryBytes() const {
@@ -71,11 +75,13 @@ size_t GpuFrame::memoryBytes() const {
   size_t bytes = capture_->memoryBytes() + effects_->memoryBytes() + materials_.bytes() + level0_.bytes() + status_.bytes() + reduced_.bytes() +
                  picture_.bytes();
   if (tracer_ && tracer_->pyramid()) bytes += tracer_->pyramid()->memoryBytes();
+  if (quadtree_) bytes += quadtree_->memoryBytes();
   return bytes;  // (effects_ counts fragments_ and triangles_)
 }
 
 const GpuEffectTracer& GpuFrame::effectTracer() const {
   if (tracer_) return *tracer_;
+  if (quadtree_) return *quadtree_;
   return *config_.sceneTracer;
 }
 
@@ -120,6 +126,7 @@ void GpuFrame::submit(const Camera& camera, const GpuEffectParams* effect, GpuPi
 
   timeline_.begin(kPyramid);
   if (tracer_) tracer_->rebuild(camera, level0_, capture_->counts(), k);
+  else if (quadtree_) quadtree_->rebuild(camera, level0_, capture_->counts(), k);
   else config_.sceneTracer->setEffectCamera(camera);
   timeline_.end(kPyramid);
 
@@ -163,6 +170,10 @@ void GpuFrame::submit(const Camera& camera, const GpuEffectParams* effect, GpuPi
     glClearNamedBufferSubData(status_.id(), GL_R32UI, kLevelsWord * 4, GpuPyramid::kStatusWords * 4, GL_RED_INTEGER, GL_UNSIGNED_INT, nullptr);
   if (effect) glCopyNamedBufferSubData(effects_->sums().id(), status_.id(), 0, kSumsWord * 4, kSumsWords * 4);
   else glClearNamedBufferSubData(status_.id(), GL_R32UI, kSumsWord * 4, kSumsWords * 4, GL_RED_INTEGER, GL_UNSIGNED_INT, nullptr);
+  if (quadtree_ && effect)
+    glCopyNamedBufferSubData(quadtree_->effectSumsBuffer().id(), status_.id(), 0, kNodeSumsWord * 4, kNodeSumsWords * 4);
+  else if (quadtree_)
+    glClearNamedBufferSubData(status_.id(), GL_R32UI, kNodeSumsWord * 4, kNodeSumsWords * 4, GL_RED_INTEGER, GL_UNSIGNED_INT, nullptr);
 }
 
 GpuFrameResult GpuFrame::render(const Camera& camera, const LayerConfig& layers, const GpuEffectParams& effect, GpuPicture picture,
@@ -185,8 +196,8 @@ GpuFrameResult GpuFrame::run(const Camera& camera, const LayerConfig& layers, co
   GpuFrameResult out;
   for (out.attempts = 1;; ++out.attempts) {
     submit(camera, effect, picture, out);
-    uint32_t status[kStatusWords];
-    status_.read(status, sizeof status);
+    uint32_t status[kStatusWords + kNodeSumsWords] = {};
+    status_.read(status, (kStatusWords + (quadtree_ ? kNodeSumsWords : 0)) * sizeof(uint32_t));
     // The GPU times, read after the frame's one wait (they wait no more).
     const std::vector<double> ms = timeline_.collect(kStages);
     out.captureMs = ms[kCapture], out.layersMs = ms[kLayers], out.pyramidMs = ms[kPyramid];
@@ -212,7 +223,9 @@ GpuFrameResult GpuFrame::run(const Camera& camera, const LayerConfig& layers, co
     if (readPicture && picture == GpuPicture::Srgb8) out.srgb8.resize(pixels), picture_.read(out.srgb8.data(), pixels * 4);
     if (readPicture && picture == GpuPicture::Float32) out.float32.resize(pixels), picture_.read(out.float32.data(), pixels * 16);
     out.levelIntervals.assign(status + kLevelsWord, status + kLevelsWord + (tracer_ && tracer_->pyramid() ? tracer_->pyramid()->levels : 1));
-    for (size_t i = 0; i < 16; ++i) out.sums[i] = uint64_t(status[kSumsWord + 2 * i]) | uint64_t(status[kSumsWord + 2 * i + 1]) << 32;
+    const auto word64 = [&](size_t w) { return uint64_t(status[w]) | uint64_t(status[w + 1]) << 32; };
+    for (size_t i = 0; i < 16; ++i) out.sums[i] = word64(kSumsWord + 2 * i);
+    out.tracerSums = {word64(kNodeSumsWord), word64(kNodeSumsWord + 2), word64(kNodeSumsWord + 4)};
     out.iterationsP99 = effect && effect->countRays ? status[kSumsWord + kPercentileWord] : 0;
     out.maxComplexity = status[kComplexityWord];
     out.levelIntervals[0] = status[kKeptWord];
@@ -293,7 +306,8 @@ size_t GpuFrame::effectBytes() const { return effects_ ? effects_->memoryBytes()
 
 size_t GpuFrame::hierarchyBytes() const {
   if (!capture_) return 0;
-  return level0_.bytes() + capture_->counts().bytes() + (tracer_ && tracer_->pyramid() ? tracer_->pyramid()->memoryBytes() : 0);
+  return level0_.bytes() + capture_->counts().bytes() + (tracer_ && tracer_->pyramid() ? tracer_->pyramid()->memoryBytes() : 0) +
+         (quadtree_ ? quadtree_->memoryBytes() : 0);
 }
 
 }  // namespace lt

@@ -25,6 +25,7 @@
 #include "layertrace/gpu/gpu_capture.h"
 #include "layertrace/gpu/gpu_context.h"
 #include "layertrace/gpu/gpu_effects.h"
+#include "layertrace/gpu/gpu_quadtree.h"
 #include "layertrace/gpu/gpu_ray_batch.h"
 #include "layertrace/gpu/gpu_screen_tracer.h"
 #include "layertrace/scene/camera.h"
@@ -46,6 +47,9 @@ struct GpuFrameConfig {
   /// keeps it (and what it reads) alive as long as the frame.
   GpuEffectTracer* sceneTracer = nullptr;
   std::shared_ptr<const void> sceneTracerOwner;
+  /// The quad-tree of Widmer et al. instead of the pyramid's march: built on the device from each
+  /// frame's level 0 and counts (gpu_quadtree.h), its hits shaded at their exact plane points.
+  std::optional<QuadtreeConfig> quadtree;
   GpuEffectParams effect;
 };
 
@@ -65,6 +69,7 @@ struct GpuFrameResult {
   uint32_t maxComplexity = 0;  ///< the largest number of fragments in one pixel
   uint64_t iterationsP99 = 0;  ///< of the effect's rays (with countRays)
   GpuTallySums sums{};         ///< the effect's counters over the frame (gpu_effects.h)
+  GpuTracerSums tracerSums{};  ///< the quad-tree's node counters over the frame (GpuFrameConfig::quadtree)
   std::vector<uint32_t> levelIntervals;  ///< intervals per pyramid level ([0]: the fragments kept in the layers)
   int attempts = 1;            ///< runs of the frame (2 or more: a buffer grew)
   double captureMs = 0.0, layersMs = 0.0, pyramidMs = 0.0, traceMs = 0.0, shadeMs = 0.0;  ///< GPU timer queries
@@ -142,6 +147,8 @@ class GpuFrame {
   /// repeat: no capture, nothing read but the sums) and gives its GPU milliseconds.
   void retrace(const GpuEffectParams& effect, double& traceMs, double& shadeMs);
 
+  /// The quad-tree of the last frame (GpuFrameConfig::quadtree), else null.
+  const GpuQuadtreeTracer* quadtree() const { return quadtree_.get(); }
   /// Bytes held on the GPU: scene, capture, layers, pyramid, effect buffers.
   size_t memoryBytes() const;
   /// Of them, what the march reads (GpuScreenTracer::memoryBytes): level 0, the counts per
@@ -168,6 +175,7 @@ class GpuFrame {
   GpuFrameConfig config_;
   std::unique_ptr<GpuCapture> capture_;
   std::unique_ptr<GpuScreenTracer> tracer_;
+  std::unique_ptr<GpuQuadtreeTracer> quadtree_;  ///< GpuFrameConfig::quadtree
   std::unique_ptr<GpuEffects> effects_;
   GpuBuffer materials_;                 ///< per material: mirror, shininess, transmission, ior
   GpuBuffer level0_, fragments_, triangles_, status_;

@@ -18,11 +18,38 @@ namespace lt {
 static_assert(sizeof(QuadNode) == 16);
 
 GpuQuadtreeTracer::GpuQuadtreeTracer(GpuContext& gpu, const Camera& camera, const LayerArrays& layers, const QuadtreeConfig& config)
-    : gpu_(gpu), camera_(camera), layers_(layers) {
+    : gpu_(gpu), camera_(camera), layers_(&layers) {
   validateQuadtreeConfig(config);
+  summary_.config = config;
+  shape(layers.width, layers.height, layers.k);
+  gpu_.makeCurrent();
+  // Each slot's depth (k per pixel) and the counts: what Algorithm 1 reads.
+  PoolVector<float> depths(layers.slots.size());
+  parallelFor(size_t(0), depths.size(), [&](size_t i) { depths[i] = layers.slots[i].depth; });
+  const std::vector<uint32_t> counts(layers.count.begin(), layers.count.end());
+  depths_ = GpuBuffer(std::max<size_t>(depths.size(), 1) * sizeof(float), depths.data());
+  counts_ = GpuBuffer(std::max<size_t>(counts.size(), 1) * sizeof(uint32_t), counts.data());
+  build(depths_, counts_, false);
+}
+
+GpuQuadtreeTracer::GpuQuadtreeTracer(GpuContext& gpu, const QuadtreeConfig& config) : gpu_(gpu) {
+  validateQuadtreeConfig(config);
+  summary_.config = config;
+}
+
+void GpuQuadtreeTracer::rebuild(const Camera& camera, const GpuBuffer& level0, const GpuBuffer& counts, int k) {
+  LT_CHECK(layers_ == nullptr, "a quad-tree of the CPU's layers");
+  camera_ = camera;
+  if (camera.width() != summary_.width || camera.height() != summary_.height || k != summary_.k) shape(camera.width(), camera.height(), k);
+  summaryRead_ = false;
+  build(level0, counts, true);
+}
+
+void GpuQuadtreeTracer::shape(int width, int height, int k) {
   Quadtree& t = summary_;
-  t.width = layers.width, t.height = layers.height, t.k = layers.k;
-  t.config = config;
+  t.width = width, t.height = height, t.k = k;
+  t.levels.clear();
+  t.nodesPerLayer = 0;
   for (int w = t.width, h = t.height;; w = (w + 1) / 2, h = (h + 1) / 2) {  // as buildQuadtree
     t.levels.push_back({w, h, t.nodesPerLayer});
     t.nodesPerLayer += size_t(w) * size_t(h);
@@ -32,38 +59,39 @@ GpuQuadtreeTracer::GpuQuadtreeTracer(GpuContext& gpu, const Camera& camera, cons
   const size_t nodes = t.nodesPerLayer * size_t(t.k);
   if (nodes > size_t(INT32_MAX)) inputError("the quad-tree of ", t.width, "x", t.height, " with k = ", t.k, ": ", nodes, " nodes, the GPU's limit is ", INT32_MAX);
   gpu_.makeCurrent();
-  GpuDebugGroup group("quadtree build");
-  // Each slot's depth (k per pixel) and the counts: what Algorithm 1 reads.
-  const size_t pixels = size_t(t.width) * size_t(t.height);
-  PoolVector<float> depths(layers.slots.size());
-  parallelFor(size_t(0), depths.size(), [&](size_t i) { depths[i] = layers.slots[i].depth; });
-  const std::vector<uint32_t> counts(layers.count.begin(), layers.count.end());
-  depths_ = GpuBuffer(std::max<size_t>(depths.size(), 1) * sizeof(float), depths.data());
-  counts_ = GpuBuffer(std::max<size_t>(pixels, 1) * sizeof(uint32_t), counts.data());
   nodes_ = GpuBuffer(std::max<size_t>(nodes, 1) * sizeof(QuadNode));
   scale_ = GpuBuffer(sizeof(float));
   nodeSums_ = GpuBuffer(6 * sizeof(uint32_t));
   kinds_ = GpuBuffer(size_t(t.levelCount()) * 3 * sizeof(uint32_t));
+  if (!timer_) timer_ = std::make_unique<GpuTimer>();
+}
+
+void GpuQuadtreeTracer::build(const GpuBuffer& depths, const GpuBuffer& counts, bool level0) {
+  const Quadtree& t = summary_;
+  const QuadtreeConfig& config = t.config;
+  GpuDebugGroup group("quadtree build");
+  // With `level0`, the depths are a resident frame's level 0 ([depth, back] a slot).
+  const char* variant = level0 ? "#define LT_LEVEL0 1\n" : "";
+  const size_t pixels = size_t(t.width) * size_t(t.height);
   kinds_.fill(0u);
-  timer_ = std::make_unique<GpuTimer>();
   timer_->begin();
-  depths_.bindStorage(0);
-  counts_.bindStorage(1);
+  depths.bindStorage(0);
+  counts.bindStorage(1);
   nodes_.bindStorage(2);
   scale_.bindStorage(3);
   kinds_.bindStorage(4);
   {
     GpuDebugGroup scaleGroup("quadtree depth scale");
-    const GpuProgram& p = gpu_.computeProgram("quadtree_scale.comp", shader_source::quadtree_scale_comp);
+    const GpuProgram& p = gpu_.computeProgram("quadtree_scale.comp", shader_source::quadtree_scale_comp, variant);
     p.set("uPixels", int(pixels));
     p.set("uStride", int(std::max<size_t>(1, pixels / 65536)));  // as defaultDepthScale
     p.set("uK", t.k);
-    p.set("uFocal", camera.focal());
+    p.set("uFocal", camera_.focal());
     p.set("uGrazing", std::tan(glm::radians(85.0f)));
     p.set("uFixedScale", config.depthScale);
     gpu_.dispatchGroups(p, 1);
   }
-  const GpuProgram& build = gpu_.computeProgram("quadtree_build.comp", shader_source::quadtree_build_comp);
+  const GpuProgram& build = gpu_.computeProgram("quadtree_build.comp", shader_source::quadtree_build_comp, variant);
   setLevels(build);
   build.set("uK", t.k);
   build.set("uLambdaH", config.lambdaH);
@@ -184,6 +212,7 @@ GpuTracerSums GpuQuadtreeTracer::effectSums() const {
 }
 
 void GpuQuadtreeTracer::traceBatch(std::span<const Ray> rays, std::span<TraceHit> hits, std::span<RayCounters> counters) const {
+  LT_CHECK(layers_ != nullptr, "a resident quad-tree has no CPU layers to answer from");
   if (rays.empty()) return;
   const float scale = summary().depthScale;
   gpu_.makeCurrent();
@@ -206,8 +235,8 @@ void GpuQuadtreeTracer::traceBatch(std::span<const Ray> rays, std::span<TraceHit
     if (a.layer < 0) {
       hits[i] = TraceHit{};
     } else {
-      LT_CHECK(layers_.countAt(a.x, a.y) > a.layer, "quadtree plane over an empty pixel ", a.x, ",", a.y);
-      hits[i] = fragmentHit(camera_, layers_, a.x, a.y, a.layer);
+      LT_CHECK(layers_->countAt(a.x, a.y) > a.layer, "quadtree plane over an empty pixel ", a.x, ",", a.y);
+      hits[i] = fragmentHit(camera_, *layers_, a.x, a.y, a.layer);
       // The exact ray–plane point, as QuadtreeTracer::traceImpl computes it from the same
       // segment (the GPU's segment is the CPU's, bit for bit).
       const ScreenSegment seg = makeScreenSegment(camera_, rays[i]);

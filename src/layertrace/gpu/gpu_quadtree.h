@@ -47,7 +47,15 @@ class GpuQuadtreeTracer final : public GpuBatchTracer, public GpuEffectTracer {
   /// the GPU. The context and the layers must outlive the tracer. InputError for a bad config
   /// (validateQuadtreeConfig) or an image whose levels exceed the shaders' 24.
   GpuQuadtreeTracer(GpuContext& gpu, const Camera& camera, const LayerArrays& layers, const QuadtreeConfig& config);
+  /// A resident quad-tree for a frame that stays on the device (gpu_frame.h): no tree until
+  /// rebuild(). It answers marchResident and the effect passes' waves; it has no CPU layers for
+  /// traceBatch.
+  GpuQuadtreeTracer(GpuContext& gpu, const QuadtreeConfig& config);
   ~GpuQuadtreeTracer() override;
+  /// The resident tree's next frame: the trees over `level0` (a resident frame's level 0, k
+  /// intervals a pixel beginning at each slot's depth) and `counts` for `camera`, built on the
+  /// device without a read-back into the kept buffers (made anew when the size or k changes).
+  void rebuild(const Camera& camera, const GpuBuffer& level0, const GpuBuffer& counts, int k);
   GpuQuadtreeTracer(const GpuQuadtreeTracer&) = delete;
   GpuQuadtreeTracer& operator=(const GpuQuadtreeTracer&) = delete;
 
@@ -71,6 +79,9 @@ class GpuQuadtreeTracer final : public GpuBatchTracer, public GpuEffectTracer {
   void answerWave(const GpuEffectWave& wave) const override;
   void beginEffect() const override;
   GpuTracerSums effectSums() const override;
+  /// The buffer effectSums reads (six words: plane, box and occlusion sums, low and high each),
+  /// for a resident frame to copy with its counters.
+  const GpuBuffer& effectSumsBuffer() const { return nodeSums_; }
   /// The trees' shape, depth scale, nodes of each kind per level and GPU build time (the kind
   /// counts and the scale are read back on the first call); `nodes` stays empty.
   const Quadtree& summary() const;
@@ -85,10 +96,15 @@ class GpuQuadtreeTracer final : public GpuBatchTracer, public GpuEffectTracer {
 
  private:
   void setLevels(const GpuProgram& program) const;
+  /// The levels of a width × height × k tree, and its node buffers.
+  void shape(int width, int height, int k);
+  /// The depth scale and the trees from each slot's depth (`level0`: a resident frame's level 0)
+  /// and the counts.
+  void build(const GpuBuffer& depths, const GpuBuffer& counts, bool level0);
 
   GpuContext& gpu_;
   Camera camera_;
-  const LayerArrays& layers_;
+  const LayerArrays* layers_ = nullptr;  ///< the CPU's layers (null: a resident tree)
   mutable Quadtree summary_;  ///< levels and config at construction; scale and counts on first summary()
   mutable bool summaryRead_ = false;
   GpuBuffer depths_, counts_, nodes_, scale_, kinds_;

@@ -70,6 +70,10 @@ GpuFrameConfig residentConfig(const FrameOptions& options, const std::string& na
   fc.capture.growOnOverflow = options.pool == 0;
   fc.capture.frontFacesOnly = options.frontFacesOnly;
   if (isResidentSceneTracer(name)) return fc;  // (its structure: attachSceneTracer)
+  if (name == "quadtree") {
+    fc.quadtree = to.quadtree;
+    return fc;
+  }
   if (name == "ssr" || name == "ssr-layers") {
     fc.ssr = true;
     fc.ssrMarch = to.ssr;
@@ -143,7 +147,7 @@ bool rendersResident(const std::string& tracer, const Frame& frame, const Effect
 #if LAYERTRACE_HAS_GPU
   // (the grid's hits on alpha-tested triangles need the CPU grid's texel test: GpuGridTracer)
   const bool sceneTracer = isResidentSceneTracer(tracer) && !(tracer == "grid" && frame.scene.anyCutOut());
-  return (isGpuFrameTracer(tracer) || sceneTracer) && GpuEffects::supports(int(frame.lights.size())) && effect.effect != Effect::Warp;
+  return (isGpuFrameTracer(tracer) || sceneTracer || tracer == "quadtree") && GpuEffects::supports(int(frame.lights.size())) && effect.effect != Effect::Warp;
 #else
   (void)tracer, (void)frame, (void)effect;
   return false;
@@ -154,8 +158,8 @@ std::unique_ptr<GpuFrame> makeResidentFrame(GpuContext& gpu, const FrameOptions&
                                             const TracerOptions& tracers, const Scene* geometry) {
 #if LAYERTRACE_HAS_GPU
   const bool sceneTracer = isResidentSceneTracer(tracer) && !geometry;
-  if (!isGpuFrameTracer(tracer) && !sceneTracer)
-    inputError("tracer \"", tracer, "\": the resident GPU frame traces with hssr, hiz, exhaustive, ssr, ssr-layers, ldc or grid");
+  if (!isGpuFrameTracer(tracer) && !sceneTracer && tracer != "quadtree")
+    inputError("tracer \"", tracer, "\": the resident GPU frame traces with hssr, hiz, exhaustive, ssr, ssr-layers, quadtree, ldc or grid");
   if (!GpuEffects::supports(int(frame.lights.size())))
     inputError("--device gpu: ", frame.lights.size(), " lights, more than the GPU frame's ", GpuEffects::kMaxLights);
   validateTracerOptions(tracers);
@@ -187,6 +191,14 @@ ResidentRender renderResident(const FrameOptions& options, Frame& frame, const s
   const GpuEffectParams params = gpuEffectParams(frame, effect);
   const GpuFrameResult r = resident.render(frame.camera, fc.capture.layers, params, srgb8 ? GpuPicture::Srgb8 : GpuPicture::Float32);
   out.frameAccount = gpuFrameStats(before, gpuActivityReading(), msSince(t0), r.gpuMs());
+  if (const GpuQuadtreeTracer* q = resident.quadtree()) {
+    // The tree's statistics (its node kinds and depth scale: read after the frame's account)
+    BuiltTracer b;
+    b.quadtree = std::make_unique<Quadtree>(q->summary());
+    b.buildMs = b.quadtree->buildMs;
+    b.memoryBytes = q->memoryBytes();
+    out.structure = std::move(b);
+  }
   EffectResult& e = out.effect;
   if (srgb8) {
     out.srgb8.resize(r.srgb8.size() * 3);
@@ -200,6 +212,7 @@ ResidentRender renderResident(const FrameOptions& options, Frame& frame, const s
   e.giveUps = r.sums[5], e.bentRays = r.sums[6];
   for (int l = 0; l < RayCounters::kLevels; ++l) e.levelIterations[l] = r.sums[8 + size_t(l)];
   e.iterationsP99 = r.iterationsP99;
+  e.planeNodeSum = r.tracerSums.planeNodes, e.boxNodeSum = r.tracerSums.boxNodes, e.occlusionSum = r.tracerSums.occlusions;
   e.onDevice = true;
   e.traceMs = r.traceMs, e.shadeMs = r.shadeMs;
   e.deviceBytes = resident.effectBytes();
