@@ -1111,8 +1111,8 @@ TEST(CliGpu, BenchFrameCountsEveryFrameOnBothDevices) {
   // A tracer without a resident GPU frame, refused by name before anything is written.
   if (gpuBuilt()) {
     std::string err;
-    EXPECT_EQ(test::runCli("bench " + kDefault + " --experiment frame --device gpu --tracer quadtree --quiet -o " + (dir / "bad"), &err), 2);
-    EXPECT_NE(err.find("--tracer quadtree"), std::string::npos) << err;
+    EXPECT_EQ(test::runCli("bench " + kDefault + " --experiment frame --device gpu --tracer hybrid --quiet -o " + (dir / "bad"), &err), 2);
+    EXPECT_NE(err.find("--tracer hybrid"), std::string::npos) << err;
     EXPECT_FALSE(fs::exists(dir / "bad"));
   }
 }

@@ -7,6 +7,7 @@
 #include <cstring>
 #include <functional>
 #include <memory>
+#include <string>
 
 #include <gtest/gtest.h>
 
@@ -50,12 +51,14 @@ TEST(FrameSequence, OrbitStartsAtTheCameraAndKeepsItsDistanceAndHeight) {
 }
 
 /// `frames` frames of the default scene's reflections at W × H on `gpu` (null: the CPU).
-std::vector<FrameSample> defaultSceneFrames(int W, int H, int frames, GpuContext* gpu, std::function<void(int, const Image&)> onImage = {}) {
+std::vector<FrameSample> defaultSceneFrames(int W, int H, int frames, GpuContext* gpu, std::function<void(int, const Image&)> onImage = {},
+                                            const std::string& tracer = "hssr") {
   const FrameOptions fo = defaultSceneOptions(W, H);
   Frame frame;
   loadFrameScene(fo, frame);
   FrameSequenceConfig c;
   c.frames = frames;
+  c.tracer = tracer;
   c.onImage = std::move(onImage);
   return runFrameSequence(fo, frame, c, gpu);
 }
@@ -322,6 +325,21 @@ TEST_F(GpuFrameTest, TheQuadtreeAndTheTracersOfTheSceneTraceResidentFramesAsTheD
 }
 
 TEST_F(GpuFrameTest, TheFramesAfterTheFirstLinkAllocateAndUploadNothingAndWaitOnce) {
+  // The quad-tree and the tracers of the scene too (the quad-tree's block adds its six node-counter
+  // words).
+  for (const std::string tracer : {"quadtree", "ldc", "grid"}) {
+    SCOPED_TRACE(tracer);
+    const std::vector<FrameSample> s = defaultSceneFrames(160, 90, 3, gpu_.get(), {}, tracer);
+    ASSERT_EQ(s.size(), 3u);
+    for (size_t i = 1; i < s.size(); ++i) {
+      EXPECT_EQ(s[i].programLinks, 0u);
+      EXPECT_EQ(s[i].bufferAllocations, 0u);
+      EXPECT_LE(s[i].uploadBytes, 64u * 1024u);
+      EXPECT_EQ(s[i].hostWaits, 1u);
+      EXPECT_EQ(s[i].downloadBytes, tracer == "quadtree" ? 236u : 212u);
+      EXPECT_GT(s[i].rays, 160u * 90u / 4);
+    }
+  }
   const std::vector<FrameSample> s = defaultSceneFrames(160, 90, 4, gpu_.get());
   ASSERT_EQ(s.size(), 4u);
   EXPECT_GT(s[0].bufferAllocations, 0u);  // the first frame uploads the scene and allocates

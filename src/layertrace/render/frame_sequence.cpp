@@ -99,13 +99,10 @@ BuiltTracer attachSceneTracer(GpuContext& gpu, const Frame& frame, const std::st
 
 std::vector<FrameSample> runOnGpu(const FrameOptions& options, Frame& frame, const FrameSequenceConfig& c, GpuContext& gpu) {
   const std::string& name = c.tracer;
-  if (!isGpuFrameTracer(name))
+  if (!isGpuFrameTracer(name) && !isResidentSceneTracer(name) && name != "quadtree")
     inputError("--tracer ", name,
-               ": the resident GPU frame traces with hssr, hiz, exhaustive, ssr or ssr-layers (bench --experiment frame --device gpu)");
-  if (!GpuEffects::supports(int(frame.lights.size())))
-    inputError("--device gpu: ", frame.lights.size(), " lights, more than the GPU frame's ", GpuEffects::kMaxLights);
-  validateTracerOptions(c.tracers);
-  GpuFrameConfig fc = residentConfig(options, name, c.tracers);
+               ": the resident GPU frame traces with hssr, hiz, exhaustive, ssr, ssr-layers, quadtree, ldc or grid (bench --experiment frame "
+               "--device gpu)");
   EffectConfig ec = c.effect;
   ec.progress = false;
   const CameraDesc start = frame.camera.desc();
@@ -117,10 +114,11 @@ std::vector<FrameSample> runOnGpu(const FrameOptions& options, Frame& frame, con
     const GpuActivity before = gpuActivity();
     const auto t0 = std::chrono::steady_clock::now();
     viewFrame(options, start, i, frame);
-    fc.capture.layers = layerConfig(options, frame);
-    // The first frame uploads the scene and links the programs: it is counted with them.
-    if (!resident) resident = std::make_unique<GpuFrame>(gpu, frame.scene, frame.lights, fc);
-    const GpuFrameResult r = resident->render(frame.camera, fc.capture.layers, gpuEffectParams(frame, ec), c.onImage ? GpuPicture::Linear : GpuPicture::None);
+    const LayerConfig layers = layerConfig(options, frame);
+    // The first frame uploads the scene (and a tracer's structure of the scene) and links the
+    // programs: it is counted with them.
+    if (!resident) resident = makeResidentFrame(gpu, options, frame, name, c.tracers);
+    const GpuFrameResult r = resident->render(frame.camera, layers, gpuEffectParams(frame, ec), c.onImage ? GpuPicture::Linear : GpuPicture::None);
     s.wallMs = msSince(t0);
     const GpuActivity a = gpuActivity() - before;
     s.gpuMs = r.gpuMs();
@@ -158,6 +156,9 @@ std::unique_ptr<GpuFrame> makeResidentFrame(GpuContext& gpu, const FrameOptions&
                                             const TracerOptions& tracers, const Scene* geometry) {
 #if LAYERTRACE_HAS_GPU
   const bool sceneTracer = isResidentSceneTracer(tracer) && !geometry;
+  if (sceneTracer && tracer == "grid" && frame.scene.anyCutOut())
+    inputError("--tracer grid: the scene's alpha-tested triangles need the CPU grid's texel test, which the resident GPU frame "
+               "does not run (render --device gpu shades them on the CPU)");
   if (!isGpuFrameTracer(tracer) && !sceneTracer && tracer != "quadtree")
     inputError("tracer \"", tracer, "\": the resident GPU frame traces with hssr, hiz, exhaustive, ssr, ssr-layers, quadtree, ldc or grid");
   if (!GpuEffects::supports(int(frame.lights.size())))
