@@ -100,6 +100,8 @@ class GpuCapture {
   const GpuBuffer& positions() const;
   const GpuBuffer& normals() const;
   const GpuBuffer& triMaterial() const;
+  /// The scene's tables as uploaded (positions, normals, triangles, materials, textures).
+  const GpuSceneTables& sceneTables() const { return *sceneBuffers_; }
   /// The pool's fragments (lists).
   uint64_t poolCapacity() const { return capacity_; }
   int geometryPasses() const { return geometryPasses_; }

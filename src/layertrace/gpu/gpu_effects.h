@@ -29,6 +29,7 @@
 namespace lt {
 
 class GpuEffects;
+class GpuSceneTables;
 
 /// One wave of effect rays for a tracer to answer on the device (GpuEffectTracer::answerWave).
 struct GpuEffectWave {
@@ -70,6 +71,10 @@ class GpuEffectTracer {
   /// A tracer of the scene (its structure independent of the view: the cube, the grid) traced
   /// frame after frame (gpu_frame.h): the next frame's camera, whose space its rays are in.
   virtual void setEffectCamera(const Camera& camera);
+  /// The same scene's tables already on the device (a resident frame's capture), for a tracer
+  /// that reads them to read those rather than upload its own, until called with null (the
+  /// frame's end).
+  virtual void shareSceneTables(const GpuSceneTables* tables) { (void)tables; }
   /// Called by GpuEffects::run before its first wave: the tracer's own sums start from zero.
   virtual void beginEffect() const {}
   /// The tracer's own sums over the last run's rays (read from the device: a host wait).

@@ -51,6 +51,7 @@ void GpuFrame::create() {
     if (persistent_) tracer_->setPersistentThreads(*persistent_);
   }
   effects_ = std::make_unique<GpuEffects>(gpu_, scene, lights_);
+  if (config_.sceneTracer) config_.sceneTracer->shareSceneTables(&capture_->sceneTables());
   layersPass_ = &gpu_.computeProgram("frame_layers.comp", shader_source::frame_layers_comp);
   trianglesPass_ = &gpu_.computeProgram("frame_triangles.comp", shader_source::frame_triangles_comp);
   picturePass_ = &gpu_.computeProgram("frame_picture.comp", shader_source::frame_picture_comp);
@@ -67,6 +68,7 @@ void GpuFrame::create() {
 
 GpuFrame::~GpuFrame() {
   gpu_.makeCurrent();
+  if (config_.sceneTracer && capture_) config_.sceneTracer->shareSceneTables(nullptr);  // (the capture's go)
   effects_.reset(), tracer_.reset(), quadtree_.reset(), capture_.reset();  // before the buffers they read
 }
 

@@ -58,15 +58,25 @@ GpuGridTracer::GpuGridTracer(GpuContext& gpu, const Scene& scene, const Camera& 
 
 /// What answerWave reads of the scene, and its per-ray buffers (kept from wave to wave).
 struct GpuGridTracer::EffectTables {
-  EffectTables(GpuContext& gpu, const Scene& scene) : tables(gpu, scene) {
+  /// `shared`: the scene's tables already on the device (else uploaded here).
+  EffectTables(GpuContext& gpu, const Scene& scene, const GpuSceneTables* shared) {
+    if (!shared) own = std::make_unique<GpuSceneTables>(gpu, scene);
+    tables = shared ? shared : own.get();
     std::vector<uint32_t> words(scene.triMaterial.begin(), scene.triMaterial.end());
     for (const Material& m : scene.materials) words.push_back(packAlbedoSpec(m.albedo, m.specular));
     materials = GpuBuffer(std::max<size_t>(words.size(), 1) * sizeof(uint32_t), words.data());
   }
-  GpuSceneTables tables;
+  std::unique_ptr<GpuSceneTables> own;
+  const GpuSceneTables* tables = nullptr;
   GpuBuffer materials;  ///< shaders/geometry_hit.comp Materials: per triangle its material, then per material its packed colour
   GpuBuffer queries, answers;
 };
+
+void GpuGridTracer::shareSceneTables(const GpuSceneTables* tables) {
+  LT_CHECK(!tables || &tables->scene == &hits_.scene(), "the tables of the grid's own scene");
+  sharedTables_ = tables;
+  effectTables_.reset();  // (made again on the next wave, with the shared tables or its own)
+}
 
 void GpuGridTracer::setEffectCamera(const Camera& camera) {
   frameCamera_ = camera;
@@ -83,7 +93,7 @@ void GpuGridTracer::answerWave(const GpuEffectWave& w) const {
   if (w.n == 0) return;
   const Scene& scene = hits_.scene();
   const Camera& camera = hits_.camera();
-  if (!effectTables_) effectTables_ = std::make_unique<EffectTables>(gpu_, scene);
+  if (!effectTables_) effectTables_ = std::make_unique<EffectTables>(gpu_, scene, sharedTables_);
   EffectTables& e = *effectTables_;
   reserve(e.queries, w.n * sizeof(QueryRecord));
   reserve(e.answers, w.n * sizeof(AnswerRecord));
@@ -104,11 +114,11 @@ void GpuGridTracer::answerWave(const GpuEffectWave& w) const {
   e.answers.bindStorage(1);
   w.hits.bindStorage(2);
   w.records.bindStorage(3);
-  e.tables.positions.bindStorage(4);
-  e.tables.normals.bindStorage(5);
-  e.tables.indices.bindStorage(6);
+  e.tables->positions.bindStorage(4);
+  e.tables->normals.bindStorage(5);
+  e.tables->indices.bindStorage(6);
   e.materials.bindStorage(7);
-  e.tables.bindSurface(p);
+  e.tables->bindSurface(p);
   p.set("uRayCount", int(w.n));
   p.setMatrix("uView", &camera.view()[0][0]);
   p.setMatrix("uViewInverse", &camera.viewInverse()[0][0]);

@@ -70,6 +70,7 @@ class GpuGridTracer final : public GpuBatchTracer, public GeoHitQueries, public 
   const Camera& effectCamera() const override { return hits_.camera(); }
   GpuContext& context() const override { return gpu_; }
   void setEffectCamera(const Camera& camera) override;
+  void shareSceneTables(const GpuSceneTables* tables) override;
   bool effectsOnDevice() const override;
   void answerWave(const GpuEffectWave& wave) const override;
   /// GPU time of the last query's dispatch (timer query), milliseconds.
@@ -100,6 +101,7 @@ class GpuGridTracer final : public GpuBatchTracer, public GeoHitQueries, public 
   mutable std::unique_ptr<EffectTables> effectTables_;  ///< answerWave's scene tables and per-ray buffers
   mutable std::optional<bool> effectsOnDevice_;
   Camera frameCamera_;  ///< setEffectCamera's (the hits' camera from then on)
+  const GpuSceneTables* sharedTables_ = nullptr;  ///< shareSceneTables
   const IrregularGrid* cpu_;  ///< answers the rays an alpha-tested candidate stopped
   std::unique_ptr<GpuGridBuild> built_;
   GpuGridLayout layout_;
