@@ -536,9 +536,11 @@ int runBench(const BenchOptions& o) {
       p.step(cat(name, " stride ", stride, persistent ? " persistent" : ""));
       TracerOptions to = o.options;
       to.ssr.stride = stride;
-      if (gpu && isGpuFrameTracer(name)) {
+      if (gpu && (isGpuFrameTracer(name) || std::string_view(name) == "quadtree")) {
         // The resident frame: every stage on the device, nothing read back between them; its
-        // own capture's times (hierarchy: the layer arrays and the pyramid).
+        // own capture's times (hierarchy: the layer arrays and the pyramid, or the quad-tree
+        // built from them). The cube and the grid, structures of the scene built once, are
+        // timed below with their build.
         to.hssr.rayReloading = persistent;
         const ResidentStages r = measureResidentStages(o.run.frame, frame, name, to, ec, o.repeat, *gpu);
         t.rows.push_back({device, name, stride, persistent, r.rasterMs, r.sortMs, r.layersMs + r.pyramidMs, r.traceMs, r.shadeMs, "gpu",
