@@ -8,6 +8,7 @@ layout(local_size_x = 64) in;
 
 #include "ray_io.glsl"
 #include "glm_float.glsl"
+#include "geometric_ray.glsl"
 
 layout(std430, binding = 0) readonly buffer Rays { GpuRay rays[]; };
 layout(std430, binding = 1) writeonly buffer Queries { vec4 queries[]; };  // (origin, tnear), (direction, tfar)
@@ -22,8 +23,6 @@ void main() {
   if (i >= uint(uRayCount)) return;
   const GpuRay r = rays[i];
   const vec3 o = r.originMax.xyz;
-  // 1e-4 of the unit or of the origin's distance from the eye.
-  precise float offset = uintBitsToFloat(0x38D1B717u) * maxStd(uOffsetUnit, sqrt(dotStd(o, o)));
-  queries[2u * i] = vec4(transformPoint(uViewInverse, o), offset);
+  queries[2u * i] = vec4(transformPoint(uViewInverse, o), originOffset(o, uOffsetUnit));
   queries[2u * i + 1u] = vec4(transformDirection(uViewInverse, r.dirSurface.xyz), r.originMax.w);
 }

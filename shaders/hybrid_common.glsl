@@ -1,8 +1,8 @@
 // Shared by the hybrid tracer's passes on the GPU (hybrid_prepare, hybrid_check, hybrid_combine,
-// hybrid_resolve; gpu/gpu_hybrid.h), after ray_io.glsl, glm_float.glsl and screen_segment.glsl:
-// one ray's state between the passes and the twins of the CPU functions the hybrid's decisions
-// use (hybrid/hybrid_tracer.cpp, hybrid/known_space.cpp, screen/screen_segment.cpp), each
-// computing the CPU's floats in the CPU's order.
+// hybrid_resolve; gpu/gpu_hybrid.h), after ray_io.glsl, glm_float.glsl, screen_segment.glsl and
+// screen_camera.glsl: one ray's state between the passes and the twins of the CPU functions the
+// hybrid's decisions use (hybrid/hybrid_tracer.cpp, hybrid/known_space.cpp,
+// screen/screen_segment.cpp), each computing the CPU's floats in the CPU's order.
 
 // One ray's state (gpu/gpu_hybrid.cpp StateRecord), std430.
 struct HybridState {
@@ -30,32 +30,12 @@ const uint kFlagKnownMarch = 128u;  // rule 3's march ran (its counters count)
 // The hit window's stretch past its crossing, float(1 + 1e-5).
 #define kWindowStretch uintBitsToFloat(0x3F800054u)
 
-uniform float uPixelScale;  // Camera::pixelFootprint(1)
 // > 0: the screen half answers in world space (the layered depth cube: HybridTracer's
 // worldMargin): it knows all space, its hits are certified by windows this far either side.
 uniform float uWorldMargin;
 // The screen half's "nothing here" is not certain (HybridTracer's uncertainEmptySpace): a ray
 // without a certified hit goes to geometry from its origin, and a hit's window starts there.
 uniform bool uUncertain;
-
-// Camera::rayThrough.
-vec3 rayThrough(vec2 pixel) {
-  if (uOrtho) return vec3(0.0, 0.0, -1.0);
-  precise float x = (pixel.x - float(uWidth) * 0.5) * uPixelScale, y = (pixel.y - float(uHeight) * 0.5) * uPixelScale;
-  return vec3(x, negStd(y), -1.0);
-}
-
-// Camera::pixelOf.
-bool pixelOf(vec3 c, out int x, out int y) {
-  x = 0;
-  y = 0;
-  if (negStd(c.z) < uNear) return false;
-  const vec2 s = project(c);
-  if (!(s.x >= 0.0 && s.y >= 0.0 && s.x < float(uWidth) && s.y < float(uHeight))) return false;
-  x = int(s.x);
-  y = int(s.y);
-  return true;
-}
 
 // ScreenSegment::pixelParam.
 float pixelParam(Segment seg, float pixels) {  // (1e-6: float bits 0x358637BD)
@@ -104,13 +84,4 @@ vec2 rayParamsAroundPixel(vec3 o, vec3 d, float maxDistance, Segment seg, int x,
   const float m = pixelParam(seg, margin);
   precise float before = s.x - m;
   return vec2(rayParamAt(o, d, maxDistance, seg, clampStd(before, 0.0, 1.0)), paramAfter(o, d, maxDistance, seg, s.y, m));
-}
-
-// GeoHitQueries::segmentStart for a ray from world-space `origin` with origin offset `offset`:
-// 64 float epsilons (2^-17) of the largest coordinate before `from`.
-float segmentStart(float from, float offset, vec3 origin) {
-  const vec3 a = abs(origin);
-  precise float slack = uintBitsToFloat(0x37000000u) * (maxStd(maxStd(a.x, a.y), a.z) + from);
-  precise float start = from - slack;
-  return from > 0.0 ? maxStd(offset, start) : offset;
 }

@@ -8,6 +8,8 @@ layout(local_size_x = 64) in;
 #include "ray_io.glsl"
 #include "glm_float.glsl"
 #include "screen_segment.glsl"
+#include "screen_camera.glsl"
+#include "geometric_ray.glsl"
 #include "hybrid_common.glsl"
 
 layout(std430, binding = 0) readonly buffer Rays { GpuRay rays[]; };
@@ -34,9 +36,7 @@ void main() {
   HybridState st;
   st.origin = vec4(transformPoint(uViewInverse, o), 0.0);
   st.dir = vec4(transformDirection(uViewInverse, d), 0.0);
-  // GeometricHits::originOffset: 1e-4 of the unit or of the origin's distance from the eye.
-  precise float offset = uintBitsToFloat(0x38D1B717u) * maxStd(uOffsetUnit, sqrt(dotStd(o, o)));
-  st.origin.w = offset;
+  st.origin.w = originOffset(o, uOffsetUnit);
   // KnownSpace::boundaries and finish, without the rule-3 march (a world-space screen half
   // knows all space: no boundary).
   const bool world = uWorldMargin > 0.0;

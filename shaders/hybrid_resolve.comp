@@ -5,6 +5,7 @@ layout(local_size_x = 64) in;
 #include "ray_io.glsl"
 #include "glm_float.glsl"
 #include "screen_segment.glsl"
+#include "screen_camera.glsl"
 #include "hybrid_common.glsl"
 
 layout(std430, binding = 0) readonly buffer States { HybridState states[]; };

@@ -6,7 +6,9 @@
 layout(local_size_x = 64) in;
 
 #include "ray_io.glsl"
+#include "glm_float.glsl"
 #include "screen_segment.glsl"
+#include "screen_camera.glsl"
 
 struct QuadtreeExtra {  // gpu_quadtree.h GpuQuadtreeExtra
   float s;
@@ -22,7 +24,6 @@ layout(std430, binding = 5) buffer NodeSums { uint nodeSums[6]; };
 
 uniform int uFirst;  // the first invocation of this dispatch (GpuContext::dispatch)
 uniform int uRayCount;
-uniform float uPixelScale;  // 1 / focal
 
 void main() {
   const uint i = gl_GlobalInvocationID.x + uint(uFirst);
@@ -36,9 +37,6 @@ void main() {
   const float s = extra[i].s, scale = depthScale;
   precise vec2 at = seg.p0 + s * (seg.p1 - seg.p0);
   precise float w = scale * seg.k0 + s * (scale * (seg.k1 - seg.k0));
-  // scene/camera.h Camera::rayThrough.
-  precise vec3 through = vec3(0.0, 0.0, -1.0);
-  if (!uOrtho) through = vec3((at.x - float(uWidth) * 0.5) * uPixelScale, -((at.y - float(uHeight) * 0.5) * uPixelScale), -1.0);
-  precise vec3 p = through * (scale / w);
+  precise vec3 p = rayThrough(at) * (scale / w);
   records[i].point = vec4(p, 0.0);
 }
