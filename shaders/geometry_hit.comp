@@ -74,12 +74,14 @@ void main() {
     const vec3 n = crossStd(e1, e2);
     const float area = dotStd(n, n);
     vec3 normal = normalizeStd(n);
-    float u = 1.0, v = 0.0;  // the weights of the first and second vertex
+    precise float u = 1.0, v = 0.0;  // the weights of the first and second vertex
     if (area > 0.0) {
       precise vec3 cb = vc - vb, pb = pw - vb, ac = va - vc, pc = pw - vc;
-      precise float uu = dotStd(crossStd(cb, pb), n) / area, vv = dotStd(crossStd(ac, pc), n) / area;
-      u = uu, v = vv;
-      precise float third = 1.0 - u - v;
+      u = dotStd(crossStd(cb, pb), n) / area;
+      v = dotStd(crossStd(ac, pc), n) / area;
+    }
+    precise float third = 1.0 - u - v;  // the third vertex's
+    if (area > 0.0) {
       precise vec3 s = normalOf(t.x) * u + normalOf(t.y) * v + normalOf(t.z) * third;
       if (sqrt(dotStd(s, s)) > 0.0) normal = normalizeStd(s);
     }
@@ -96,7 +98,6 @@ void main() {
       const float nl = sqrt(dotStd(nc, nc)), vl = sqrt(dotStd(view, view));
       precise float cosine = nl > 0.0 && vl > 0.0 ? dotStd(nc, view) / (nl * vl) : 1.0;
       precise float footprint = (uOrtho ? uPixelScale : depth * uPixelScale) / maxStd(abs(cosine), 1.0 / 64.0);
-      precise float third = 1.0 - u - v;
       r.albedoSpec = surfaceAlbedoSpec(material, tri, t, vec2(clampUnit(v), clampUnit(third)), footprint);
     }
   }

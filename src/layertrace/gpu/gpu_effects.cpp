@@ -148,12 +148,15 @@ size_t GpuEffects::memoryBytes() const {
   return b;
 }
 
+namespace {
+/// `b` with room for `bytes`: grown when too small, shrunk only when more than four times too
+/// large (a frame's buffers stay from frame to frame).
+void fit(GpuBuffer& b, size_t bytes) {
+  if (b.bytes() < bytes || b.bytes() > 4 * std::max<size_t>(bytes, 16)) b = GpuBuffer(bytes);
+}
+}  // namespace
+
 void GpuEffects::resize(size_t pixelSlots, size_t chunkSlots, size_t raySlots) const {
-  // Grown when too small; shrunk only when more than four times too large (a frame's buffers
-  // stay from frame to frame).
-  auto fit = [](GpuBuffer& b, size_t bytes) {
-    if (b.bytes() < bytes || b.bytes() > 4 * std::max<size_t>(bytes, 16)) b = GpuBuffer(bytes);
-  };
   fit(rays_, raySlots * kRayBytes);
   fit(hits_, raySlots * kHitBytes);
   fit(effectRays_, raySlots * kEffectRayBytes);
@@ -207,7 +210,7 @@ GpuEffectOutput GpuEffects::run(const GpuEffectTracer& tracer, const GpuEffectPa
   LT_CHECK(raySlots <= size_t(65535) * 64, raySlots, p.chunkBytes);
   resize(pixelSlots, chunkSlots, raySlots);
   const GpuEffectTracer::Surfaces surfaces = tracer.surfaces();
-  if (surfaces != GpuEffectTracer::Surfaces::Fragments && records_.bytes() < raySlots * kRecordBytes) records_ = GpuBuffer(raySlots * kRecordBytes);
+  if (surfaces != GpuEffectTracer::Surfaces::Fragments) fit(records_, raySlots * kRecordBytes);
   tally_.fill(0u);
   tracer.beginEffect();
   setUniforms();

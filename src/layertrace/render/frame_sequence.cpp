@@ -21,6 +21,9 @@ namespace lt {
 
 namespace {
 
+/// The tracers of hasResidentFrame, for messages.
+constexpr const char* kResidentTracers = "hssr, hiz, exhaustive, ssr, ssr-layers, quadtree, ldc or grid";
+
 double msSince(std::chrono::steady_clock::time_point t0) {
   return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
 }
@@ -62,7 +65,7 @@ Image imageOf(const Camera& camera, const std::vector<glm::vec3>& rows) {
   return img;
 }
 
-/// The resident frame's configuration for the tracer `name` (isGpuFrameTracer).
+/// The resident frame's configuration for the tracer `name` (hasResidentFrame).
 GpuFrameConfig residentConfig(const FrameOptions& options, const std::string& name, const TracerOptions& to) {
   GpuFrameConfig fc;
   fc.capture.method = options.depthPeeling ? GpuCaptureMethod::Peel : GpuCaptureMethod::Lists;
@@ -99,10 +102,7 @@ BuiltTracer attachSceneTracer(GpuContext& gpu, const Frame& frame, const std::st
 
 std::vector<FrameSample> runOnGpu(const FrameOptions& options, Frame& frame, const FrameSequenceConfig& c, GpuContext& gpu) {
   const std::string& name = c.tracer;
-  if (!isGpuFrameTracer(name) && !isResidentSceneTracer(name) && name != "quadtree")
-    inputError("--tracer ", name,
-               ": the resident GPU frame traces with hssr, hiz, exhaustive, ssr, ssr-layers, quadtree, ldc or grid (bench --experiment frame "
-               "--device gpu)");
+  if (!hasResidentFrame(name)) inputError("--tracer ", name, ": the resident GPU frame traces with ", kResidentTracers, " (bench --experiment frame --device gpu)");
   EffectConfig ec = c.effect;
   ec.progress = false;
   const CameraDesc start = frame.camera.desc();
@@ -141,11 +141,13 @@ bool isGpuFrameTracer(const std::string& name) {
 
 bool isResidentSceneTracer(const std::string& tracer) { return tracer == "ldc" || tracer == "grid"; }
 
+bool hasResidentFrame(const std::string& tracer) { return isGpuFrameTracer(tracer) || tracer == "quadtree" || isResidentSceneTracer(tracer); }
+
 bool rendersResident(const std::string& tracer, const Frame& frame, const EffectConfig& effect) {
 #if LAYERTRACE_HAS_GPU
   // (the grid's hits on alpha-tested triangles need the CPU grid's texel test: GpuGridTracer)
-  const bool sceneTracer = isResidentSceneTracer(tracer) && !(tracer == "grid" && frame.scene.anyCutOut());
-  return (isGpuFrameTracer(tracer) || sceneTracer || tracer == "quadtree") && GpuEffects::supports(int(frame.lights.size())) && effect.effect != Effect::Warp;
+  return hasResidentFrame(tracer) && !(tracer == "grid" && frame.scene.anyCutOut()) && GpuEffects::supports(int(frame.lights.size())) &&
+         effect.effect != Effect::Warp;
 #else
   (void)tracer, (void)frame, (void)effect;
   return false;
@@ -155,12 +157,13 @@ bool rendersResident(const std::string& tracer, const Frame& frame, const Effect
 std::unique_ptr<GpuFrame> makeResidentFrame(GpuContext& gpu, const FrameOptions& options, const Frame& frame, const std::string& tracer,
                                             const TracerOptions& tracers, const Scene* geometry) {
 #if LAYERTRACE_HAS_GPU
-  const bool sceneTracer = isResidentSceneTracer(tracer) && !geometry;
-  if (sceneTracer && tracer == "grid" && frame.scene.anyCutOut())
+  if (!hasResidentFrame(tracer)) inputError("tracer \"", tracer, "\": the resident GPU frame traces with ", kResidentTracers);
+  const bool sceneTracer = isResidentSceneTracer(tracer);
+  if (sceneTracer && geometry)
+    inputError("tracer \"", tracer, "\": its structure is built from the scene, not from a caller's draw calls (use a screen tracer)");
+  if (tracer == "grid" && frame.scene.anyCutOut())
     inputError("--tracer grid: the scene's alpha-tested triangles need the CPU grid's texel test, which the resident GPU frame "
                "does not run (render --device gpu shades them on the CPU)");
-  if (!isGpuFrameTracer(tracer) && !sceneTracer && tracer != "quadtree")
-    inputError("tracer \"", tracer, "\": the resident GPU frame traces with hssr, hiz, exhaustive, ssr, ssr-layers, quadtree, ldc or grid");
   if (!GpuEffects::supports(int(frame.lights.size())))
     inputError("--device gpu: ", frame.lights.size(), " lights, more than the GPU frame's ", GpuEffects::kMaxLights);
   validateTracerOptions(tracers);

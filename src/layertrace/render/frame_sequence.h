@@ -78,10 +78,12 @@ struct ResidentRender {
 
 class GpuFrame;
 /// The resident frame (gpu/gpu_frame.h) of the loaded `frame`'s scene and lights for `tracer`
-/// (hssr, hiz, exhaustive, ssr or ssr-layers; InputError for another, or for more lights than the GPU passes
-/// hold) with `tracers`' parameters and `options`' capture. `geometry`, when given, is the scene
-/// the frame captures in place of `frame`'s (a caller's draw calls write its geometry on the
-/// device: GpuFrame::setGeometryPass). `frame` and `geometry` must outlive it.
+/// (hasResidentFrame; InputError for another, for the grid in a scene with alpha-tested
+/// triangles, or for more lights than the GPU passes hold) with `tracers`' parameters and
+/// `options`' capture; a tracer of the scene is built here, beside the frame. `geometry`, when
+/// given, is the scene the frame captures in place of `frame`'s (a caller's draw calls write its
+/// geometry on the device: GpuFrame::setGeometryPass; screen tracers only). `frame` and
+/// `geometry` must outlive it.
 std::unique_ptr<GpuFrame> makeResidentFrame(GpuContext& gpu, const FrameOptions& options, const Frame& frame, const std::string& tracer,
                                             const TracerOptions& tracers, const Scene* geometry = nullptr);
 
@@ -92,6 +94,9 @@ bool rendersResident(const std::string& tracer, const Frame& frame, const Effect
 /// Whether `tracer` traces the resident frame with a structure of the scene built once beside it
 /// (ldc, grid) rather than a march over the frame's own layers.
 bool isResidentSceneTracer(const std::string& tracer);
+/// Whether `tracer` has a resident GPU frame: a march over the frame's own layers
+/// (isGpuFrameTracer), the quad-tree built from them, or a tracer of the scene.
+bool hasResidentFrame(const std::string& tracer);
 /// Renders the loaded `frame` (loadFrameScene) as one resident GPU frame, then runs the effect
 /// `repeat` times more without counters for the timings. The picture comes back as 32-bit floats,
 /// or with `srgb8` as the 8-bit sRGB codes a PNG holds (encoded on the device, to the bit).
