@@ -21,9 +21,6 @@ namespace lt {
 
 namespace {
 
-/// The tracers of hasResidentFrame, for messages.
-constexpr const char* kResidentTracers = "hssr, hiz, exhaustive, ssr, ssr-layers, quadtree, ldc or grid";
-
 double msSince(std::chrono::steady_clock::time_point t0) {
   return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
 }
@@ -58,6 +55,9 @@ std::vector<FrameSample> runOnCpu(const FrameOptions& options, Frame& frame, con
 }
 
 #if LAYERTRACE_HAS_GPU
+/// The tracers of hasResidentFrame, for messages.
+constexpr const char* kResidentTracers = "hssr, hiz, exhaustive, ssr, ssr-layers, quadtree, ldc or grid";
+
 Image imageOf(const Camera& camera, const std::vector<glm::vec3>& rows) {
   Image img(camera.width(), camera.height());
   for (int y = 0; y < img.height; ++y)
